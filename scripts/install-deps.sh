@@ -1,0 +1,14 @@
+#!/usr/bin/env bash
+# Installs zerocal's build and test dependencies from Debian 12's packages.
+set -euo pipefail
+packages=(
+  build-essential cmake ninja-build pkg-config git
+  libeigen3-dev libceres-dev libboost-dev libyaml-cpp-dev nlohmann-json3-dev libcli11-dev
+  libspdlog-dev libfmt-dev libusb-1.0-0-dev
+  libgtest-dev libgmock-dev libbenchmark-dev umockdev libumockdev-dev
+)
+sudo=""
+[ "$(id -u)" -eq 0 ] || sudo="sudo"
+export DEBIAN_FRONTEND=noninteractive
+$sudo apt-get update -qq
+$sudo apt-get install -y -qq --no-install-recommends "${packages[@]}" >/dev/null

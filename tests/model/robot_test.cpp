@@ -1,0 +1,62 @@
+#include "zerocal/model/robot.h"
+
+#include <gtest/gtest.h>
+
+#include "zerocal/error.h"
+#include "zerocal/model/builtin.h"
+
+namespace zerocal {
+namespace {
+
+TEST(RobotFile, ShippedIrb1600Parses) {
+  const Robot r = builtinIrb1600();
+  EXPECT_EQ(r.name, "ABB IRB 1600-10/1.45");
+  EXPECT_DOUBLE_EQ(r.limits[2].lower_deg, -245);
+  EXPECT_DOUBLE_EQ(r.max_speed_deg_s[5], 460);
+}
+
+TEST(RobotFile, ReportsEveryProblemAtOnce) {
+  const std::string yaml = R"(
+joints:
+  - {a_mm: 150, alpha_deg: -90, d_mm: x, theta_offset_deg: 0, lower_deg: 10, upper_deg: -10, max_speed_deg_s: 180}
+  - {a_mm: 700, alpha_deg: 0, d_mm: 0, theta_offset_deg: -90, lower_deg: -90, upper_deg: 120, max_speed_deg_s: 0}
+  - {a_mm: 0, alpha_deg: -90, d_mm: 0, theta_offset_deg: 0, lower_deg: -245, upper_deg: 65, max_speed_deg_s: 185}
+  - {a_mm: 0, alpha_deg: 90, d_mm: 600, theta_offset_deg: 0, lower_deg: -200, upper_deg: 200, max_speed_deg_s: 385}
+  - {a_mm: 0, alpha_deg: -90, d_mm: 0, theta_offset_deg: 0, lower_deg: -115, upper_deg: 115}
+  - {a_mm: 0, alpha_deg: 0, d_mm: 65, theta_offset_deg: 180, lower_deg: -400, upper_deg: 400, max_speed_deg_s: 460, colour: red}
+)";
+  try {
+    parseRobot(yaml, "bad.yaml");
+    FAIL() << "expected ConfigError";
+  } catch (const ConfigError& e) {
+    const auto& p = e.problems();
+    auto has = [&](const std::string& s) {
+      for (const auto& x : p)
+        if (x.find(s) != std::string::npos) return true;
+      return false;
+    };
+    EXPECT_TRUE(has("missing 'name'"));
+    EXPECT_TRUE(has("joint 1: 'd_mm' is not a number"));
+    EXPECT_TRUE(has("joint 1: lower_deg must be below upper_deg"));
+    EXPECT_TRUE(has("joint 2: max_speed_deg_s must be positive"));
+    EXPECT_TRUE(has("joint 5: missing 'max_speed_deg_s'"));
+    EXPECT_TRUE(has("joint 6: unknown key 'colour'"));
+    EXPECT_EQ(p.size(), 6u);
+  }
+}
+
+TEST(RobotFile, WrongJointCountAndBadYaml) {
+  EXPECT_THROW(parseRobot("name: x\njoints: []\n", "a"), ConfigError);
+  EXPECT_THROW(parseRobot("name: [unclosed\n", "b"), ConfigError);
+  EXPECT_THROW(loadRobot("/nonexistent/robot.yaml"), ConfigError);
+}
+
+TEST(RobotFile, LimitViolationNamesTheJoint) {
+  const Robot r = builtinIrb1600();
+  EXPECT_TRUE(r.withinLimits(Joints{}));
+  EXPECT_EQ(r.limitViolation(Joints{0, 0, 70, 0, 0, 0}).rfind("joint 3 = 70", 0), 0u);
+  EXPECT_FALSE(r.withinLimits(Joints{0, 0, 63, 0, 0, 0}, 5.0));
+}
+
+}  // namespace
+}  // namespace zerocal

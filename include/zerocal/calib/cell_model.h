@@ -1,0 +1,61 @@
+// What the solver knows of the cell, and the unknowns it identifies.
+//
+// Unknowns (docs/maths.md): the joint offsets delta2..delta5 (radians inside the maths, degrees
+// in reports), the four laser parameters of LaserModel, and the target point c (the PSD centre,
+// base frame, mm) as a nuisance parameter. delta1 and delta6 are not identifiable by
+// construction and are held at zero.
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "zerocal/io/joint_set.h"
+#include "zerocal/model/laser.h"
+#include "zerocal/model/robot.h"
+
+namespace zerocal {
+
+constexpr int kOffsetCount = 4;                                  // delta2..delta5
+constexpr int kIdentifiedCount = kOffsetCount + kLaserParamCount;  // the paper's 8
+constexpr int kTargetCount = 3;
+constexpr int kUnknownCount = kIdentifiedCount + kTargetCount;    // with the target: 11
+constexpr int kMinimumPoses = 6;  // 2N residuals must exceed 11 unknowns
+
+struct CellModel {
+  Robot robot;
+  LaserModel laser;
+  // Orientation of the PSD in the base frame: columns are the PSD's u axis, v axis and normal.
+  // Used only for poses that carry a PSD reading (the hit-point model).
+  Eigen::Matrix3d psd_rotation = Eigen::Matrix3d::Identity();
+};
+
+struct CalibrationParameters {
+  Eigen::Vector4d delta_rad = Eigen::Vector4d::Zero();  // joints 2..5
+  Eigen::Vector4d laser = Eigen::Vector4d::Zero();      // LaserModel parameters
+  Eigen::Vector3d target_mm = Eigen::Vector3d::Zero();
+
+  // All six joint offsets in degrees (delta1 = delta6 = 0).
+  Joints offsetsDeg() const;
+};
+
+// "delta2_deg" .. "delta5_deg", then the laser names, then "target_x_mm" .. "target_z_mm".
+std::string unknownName(int i);
+
+// A laser line in the base frame: point and unit direction.
+struct Line {
+  Eigen::Vector3d point;
+  Eigen::Vector3d direction;
+};
+
+// The laser line in the base frame for controller joints q and the given parameters.
+Line laserLine(const CellModel& cell, const Joints& q_deg, const CalibrationParameters& params);
+
+// The point closest to a bundle of lines in the least-squares sense:
+// c* = (sum P_i)^-1 sum P_i p_i, P_i = I - d_i d_i^T. Needs two non-parallel lines.
+Eigen::Vector3d closestPointToLines(const std::vector<Line>& lines);
+
+// The point each pose's line must pass through: c, or c + R_psd (u, v, 0) with a reading.
+Eigen::Vector3d hitPointOffset(const CellModel& cell, const Pose& pose, bool use_readings);
+
+}  // namespace zerocal

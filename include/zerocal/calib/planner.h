@@ -1,0 +1,72 @@
+// Pose planning: joint sets that aim the laser at a nominal target, and the uncertainty they
+// will give, before any robot moves.
+#pragma once
+
+#include <Eigen/Core>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "zerocal/calib/cell_model.h"
+
+namespace zerocal {
+
+// Joints that put the nominal laser's point at `target - standoff * beam` with its direction
+// along `beam` (unit, pointing from laser to target), found by damped Gauss-Newton from `seed`
+// (minimum-norm steps, so the free roll about the beam stays near the seed's). With
+// `joint1_fixed`, joint 1 keeps the seed's value. Empty when it does not converge or ends
+// outside the limits less margin_deg.
+std::optional<Joints> aimLaser(const CellModel& cell, const Eigen::Vector3d& target,
+                               const Eigen::Vector3d& beam, double standoff_mm, const Joints& seed,
+                               double margin_deg, bool joint1_fixed = false);
+
+// Joints near `start` for which the line of the given (true) parameters passes through `point`:
+// what a perfect PSD servo would record. Minimum-norm steps over all six joints.
+std::optional<Joints> servoOnto(const CellModel& cell, const CalibrationParameters& params,
+                                const Eigen::Vector3d& point, const Joints& start);
+
+struct Prediction {
+  // One standard deviation per identified parameter (deg for offsets), NaN where not
+  // identifiable, for the given measurement sigma.
+  std::vector<double> sigma;
+  std::vector<bool> identifiable;
+  std::vector<std::string> reason;
+  double rms_offset_sigma_deg = 0;  // RMS over delta2..delta5 (infinite if any is not identifiable)
+  int rank = 0;
+  double condition_number = 0;
+};
+
+// The Cramer-Rao bound of the point-to-line model at the given poses, with the target as a
+// nuisance parameter (the 8 x 8 block of the 11 x 11 inverse information), for sigma_mm.
+Prediction predictUncertainty(const CellModel& cell, const std::vector<Pose>& poses,
+                              const CalibrationParameters& at, double sigma_mm);
+
+enum class Pattern { kI, kII, kMixed, kOptimal };
+// "I", "II", "mixed", "optimal" (case-insensitive for the roman numerals); throws InputError.
+Pattern parsePattern(const std::string& text);
+std::string patternName(Pattern p);
+
+struct PlanOptions {
+  Pattern pattern = Pattern::kOptimal;
+  int poses = 8;
+  double noise_mm = 0.05 / 1.7320508075688772;  // uniform +-0.05 mm
+  double standoff_min_mm = 300, standoff_max_mm = 800;
+  double margin_deg = 5;               // kept from every joint limit
+  double max_incidence_deg = 60;       // beam angle from the PSD normal
+  Eigen::Vector3d psd_normal = Eigen::Vector3d::UnitZ();  // the PSD faces up by default
+  double sweep_deg = 45;               // patterns I and II: beam tilt range, +-
+  bool joint1_fixed = false;           // pattern II only: hold joint 1 exactly constant
+  std::string validate() const;
+};
+
+struct Plan {
+  std::vector<Pose> poses;
+  Prediction prediction;
+  std::string description;
+  int candidates_considered = 0;
+};
+
+// Throws InputError when the options are invalid or too few reachable poses exist.
+Plan planPoses(const CellModel& cell, const Eigen::Vector3d& target, const PlanOptions& options);
+
+}  // namespace zerocal

@@ -1,0 +1,34 @@
+// The joint-set CSV: the poses of one calibration, as recorded or as planned.
+//
+//   # comment lines start with '#'; blank lines are skipped
+//   q1,q2,q3,q4,q5,q6[,u,v][,other columns ignored]
+//   10.00000,-5.25000,...
+//
+// q1..q6 are controller joint angles in degrees; u, v the PSD reading in mm when the pose was
+// recorded (optional, both or neither). Column order is free; the header names them.
+#pragma once
+
+#include <Eigen/Core>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "zerocal/model/robot.h"
+
+namespace zerocal {
+
+struct Pose {
+  Joints q_deg{};
+  std::optional<Eigen::Vector2d> psd_uv_mm;  // where the spot was on the PSD, if recorded
+  int source_line = 0;                       // 1-based line in the file, 0 when not from a file
+};
+
+// Throws InputError naming the line for: unreadable file, missing header or columns, non-numeric
+// or non-finite values, rows with too few fields, u without v.
+std::vector<Pose> readJointSet(const std::string& path);
+std::vector<Pose> parseJointSet(const std::string& text, const std::string& origin);
+
+// Writes q1..q6 with 5 decimals (the controller's precision) and u,v when every pose has them.
+std::string formatJointSet(const std::vector<Pose>& poses, const std::string& comment = {});
+
+}  // namespace zerocal

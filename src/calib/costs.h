@@ -1,0 +1,152 @@
+// Cost functors of the identification. Each is templated for Ceres' automatic differentiation
+// and checked with ceres::GradientChecker in tests/calib/costs_test.cpp.
+#pragma once
+
+#include <ceres/ceres.h>
+
+#include <vector>
+
+#include "zerocal/calib/cell_model.h"
+#include "zerocal/model/kinematics.h"
+
+namespace zerocal {
+
+// Laser line of one pose in the base frame, differentiable in the offsets and laser parameters.
+template <typename T>
+void laserLineInBase(const CellModel& cell, const double* q_rad, const T* delta, const T* kappa,
+                     Vec3<T>* point, Vec3<T>* direction) {
+  T joints[kJointCount] = {T(q_rad[0]),            T(q_rad[1]) + delta[0],
+                           T(q_rad[2]) + delta[1], T(q_rad[3]) + delta[2],
+                           T(q_rad[4]) + delta[3], T(q_rad[5])};
+  const Frame<T> flange = flangePose(cell.robot, joints);
+  Vec3<T> p, d;
+  cell.laser.line(kappa, &p, &d);
+  *point = flange.apply(p);
+  *direction = flange.R * d;
+}
+
+// Maximum likelihood, target explicit (point-to-line).
+//
+//   h_i = c + o_i                     o_i = R_psd (u_i, v_i, 0), or 0 without a reading
+//   w   = R_6(q_i, delta)^T (h_i - t_6(q_i, delta)) - p_E(kappa)    (in the flange frame)
+//   r_i = [ b1 . w ; b2 . w ] / sigma
+//
+// where b1, b2 span the plane normal to the laser direction d_E(kappa) (b1 = e1 made orthogonal
+// to d_E, b2 = d_E x b1, smooth near the nominal). r_i is the miss distance of the line from
+// the hit point, in units of the measurement sigma: 2 residuals per pose.
+class PointToLineCost {
+ public:
+  PointToLineCost(const CellModel& cell, const Joints& q_deg, const Eigen::Vector3d& hit_offset,
+                  double sigma_mm)
+      : cell_(cell), offset_(hit_offset), inv_sigma_(1.0 / sigma_mm) {
+    for (int i = 0; i < kJointCount; ++i) q_rad_[i] = q_deg[i] * kDegToRad;
+  }
+
+  template <typename T>
+  bool operator()(const T* delta, const T* kappa, const T* target, T* residual) const {
+    T joints[kJointCount] = {T(q_rad_[0]),            T(q_rad_[1]) + delta[0],
+                             T(q_rad_[2]) + delta[1], T(q_rad_[3]) + delta[2],
+                             T(q_rad_[4]) + delta[3], T(q_rad_[5])};
+    const Frame<T> flange = flangePose(cell_.robot, joints);
+    Vec3<T> p, d;
+    cell_.laser.line(kappa, &p, &d);
+    const Vec3<T> hit(target[0] + offset_[0], target[1] + offset_[1], target[2] + offset_[2]);
+    const Vec3<T> w = flange.R.transpose() * (hit - flange.p) - p;
+    const Vec3<T> e1 = cell_.laser.e1().cast<T>();
+    Vec3<T> b1 = e1 - e1.dot(d) * d;
+    b1 /= b1.norm();
+    const Vec3<T> b2 = d.cross(b1);
+    residual[0] = b1.dot(w) * inv_sigma_;
+    residual[1] = b2.dot(w) * inv_sigma_;
+    return true;
+  }
+
+  static ceres::CostFunction* create(const CellModel& cell, const Joints& q_deg,
+                                     const Eigen::Vector3d& hit_offset, double sigma_mm) {
+    return new ceres::AutoDiffCostFunction<PointToLineCost, 2, kOffsetCount, kLaserParamCount,
+                                           kTargetCount>(
+        new PointToLineCost(cell, q_deg, hit_offset, sigma_mm));
+  }
+
+ private:
+  const CellModel& cell_;
+  double q_rad_[kJointCount];
+  Eigen::Vector3d offset_;
+  double inv_sigma_;
+};
+
+// The paper's cost (eq. 6), kept for comparison. For every pair (i < j) of laser lines the
+// midpoint of their common perpendicular
+//
+//   s = (b e - d) / (1 - b^2),  t = (e - b d) / (1 - b^2),
+//   b = d_i.d_j,  d = d_i.(p_i - p_j),  e = d_j.(p_i - p_j)
+//   P_k = ((p_i + s d_i) + (p_j + t d_j)) / 2
+//
+// and the residuals P_k - mean_k(P_k), 3 per pair, scaled by 1/sigma. No target unknown.
+// Near-parallel pairs make 1 - b^2 small and dominate: the reason this is not the default.
+class PairwiseCost {
+ public:
+  PairwiseCost(const CellModel& cell, const std::vector<Pose>& poses, double sigma_mm)
+      : cell_(cell), inv_sigma_(1.0 / sigma_mm) {
+    for (const auto& pose : poses) {
+      std::array<double, kJointCount> q;
+      for (int i = 0; i < kJointCount; ++i) q[i] = pose.q_deg[i] * kDegToRad;
+      q_rad_.push_back(q);
+    }
+  }
+
+  int residualCount() const {
+    const int n = static_cast<int>(q_rad_.size());
+    return 3 * n * (n - 1) / 2;
+  }
+
+  template <typename T>
+  bool operator()(T const* const* params, T* residual) const {
+    const int n = static_cast<int>(q_rad_.size());
+    std::vector<Vec3<T>> p(n), d(n);
+    for (int i = 0; i < n; ++i)
+      laserLineInBase(cell_, q_rad_[i].data(), params[0], params[1], &p[i], &d[i]);
+    midpointResiduals(p, d, inv_sigma_, residual);
+    return true;
+  }
+
+  // The residuals for given base-frame lines (unit directions); also used to propagate the
+  // measurement noise through this estimator.
+  template <typename T>
+  static void midpointResiduals(const std::vector<Vec3<T>>& p, const std::vector<Vec3<T>>& d,
+                                double inv_sigma, T* residual) {
+    const int n = static_cast<int>(p.size());
+    Vec3<T> mean = Vec3<T>::Zero();
+    int k = 0;
+    for (int i = 0; i < n; ++i)
+      for (int j = i + 1; j < n; ++j, ++k) {
+        const Vec3<T> w0 = p[i] - p[j];
+        const T b = d[i].dot(d[j]), dd = d[i].dot(w0), e = d[j].dot(w0);
+        const T denom = T(1) - b * b;
+        const T s = (b * e - dd) / denom, t = (e - b * dd) / denom;
+        const Vec3<T> mid = T(0.5) * (p[i] + s * d[i] + p[j] + t * d[j]);
+        for (int c = 0; c < 3; ++c) residual[3 * k + c] = mid[c];
+        mean += mid;
+      }
+    mean /= T(k);
+    for (int m = 0; m < k; ++m)
+      for (int c = 0; c < 3; ++c) residual[3 * m + c] = (residual[3 * m + c] - mean[c]) * inv_sigma;
+  }
+
+  static ceres::CostFunction* create(const CellModel& cell, const std::vector<Pose>& poses,
+                                     double sigma_mm) {
+    auto* functor = new PairwiseCost(cell, poses, sigma_mm);
+    auto* cost = new ceres::DynamicAutoDiffCostFunction<PairwiseCost, kIdentifiedCount>(functor);
+    cost->AddParameterBlock(kOffsetCount);
+    cost->AddParameterBlock(kLaserParamCount);
+    cost->SetNumResiduals(functor->residualCount());
+    return cost;
+  }
+
+ private:
+  const CellModel& cell_;
+  std::vector<std::array<double, kJointCount>> q_rad_;
+  double inv_sigma_;
+};
+
+}  // namespace zerocal

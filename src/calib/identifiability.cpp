@@ -1,0 +1,199 @@
+#include "zerocal/calib/identifiability.h"
+
+#include <Eigen/SVD>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "costs.h"
+
+namespace zerocal {
+namespace {
+
+// Relative singular value below which a direction counts as numerically null.
+constexpr double kNullTolerance = 1e-8;
+
+// An uncertainty above these (for sigma = the measurement noise) means the poses do not
+// determine the unknown in any useful sense: larger than the offsets being sought.
+double determinedLimit(int k) {
+  if (k < kOffsetCount) return 0.5 * kDegToRad;  // rad
+  if (k < kOffsetCount + 2) return 0.05;         // slope
+  if (k < kIdentifiedCount) return 10.0;         // mm
+  return 50.0;                                   // target, mm
+}
+
+std::string readable(int k) {
+  if (k < kOffsetCount) return "delta" + std::to_string(k + 2);
+  if (k < kOffsetCount + 2) return "the laser direction";
+  if (k < kIdentifiedCount) return "the laser offset";
+  return "the target position";
+}
+
+std::string fmt(double v, int precision = 1) {
+  std::ostringstream s;
+  s.setf(std::ios::fixed);
+  s.precision(precision);
+  s << v;
+  return s.str();
+}
+
+}  // namespace
+
+std::string delta1Reason() {
+  return "not identifiable by construction: a change of delta1 turns every laser line rigidly "
+         "about the fixed joint-1 axis, which the unknown target position absorbs";
+}
+
+std::string delta6Reason() {
+  return "not identifiable by construction: a change of delta6 turns the laser about the flange "
+         "axis, which the laser-line parameters absorb";
+}
+
+Eigen::MatrixXd pointToLineJacobian(const CellModel& cell, const std::vector<Pose>& poses,
+                                    const CalibrationParameters& params, double sigma_mm,
+                                    bool use_readings) {
+  const int n = static_cast<int>(poses.size());
+  Eigen::MatrixXd jac(2 * n, kUnknownCount);
+  const double* blocks[3] = {params.delta_rad.data(), params.laser.data(),
+                             params.target_mm.data()};
+  Eigen::Matrix<double, 2, kOffsetCount, Eigen::RowMajor> jd;
+  Eigen::Matrix<double, 2, kLaserParamCount, Eigen::RowMajor> jl;
+  Eigen::Matrix<double, 2, kTargetCount, Eigen::RowMajor> jt;
+  double* jacobians[3] = {jd.data(), jl.data(), jt.data()};
+  double residual[2];
+  for (int i = 0; i < n; ++i) {
+    PointToLineCost functor(cell, poses[i].q_deg, hitPointOffset(cell, poses[i], use_readings),
+                            sigma_mm);
+    ceres::AutoDiffCostFunction<PointToLineCost, 2, kOffsetCount, kLaserParamCount, kTargetCount>
+        cost(&functor, ceres::DO_NOT_TAKE_OWNERSHIP);
+    cost.Evaluate(blocks, residual, jacobians);
+    jac.block(2 * i, 0, 2, kOffsetCount) = jd;
+    jac.block(2 * i, kOffsetCount, 2, kLaserParamCount) = jl;
+    jac.block(2 * i, kIdentifiedCount, 2, kTargetCount) = jt;
+  }
+  return jac;
+}
+
+std::vector<double> standoffs(const CellModel& cell, const std::vector<Pose>& poses,
+                              const CalibrationParameters& params) {
+  std::vector<double> out;
+  for (const auto& pose : poses) {
+    const Line l = laserLine(cell, pose.q_deg, params);
+    out.push_back(l.direction.dot(params.target_mm - l.point));
+  }
+  return out;
+}
+
+Identifiability analyseIdentifiability(const Eigen::MatrixXd& jacobian, const CellModel& cell,
+                                       const std::vector<Pose>& poses,
+                                       const CalibrationParameters& params, double sigma_mm) {
+  const int n = static_cast<int>(jacobian.cols());
+  Identifiability out;
+  out.identifiable.assign(n, true);
+  out.reason.assign(n, "");
+
+  // Column scaling makes the SVD speak of parameter directions, not units.
+  Eigen::VectorXd scale(n);
+  for (int k = 0; k < n; ++k) {
+    scale[k] = jacobian.col(k).norm();
+    if (!(scale[k] > 0)) scale[k] = 1;  // an all-zero column: null by itself
+  }
+  const Eigen::MatrixXd scaled = jacobian * scale.cwiseInverse().asDiagonal();
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd(scaled, Eigen::ComputeThinV);
+  const Eigen::VectorXd s = svd.singularValues();
+  const Eigen::MatrixXd v = svd.matrixV();
+  out.singular_values = s;
+  const double tol = kNullTolerance * std::max(s[0], 1e-300);
+  out.rank = 0;
+  for (int i = 0; i < s.size(); ++i) out.rank += s[i] > tol ? 1 : 0;
+  out.condition_number = out.rank == n ? s[0] / s[n - 1] : std::numeric_limits<double>::infinity();
+
+  // Unit-sigma covariance on the identifiable subspace (pseudo-inverse).
+  Eigen::MatrixXd cov_scaled = Eigen::MatrixXd::Zero(n, n);
+  for (int i = 0; i < out.rank; ++i) cov_scaled += v.col(i) * v.col(i).transpose() / (s[i] * s[i]);
+  out.unit_covariance = scale.cwiseInverse().asDiagonal() * cov_scaled * scale.cwiseInverse().asDiagonal();
+
+  // Context for the words.
+  double q1_min = 1e300, q1_max = -1e300, q5_abs_max = 0;
+  for (const auto& p : poses) {
+    q1_min = std::min(q1_min, p.q_deg[0]);
+    q1_max = std::max(q1_max, p.q_deg[0]);
+    q5_abs_max = std::max(q5_abs_max, std::abs(p.q_deg[4]));
+  }
+  const auto stand = standoffs(cell, poses, params);
+  const double s_min = *std::min_element(stand.begin(), stand.end());
+  const double s_max = *std::max_element(stand.begin(), stand.end());
+
+  for (int k = 0; k < n; ++k) {
+    // The null (or, failing that, the weakest) direction in which k takes part the most.
+    double null_weight = 0;
+    for (int i = out.rank; i < n; ++i) null_weight += v(k, i) * v(k, i);
+    null_weight = std::sqrt(null_weight);
+    const double sigma_k = sigma_mm * std::sqrt(std::max(0.0, out.unit_covariance(k, k)));
+    const bool in_null = null_weight > 1e-4;
+    const bool too_weak = !in_null && sigma_k > determinedLimit(k);
+    if (!in_null && !too_weak) continue;
+    out.identifiable[k] = false;
+
+    int dir = n - 1;
+    double best = -1;
+    const int first = in_null ? out.rank : 0;
+    for (int i = first; i < n; ++i) {
+      // weigh by 1/s so that the weakest directions carrying k are preferred
+      const double w = std::abs(v(k, i)) / (in_null ? 1.0 : s[i]);
+      if (w > best) best = w, dir = i;
+    }
+    std::vector<int> partners;
+    const double vmax = v.col(dir).cwiseAbs().maxCoeff();
+    for (int j = 0; j < n; ++j)
+      if (j != k && std::abs(v(j, dir)) > 0.2 * vmax) partners.push_back(j);
+    auto has = [&](int lo, int hi) {
+      for (int j : partners)
+        if (j >= lo && j < hi) return true;
+      return false;
+    };
+
+    std::string why;
+    const bool laser_k = k >= kOffsetCount && k < kIdentifiedCount;
+    if ((k == 0 || (k >= kIdentifiedCount && has(0, 1))) && q1_max - q1_min < 2.0) {
+      why = "joint 1 spans " + fmt(q1_max - q1_min) +
+            " deg over the poses: delta2 trades against the target position";
+    } else if ((laser_k || (k < kIdentifiedCount && has(kOffsetCount, kIdentifiedCount))) &&
+               s_max - s_min < std::max(5.0, 0.02 * s_max)) {
+      why = "stand-off distance is the same at every pose (" + fmt(s_min) + " to " + fmt(s_max) +
+            " mm): laser direction and offset trade";
+    } else if ((k == 2 || (laser_k && has(2, 3))) && q5_abs_max < 2.0) {
+      why = "joint 5 stays within " + fmt(q5_abs_max) +
+            " deg of zero at every pose: the joint-4 and joint-6 axes coincide, so delta4 "
+            "trades against the laser parameters";
+    } else {
+      why = readable(k) + " trades against ";
+      std::vector<std::string> names;
+      for (int j : partners) {
+        const std::string r = readable(j);
+        if (r != readable(k) && std::find(names.begin(), names.end(), r) == names.end())
+          names.push_back(r);
+      }
+      if (names.empty()) names.push_back("nothing else: no pose is sensitive to it");
+      for (std::size_t i = 0; i < names.size(); ++i)
+        why += (i ? (i + 1 == names.size() ? " and " : ", ") : "") + names[i];
+      why += " at these poses";
+    }
+    if (too_weak) {
+      const bool angle = k < kOffsetCount;
+      why += " (it is determined only to " +
+             fmt(angle ? sigma_k * kRadToDeg : sigma_k, 3) + (angle ? " deg" : "") +
+             ", one standard deviation)";
+    }
+    out.reason[k] = why;
+  }
+  for (int k = 0; k < n; ++k)
+    if (!out.identifiable[k])
+      for (int j = 0; j < n; ++j)
+        out.unit_covariance(k, j) = out.unit_covariance(j, k) =
+            std::numeric_limits<double>::quiet_NaN();
+  return out;
+}
+
+}  // namespace zerocal

@@ -1,0 +1,361 @@
+#include "zerocal/calib/planner.h"
+
+#include <ceres/jet.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "zerocal/calib/identifiability.h"
+#include "zerocal/error.h"
+#include "zerocal/model/kinematics.h"
+
+namespace zerocal {
+namespace {
+
+using Jet6 = ceres::Jet<double, kJointCount>;
+using Vector6d = Eigen::Matrix<double, 6, 1>;
+
+// Damped, minimum-norm Gauss-Newton on the joints: residual(q) -> (r, J) with J = dr/dq.
+// Steps are clamped so that a far seed walks rather than jumps between branches.
+template <int R, typename Residual>
+std::optional<Vector6d> minimumNormSolve(Vector6d q, const Residual& residual,
+                                         const std::array<bool, kJointCount>& frozen) {
+  constexpr double kMaxStep = 0.2;  // rad
+  for (int iter = 0; iter < 200; ++iter) {
+    Eigen::Matrix<double, R, 1> r;
+    Eigen::Matrix<double, R, kJointCount> jac;
+    residual(q, &r, &jac);
+    if (!r.allFinite()) return std::nullopt;
+    if (r.norm() < 1e-10) return q;
+    for (int j = 0; j < kJointCount; ++j)
+      if (frozen[j]) jac.col(j).setZero();
+    const Eigen::Matrix<double, R, R> jjt =
+        jac * jac.transpose() + 1e-9 * Eigen::Matrix<double, R, R>::Identity();
+    Vector6d step = -jac.transpose() * jjt.ldlt().solve(r);
+    const double big = step.cwiseAbs().maxCoeff();
+    if (big > kMaxStep) step *= kMaxStep / big;
+    q += step;
+  }
+  return std::nullopt;
+}
+
+Joints toDegrees(const Vector6d& q) {
+  Joints out;
+  for (int i = 0; i < kJointCount; ++i) out[i] = q[i] * kRadToDeg;
+  return out;
+}
+
+Vector6d toRadians(const Joints& q) {
+  Vector6d out;
+  for (int i = 0; i < kJointCount; ++i) out[i] = q[i] * kDegToRad;
+  return out;
+}
+
+// Frame of the flange with Jets: derivative of everything with respect to the six joints.
+Frame<Jet6> flangeJet(const CellModel& cell, const Vector6d& q_rad, const Joints& delta_deg) {
+  Jet6 joints[kJointCount];
+  for (int i = 0; i < kJointCount; ++i) joints[i] = Jet6(q_rad[i] + delta_deg[i] * kDegToRad, i);
+  return flangePose(cell.robot, joints);
+}
+
+}  // namespace
+
+std::optional<Joints> aimLaser(const CellModel& cell, const Eigen::Vector3d& target,
+                               const Eigen::Vector3d& beam, double standoff_mm, const Joints& seed,
+                               double margin_deg, bool joint1_fixed) {
+  const Eigen::Vector3d b = beam.normalized();
+  const Eigen::Vector3d origin = target - standoff_mm * b;
+  // Direction errors weigh as millimetres at this lever arm.
+  const double w = 500.0;
+  const double kappa[kLaserParamCount] = {0, 0, 0, 0};
+  Eigen::Vector3d p_e, d_e;
+  cell.laser.line(kappa, &p_e, &d_e);
+  auto residual = [&](const Vector6d& q, Eigen::Matrix<double, 6, 1>* r,
+                      Eigen::Matrix<double, 6, kJointCount>* jac) {
+    const Frame<Jet6> f = flangeJet(cell, q, Joints{});
+    const Vec3<Jet6> d = f.R * d_e.cast<Jet6>();
+    const Vec3<Jet6> p = f.apply(p_e.cast<Jet6>());
+    for (int k = 0; k < 3; ++k) {
+      const Jet6 rd = (d[k] - Jet6(b[k])) * w;
+      const Jet6 rp = p[k] - Jet6(origin[k]);
+      (*r)[k] = rd.a;
+      (*r)[3 + k] = rp.a;
+      jac->row(k) = rd.v.transpose();
+      jac->row(3 + k) = rp.v.transpose();
+    }
+  };
+  std::array<bool, kJointCount> frozen{};
+  frozen[0] = joint1_fixed;
+  const auto q = minimumNormSolve<6>(toRadians(seed), residual, frozen);
+  if (!q) return std::nullopt;
+  const Joints deg = toDegrees(*q);
+  if (!cell.robot.withinLimits(deg, margin_deg)) return std::nullopt;
+  return deg;
+}
+
+std::optional<Joints> servoOnto(const CellModel& cell, const CalibrationParameters& params,
+                                const Eigen::Vector3d& point, const Joints& start) {
+  Eigen::Vector3d p_e, d_e;
+  cell.laser.line(params.laser.data(), &p_e, &d_e);
+  const Joints delta = params.offsetsDeg();
+  auto residual = [&](const Vector6d& q, Eigen::Matrix<double, 3, 1>* r,
+                      Eigen::Matrix<double, 3, kJointCount>* jac) {
+    const Frame<Jet6> f = flangeJet(cell, q, delta);
+    const Vec3<Jet6> d = f.R * d_e.cast<Jet6>();
+    const Vec3<Jet6> w = point.cast<Jet6>() - f.apply(p_e.cast<Jet6>());
+    const Vec3<Jet6> miss = w - w.dot(d) * d;  // perpendicular miss of the line
+    for (int k = 0; k < 3; ++k) {
+      (*r)[k] = miss[k].a;
+      jac->row(k) = miss[k].v.transpose();
+    }
+  };
+  const auto q = minimumNormSolve<3>(toRadians(start), residual, {});
+  if (!q) return std::nullopt;
+  return toDegrees(*q);
+}
+
+Prediction predictUncertainty(const CellModel& cell, const std::vector<Pose>& poses,
+                              const CalibrationParameters& at, double sigma_mm) {
+  const Eigen::MatrixXd jac = pointToLineJacobian(cell, poses, at, sigma_mm, false);
+  const Identifiability id = analyseIdentifiability(jac, cell, poses, at, 1.0);
+  Prediction out;
+  out.rank = id.rank;
+  out.condition_number = id.condition_number;
+  double sum = 0;
+  for (int k = 0; k < kIdentifiedCount; ++k) {
+    const double unit = k < kOffsetCount ? kRadToDeg : 1.0;
+    out.sigma.push_back(std::sqrt(id.unit_covariance(k, k)) * unit);
+    out.identifiable.push_back(id.identifiable[k]);
+    out.reason.push_back(id.reason[k]);
+    if (k < kOffsetCount) sum += id.identifiable[k] ? out.sigma[k] * out.sigma[k] : INFINITY;
+  }
+  out.rms_offset_sigma_deg = std::sqrt(sum / kOffsetCount);
+  return out;
+}
+
+Pattern parsePattern(const std::string& text) {
+  std::string t = text;
+  std::transform(t.begin(), t.end(), t.begin(), ::tolower);
+  if (t == "i" || t == "1") return Pattern::kI;
+  if (t == "ii" || t == "2") return Pattern::kII;
+  if (t == "mixed") return Pattern::kMixed;
+  if (t == "optimal") return Pattern::kOptimal;
+  throw InputError("unknown pattern '" + text + "': use I, II, mixed or optimal");
+}
+
+std::string patternName(Pattern p) {
+  switch (p) {
+    case Pattern::kI: return "I";
+    case Pattern::kII: return "II";
+    case Pattern::kMixed: return "mixed";
+    case Pattern::kOptimal: return "optimal";
+  }
+  return "?";
+}
+
+std::string PlanOptions::validate() const {
+  std::ostringstream s;
+  if (poses < kMinimumPoses)
+    s << "at least " << kMinimumPoses << " poses are needed (8 or more recommended); ";
+  if (poses > 200) s << "more than 200 poses is not a calibration plan; ";
+  if (!(noise_mm > 0)) s << "the noise level must be positive; ";
+  if (!(standoff_min_mm > 0 && standoff_max_mm > standoff_min_mm))
+    s << "the stand-off range must be positive and increasing; ";
+  if (!(margin_deg >= 0)) s << "the joint-limit margin must not be negative; ";
+  if (!(max_incidence_deg > 0 && max_incidence_deg < 90))
+    s << "the largest incidence angle must lie between 0 and 90 deg; ";
+  if (!(sweep_deg > 0 && sweep_deg < 90)) s << "the sweep must lie between 0 and 90 deg; ";
+  if (!(psd_normal.norm() > 0.5)) s << "the PSD normal must be a non-zero vector; ";
+  std::string out = s.str();
+  if (!out.empty()) out.resize(out.size() - 2);
+  return out;
+}
+
+namespace {
+
+std::vector<Joints> seedsFor(const Eigen::Vector3d& target) {
+  const double q1 = std::atan2(target.y(), target.x()) * kRadToDeg;
+  std::vector<Joints> seeds;
+  for (double q5 : {45.0, -45.0})
+    for (double q4 : {0.0, 90.0, -90.0}) seeds.push_back({q1, 10, 0, q4, q5, 0});
+  return seeds;
+}
+
+std::optional<Joints> aimFromSeeds(const CellModel& cell, const Eigen::Vector3d& target,
+                                   const Eigen::Vector3d& beam, double standoff,
+                                   const PlanOptions& o) {
+  for (const Joints& seed : seedsFor(target))
+    if (auto q = aimLaser(cell, target, beam, standoff, seed, o.margin_deg,
+                          o.joint1_fixed && o.pattern == Pattern::kII))
+      return q;
+  return std::nullopt;
+}
+
+// Beams tilted about one base axis through the vertical, stand-offs spread over the range in
+// an order unrelated to the tilt (so that neither trap of docs/maths.md is walked into).
+std::vector<Pose> sweepPattern(const CellModel& cell, const Eigen::Vector3d& target, int n,
+                               const Eigen::Vector3d& axis, const PlanOptions& o) {
+  std::vector<Pose> poses;
+  for (int i = 0; i < n; ++i) {
+    const double phi = (-o.sweep_deg + 2 * o.sweep_deg * i / (n - 1)) * kDegToRad;
+    const Eigen::Vector3d beam = Eigen::AngleAxisd(phi, axis) * Eigen::Vector3d(0, 0, -1);
+    const double frac = n > 1 ? static_cast<double>((i * 3) % n) / (n - 1) : 0.5;
+    const double planned = o.standoff_min_mm + (o.standoff_max_mm - o.standoff_min_mm) * frac;
+    // Out of reach at the planned stand-off: try the others of the range, nearest first.
+    std::vector<double> tries{planned};
+    for (int k = 0; k <= 8; ++k)
+      tries.push_back(o.standoff_min_mm + (o.standoff_max_mm - o.standoff_min_mm) * k / 8);
+    std::stable_sort(tries.begin() + 1, tries.end(), [&](double a, double b) {
+      return std::abs(a - planned) < std::abs(b - planned);
+    });
+    for (double standoff : tries)
+      if (auto q = aimFromSeeds(cell, target, beam, standoff, o)) {
+        poses.push_back({*q, {}, 0});
+        break;
+      }
+  }
+  return poses;
+}
+
+// A-optimal selection of n poses from the candidates: minimise the summed variance of
+// delta2..delta5 with the laser and target as nuisance parameters. Greedy start, then
+// exchange passes (Fedorov) until no swap improves.
+std::vector<int> selectOptimal(const std::vector<Eigen::Matrix<double, kUnknownCount, kUnknownCount>>& info,
+                               int n) {
+  using Mat = Eigen::Matrix<double, kUnknownCount, kUnknownCount>;
+  auto criterion = [](const Mat& m) {
+    const Eigen::LDLT<Mat> ldlt(m);
+    if (ldlt.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
+    const Mat inv = ldlt.solve(Mat::Identity());
+    double t = 0;
+    for (int k = 0; k < kOffsetCount; ++k) t += inv(k, k);
+    return t > 0 && std::isfinite(t) ? t : std::numeric_limits<double>::infinity();
+  };
+  Mat ridge = Mat::Zero();
+  for (const auto& m : info) ridge += m;
+  ridge = 1e-9 * ridge.diagonal().mean() * Mat::Identity();
+  std::vector<int> chosen;
+  Mat total = ridge;
+  for (int slot = 0; slot < n; ++slot) {
+    int best = -1;
+    double best_value = std::numeric_limits<double>::infinity();
+    for (int c = 0; c < static_cast<int>(info.size()); ++c) {
+      if (std::find(chosen.begin(), chosen.end(), c) != chosen.end()) continue;
+      const double v = criterion(total + info[c]);
+      if (v < best_value) best_value = v, best = c;
+    }
+    if (best < 0) break;
+    chosen.push_back(best);
+    total += info[best];
+  }
+  for (int pass = 0; pass < 20; ++pass) {
+    bool improved = false;
+    double current = criterion(total);
+    for (int slot = 0; slot < static_cast<int>(chosen.size()); ++slot) {
+      const Mat without = total - info[chosen[slot]];
+      int best = -1;
+      double best_value = current * (1 - 1e-9);
+      for (int c = 0; c < static_cast<int>(info.size()); ++c) {
+        if (std::find(chosen.begin(), chosen.end(), c) != chosen.end()) continue;
+        const double v = criterion(without + info[c]);
+        if (v < best_value) best_value = v, best = c;
+      }
+      if (best >= 0) {
+        total = without + info[best];
+        chosen[slot] = best;
+        current = best_value;
+        improved = true;
+      }
+    }
+    if (!improved) break;
+  }
+  return chosen;
+}
+
+}  // namespace
+
+Plan planPoses(const CellModel& cell, const Eigen::Vector3d& target, const PlanOptions& o) {
+  if (const std::string problem = o.validate(); !problem.empty())
+    throw InputError("plan options: " + problem);
+  if (!target.allFinite()) throw InputError("the target point must be finite");
+  CalibrationParameters at;
+  at.target_mm = target;
+  Plan plan;
+  std::ostringstream what;
+  const Eigen::Vector3d normal = o.psd_normal.normalized();
+  switch (o.pattern) {
+    case Pattern::kI:
+      plan.poses = sweepPattern(cell, target, o.poses, Eigen::Vector3d::UnitX(), o);
+      what << "pattern I: beams tilted about the base x-axis, +-" << o.sweep_deg << " deg";
+      break;
+    case Pattern::kII:
+      plan.poses = sweepPattern(cell, target, o.poses, Eigen::Vector3d::UnitY(), o);
+      what << "pattern II: beams tilted about the base y-axis, +-" << o.sweep_deg << " deg"
+           << (o.joint1_fixed ? ", joint 1 held constant" : "");
+      break;
+    case Pattern::kMixed: {
+      plan.poses = sweepPattern(cell, target, o.poses / 2, Eigen::Vector3d::UnitX(), o);
+      auto second = sweepPattern(cell, target, o.poses - o.poses / 2, Eigen::Vector3d::UnitY(), o);
+      plan.poses.insert(plan.poses.end(), second.begin(), second.end());
+      what << "mixed: " << o.poses / 2 << " poses of pattern I, " << o.poses - o.poses / 2
+           << " of pattern II";
+      break;
+    }
+    case Pattern::kOptimal: {
+      // Candidates: beams within the incidence cone about the PSD normal, stand-offs across
+      // the range, wrist configurations from several seeds.
+      const Eigen::Vector3d u = normal.unitOrthogonal(), v = normal.cross(u);
+      std::vector<Pose> candidates;
+      for (double tilt = 0; tilt <= o.max_incidence_deg + 1e-9; tilt += o.max_incidence_deg / 4)
+        for (double az = 0; az < 360 - 1e-9; az += tilt == 0 ? 360 : 30) {
+          const double t = tilt * kDegToRad, a = az * kDegToRad;
+          const Eigen::Vector3d toward_laser =
+              std::cos(t) * normal + std::sin(t) * (std::cos(a) * u + std::sin(a) * v);
+          for (int k = 0; k < 4; ++k) {
+            const double s = o.standoff_min_mm + (o.standoff_max_mm - o.standoff_min_mm) * k / 3;
+            for (const Joints& seed : seedsFor(target)) {
+              const auto q = aimLaser(cell, target, -toward_laser, s, seed, o.margin_deg);
+              if (!q) continue;
+              bool duplicate = false;
+              for (const auto& c : candidates) {
+                double d = 0;
+                for (int j = 0; j < kJointCount; ++j) d = std::max(d, std::abs(c.q_deg[j] - (*q)[j]));
+                duplicate = duplicate || d < 1.0;
+              }
+              if (!duplicate) candidates.push_back({*q, {}, 0});
+            }
+          }
+        }
+      plan.candidates_considered = static_cast<int>(candidates.size());
+      if (static_cast<int>(candidates.size()) < o.poses)
+        throw InputError("only " + std::to_string(candidates.size()) +
+                         " reachable poses aim at the target; " + std::to_string(o.poses) +
+                         " were asked for (move the target or widen the stand-off range)");
+      const Eigen::MatrixXd jac = pointToLineJacobian(cell, candidates, at, o.noise_mm, false);
+      std::vector<Eigen::Matrix<double, kUnknownCount, kUnknownCount>> info;
+      for (std::size_t i = 0; i < candidates.size(); ++i) {
+        const auto rows = jac.middleRows<2>(2 * i);
+        info.push_back(rows.transpose() * rows);
+      }
+      for (int idx : selectOptimal(info, o.poses)) plan.poses.push_back(candidates[idx]);
+      what << "optimal: the " << o.poses << " of " << candidates.size()
+           << " reachable candidate poses that minimise the predicted variance of "
+              "delta2..delta5";
+      break;
+    }
+  }
+  if (static_cast<int>(plan.poses.size()) < o.poses)
+    throw InputError("only " + std::to_string(plan.poses.size()) + " of the " +
+                     std::to_string(o.poses) + " poses of " + patternName(o.pattern) +
+                     " are reachable inside the joint limits (less a " +
+                     std::to_string(o.margin_deg) + " deg margin); move the target or change " +
+                     "the stand-off range or sweep");
+  plan.prediction = predictUncertainty(cell, plan.poses, at, o.noise_mm);
+  plan.description = what.str();
+  return plan;
+}
+
+}  // namespace zerocal

@@ -1,0 +1,286 @@
+// zerocal: the calibration engine on the command line (solve, plan, experiment, sensitivity).
+// Exit codes: 0 done; 1 unexpected failure; 2 bad input or usage; 3 the solver did not
+// converge; 4 solved, but some of delta2..delta5 are not identifiable from the poses.
+#include <CLI/CLI.hpp>
+#include <Eigen/Geometry>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+
+#include "report_format.h"
+#include "zerocal/calib/experiment.h"
+#include "zerocal/calib/planner.h"
+#include "zerocal/calib/sensitivity.h"
+#include "zerocal/calib/solver.h"
+#include "zerocal/error.h"
+#include "zerocal/io/joint_set.h"
+#include "zerocal/model/builtin.h"
+
+namespace zerocal {
+namespace {
+
+enum ExitCode { kOk = 0, kFailure = 1, kBadInput = 2, kNotConverged = 3, kNotIdentifiable = 4 };
+
+struct CellArgs {
+  std::string robot;
+  std::vector<double> laser_direction{1, 0, 0};
+  std::vector<double> laser_point{0, 0, 0};
+
+  void add(CLI::App* app) {
+    app->add_option("--robot", robot,
+                    "robot model YAML (e.g. config/robots/irb1600-10-145.yaml), or 'builtin' "
+                    "for the compiled-in IRB 1600-10/1.45")
+        ->required();
+    app->add_option("--laser-direction", laser_direction,
+                    "nominal laser direction in the flange frame (default: flange x, 1 0 0)")
+        ->expected(3);
+    app->add_option("--laser-point", laser_point,
+                    "nominal laser point in the flange frame, mm (default: flange origin)")
+        ->expected(3);
+  }
+  CellModel cell() const {
+    Robot r = robot == "builtin" ? builtinIrb1600() : loadRobot(robot);
+    return CellModel{std::move(r),
+                     LaserModel(Eigen::Vector3d(laser_direction.data()),
+                                Eigen::Vector3d(laser_point.data())),
+                     Eigen::Matrix3d::Identity()};
+  }
+};
+
+Eigen::Matrix3d fromRpyDeg(const std::vector<double>& rpy) {
+  return (Eigen::AngleAxisd(rpy[2] * kDegToRad, Eigen::Vector3d::UnitZ()) *
+          Eigen::AngleAxisd(rpy[1] * kDegToRad, Eigen::Vector3d::UnitY()) *
+          Eigen::AngleAxisd(rpy[0] * kDegToRad, Eigen::Vector3d::UnitX()))
+      .toRotationMatrix();
+}
+
+void emit(const nlohmann::json& j) { std::cout << j.dump(2) << "\n"; }
+
+}  // namespace
+}  // namespace zerocal
+
+int main(int argc, char** argv) {
+  using namespace zerocal;
+  CLI::App app{
+      "zerocal: joint zero-offset calibration of a 6R robot from laser lines aimed at one point "
+      "(a PSD). Identifies delta2..delta5 and the laser line, with their uncertainty."};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", std::string(PROJECT_VERSION));
+
+  // solve
+  auto* solve_cmd = app.add_subcommand("solve", "identify the offsets from a recorded joint set");
+  CellArgs solve_cell;
+  solve_cell.add(solve_cmd);
+  std::string joints_file, cost = "ml", loss = "none";
+  std::optional<double> noise;
+  std::vector<double> psd_rpy;
+  bool ignore_readings = false, solve_json = false;
+  double loss_scale = 3.0;
+  solve_cmd->add_option("--joints", joints_file, "joint-set CSV: q1..q6 in deg, optional u,v in mm")
+      ->required();
+  solve_cmd->add_option("--cost", cost, "ml (maximum likelihood, default) or pairwise (paper eq. 6)")
+      ->check(CLI::IsMember({"ml", "pairwise"}));
+  solve_cmd->add_option("--noise", noise,
+                        "measurement sigma in mm (line miss per axis); when absent it is "
+                        "estimated from the residuals");
+  solve_cmd->add_option("--psd-rpy", psd_rpy,
+                        "PSD orientation in the base frame, roll pitch yaw in deg (needed when "
+                        "the joint set has u,v readings)")
+      ->expected(3);
+  solve_cmd->add_flag("--ignore-readings", ignore_readings,
+                      "ignore u,v columns: assume every pose hit the PSD centre");
+  solve_cmd->add_option("--loss", loss, "robust loss: none (default), huber or cauchy")
+      ->check(CLI::IsMember({"none", "huber", "cauchy"}));
+  solve_cmd->add_option("--loss-scale", loss_scale, "where the robust loss bends, in noise sigmas");
+  solve_cmd->add_flag("--json", solve_json, "print one JSON object instead of text");
+
+  // plan
+  auto* plan_cmd = app.add_subcommand("plan", "plan poses and predict their uncertainty");
+  CellArgs plan_cell;
+  plan_cell.add(plan_cmd);
+  std::vector<double> target;
+  std::string pattern = "optimal", out_file;
+  PlanOptions plan_options;
+  std::vector<double> standoff{plan_options.standoff_min_mm, plan_options.standoff_max_mm};
+  std::vector<double> psd_normal{0, 0, 1};
+  bool plan_json = false;
+  double plan_noise = 0.05 / std::sqrt(3.0);
+  plan_cmd->add_option("--target", target, "nominal target (PSD centre) in the base frame, mm")
+      ->expected(3)
+      ->required();
+  plan_cmd->add_option("--poses", plan_options.poses, "number of poses")->required();
+  plan_cmd->add_option("--pattern", pattern, "I, II, mixed or optimal (default)");
+  plan_cmd->add_option("--noise", plan_noise, "measurement sigma in mm for the prediction")
+      ->default_val(plan_noise);
+  plan_cmd->add_option("--standoff", standoff, "stand-off range MIN MAX in mm")->expected(2);
+  plan_cmd->add_option("--margin", plan_options.margin_deg, "kept from every joint limit, deg")
+      ->default_val(plan_options.margin_deg);
+  plan_cmd->add_option("--max-incidence", plan_options.max_incidence_deg,
+                       "largest beam angle from the PSD normal, deg (optimal)")
+      ->default_val(plan_options.max_incidence_deg);
+  plan_cmd->add_option("--sweep", plan_options.sweep_deg, "beam tilt range +-deg (patterns)")
+      ->default_val(plan_options.sweep_deg);
+  plan_cmd->add_option("--psd-normal", psd_normal, "PSD normal in the base frame (default up)")
+      ->expected(3);
+  plan_cmd->add_flag("--joint1-fixed", plan_options.joint1_fixed,
+                     "pattern II: hold joint 1 exactly constant (to show the failure)");
+  plan_cmd->add_option("--out", out_file, "write the joint targets as a joint-set CSV");
+  plan_cmd->add_flag("--json", plan_json, "print one JSON object instead of text");
+
+  // experiment
+  auto* exp_cmd = app.add_subcommand("experiment", "reproduce the paper's experiments");
+  auto* table2_cmd = exp_cmd->add_subcommand(
+      "table2", "Monte Carlo of Table II: patterns I, II and optimal with both costs, against "
+                "the Cramer-Rao bound and the paper's figures");
+  exp_cmd->require_subcommand(1);
+  ExperimentOptions exp_options;
+  bool exp_json = false;
+  table2_cmd->add_option("--repeats", exp_options.repeats, "Monte Carlo repeats")
+      ->default_val(exp_options.repeats)
+      ->check(CLI::Range(2, 1000000));
+  table2_cmd->add_option("--seed", exp_options.seed, "random seed")->default_val(exp_options.seed);
+  table2_cmd->add_flag("--json", exp_json, "print one JSON object instead of text");
+
+  // sensitivity
+  auto* sens_cmd = app.add_subcommand(
+      "sensitivity", "spot displacement on the PSD per small change of each joint");
+  CellArgs sens_cell;
+  sens_cell.add(sens_cmd);
+  std::vector<double> sens_joints;
+  double sens_standoff = 600;
+  bool sens_json = false;
+  sens_cmd->add_option("--joints", sens_joints, "configuration Q1 .. Q6 in deg")
+      ->expected(6)
+      ->required();
+  sens_cmd->add_option("--standoff", sens_standoff, "laser to PSD distance, mm")->required();
+  sens_cmd->add_flag("--json", sens_json, "print JSON instead of text");
+
+  // simulate
+  auto* sim_cmd = app.add_subcommand(
+      "simulate", "record a planned joint set on a simulated robot with known offsets");
+  CellArgs sim_cell;
+  sim_cell.add(sim_cmd);
+  std::string plan_file;
+  std::vector<double> true_offsets, sim_target;
+  double sim_half_width = 0.05;
+  std::uint64_t sim_seed = 1;
+  sim_cmd->add_option("--plan", plan_file, "planned joint-set CSV (from zerocal plan --out)")
+      ->required();
+  sim_cmd->add_option("--offsets", true_offsets, "true delta2..delta5 in deg")
+      ->expected(4)
+      ->required();
+  sim_cmd->add_option("--target", sim_target, "true target point in the base frame, mm")
+      ->expected(3)
+      ->required();
+  sim_cmd->add_option("--error", sim_half_width,
+                      "localisation error, uniform within +-MM on each axis")
+      ->default_val(sim_half_width);
+  sim_cmd->add_option("--seed", sim_seed, "random seed")->default_val(sim_seed);
+
+  CLI11_PARSE(app, argc, argv);
+
+  try {
+    if (solve_cmd->parsed()) {
+      CellModel cell = solve_cell.cell();
+      const auto poses = readJointSet(joints_file);
+      SolveOptions options;
+      options.cost = cost == "ml" ? CostKind::kMaximumLikelihood : CostKind::kPairwise;
+      options.noise_mm = noise;
+      options.loss = loss == "huber"    ? RobustLoss::kHuber
+                     : loss == "cauchy" ? RobustLoss::kCauchy
+                                        : RobustLoss::kNone;
+      options.loss_scale_sigmas = loss_scale;
+      bool has_readings = !poses.empty() && poses.front().psd_uv_mm.has_value();
+      options.use_readings = has_readings && !ignore_readings;
+      if (options.use_readings) {
+        if (psd_rpy.empty())
+          throw InputError(joints_file +
+                           ": the joint set carries PSD readings u,v; give the PSD orientation "
+                           "with --psd-rpy R P Y, or --ignore-readings");
+        cell.psd_rotation = fromRpyDeg(psd_rpy);
+      }
+      const SolveReport report = solve(cell, poses, options);
+      if (solve_json)
+        emit(toJson(report));
+      else
+        std::cout << toText(report);
+      if (!report.converged) return kNotConverged;
+      for (int k = 0; k < kOffsetCount; ++k)
+        if (!report.parameters[k].identifiable) return kNotIdentifiable;
+      return kOk;
+    }
+    if (plan_cmd->parsed()) {
+      const CellModel cell = plan_cell.cell();
+      plan_options.pattern = parsePattern(pattern);
+      plan_options.noise_mm = plan_noise;
+      plan_options.standoff_min_mm = standoff[0];
+      plan_options.standoff_max_mm = standoff[1];
+      plan_options.psd_normal = Eigen::Vector3d(psd_normal.data());
+      const Plan plan = planPoses(cell, Eigen::Vector3d(target.data()), plan_options);
+      if (!out_file.empty()) {
+        std::ofstream out(out_file);
+        out << formatJointSet(plan.poses, "zerocal plan: " + plan.description + "\nrobot: " +
+                                              cell.robot.name);
+        if (!out) throw InputError(out_file + ": cannot write the plan");
+      }
+      if (plan_json) {
+        emit(toJson(plan));
+      } else {
+        std::cout << toText(plan);
+        if (out_file.empty()) std::cout << "\n" << formatJointSet(plan.poses);
+      }
+      for (int k = 0; k < kOffsetCount; ++k)
+        if (!plan.prediction.identifiable[k]) return kNotIdentifiable;
+      return kOk;
+    }
+    if (table2_cmd->parsed()) {
+      const auto results = runTable2(exp_options);
+      if (exp_json)
+        emit(toJson(results, exp_options));
+      else
+        std::cout << toText(results, exp_options);
+      return kOk;
+    }
+    if (sim_cmd->parsed()) {
+      const CellModel cell = sim_cell.cell();
+      CalibrationParameters truth;
+      truth.delta_rad = Eigen::Vector4d(true_offsets.data()) * kDegToRad;
+      truth.target_mm = Eigen::Vector3d(sim_target.data());
+      if (!(sim_half_width >= 0)) throw InputError("the localisation error must not be negative");
+      std::mt19937_64 rng(sim_seed);
+      const auto recorded =
+          simulateRecording(cell, truth, readJointSet(plan_file), sim_half_width, rng);
+      std::ostringstream comment;
+      comment << "zerocal simulate: " << cell.robot.name << ", true offsets "
+              << true_offsets[0] << " " << true_offsets[1] << " " << true_offsets[2] << " "
+              << true_offsets[3] << " deg, target " << sim_target[0] << " " << sim_target[1]
+              << " " << sim_target[2] << " mm, error +-" << sim_half_width << " mm, seed "
+              << sim_seed;
+      std::cout << formatJointSet(recorded, comment.str());
+      return kOk;
+    }
+    if (sens_cmd->parsed()) {
+      const CellModel cell = sens_cell.cell();
+      Joints q;
+      std::copy(sens_joints.begin(), sens_joints.end(), q.begin());
+      if (const auto v = cell.robot.limitViolation(q); !v.empty()) throw InputError(v);
+      if (!(sens_standoff > 0)) throw InputError("the stand-off must be positive");
+      const auto s = spotSensitivity(cell, q, sens_standoff);
+      if (sens_json)
+        emit(toJson(s));
+      else
+        std::cout << toText(s);
+      return kOk;
+    }
+  } catch (const ConfigError& e) {
+    std::cerr << "zerocal: " << e.what() << "\n";
+    return kBadInput;
+  } catch (const InputError& e) {
+    std::cerr << "zerocal: " << e.what() << "\n";
+    return kBadInput;
+  } catch (const std::exception& e) {
+    std::cerr << "zerocal: unexpected failure: " << e.what() << "\n";
+    return kFailure;
+  }
+  return kFailure;
+}

@@ -1,0 +1,248 @@
+#include "report_format.h"
+
+#include <cmath>
+#include <cstdarg>
+#include <cstdio>
+#include <sstream>
+
+namespace zerocal {
+namespace {
+
+// JSON has no NaN or infinity: an unknown number is null.
+nlohmann::json number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
+
+std::string printf(const char* format, ...) __attribute__((format(printf, 1, 2)));
+std::string printf(const char* format, ...) {
+  char buf[512];
+  va_list args;
+  va_start(args, format);
+  std::vsnprintf(buf, sizeof buf, format, args);
+  va_end(args);
+  return buf;
+}
+
+}  // namespace
+
+std::string costName(CostKind cost) {
+  return cost == CostKind::kMaximumLikelihood ? "ml" : "pairwise";
+}
+
+nlohmann::json toJson(const SolveReport& r) {
+  nlohmann::json j;
+  j["converged"] = r.converged;
+  j["message"] = r.message;
+  j["cost"] = costName(r.cost);
+  j["model"] = r.used_readings ? "hit-point" : "point-to-line";
+  j["poses"] = r.pose_count;
+  nlohmann::json params = nlohmann::json::object();
+  for (const auto& p : r.parameters) {
+    nlohmann::json e;
+    e["identifiable"] = p.identifiable;
+    e["value"] = p.identifiable ? number(p.value) : nlohmann::json();
+    e["sigma"] = p.identifiable ? number(p.sigma) : nlohmann::json();
+    e["ci95"] = p.identifiable ? nlohmann::json{number(p.ci95_low), number(p.ci95_high)}
+                               : nlohmann::json();
+    if (!p.identifiable) e["reason"] = p.reason;
+    if (p.name.rfind("delta", 0) == 0 && p.identifiable) e["value_rad"] = p.value * kDegToRad;
+    params[p.name] = e;
+  }
+  j["parameters"] = params;
+  j["not_identifiable"] = nlohmann::json::array();
+  for (const auto& n : r.not_identifiable)
+    j["not_identifiable"].push_back({{"name", n.name}, {"reason", n.reason}});
+  j["target_mm"] = {r.estimate.target_mm.x(), r.estimate.target_mm.y(), r.estimate.target_mm.z()};
+  j["target_sigma_mm"] = {number(r.target_sigma_mm.x()), number(r.target_sigma_mm.y()),
+                          number(r.target_sigma_mm.z())};
+  j["rank"] = r.rank;
+  j["condition_number"] = number(r.condition_number);
+  j["dof"] = r.dof;
+  j["noise_mm"] = number(r.noise_mm);
+  j["noise_source"] = r.noise_estimated ? "estimated from the residuals" : "given";
+  j["chi2_per_dof"] = r.chi2_per_dof ? number(*r.chi2_per_dof) : nlohmann::json();
+  j["rms_miss_mm"] = r.rms_miss_mm;
+  j["residuals_mm"] = nlohmann::json::array();
+  j["pose_residuals"] = nlohmann::json::array();
+  for (std::size_t i = 0; i < r.poses.size(); ++i) {
+    const auto& p = r.poses[i];
+    j["residuals_mm"].push_back(p.miss_norm_mm);
+    j["pose_residuals"].push_back({{"pose", i + 1},
+                                   {"line", p.source_line},
+                                   {"miss_mm", {p.miss_mm.x(), p.miss_mm.y()}},
+                                   {"normalised", number(p.normalised)},
+                                   {"outlier", p.outlier},
+                                   {"standoff_mm", p.standoff_mm}});
+  }
+  nlohmann::json corr = nlohmann::json::array();
+  for (int a = 0; a < r.correlation.rows(); ++a) {
+    nlohmann::json row = nlohmann::json::array();
+    for (int b = 0; b < r.correlation.cols(); ++b) row.push_back(number(r.correlation(a, b)));
+    corr.push_back(row);
+  }
+  j["correlation"] = corr;
+  j["iterations"] = r.iterations;
+  j["solve_time_ms"] = r.solve_time_ms;
+  return j;
+}
+
+std::string toText(const SolveReport& r) {
+  std::ostringstream o;
+  o << "Calibration from " << r.pose_count << " poses, "
+    << (r.cost == CostKind::kMaximumLikelihood ? "maximum-likelihood cost, "
+                                               : "pairwise (paper eq. 6) cost, ")
+    << (r.used_readings ? "hit-point model (PSD readings used)" : "laser aimed at the PSD centre")
+    << "\n";
+  o << (r.converged ? "converged" : "DID NOT CONVERGE") << " after " << r.iterations
+    << " iterations (" << printf("%.2f", r.solve_time_ms) << " ms): " << r.message << "\n";
+  o << printf("noise %.4f mm (%s)", r.noise_mm,
+              r.noise_estimated ? "estimated from the residuals" : "given");
+  if (r.chi2_per_dof) o << printf(", chi-square per degree of freedom %.2f (dof %d)", *r.chi2_per_dof, r.dof);
+  o << "\n\n";
+  o << printf("%-19s %12s %10s   %s\n", "parameter", "value", "sigma", "95% interval");
+  for (const auto& p : r.parameters) {
+    if (!p.identifiable) {
+      o << printf("%-19s %12s\n", p.name.c_str(), "not identifiable (see below)");
+      continue;
+    }
+    o << printf("%-19s %12.5f %10.5f   [%.5f, %.5f]\n", p.name.c_str(), p.value, p.sigma,
+                p.ci95_low, p.ci95_high);
+  }
+  o << "\nNot identifiable from these poses:\n";
+  for (const auto& n : r.not_identifiable) o << "  " << n.name << ": " << n.reason << "\n";
+  o << printf("\ntarget (PSD centre) %.3f %.3f %.3f mm, sigma %.3f %.3f %.3f mm\n",
+              r.estimate.target_mm.x(), r.estimate.target_mm.y(), r.estimate.target_mm.z(),
+              r.target_sigma_mm.x(), r.target_sigma_mm.y(), r.target_sigma_mm.z());
+  o << "rank " << r.rank << " of " << kUnknownCount << ", condition number "
+    << printf("%.1f", r.condition_number) << " (column-scaled Jacobian)\n";
+  std::string strong;
+  for (int a = 0; a < r.correlation.rows(); ++a)
+    for (int b = a + 1; b < r.correlation.cols(); ++b)
+      if (std::abs(r.correlation(a, b)) > 0.9)
+        strong += printf("  %s ~ %s: %+.3f\n", unknownName(a).c_str(), unknownName(b).c_str(),
+                         r.correlation(a, b));
+  if (!strong.empty()) o << "strong correlations (|r| > 0.9):\n" << strong;
+  o << printf("\n%5s %6s %10s %10s %11s %12s\n", "pose", "line", "miss_mm", "normalised",
+              "standoff_mm", "");
+  for (std::size_t i = 0; i < r.poses.size(); ++i) {
+    const auto& p = r.poses[i];
+    o << printf("%5zu %6d %10.4f %10.2f %11.1f %12s\n", i + 1, p.source_line, p.miss_norm_mm,
+                p.normalised, p.standoff_mm, p.outlier ? "OUTLIER" : "");
+  }
+  o << printf("RMS miss %.4f mm\n", r.rms_miss_mm);
+  return o.str();
+}
+
+nlohmann::json toJson(const Plan& plan) {
+  nlohmann::json j;
+  j["description"] = plan.description;
+  j["candidates_considered"] = plan.candidates_considered;
+  j["poses"] = nlohmann::json::array();
+  for (const auto& p : plan.poses) j["poses"].push_back(p.q_deg);
+  nlohmann::json pred;
+  for (int k = 0; k < kIdentifiedCount; ++k) {
+    nlohmann::json e{{"identifiable", plan.prediction.identifiable[k]},
+                     {"sigma", number(plan.prediction.sigma[k])}};
+    if (!plan.prediction.identifiable[k]) e["reason"] = plan.prediction.reason[k];
+    pred[unknownName(k)] = e;
+  }
+  j["predicted"] = pred;
+  j["predicted_rms_offset_sigma_deg"] = number(plan.prediction.rms_offset_sigma_deg);
+  j["rank"] = plan.prediction.rank;
+  j["condition_number"] = number(plan.prediction.condition_number);
+  return j;
+}
+
+std::string toText(const Plan& plan) {
+  std::ostringstream o;
+  o << plan.description << "\n";
+  o << "predicted one-sigma uncertainty before any move:\n";
+  for (int k = 0; k < kIdentifiedCount; ++k) {
+    if (plan.prediction.identifiable[k])
+      o << printf("  %-19s %10.5f\n", unknownName(k).c_str(), plan.prediction.sigma[k]);
+    else
+      o << printf("  %-19s not identifiable: %s\n", unknownName(k).c_str(),
+                  plan.prediction.reason[k].c_str());
+  }
+  o << printf("  RMS over delta2..delta5: %.5f deg; rank %d of %d, condition number %.1f\n",
+              plan.prediction.rms_offset_sigma_deg, plan.prediction.rank, kUnknownCount,
+              plan.prediction.condition_number);
+  return o.str();
+}
+
+nlohmann::json toJson(const std::vector<ScenarioResult>& results, const ExperimentOptions& options) {
+  nlohmann::json j;
+  j["experiment"] = "table2";
+  j["repeats"] = options.repeats;
+  j["seed"] = options.seed;
+  j["scenarios"] = nlohmann::json::array();
+  for (const auto& r : results) {
+    nlohmann::json s{{"pattern", patternName(r.pattern)},
+                     {"cost", costName(r.cost)},
+                     {"rms_error_deg", r.rms_error_deg},
+                     {"predicted_rms_sigma_deg", number(r.predicted_rms_sigma_deg)},
+                     {"not_identifiable_runs", r.not_identifiable_runs},
+                     {"failed_runs", r.failed_runs},
+                     {"mean_solve_ms", r.mean_solve_ms}};
+    s["poses"] = nlohmann::json::array();
+    for (const auto& p : r.poses) s["poses"].push_back(p.q_deg);
+    s["parameters"] = nlohmann::json::object();
+    for (const auto& st : r.stats) {
+      nlohmann::json e{{"truth", st.truth},
+                       {"mean_error", st.mean_error},
+                       {"std", st.std},
+                       {"crb", number(st.crb)},
+                       {"std_over_crb", number(st.std / st.crb)},
+                       {"mean_error_over_crb", number(st.mean_error / st.crb)}};
+      if (st.has_paper) e["paper"] = {{"mean_error", st.paper_mean_error}, {"std", st.paper_std}};
+      s["parameters"][st.name] = e;
+    }
+    j["scenarios"].push_back(s);
+  }
+  return j;
+}
+
+std::string toText(const std::vector<ScenarioResult>& results, const ExperimentOptions& options) {
+  std::ostringstream o;
+  o << "Table II scenario (IRB1600, P1 = (900, -50, 400) mm, uniform +-0.05 mm localisation "
+       "error, 8 poses), "
+    << options.repeats << " repeats, seed " << options.seed << "\n";
+  o << "errors = estimate - truth; offsets in deg; CRB = Cramer-Rao bound (one sigma) at the "
+       "truth\n";
+  for (const auto& r : results) {
+    o << "\n== pattern " << patternName(r.pattern) << ", " << costName(r.cost) << " cost: RMS error "
+      << printf("%.5f", r.rms_error_deg) << " deg over delta2..5 (predicted "
+      << printf("%.5f", r.predicted_rms_sigma_deg) << "), " << r.not_identifiable_runs
+      << " runs flagged an offset not identifiable, " << r.failed_runs
+      << " did not converge, mean solve " << printf("%.2f", r.mean_solve_ms) << " ms\n";
+    o << printf("%-19s %9s %11s %10s %10s %8s %8s  %s\n", "parameter", "truth", "mean err",
+                "STD", "CRB", "STD/CRB", "mean/CRB", "paper mean err, STD");
+    for (const auto& st : r.stats) {
+      o << printf("%-19s %9.4f %11.6f %10.6f %10.6f %8.3f %8.3f", st.name.c_str(), st.truth,
+                  st.mean_error, st.std, st.crb, st.std / st.crb, st.mean_error / st.crb);
+      if (st.has_paper) o << printf("  %.6f, %.6f", st.paper_mean_error, st.paper_std);
+      o << "\n";
+    }
+  }
+  return o.str();
+}
+
+nlohmann::json toJson(const std::array<JointSensitivity, kJointCount>& s) {
+  nlohmann::json j = nlohmann::json::array();
+  for (int i = 0; i < kJointCount; ++i)
+    j.push_back({{"joint", i + 1},
+                 {"spot_mm_per_deg", {s[i].spot_mm_per_deg.x(), s[i].spot_mm_per_deg.y()}},
+                 {"magnitude_mm_per_deg", s[i].magnitude_mm_per_deg},
+                 {"deg_per_20um", number(s[i].deg_per_20um)}});
+  return j;
+}
+
+std::string toText(const std::array<JointSensitivity, kJointCount>& s) {
+  std::ostringstream o;
+  o << printf("%5s %12s %12s %14s %14s\n", "joint", "du mm/deg", "dv mm/deg", "|d| mm/deg",
+              "deg per 20 um");
+  for (int i = 0; i < kJointCount; ++i)
+    o << printf("%5d %12.4f %12.4f %14.4f %14.6f\n", i + 1, s[i].spot_mm_per_deg.x(),
+                s[i].spot_mm_per_deg.y(), s[i].magnitude_mm_per_deg, s[i].deg_per_20um);
+  return o.str();
+}
+
+}  // namespace zerocal

@@ -1,0 +1,29 @@
+// Text and JSON renderings of solver, planner and experiment results for the command line.
+#pragma once
+
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "zerocal/calib/experiment.h"
+#include "zerocal/calib/planner.h"
+#include "zerocal/calib/sensitivity.h"
+#include "zerocal/calib/solver.h"
+
+namespace zerocal {
+
+nlohmann::json toJson(const SolveReport& report);
+std::string toText(const SolveReport& report);
+
+nlohmann::json toJson(const Plan& plan);
+std::string toText(const Plan& plan);
+
+nlohmann::json toJson(const std::vector<ScenarioResult>& results, const ExperimentOptions& options);
+std::string toText(const std::vector<ScenarioResult>& results, const ExperimentOptions& options);
+
+nlohmann::json toJson(const std::array<JointSensitivity, kJointCount>& s);
+std::string toText(const std::array<JointSensitivity, kJointCount>& s);
+
+std::string costName(CostKind cost);
+
+}  // namespace zerocal

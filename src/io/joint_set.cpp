@@ -1,0 +1,119 @@
+#include "zerocal/io/joint_set.h"
+
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+
+#include "zerocal/error.h"
+
+namespace zerocal {
+namespace {
+
+std::string trim(const std::string& s) {
+  const auto b = s.find_first_not_of(" \t\r");
+  if (b == std::string::npos) return {};
+  return s.substr(b, s.find_last_not_of(" \t\r") - b + 1);
+}
+
+std::vector<std::string> splitFields(const std::string& line) {
+  std::vector<std::string> out;
+  std::stringstream s(line);
+  std::string field;
+  while (std::getline(s, field, ',')) out.push_back(trim(field));
+  if (!line.empty() && line.back() == ',') out.emplace_back();
+  return out;
+}
+
+}  // namespace
+
+std::vector<Pose> parseJointSet(const std::string& text, const std::string& origin) {
+  std::istringstream in(text);
+  std::string line;
+  int line_no = 0;
+  std::vector<int> column(8, -1);  // q1..q6, u, v
+  bool have_header = false;
+  std::size_t header_fields = 0;
+  std::vector<Pose> poses;
+  auto fail = [&](const std::string& what) {
+    throw InputError(origin + ":" + std::to_string(line_no) + ": " + what);
+  };
+  while (std::getline(in, line)) {
+    ++line_no;
+    const std::string t = trim(line);
+    if (t.empty() || t[0] == '#') continue;
+    const auto fields = splitFields(t);
+    if (!have_header) {
+      static const char* names[8] = {"q1", "q2", "q3", "q4", "q5", "q6", "u", "v"};
+      for (std::size_t i = 0; i < fields.size(); ++i)
+        for (int k = 0; k < 8; ++k)
+          if (fields[i] == names[k]) {
+            if (column[k] >= 0) fail("column '" + fields[i] + "' appears twice in the header");
+            column[k] = static_cast<int>(i);
+          }
+      std::string missing;
+      for (int k = 0; k < 6; ++k)
+        if (column[k] < 0) missing += std::string(missing.empty() ? "" : ", ") + names[k];
+      if (!missing.empty())
+        fail("the header must name the columns q1..q6 (missing: " + missing +
+             "); got '" + t + "'");
+      if ((column[6] < 0) != (column[7] < 0)) fail("the header has only one of u and v");
+      have_header = true;
+      header_fields = fields.size();
+      continue;
+    }
+    if (fields.size() != header_fields)
+      fail("expected " + std::to_string(header_fields) + " fields as in the header, found " +
+           std::to_string(fields.size()));
+    auto value = [&](int k) {
+      const std::string& f = fields[column[k]];
+      char* end = nullptr;
+      const double v = std::strtod(f.c_str(), &end);
+      if (f.empty() || *end != '\0') fail("column " + std::to_string(column[k] + 1) + " ('" + f + "') is not a number");
+      if (!std::isfinite(v)) fail("column " + std::to_string(column[k] + 1) + " is not finite");
+      return v;
+    };
+    Pose pose;
+    pose.source_line = line_no;
+    for (int k = 0; k < 6; ++k) pose.q_deg[k] = value(k);
+    if (column[6] >= 0) pose.psd_uv_mm = Eigen::Vector2d(value(6), value(7));
+    poses.push_back(pose);
+  }
+  if (!have_header) throw InputError(origin + ": empty file: expected a header naming q1..q6");
+  return poses;
+}
+
+std::vector<Pose> readJointSet(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path + ": cannot open the joint-set file");
+  std::stringstream text;
+  text << in.rdbuf();
+  return parseJointSet(text.str(), path);
+}
+
+std::string formatJointSet(const std::vector<Pose>& poses, const std::string& comment) {
+  std::ostringstream out;
+  if (!comment.empty()) {
+    std::istringstream lines(comment);
+    std::string l;
+    while (std::getline(lines, l)) out << "# " << l << "\n";
+  }
+  bool with_uv = !poses.empty();
+  for (const auto& p : poses) with_uv = with_uv && p.psd_uv_mm.has_value();
+  out << "q1,q2,q3,q4,q5,q6" << (with_uv ? ",u,v" : "") << "\n";
+  char buf[64];
+  for (const auto& p : poses) {
+    for (int k = 0; k < kJointCount; ++k) {
+      std::snprintf(buf, sizeof buf, "%s%.5f", k ? "," : "", p.q_deg[k]);
+      out << buf;
+    }
+    if (with_uv) {
+      std::snprintf(buf, sizeof buf, ",%.5f,%.5f", p.psd_uv_mm->x(), p.psd_uv_mm->y());
+      out << buf;
+    }
+    out << "\n";
+  }
+  return out.str();
+}
+
+}  // namespace zerocal

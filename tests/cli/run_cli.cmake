@@ -1,0 +1,10 @@
+# Runs CMD (a ;-list), checks its exit code against EXPECTED and its output against REGEX.
+string(REPLACE "|" ";" CMD "${CMD}")
+execute_process(COMMAND ${CMD} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+string(REPLACE "\n" " " all "${out} ${err}")
+if(NOT rc EQUAL EXPECTED)
+  message(FATAL_ERROR "exit code ${rc}, expected ${EXPECTED}\n${out}\n${err}")
+endif()
+if(NOT all MATCHES "${REGEX}")
+  message(FATAL_ERROR "output does not match '${REGEX}':\n${out}\n${err}")
+endif()

@@ -1,0 +1,67 @@
+#include "zerocal/io/joint_set.h"
+
+#include <gtest/gtest.h>
+
+#include "zerocal/error.h"
+
+namespace zerocal {
+namespace {
+
+std::string errorOf(const std::string& text) {
+  try {
+    parseJointSet(text, "poses.csv");
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+TEST(JointSetCsv, ReadsColumnsInAnyOrderWithCommentsAndExtras) {
+  const auto poses = parseJointSet(
+      "# recorded 2026-11-22\n"
+      "time,q6,q5,q4,q3,q2,q1,v,u\n"
+      "\n"
+      "12.5,6,5,4,3,2,1,-0.2,0.1\n"
+      "# a comment between rows\n"
+      "13.0, 6.5 ,5,4,3,2,1.25,0,0\n",
+      "p.csv");
+  ASSERT_EQ(poses.size(), 2u);
+  EXPECT_EQ(poses[0].q_deg, (Joints{1, 2, 3, 4, 5, 6}));
+  ASSERT_TRUE(poses[0].psd_uv_mm.has_value());
+  EXPECT_DOUBLE_EQ(poses[0].psd_uv_mm->x(), 0.1);
+  EXPECT_DOUBLE_EQ(poses[0].psd_uv_mm->y(), -0.2);
+  EXPECT_EQ(poses[0].source_line, 4);
+  EXPECT_DOUBLE_EQ(poses[1].q_deg[0], 1.25);
+  EXPECT_DOUBLE_EQ(poses[1].q_deg[5], 6.5);
+}
+
+TEST(JointSetCsv, BadInputNamesTheLine) {
+  EXPECT_NE(errorOf("").find("empty file"), std::string::npos);
+  EXPECT_NE(errorOf("a,b,c\n1,2,3\n").find("poses.csv:1: the header must name the columns q1..q6"),
+            std::string::npos);
+  EXPECT_NE(errorOf("q1,q2,q3,q4,q5\n").find("missing: q6"), std::string::npos);
+  EXPECT_NE(errorOf("q1,q2,q3,q4,q5,q6,u\n").find("only one of u and v"), std::string::npos);
+  EXPECT_NE(errorOf("q1,q2,q3,q4,q5,q6\n1,2,3,4,5,x\n").find("poses.csv:2: column 6 ('x') is not a number"),
+            std::string::npos);
+  EXPECT_NE(errorOf("q1,q2,q3,q4,q5,q6\n1,2,3,4,5,nan\n").find("poses.csv:2: column 6 is not finite"),
+            std::string::npos);
+  EXPECT_NE(errorOf("q1,q2,q3,q4,q5,q6\n1,2,3\n").find("poses.csv:2: expected 6 fields"),
+            std::string::npos);
+  EXPECT_NE(errorOf("q1,q2,q3,q4,q5,q6\n1,2,3,4,5,\n").find("is not a number"), std::string::npos);
+  EXPECT_NE(errorOf("q1,q1,q2,q3,q4,q5,q6\n").find("appears twice"), std::string::npos);
+  EXPECT_THROW(readJointSet("/nonexistent/poses.csv"), InputError);
+}
+
+TEST(JointSetCsv, FormatRoundTripsWithFiveDecimals) {
+  std::vector<Pose> poses{{Joints{1.123456, -2, 3, 4, 5, 6}, Eigen::Vector2d(0.1, 0.2), 0},
+                          {Joints{7, 8, 9, 10, 11, 12}, Eigen::Vector2d(-0.1, 0), 0}};
+  const std::string text = formatJointSet(poses, "two poses");
+  EXPECT_EQ(text.rfind("# two poses\nq1,q2,q3,q4,q5,q6,u,v\n1.12346,", 0), 0u) << text;
+  const auto back = parseJointSet(text, "x");
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_NEAR(back[0].q_deg[0], 1.12346, 1e-12);
+  EXPECT_NEAR(back[1].psd_uv_mm->x(), -0.1, 1e-12);
+}
+
+}  // namespace
+}  // namespace zerocal

@@ -54,7 +54,7 @@ struct ScenarioResult {
 };
 
 struct ExperimentOptions {
-  int repeats = 500;
+  int repeats = 1000;
   std::uint64_t seed = 1;
   std::vector<Pattern> patterns = {Pattern::kI, Pattern::kII, Pattern::kOptimal};
   std::vector<CostKind> costs = {CostKind::kMaximumLikelihood, CostKind::kPairwise};

@@ -44,7 +44,8 @@ BENCHMARK(Pairwise)->Arg(8)->Arg(16)->Arg(32)->Arg(64)->Unit(benchmark::kMillise
 
 void PlanOptimal(benchmark::State& state) {
   const Table2Scenario sc = table2Scenario();
-  for (auto _ : state) benchmark::DoNotOptimize(planPoses(sc.cell, sc.truth.target_mm, PlanOptions{}));
+  for (auto _ : state)
+    benchmark::DoNotOptimize(planPoses(sc.cell, sc.truth.target_mm, PlanOptions{}));
 }
 BENCHMARK(PlanOptimal)->Unit(benchmark::kMillisecond);
 

@@ -15,9 +15,9 @@ Joints CalibrationParameters::offsetsDeg() const {
 
 std::string unknownName(int i) {
   static const char* names[kUnknownCount] = {
-      "delta2_deg",       "delta3_deg",        "delta4_deg",        "delta5_deg",
-      "laser_slope_1",    "laser_slope_2",     "laser_offset_1_mm", "laser_offset_2_mm",
-      "target_x_mm",      "target_y_mm",       "target_z_mm"};
+      "delta2_deg",    "delta3_deg",    "delta4_deg",        "delta5_deg",
+      "laser_slope_1", "laser_slope_2", "laser_offset_1_mm", "laser_offset_2_mm",
+      "target_x_mm",   "target_y_mm",   "target_z_mm"};
   return names[i];
 }
 

@@ -15,9 +15,12 @@ namespace zerocal {
 template <typename T>
 void laserLineInBase(const CellModel& cell, const double* q_rad, const T* delta, const T* kappa,
                      Vec3<T>* point, Vec3<T>* direction) {
-  T joints[kJointCount] = {T(q_rad[0]),            T(q_rad[1]) + delta[0],
-                           T(q_rad[2]) + delta[1], T(q_rad[3]) + delta[2],
-                           T(q_rad[4]) + delta[3], T(q_rad[5])};
+  T joints[kJointCount] = {T(q_rad[0]),
+                           T(q_rad[1]) + delta[0],
+                           T(q_rad[2]) + delta[1],
+                           T(q_rad[3]) + delta[2],
+                           T(q_rad[4]) + delta[3],
+                           T(q_rad[5])};
   const Frame<T> flange = flangePose(cell.robot, joints);
   Vec3<T> p, d;
   cell.laser.line(kappa, &p, &d);
@@ -44,9 +47,12 @@ class PointToLineCost {
 
   template <typename T>
   bool operator()(const T* delta, const T* kappa, const T* target, T* residual) const {
-    T joints[kJointCount] = {T(q_rad_[0]),            T(q_rad_[1]) + delta[0],
-                             T(q_rad_[2]) + delta[1], T(q_rad_[3]) + delta[2],
-                             T(q_rad_[4]) + delta[3], T(q_rad_[5])};
+    T joints[kJointCount] = {T(q_rad_[0]),
+                             T(q_rad_[1]) + delta[0],
+                             T(q_rad_[2]) + delta[1],
+                             T(q_rad_[3]) + delta[2],
+                             T(q_rad_[4]) + delta[3],
+                             T(q_rad_[5])};
     const Frame<T> flange = flangePose(cell_.robot, joints);
     Vec3<T> p, d;
     cell_.laser.line(kappa, &p, &d);

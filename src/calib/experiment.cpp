@@ -39,8 +39,8 @@ struct PaperFigure {
   double mean, std;
 };
 PaperFigure paperFigure(Pattern p, int k) {
-  static const double pattern1[8][2] = {{-1.69, 0.02}, {1.98, 1.02},    {-9.40, 2.61},
-                                        {-6.89, 1.23}, {-0.084, 0.02},  {0, 0},
+  static const double pattern1[8][2] = {{-1.69, 0.02},   {1.98, 1.02},   {-9.40, 2.61},
+                                        {-6.89, 1.23},   {-0.084, 0.02}, {0, 0},
                                         {-0.061, 0.082}, {-0.253, 0.137}};
   static const double pattern2[8][2] = {{-118.93, 56.36}, {2.11, 16.23},    {-3.20, 3.38},
                                         {0.07, 0.08},     {0.076, 0.054},   {0, 0},
@@ -78,7 +78,8 @@ std::vector<ScenarioResult> runTable2(const ExperimentOptions& options) {
       std::vector<Eigen::Matrix<double, kIdentifiedCount, 1>> errors;
       double total_ms = 0, sq = 0;
       for (int rep = 0; rep < options.repeats; ++rep) {
-        const auto recorded = simulateRecording(sc.cell, sc.truth, plan.poses, sc.half_width_mm, rng);
+        const auto recorded =
+            simulateRecording(sc.cell, sc.truth, plan.poses, sc.half_width_mm, rng);
         SolveOptions so;
         so.cost = cost;
         so.noise_mm = sigma;
@@ -86,7 +87,8 @@ std::vector<ScenarioResult> runTable2(const ExperimentOptions& options) {
         total_ms += rep_report.solve_time_ms;
         if (!rep_report.converged) ++r.failed_runs;
         bool flagged = false;
-        for (int k = 0; k < kOffsetCount; ++k) flagged = flagged || !rep_report.parameters[k].identifiable;
+        for (int k = 0; k < kOffsetCount; ++k)
+          flagged = flagged || !rep_report.parameters[k].identifiable;
         if (flagged) ++r.not_identifiable_runs;
         Eigen::Matrix<double, kIdentifiedCount, 1> e;
         e << (rep_report.estimate.delta_rad - sc.truth.delta_rad) * kRadToDeg,
@@ -100,7 +102,8 @@ std::vector<ScenarioResult> runTable2(const ExperimentOptions& options) {
       for (int k = 0; k < kIdentifiedCount; ++k) {
         ParameterStats st;
         st.name = unknownName(k);
-        st.truth = k < kOffsetCount ? sc.truth.delta_rad[k] * kRadToDeg : sc.truth.laser[k - kOffsetCount];
+        st.truth =
+            k < kOffsetCount ? sc.truth.delta_rad[k] * kRadToDeg : sc.truth.laser[k - kOffsetCount];
         double mean = 0;
         for (const auto& e : errors) mean += e[k];
         mean /= n;

@@ -55,8 +55,7 @@ Eigen::MatrixXd pointToLineJacobian(const CellModel& cell, const std::vector<Pos
                                     bool use_readings) {
   const int n = static_cast<int>(poses.size());
   Eigen::MatrixXd jac(2 * n, kUnknownCount);
-  const double* blocks[3] = {params.delta_rad.data(), params.laser.data(),
-                             params.target_mm.data()};
+  const double* blocks[3] = {params.delta_rad.data(), params.laser.data(), params.target_mm.data()};
   Eigen::Matrix<double, 2, kOffsetCount, Eigen::RowMajor> jd;
   Eigen::Matrix<double, 2, kLaserParamCount, Eigen::RowMajor> jl;
   Eigen::Matrix<double, 2, kTargetCount, Eigen::RowMajor> jt;
@@ -112,7 +111,8 @@ Identifiability analyseIdentifiability(const Eigen::MatrixXd& jacobian, const Ce
   // Unit-sigma covariance on the identifiable subspace (pseudo-inverse).
   Eigen::MatrixXd cov_scaled = Eigen::MatrixXd::Zero(n, n);
   for (int i = 0; i < out.rank; ++i) cov_scaled += v.col(i) * v.col(i).transpose() / (s[i] * s[i]);
-  out.unit_covariance = scale.cwiseInverse().asDiagonal() * cov_scaled * scale.cwiseInverse().asDiagonal();
+  out.unit_covariance =
+      scale.cwiseInverse().asDiagonal() * cov_scaled * scale.cwiseInverse().asDiagonal();
 
   // Context for the words.
   double q1_min = 1e300, q1_max = -1e300, q5_abs_max = 0;
@@ -182,9 +182,8 @@ Identifiability analyseIdentifiability(const Eigen::MatrixXd& jacobian, const Ce
     }
     if (too_weak) {
       const bool angle = k < kOffsetCount;
-      why += " (it is determined only to " +
-             fmt(angle ? sigma_k * kRadToDeg : sigma_k, 3) + (angle ? " deg" : "") +
-             ", one standard deviation)";
+      why += " (it is determined only to " + fmt(angle ? sigma_k * kRadToDeg : sigma_k, 3) +
+             (angle ? " deg" : "") + ", one standard deviation)";
     }
     out.reason[k] = why;
   }

@@ -148,10 +148,14 @@ Pattern parsePattern(const std::string& text) {
 
 std::string patternName(Pattern p) {
   switch (p) {
-    case Pattern::kI: return "I";
-    case Pattern::kII: return "II";
-    case Pattern::kMixed: return "mixed";
-    case Pattern::kOptimal: return "optimal";
+    case Pattern::kI:
+      return "I";
+    case Pattern::kII:
+      return "II";
+    case Pattern::kMixed:
+      return "mixed";
+    case Pattern::kOptimal:
+      return "optimal";
   }
   return "?";
 }
@@ -223,8 +227,8 @@ std::vector<Pose> sweepPattern(const CellModel& cell, const Eigen::Vector3d& tar
 // A-optimal selection of n poses from the candidates: minimise the summed variance of
 // delta2..delta5 with the laser and target as nuisance parameters. Greedy start, then
 // exchange passes (Fedorov) until no swap improves.
-std::vector<int> selectOptimal(const std::vector<Eigen::Matrix<double, kUnknownCount, kUnknownCount>>& info,
-                               int n) {
+std::vector<int> selectOptimal(
+    const std::vector<Eigen::Matrix<double, kUnknownCount, kUnknownCount>>& info, int n) {
   using Mat = Eigen::Matrix<double, kUnknownCount, kUnknownCount>;
   auto criterion = [](const Mat& m) {
     const Eigen::LDLT<Mat> ldlt(m);
@@ -322,7 +326,8 @@ Plan planPoses(const CellModel& cell, const Eigen::Vector3d& target, const PlanO
               bool duplicate = false;
               for (const auto& c : candidates) {
                 double d = 0;
-                for (int j = 0; j < kJointCount; ++j) d = std::max(d, std::abs(c.q_deg[j] - (*q)[j]));
+                for (int j = 0; j < kJointCount; ++j)
+                  d = std::max(d, std::abs(c.q_deg[j] - (*q)[j]));
                 duplicate = duplicate || d < 1.0;
               }
               if (!duplicate) candidates.push_back({*q, {}, 0});

@@ -36,8 +36,9 @@ void checkInput(const CellModel& cell, const std::vector<Pose>& poses,
     const std::string v = cell.robot.limitViolation(poses[i].q_deg);
     if (!v.empty())
       throw InputError("pose " + std::to_string(i + 1) +
-                       (poses[i].source_line ? " (line " + std::to_string(poses[i].source_line) + ")"
-                                             : std::string()) +
+                       (poses[i].source_line
+                            ? " (line " + std::to_string(poses[i].source_line) + ")"
+                            : std::string()) +
                        ": " + v + " of " + cell.robot.name);
   }
 }
@@ -134,7 +135,8 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
   if (options.cost == CostKind::kMaximumLikelihood) {
     for (const auto& pose : poses) {
       ceres::LossFunction* loss = nullptr;
-      if (options.loss == RobustLoss::kHuber) loss = new ceres::HuberLoss(options.loss_scale_sigmas);
+      if (options.loss == RobustLoss::kHuber)
+        loss = new ceres::HuberLoss(options.loss_scale_sigmas);
       if (options.loss == RobustLoss::kCauchy)
         loss = new ceres::CauchyLoss(options.loss_scale_sigmas);
       problem.AddResidualBlock(
@@ -159,9 +161,7 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
   ceres::Solver::Summary summary;
   ceres::Solve(solver_options, &problem, &summary);
   report.converged = summary.termination_type == ceres::CONVERGENCE;
-  report.message = summary.termination_type == ceres::USER_FAILURE
-                       ? "cancelled"
-                       : summary.message;
+  report.message = summary.termination_type == ceres::USER_FAILURE ? "cancelled" : summary.message;
   report.iterations = static_cast<int>(summary.iterations.size());
   if (options.cost == CostKind::kPairwise) est.target_mm = bestTarget(cell, poses, est, readings);
   report.estimate = est;
@@ -188,11 +188,12 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
   report.rms_miss_mm = std::sqrt(rss / n);
   if (options.noise_mm) {
     report.noise_mm = *options.noise_mm;
-    if (report.dof > 0) report.chi2_per_dof = rss / (report.noise_mm * report.noise_mm) / report.dof;
+    if (report.dof > 0)
+      report.chi2_per_dof = rss / (report.noise_mm * report.noise_mm) / report.dof;
   } else {
     report.noise_estimated = true;
-    report.noise_mm = report.dof > 0 ? std::sqrt(rss / report.dof)
-                                     : std::numeric_limits<double>::quiet_NaN();
+    report.noise_mm =
+        report.dof > 0 ? std::sqrt(rss / report.dof) : std::numeric_limits<double>::quiet_NaN();
   }
   const double sigma = report.noise_mm;
   // Re-judge identifiability against the noise actually in force.
@@ -230,7 +231,8 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
   }
   for (int k = kIdentifiedCount; k < kUnknownCount; ++k) {
     report.target_sigma_mm[k - kIdentifiedCount] = std::sqrt(cov(k, k));
-    if (!ident.identifiable[k]) report.not_identifiable.push_back({unknownName(k), ident.reason[k]});
+    if (!ident.identifiable[k])
+      report.not_identifiable.push_back({unknownName(k), ident.reason[k]});
   }
   report.not_identifiable.insert(report.not_identifiable.begin() + 1,
                                  {"delta6_deg", delta6Reason()});

@@ -40,10 +40,10 @@ struct CellArgs {
   }
   CellModel cell() const {
     Robot r = robot == "builtin" ? builtinIrb1600() : loadRobot(robot);
-    return CellModel{std::move(r),
-                     LaserModel(Eigen::Vector3d(laser_direction.data()),
-                                Eigen::Vector3d(laser_point.data())),
-                     Eigen::Matrix3d::Identity()};
+    return CellModel{
+        std::move(r),
+        LaserModel(Eigen::Vector3d(laser_direction.data()), Eigen::Vector3d(laser_point.data())),
+        Eigen::Matrix3d::Identity()};
   }
 };
 
@@ -78,14 +78,16 @@ int main(int argc, char** argv) {
   double loss_scale = 3.0;
   solve_cmd->add_option("--joints", joints_file, "joint-set CSV: q1..q6 in deg, optional u,v in mm")
       ->required();
-  solve_cmd->add_option("--cost", cost, "ml (maximum likelihood, default) or pairwise (paper eq. 6)")
+  solve_cmd
+      ->add_option("--cost", cost, "ml (maximum likelihood, default) or pairwise (paper eq. 6)")
       ->check(CLI::IsMember({"ml", "pairwise"}));
   solve_cmd->add_option("--noise", noise,
                         "measurement sigma in mm (line miss per axis); when absent it is "
                         "estimated from the residuals");
-  solve_cmd->add_option("--psd-rpy", psd_rpy,
-                        "PSD orientation in the base frame, roll pitch yaw in deg (needed when "
-                        "the joint set has u,v readings)")
+  solve_cmd
+      ->add_option("--psd-rpy", psd_rpy,
+                   "PSD orientation in the base frame, roll pitch yaw in deg (needed when "
+                   "the joint set has u,v readings)")
       ->expected(3);
   solve_cmd->add_flag("--ignore-readings", ignore_readings,
                       "ignore u,v columns: assume every pose hit the PSD centre");
@@ -115,8 +117,9 @@ int main(int argc, char** argv) {
   plan_cmd->add_option("--standoff", standoff, "stand-off range MIN MAX in mm")->expected(2);
   plan_cmd->add_option("--margin", plan_options.margin_deg, "kept from every joint limit, deg")
       ->default_val(plan_options.margin_deg);
-  plan_cmd->add_option("--max-incidence", plan_options.max_incidence_deg,
-                       "largest beam angle from the PSD normal, deg (optimal)")
+  plan_cmd
+      ->add_option("--max-incidence", plan_options.max_incidence_deg,
+                   "largest beam angle from the PSD normal, deg (optimal)")
       ->default_val(plan_options.max_incidence_deg);
   plan_cmd->add_option("--sweep", plan_options.sweep_deg, "beam tilt range +-deg (patterns)")
       ->default_val(plan_options.sweep_deg);
@@ -130,8 +133,9 @@ int main(int argc, char** argv) {
   // experiment
   auto* exp_cmd = app.add_subcommand("experiment", "reproduce the paper's experiments");
   auto* table2_cmd = exp_cmd->add_subcommand(
-      "table2", "Monte Carlo of Table II: patterns I, II and optimal with both costs, against "
-                "the Cramer-Rao bound and the paper's figures");
+      "table2",
+      "Monte Carlo of Table II: patterns I, II and optimal with both costs, against "
+      "the Cramer-Rao bound and the paper's figures");
   exp_cmd->require_subcommand(1);
   ExperimentOptions exp_options;
   bool exp_json = false;
@@ -172,8 +176,9 @@ int main(int argc, char** argv) {
   sim_cmd->add_option("--target", sim_target, "true target point in the base frame, mm")
       ->expected(3)
       ->required();
-  sim_cmd->add_option("--error", sim_half_width,
-                      "localisation error, uniform within +-MM on each axis")
+  sim_cmd
+      ->add_option("--error", sim_half_width,
+                   "localisation error, uniform within +-MM on each axis")
       ->default_val(sim_half_width);
   sim_cmd->add_option("--seed", sim_seed, "random seed")->default_val(sim_seed);
 
@@ -219,8 +224,8 @@ int main(int argc, char** argv) {
       const Plan plan = planPoses(cell, Eigen::Vector3d(target.data()), plan_options);
       if (!out_file.empty()) {
         std::ofstream out(out_file);
-        out << formatJointSet(plan.poses, "zerocal plan: " + plan.description + "\nrobot: " +
-                                              cell.robot.name);
+        out << formatJointSet(plan.poses,
+                              "zerocal plan: " + plan.description + "\nrobot: " + cell.robot.name);
         if (!out) throw InputError(out_file + ": cannot write the plan");
       }
       if (plan_json) {
@@ -251,11 +256,10 @@ int main(int argc, char** argv) {
       const auto recorded =
           simulateRecording(cell, truth, readJointSet(plan_file), sim_half_width, rng);
       std::ostringstream comment;
-      comment << "zerocal simulate: " << cell.robot.name << ", true offsets "
-              << true_offsets[0] << " " << true_offsets[1] << " " << true_offsets[2] << " "
-              << true_offsets[3] << " deg, target " << sim_target[0] << " " << sim_target[1]
-              << " " << sim_target[2] << " mm, error +-" << sim_half_width << " mm, seed "
-              << sim_seed;
+      comment << "zerocal simulate: " << cell.robot.name << ", true offsets " << true_offsets[0]
+              << " " << true_offsets[1] << " " << true_offsets[2] << " " << true_offsets[3]
+              << " deg, target " << sim_target[0] << " " << sim_target[1] << " " << sim_target[2]
+              << " mm, error +-" << sim_half_width << " mm, seed " << sim_seed;
       std::cout << formatJointSet(recorded, comment.str());
       return kOk;
     }

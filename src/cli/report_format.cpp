@@ -40,8 +40,8 @@ nlohmann::json toJson(const SolveReport& r) {
     e["identifiable"] = p.identifiable;
     e["value"] = p.identifiable ? number(p.value) : nlohmann::json();
     e["sigma"] = p.identifiable ? number(p.sigma) : nlohmann::json();
-    e["ci95"] = p.identifiable ? nlohmann::json{number(p.ci95_low), number(p.ci95_high)}
-                               : nlohmann::json();
+    e["ci95"] =
+        p.identifiable ? nlohmann::json{number(p.ci95_low), number(p.ci95_high)} : nlohmann::json();
     if (!p.identifiable) e["reason"] = p.reason;
     if (p.name.rfind("delta", 0) == 0 && p.identifiable) e["value_rad"] = p.value * kDegToRad;
     params[p.name] = e;
@@ -95,7 +95,8 @@ std::string toText(const SolveReport& r) {
     << " iterations (" << printf("%.2f", r.solve_time_ms) << " ms): " << r.message << "\n";
   o << printf("noise %.4f mm (%s)", r.noise_mm,
               r.noise_estimated ? "estimated from the residuals" : "given");
-  if (r.chi2_per_dof) o << printf(", chi-square per degree of freedom %.2f (dof %d)", *r.chi2_per_dof, r.dof);
+  if (r.chi2_per_dof)
+    o << printf(", chi-square per degree of freedom %.2f (dof %d)", *r.chi2_per_dof, r.dof);
   o << "\n\n";
   o << printf("%-19s %12s %10s   %s\n", "parameter", "value", "sigma", "95% interval");
   for (const auto& p : r.parameters) {
@@ -168,7 +169,8 @@ std::string toText(const Plan& plan) {
   return o.str();
 }
 
-nlohmann::json toJson(const std::vector<ScenarioResult>& results, const ExperimentOptions& options) {
+nlohmann::json toJson(const std::vector<ScenarioResult>& results,
+                      const ExperimentOptions& options) {
   nlohmann::json j;
   j["experiment"] = "table2";
   j["repeats"] = options.repeats;
@@ -208,13 +210,13 @@ std::string toText(const std::vector<ScenarioResult>& results, const ExperimentO
   o << "errors = estimate - truth; offsets in deg; CRB = Cramer-Rao bound (one sigma) at the "
        "truth\n";
   for (const auto& r : results) {
-    o << "\n== pattern " << patternName(r.pattern) << ", " << costName(r.cost) << " cost: RMS error "
-      << printf("%.5f", r.rms_error_deg) << " deg over delta2..5 (predicted "
+    o << "\n== pattern " << patternName(r.pattern) << ", " << costName(r.cost)
+      << " cost: RMS error " << printf("%.5f", r.rms_error_deg) << " deg over delta2..5 (predicted "
       << printf("%.5f", r.predicted_rms_sigma_deg) << "), " << r.not_identifiable_runs
       << " runs flagged an offset not identifiable, " << r.failed_runs
       << " did not converge, mean solve " << printf("%.2f", r.mean_solve_ms) << " ms\n";
-    o << printf("%-19s %9s %11s %10s %10s %8s %8s  %s\n", "parameter", "truth", "mean err",
-                "STD", "CRB", "STD/CRB", "mean/CRB", "paper mean err, STD");
+    o << printf("%-19s %9s %11s %10s %10s %8s %8s  %s\n", "parameter", "truth", "mean err", "STD",
+                "CRB", "STD/CRB", "mean/CRB", "paper mean err, STD");
     for (const auto& st : r.stats) {
       o << printf("%-19s %9.4f %11.6f %10.6f %10.6f %8.3f %8.3f", st.name.c_str(), st.truth,
                   st.mean_error, st.std, st.crb, st.std / st.crb, st.mean_error / st.crb);

@@ -55,8 +55,7 @@ std::vector<Pose> parseJointSet(const std::string& text, const std::string& orig
       for (int k = 0; k < 6; ++k)
         if (column[k] < 0) missing += std::string(missing.empty() ? "" : ", ") + names[k];
       if (!missing.empty())
-        fail("the header must name the columns q1..q6 (missing: " + missing +
-             "); got '" + t + "'");
+        fail("the header must name the columns q1..q6 (missing: " + missing + "); got '" + t + "'");
       if ((column[6] < 0) != (column[7] < 0)) fail("the header has only one of u and v");
       have_header = true;
       header_fields = fields.size();
@@ -69,7 +68,8 @@ std::vector<Pose> parseJointSet(const std::string& text, const std::string& orig
       const std::string& f = fields[column[k]];
       char* end = nullptr;
       const double v = std::strtod(f.c_str(), &end);
-      if (f.empty() || *end != '\0') fail("column " + std::to_string(column[k] + 1) + " ('" + f + "') is not a number");
+      if (f.empty() || *end != '\0')
+        fail("column " + std::to_string(column[k] + 1) + " ('" + f + "') is not a number");
       if (!std::isfinite(v)) fail("column " + std::to_string(column[k] + 1) + " is not finite");
       return v;
     };

@@ -103,8 +103,9 @@ Robot parseRobot(const std::string& yaml_text, const std::string& origin) {
       if (j["max_speed_deg_s"] && !(robot.max_speed_deg_s[i] > 0))
         problems.push_back(where + ": max_speed_deg_s must be positive");
       for (const auto& kv : j) {
-        static const char* known[] = {"a_mm",      "alpha_deg", "d_mm",           "theta_offset_deg",
-                                      "lower_deg", "upper_deg", "max_speed_deg_s"};
+        static const char* known[] = {
+            "a_mm",      "alpha_deg", "d_mm",           "theta_offset_deg",
+            "lower_deg", "upper_deg", "max_speed_deg_s"};
         const auto key = kv.first.as<std::string>();
         bool ok = false;
         for (const char* k : known) ok = ok || key == k;

@@ -24,7 +24,8 @@ class CostGradients : public ::testing::Test {
     ceres::NumericDiffOptions numeric;
     // The pairwise cost bends sharply along near-parallel pairs: start Ridders with small steps.
     numeric.ridders_relative_initial_step_size = 1e-4;
-    ceres::GradientChecker checker(&cost, static_cast<const std::vector<const ceres::Manifold*>*>(nullptr), numeric);
+    ceres::GradientChecker checker(
+        &cost, static_cast<const std::vector<const ceres::Manifold*>*>(nullptr), numeric);
     ceres::GradientChecker::ProbeResults results;
     checker.Probe(params.data(), 1e-7, &results);
     // Ceres' own verdict divides by the entry, which fails on entries that are zero up to
@@ -34,7 +35,7 @@ class CostGradients : public ::testing::Test {
       const Eigen::MatrixXd diff = results.jacobians[b] - results.numeric_jacobians[b];
       const double scale = std::max(1.0, results.numeric_jacobians[b].cwiseAbs().maxCoeff());
       EXPECT_LT(diff.cwiseAbs().maxCoeff() / scale, 1e-7) << "block " << b << "\n"
-                                                           << results.error_log;
+                                                          << results.error_log;
     }
   }
 };

@@ -37,7 +37,8 @@ TEST(Planner, PatternsHaveTheirDefiningGeometry) {
   const Plan two = planPoses(sc.cell, sc.truth.target_mm, o);
   auto span = [](const Plan& p, int j) {
     double lo = 1e9, hi = -1e9;
-    for (const auto& pose : p.poses) lo = std::min(lo, pose.q_deg[j]), hi = std::max(hi, pose.q_deg[j]);
+    for (const auto& pose : p.poses)
+      lo = std::min(lo, pose.q_deg[j]), hi = std::max(hi, pose.q_deg[j]);
     return hi - lo;
   };
   ASSERT_EQ(one.poses.size(), 8u);
@@ -45,9 +46,9 @@ TEST(Planner, PatternsHaveTheirDefiningGeometry) {
   EXPECT_GT(span(one, 0), 20.0);  // joint 1 changes a lot in pattern I
   EXPECT_LT(span(two, 0), 8.0);   // and little in pattern II
   // Stand-offs vary in both (the second trap).
-  const auto s = standoffs(sc.cell, one.poses, CalibrationParameters{Eigen::Vector4d::Zero(),
-                                                                     Eigen::Vector4d::Zero(),
-                                                                     sc.truth.target_mm});
+  const auto s = standoffs(
+      sc.cell, one.poses,
+      CalibrationParameters{Eigen::Vector4d::Zero(), Eigen::Vector4d::Zero(), sc.truth.target_mm});
   EXPECT_GT(*std::max_element(s.begin(), s.end()) - *std::min_element(s.begin(), s.end()), 200);
   // Pattern II predicts a far worse delta2 than pattern I: the paper's finding.
   EXPECT_TRUE(!two.prediction.identifiable[0] ||

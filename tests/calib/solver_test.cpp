@@ -105,9 +105,8 @@ TEST(Solver, HitPointModelUsesTheReadings) {
   // The spot was recorded away from the PSD centre; with the readings the solve is exact,
   // without them it is not.
   Table2Scenario sc = table2Scenario();
-  sc.cell.psd_rotation =
-      Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
-      Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  sc.cell.psd_rotation = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
+                         Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitX()).toRotationMatrix();
   const auto planned = plan(sc, Pattern::kOptimal, 10);
   std::vector<Pose> recorded;
   std::mt19937_64 rng(5);
@@ -115,7 +114,8 @@ TEST(Solver, HitPointModelUsesTheReadings) {
   for (const auto& p : planned) {
     Pose rec;
     rec.psd_uv_mm = Eigen::Vector2d(uv(rng), uv(rng));
-    const Eigen::Vector3d hit = sc.truth.target_mm + sc.cell.psd_rotation.col(0) * rec.psd_uv_mm->x() +
+    const Eigen::Vector3d hit = sc.truth.target_mm +
+                                sc.cell.psd_rotation.col(0) * rec.psd_uv_mm->x() +
                                 sc.cell.psd_rotation.col(1) * rec.psd_uv_mm->y();
     rec.q_deg = *servoOnto(sc.cell, sc.truth, hit, p.q_deg);
     recorded.push_back(rec);

@@ -41,10 +41,12 @@ TEST(JointSetCsv, BadInputNamesTheLine) {
             std::string::npos);
   EXPECT_NE(errorOf("q1,q2,q3,q4,q5\n").find("missing: q6"), std::string::npos);
   EXPECT_NE(errorOf("q1,q2,q3,q4,q5,q6,u\n").find("only one of u and v"), std::string::npos);
-  EXPECT_NE(errorOf("q1,q2,q3,q4,q5,q6\n1,2,3,4,5,x\n").find("poses.csv:2: column 6 ('x') is not a number"),
+  EXPECT_NE(errorOf("q1,q2,q3,q4,q5,q6\n1,2,3,4,5,x\n")
+                .find("poses.csv:2: column 6 ('x') is not a number"),
             std::string::npos);
-  EXPECT_NE(errorOf("q1,q2,q3,q4,q5,q6\n1,2,3,4,5,nan\n").find("poses.csv:2: column 6 is not finite"),
-            std::string::npos);
+  EXPECT_NE(
+      errorOf("q1,q2,q3,q4,q5,q6\n1,2,3,4,5,nan\n").find("poses.csv:2: column 6 is not finite"),
+      std::string::npos);
   EXPECT_NE(errorOf("q1,q2,q3,q4,q5,q6\n1,2,3\n").find("poses.csv:2: expected 6 fields"),
             std::string::npos);
   EXPECT_NE(errorOf("q1,q2,q3,q4,q5,q6\n1,2,3,4,5,\n").find("is not a number"), std::string::npos);

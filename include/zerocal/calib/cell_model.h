@@ -16,10 +16,10 @@
 
 namespace zerocal {
 
-constexpr int kOffsetCount = 4;                                  // delta2..delta5
+constexpr int kOffsetCount = 4;                                    // delta2..delta5
 constexpr int kIdentifiedCount = kOffsetCount + kLaserParamCount;  // the paper's 8
 constexpr int kTargetCount = 3;
-constexpr int kUnknownCount = kIdentifiedCount + kTargetCount;    // with the target: 11
+constexpr int kUnknownCount = kIdentifiedCount + kTargetCount;  // with the target: 11
 constexpr int kMinimumPoses = 6;  // 2N residuals must exceed 11 unknowns
 
 struct CellModel {

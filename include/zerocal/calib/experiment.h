@@ -34,22 +34,22 @@ Table2Scenario table2Scenario();
 struct ParameterStats {
   std::string name;
   double truth = 0;
-  double mean_error = 0;  // over the repeats, same unit as the parameter (deg for offsets)
-  double std = 0;         // sample standard deviation of the estimates
-  double crb = 0;         // Cramer-Rao bound (one sigma) at the true parameters
-  bool has_paper = false; // the paper's Table II figures for this pattern and parameter
+  double mean_error = 0;   // over the repeats, same unit as the parameter (deg for offsets)
+  double std = 0;          // sample standard deviation of the estimates
+  double crb = 0;          // Cramer-Rao bound (one sigma) at the true parameters
+  bool has_paper = false;  // the paper's Table II figures for this pattern and parameter
   double paper_mean_error = 0, paper_std = 0;
 };
 
 struct ScenarioResult {
   Pattern pattern = Pattern::kI;
   CostKind cost = CostKind::kMaximumLikelihood;
-  std::vector<Pose> poses;              // the planned (nominal) poses
-  std::vector<ParameterStats> stats;    // the 8 identified parameters
-  double rms_error_deg = 0;             // RMS of all delta2..delta5 errors over all repeats
-  double predicted_rms_sigma_deg = 0;   // RMS of the CRB over delta2..delta5
-  int not_identifiable_runs = 0;        // repeats whose report flagged any offset
-  int failed_runs = 0;                  // repeats whose solve did not converge
+  std::vector<Pose> poses;             // the planned (nominal) poses
+  std::vector<ParameterStats> stats;   // the 8 identified parameters
+  double rms_error_deg = 0;            // RMS of all delta2..delta5 errors over all repeats
+  double predicted_rms_sigma_deg = 0;  // RMS of the CRB over delta2..delta5
+  int not_identifiable_runs = 0;       // repeats whose report flagged any offset
+  int failed_runs = 0;                 // repeats whose solve did not converge
   double mean_solve_ms = 0;
 };
 

@@ -10,8 +10,8 @@
 namespace zerocal {
 
 struct Identifiability {
-  int rank = 0;                  // numerical rank of the column-scaled Jacobian (of 11)
-  double condition_number = 0;   // largest / smallest singular value (infinite when rank < 11)
+  int rank = 0;                 // numerical rank of the column-scaled Jacobian (of 11)
+  double condition_number = 0;  // largest / smallest singular value (infinite when rank < 11)
   Eigen::VectorXd singular_values;
   // Per unknown (kUnknownCount entries, in unknownName order):
   std::vector<bool> identifiable;

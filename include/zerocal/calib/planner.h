@@ -51,11 +51,11 @@ struct PlanOptions {
   int poses = 8;
   double noise_mm = 0.05 / 1.7320508075688772;  // uniform +-0.05 mm
   double standoff_min_mm = 300, standoff_max_mm = 800;
-  double margin_deg = 5;               // kept from every joint limit
-  double max_incidence_deg = 60;       // beam angle from the PSD normal
+  double margin_deg = 5;                                  // kept from every joint limit
+  double max_incidence_deg = 60;                          // beam angle from the PSD normal
   Eigen::Vector3d psd_normal = Eigen::Vector3d::UnitZ();  // the PSD faces up by default
-  double sweep_deg = 45;               // patterns I and II: beam tilt range, +-
-  bool joint1_fixed = false;           // pattern II only: hold joint 1 exactly constant
+  double sweep_deg = 45;                                  // patterns I and II: beam tilt range, +-
+  bool joint1_fixed = false;  // pattern II only: hold joint 1 exactly constant
   std::string validate() const;
 };
 

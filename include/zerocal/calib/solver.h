@@ -36,11 +36,11 @@ struct SolveOptions {
 };
 
 struct ParameterEstimate {
-  std::string name;   // "delta2_deg", "laser_slope_1", ...
+  std::string name;  // "delta2_deg", "laser_slope_1", ...
   bool identifiable = true;
-  std::string reason; // why not, when not
-  double value = 0;   // degrees for offsets, as named otherwise
-  double sigma = 0;   // one standard deviation, same unit
+  std::string reason;  // why not, when not
+  double value = 0;    // degrees for offsets, as named otherwise
+  double sigma = 0;    // one standard deviation, same unit
   double ci95_low = 0, ci95_high = 0;
 };
 
@@ -72,8 +72,8 @@ struct SolveReport {
   int rank = 0;
   double condition_number = 0;
   int dof = 0;
-  double noise_mm = 0;             // the sigma behind the reported uncertainties
-  bool noise_estimated = false;    // true: from the residuals; false: given
+  double noise_mm = 0;                 // the sigma behind the reported uncertainties
+  bool noise_estimated = false;        // true: from the residuals; false: given
   std::optional<double> chi2_per_dof;  // only when the noise was given
   double rms_miss_mm = 0;
   std::vector<PoseResidual> poses;

@@ -40,7 +40,8 @@ class LaserModel {
 
   // Inverse of line(): the parameters of a given flange-frame line (direction need not be unit;
   // the point is moved along the line into the parameter plane). Requires dot(direction, n) > 0.
-  Eigen::Vector4d parametersOf(const Eigen::Vector3d& point, const Eigen::Vector3d& direction) const;
+  Eigen::Vector4d parametersOf(const Eigen::Vector3d& point,
+                               const Eigen::Vector3d& direction) const;
 
   const Eigen::Vector3d& nominalDirection() const { return n_; }
   const Eigen::Vector3d& nominalPoint() const { return p0_; }

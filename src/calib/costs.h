@@ -11,17 +11,20 @@
 
 namespace zerocal {
 
+// Flange pose for controller joints q (radians) with the offsets delta2..delta5 added.
+template <typename T>
+Frame<T> flangeWithOffsets(const Robot& robot, const double* q_rad, const T* delta) {
+  const T joints[kJointCount] = {T(q_rad[0]),            T(q_rad[1]) + delta[0],
+                                 T(q_rad[2]) + delta[1], T(q_rad[3]) + delta[2],
+                                 T(q_rad[4]) + delta[3], T(q_rad[5])};
+  return flangePose(robot, joints);
+}
+
 // Laser line of one pose in the base frame, differentiable in the offsets and laser parameters.
 template <typename T>
 void laserLineInBase(const CellModel& cell, const double* q_rad, const T* delta, const T* kappa,
                      Vec3<T>* point, Vec3<T>* direction) {
-  T joints[kJointCount] = {T(q_rad[0]),
-                           T(q_rad[1]) + delta[0],
-                           T(q_rad[2]) + delta[1],
-                           T(q_rad[3]) + delta[2],
-                           T(q_rad[4]) + delta[3],
-                           T(q_rad[5])};
-  const Frame<T> flange = flangePose(cell.robot, joints);
+  const Frame<T> flange = flangeWithOffsets(cell.robot, q_rad, delta);
   Vec3<T> p, d;
   cell.laser.line(kappa, &p, &d);
   *point = flange.apply(p);
@@ -47,13 +50,7 @@ class PointToLineCost {
 
   template <typename T>
   bool operator()(const T* delta, const T* kappa, const T* target, T* residual) const {
-    T joints[kJointCount] = {T(q_rad_[0]),
-                             T(q_rad_[1]) + delta[0],
-                             T(q_rad_[2]) + delta[1],
-                             T(q_rad_[3]) + delta[2],
-                             T(q_rad_[4]) + delta[3],
-                             T(q_rad_[5])};
-    const Frame<T> flange = flangePose(cell_.robot, joints);
+    const Frame<T> flange = flangeWithOffsets(cell_.robot, q_rad_, delta);
     Vec3<T> p, d;
     cell_.laser.line(kappa, &p, &d);
     const Vec3<T> hit(target[0] + offset_[0], target[1] + offset_[1], target[2] + offset_[2]);

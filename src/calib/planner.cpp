@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numeric>
+#include <random>
 #include <sstream>
 
 #include "zerocal/calib/identifiability.h"
@@ -183,8 +185,12 @@ namespace {
 std::vector<Joints> seedsFor(const Eigen::Vector3d& target) {
   const double q1 = std::atan2(target.y(), target.x()) * kRadToDeg;
   std::vector<Joints> seeds;
-  for (double q5 : {45.0, -45.0})
-    for (double q4 : {0.0, 90.0, -90.0}) seeds.push_back({q1, 10, 0, q4, q5, 0});
+  // Wrist seeds: both signs of joint 5 (away from the 4/6 singularity), three joint-4 turns,
+  // and three joint-6 turns so that the roll about the beam varies (a laser along the flange
+  // axis would otherwise keep joint 6 still, and delta5 would trade against its tilt).
+  for (double q6 : {0.0, 120.0, -120.0})
+    for (double q5 : {45.0, -45.0})
+      for (double q4 : {0.0, 90.0, -90.0}) seeds.push_back({q1, 10, 0, q4, q5, q6});
   return seeds;
 }
 
@@ -225,58 +231,82 @@ std::vector<Pose> sweepPattern(const CellModel& cell, const Eigen::Vector3d& tar
 }
 
 // A-optimal selection of n poses from the candidates: minimise the summed variance of
-// delta2..delta5 with the laser and target as nuisance parameters. Greedy start, then
-// exchange passes (Fedorov) until no swap improves.
+// delta2..delta5, plus a tenth of the laser's (slopes as radians, offsets as radians at a 600 mm
+// lever arm) so that a set leaving the laser undetermined is never chosen; the target is a
+// nuisance. Greedy start and random starts, each improved by exchange passes (Fedorov); the
+// best wins. Deterministic: the random starts are seeded.
 std::vector<int> selectOptimal(
     const std::vector<Eigen::Matrix<double, kUnknownCount, kUnknownCount>>& info, int n) {
   using Mat = Eigen::Matrix<double, kUnknownCount, kUnknownCount>;
-  auto criterion = [](const Mat& m) {
-    const Eigen::LDLT<Mat> ldlt(m);
+  const int count = static_cast<int>(info.size());
+  Mat ridge = Mat::Zero();
+  for (const auto& m : info) ridge += m;
+  // Keeps a rank-deficient sum invertible: its null directions then cost about 1e9 times more.
+  ridge = 1e-9 * ridge.diagonal().mean() * Mat::Identity();
+  auto criterion = [&](const Mat& m) {
+    const Eigen::LDLT<Mat> ldlt(m + ridge);
     if (ldlt.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
     const Mat inv = ldlt.solve(Mat::Identity());
     double t = 0;
     for (int k = 0; k < kOffsetCount; ++k) t += inv(k, k);
+    t += 0.1 * (inv(4, 4) + inv(5, 5) + (inv(6, 6) + inv(7, 7)) / (600.0 * 600.0));
     return t > 0 && std::isfinite(t) ? t : std::numeric_limits<double>::infinity();
   };
-  Mat ridge = Mat::Zero();
-  for (const auto& m : info) ridge += m;
-  ridge = 1e-9 * ridge.diagonal().mean() * Mat::Identity();
-  std::vector<int> chosen;
-  Mat total = ridge;
+  auto sum = [&](const std::vector<int>& set) {
+    Mat total = Mat::Zero();
+    for (int c : set) total += info[c];
+    return total;
+  };
+  auto improve = [&](std::vector<int> chosen) {
+    Mat total = sum(chosen);
+    double current = criterion(total);
+    for (int pass = 0; pass < 20; ++pass) {
+      bool improved = false;
+      for (int slot = 0; slot < n; ++slot) {
+        const Mat without = total - info[chosen[slot]];
+        int best = -1;
+        double best_value = current * (1 - 1e-9);
+        for (int c = 0; c < count; ++c) {
+          if (std::find(chosen.begin(), chosen.end(), c) != chosen.end()) continue;
+          const double v = criterion(without + info[c]);
+          if (v < best_value) best_value = v, best = c;
+        }
+        if (best >= 0) {
+          total = without + info[best];
+          chosen[slot] = best;
+          current = best_value;
+          improved = true;
+        }
+      }
+      if (!improved) break;
+    }
+    return std::make_pair(current, chosen);
+  };
+
+  std::vector<int> greedy;
+  Mat total = Mat::Zero();
   for (int slot = 0; slot < n; ++slot) {
     int best = -1;
     double best_value = std::numeric_limits<double>::infinity();
-    for (int c = 0; c < static_cast<int>(info.size()); ++c) {
-      if (std::find(chosen.begin(), chosen.end(), c) != chosen.end()) continue;
+    for (int c = 0; c < count; ++c) {
+      if (std::find(greedy.begin(), greedy.end(), c) != greedy.end()) continue;
       const double v = criterion(total + info[c]);
       if (v < best_value) best_value = v, best = c;
     }
-    if (best < 0) break;
-    chosen.push_back(best);
+    if (best < 0) best = slot;  // nothing finite yet: any pose will do as a start
+    greedy.push_back(best);
     total += info[best];
   }
-  for (int pass = 0; pass < 20; ++pass) {
-    bool improved = false;
-    double current = criterion(total);
-    for (int slot = 0; slot < static_cast<int>(chosen.size()); ++slot) {
-      const Mat without = total - info[chosen[slot]];
-      int best = -1;
-      double best_value = current * (1 - 1e-9);
-      for (int c = 0; c < static_cast<int>(info.size()); ++c) {
-        if (std::find(chosen.begin(), chosen.end(), c) != chosen.end()) continue;
-        const double v = criterion(without + info[c]);
-        if (v < best_value) best_value = v, best = c;
-      }
-      if (best >= 0) {
-        total = without + info[best];
-        chosen[slot] = best;
-        current = best_value;
-        improved = true;
-      }
-    }
-    if (!improved) break;
+  auto best = improve(greedy);
+  std::mt19937 rng(12345);
+  for (int restart = 0; restart < 3; ++restart) {
+    std::vector<int> all(count);
+    std::iota(all.begin(), all.end(), 0);
+    std::shuffle(all.begin(), all.end(), rng);
+    auto candidate = improve(std::vector<int>(all.begin(), all.begin() + n));
+    if (candidate.first < best.first) best = candidate;
   }
-  return chosen;
+  return best.second;
 }
 
 }  // namespace

@@ -187,3 +187,45 @@ TEST(Solver, CancelStopsTheSolve) {
 
 }  // namespace
 }  // namespace zerocal
+
+namespace zerocal {
+namespace {
+
+TEST(Solver, AnyStandardDhArmWorks) {
+  // A UR5-like arm (different geometry, alpha signs, negative link lengths) with the laser along
+  // the flange z-axis, offset from it: plan, record, solve, recover the truth.
+  const Robot ur = parseRobot(R"(
+name: UR5-like
+joints:
+  - {a_mm: 0, alpha_deg: 90, d_mm: 89.159, theta_offset_deg: 0, lower_deg: -360, upper_deg: 360, max_speed_deg_s: 180}
+  - {a_mm: -425, alpha_deg: 0, d_mm: 0, theta_offset_deg: 0, lower_deg: -360, upper_deg: 360, max_speed_deg_s: 180}
+  - {a_mm: -392.25, alpha_deg: 0, d_mm: 0, theta_offset_deg: 0, lower_deg: -360, upper_deg: 360, max_speed_deg_s: 180}
+  - {a_mm: 0, alpha_deg: 90, d_mm: 109.15, theta_offset_deg: 0, lower_deg: -360, upper_deg: 360, max_speed_deg_s: 180}
+  - {a_mm: 0, alpha_deg: -90, d_mm: 94.65, theta_offset_deg: 0, lower_deg: -360, upper_deg: 360, max_speed_deg_s: 180}
+  - {a_mm: 0, alpha_deg: 0, d_mm: 82.3, theta_offset_deg: 0, lower_deg: -360, upper_deg: 360, max_speed_deg_s: 180}
+)",
+                              "ur5.yaml");
+  const CellModel cell{ur, LaserModel(Eigen::Vector3d::UnitZ(), Eigen::Vector3d(10, 0, 20)),
+                       Eigen::Matrix3d::Identity()};
+  CalibrationParameters truth;
+  truth.delta_rad = Eigen::Vector4d(0.3, -0.2, 0.5, -0.4) * kDegToRad;
+  truth.laser = Eigen::Vector4d(0.002, -0.001, 0.3, 0.2);
+  truth.target_mm = Eigen::Vector3d(400, -100, 0);
+  PlanOptions o;
+  o.standoff_min_mm = 150;
+  o.standoff_max_mm = 400;
+  const Plan plan = planPoses(cell, truth.target_mm, o);
+  EXPECT_EQ(plan.prediction.rank, kUnknownCount);
+  std::mt19937_64 rng(1);
+  const auto recorded = simulateRecording(cell, truth, plan.poses, 0.0, rng);
+  SolveOptions so;
+  so.noise_mm = 0.01;
+  const SolveReport r = solve(cell, recorded, so);
+  ASSERT_TRUE(r.converged);
+  for (int k = 0; k < kOffsetCount; ++k)
+    EXPECT_NEAR(r.parameters[k].value, truth.delta_rad[k] * kRadToDeg, 1e-6);
+  for (int k = 0; k < kLaserParamCount; ++k) EXPECT_NEAR(r.estimate.laser[k], truth.laser[k], 1e-6);
+}
+
+}  // namespace
+}  // namespace zerocal

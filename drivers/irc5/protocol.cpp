@@ -43,8 +43,8 @@ std::string formatRequest(int code, const std::vector<Param>& params) {
   std::snprintf(buf, sizeof buf, "%02d ", code);
   std::string out = buf;
   for (const Param& p : params) {
-    // Negative zero would print "-0.00000"; RAPID reads it fine but it reads oddly in logs.
-    const double v = p.value == 0.0 ? 0.0 : p.value;
+    // Values that round to zero would print "-0.00000"; RAPID reads it but logs read oddly.
+    const double v = std::abs(p.value) < 0.5 * std::pow(10.0, -p.decimals) ? 0.0 : p.value;
     std::snprintf(buf, sizeof buf, "%+.*f ", p.decimals, v);
     out += buf;
   }

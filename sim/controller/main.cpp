@@ -10,6 +10,7 @@
 int main(int argc, char** argv) {
   CLI::App app("Simulated ABB IRC5 controller speaking zerocal's RAPID server protocol");
   zerocal::SimControllerOptions options;
+  options.port = 5000;  // the RAPID server's port; 0 picks a free one
   std::string world_file;
   int delay_ms = 0;
   app.add_option("--port", options.port, "TCP port (0: ephemeral, printed on stdout)")

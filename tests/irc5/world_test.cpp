@@ -90,6 +90,12 @@ noise: {repeatability_deg: 0.001, psd_mm: 0.002}
   EXPECT_EQ(w.robot.limits[2].upper_deg, 65);
 }
 
+TEST(World, TheShippedExampleLoadsAndItsBeamHitsThePsdPlane) {
+  const World w = loadWorld(ZEROCAL_SOURCE_DIR "/config/worlds/example.yaml");
+  EXPECT_EQ(w.true_offsets_deg[3], -0.65);
+  EXPECT_TRUE(beamHit(w, Joints{0, 0, 0, 0, 30, 0}));
+}
+
 TEST(World, ReportsEveryProblemAtOnce) {
   try {
     parseWorld(R"(

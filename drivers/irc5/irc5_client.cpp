@@ -6,6 +6,7 @@
 #include <exception>
 #include <thread>
 
+#include "zerocal/irc5/motion_time.h"
 #include "zerocal/irc5/protocol.h"
 
 namespace zerocal {
@@ -295,12 +296,8 @@ Joints Irc5Client::readJoints() {
 }
 
 milliseconds Irc5Client::jointMoveTimeout(const Joints& from, const Joints& to) const {
-  double seconds = 0;
-  for (int i = 0; i < kJointCount; ++i) {
-    double speed = std::min(options_.robot.max_speed_deg_s[i], options_.speed_ori_deg_s);
-    if (!(speed > 0)) speed = options_.speed_ori_deg_s;
-    seconds = std::max(seconds, std::abs(to[i] - from[i]) / speed);
-  }
+  const double seconds = irc5::jointMoveSeconds(options_.robot, from, to, options_.speed_tcp_mm_s,
+                                                options_.speed_ori_deg_s);
   return milliseconds(static_cast<long long>(seconds * options_.move_timeout_factor * 1000.0)) +
          options_.move_timeout_margin;
 }

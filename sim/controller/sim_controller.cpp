@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "zerocal/error.h"
+#include "zerocal/irc5/motion_time.h"
 #include "zerocal/irc5/protocol.h"
 #include "zerocal/model/kinematics.h"
 
@@ -82,7 +83,9 @@ struct SimController::Impl {
   // The reply text (without terminator) to one request, or nullopt for no reply (99). Also
   // returns, through wall_delay, how long a paced move takes. Locks the state.
   std::optional<std::string> respond(const irc5::ParsedRequest& r, milliseconds* wall_delay);
-  std::string moveTo(const Joints& target, int code, milliseconds* wall_delay);
+  // linear_seconds >= 0: a MoveL of that duration (straight path) instead of a joint move.
+  std::string moveTo(const Joints& target, int code, milliseconds* wall_delay,
+                     double linear_seconds = -1);
   Frame<double> toolInWobj(const Joints& q) const;
   bool solveIk(const Frame<double>& flange_target, Joints* q) const;
 
@@ -329,16 +332,16 @@ bool SimController::Impl::solveIk(const Frame<double>& target, Joints* q) const 
   return false;
 }
 
-std::string SimController::Impl::moveTo(const Joints& target, int code, milliseconds* wall_delay) {
+std::string SimController::Impl::moveTo(const Joints& target, int code, milliseconds* wall_delay,
+                                        double linear_seconds) {
   Joints stored;
   for (int i = 0; i < kJointCount; ++i) stored[i] = f32(target[i]);
   const std::string violation = options.world.robot.limitViolation(stored);
   if (!violation.empty()) return std::to_string(code) + " 0 out of bounds";
-  double seconds = 0;
-  for (int i = 0; i < kJointCount; ++i) {
-    const double speed = std::min(options.world.robot.max_speed_deg_s[i], speed_ori_deg_s);
-    seconds = std::max(seconds, std::abs(stored[i] - commanded[i]) / speed);
-  }
+  const double seconds = linear_seconds >= 0
+                             ? linear_seconds
+                             : irc5::jointMoveSeconds(options.world.robot, commanded, stored,
+                                                      speed_tcp_mm_s, speed_ori_deg_s);
   sim_time_s += seconds;
   if (options.pace_real_time) *wall_delay = milliseconds(static_cast<long long>(seconds * 1000));
   commanded = stored;
@@ -373,11 +376,8 @@ std::optional<std::string> SimController::Impl::respond(const irc5::ParsedReques
       const Frame<double> from = toolInWobj(commanded);
       const double dist = (from.p - Eigen::Vector3d(p[0], p[1], p[2])).norm();
       const double angle = Eigen::AngleAxisd(from.R.transpose() * frameOf(p).R).angle();
-      const double before = sim_time_s;
-      const std::string reply = moveTo(q, r.code, wall_delay);
-      // A linear move is also bounded by the TCP and orientation speeds.
       const double linear = std::max(dist / speed_tcp_mm_s, angle * kRadToDeg / speed_ori_deg_s);
-      sim_time_s = std::max(sim_time_s, before + linear);
+      const std::string reply = moveTo(q, r.code, wall_delay, linear);
       return reply;
     }
     case irc5::kMoveJoints: {

@@ -131,8 +131,12 @@ TEST_F(ClientSim, MoveAdvancesTheSimulatedClockNotTheWallClock) {
   Irc5Client client(clientOptions());
   client.connect();
   const auto t0 = std::chrono::steady_clock::now();
-  client.moveJoints({100, 0, 0, 0, 30, 0});  // 100 deg at the 50 deg/s speed setting: 2 s
+  // J6 alone: the flange origin stays put, the tool turns 100 deg at v_ori = 50 deg/s: 2 s.
+  client.moveJoints({0, 0, 0, 0, 30, 100});
   EXPECT_NEAR(sim_->simTimeS(), 2.0, 1e-5);
+  // J1 swings the flange along an arc of about 100 deg x 0.85 m: v_tcp = 100 mm/s limits.
+  client.moveJoints({100, 0, 0, 0, 30, 100});
+  EXPECT_GT(sim_->simTimeS() - 2.0, 12.0);
   EXPECT_LT(std::chrono::steady_clock::now() - t0, milliseconds(500));
 }
 
@@ -145,7 +149,7 @@ TEST_F(ClientSim, RealTimePacedMoveUsesTheMoveDeadlineNotTheRequestTimeout) {
   Irc5Client client(o);
   client.connect();
   const auto t0 = std::chrono::steady_clock::now();
-  client.moveJoints({10, 0, 0, 0, 30, 0});  // 0.2 s
+  client.moveJoints({0, 0, 0, 0, 30, 10});  // J6 only: 10 deg at 50 deg/s, 0.2 s
   EXPECT_GE(std::chrono::steady_clock::now() - t0, milliseconds(190));
 }
 
@@ -396,7 +400,7 @@ TEST_F(ClientSim, StalledMoveTimesOutAfterTheMoveDeadline) {
   sim_->setFaults(f);
   client.readJoints();
   const auto t0 = std::chrono::steady_clock::now();
-  EXPECT_THROW(client.moveJoints({1, 0, 0, 0, 30, 0}), TimeoutError);  // 20 ms + 200 ms
+  EXPECT_THROW(client.moveJoints({0, 0, 0, 0, 30, 1}), TimeoutError);  // 20 ms + 200 ms
   const auto elapsed = std::chrono::steady_clock::now() - t0;
   EXPECT_GE(elapsed, milliseconds(200));
   EXPECT_LT(elapsed, milliseconds(1000));

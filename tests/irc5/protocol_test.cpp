@@ -3,6 +3,9 @@
 #include <gtest/gtest.h>
 
 #include "zerocal/irc5/errors.h"
+#include "zerocal/irc5/motion_time.h"
+#include "zerocal/model/builtin.h"
+#include "zerocal/model/kinematics.h"
 
 namespace zerocal {
 namespace irc5 {
@@ -75,6 +78,17 @@ TEST(Protocol, CompletenessWithoutLf) {
   EXPECT_EQ(replyCompleteness("4 0 ", 6), Completeness::kMaybe);
   EXPECT_EQ(replyCompleteness("98 1 a*b", -1), Completeness::kNeedMore);
   EXPECT_EQ(replyCompleteness("98 1 a*b*c", -1), Completeness::kMaybe);
+}
+
+TEST(MotionTime, JointMoveIsLimitedByJointTcpAndOrientationSpeeds) {
+  const Robot robot = builtinIrb1600();
+  // J1 by 90 deg at q = 0 swings the flange (815 mm from the axis) along a quarter circle.
+  EXPECT_NEAR(jointMoveSeconds(robot, Joints{}, Joints{90, 0, 0, 0, 0, 0}, 100, 50),
+              815 * kPi / 2 / 100, 0.05);
+  // J6 alone: no TCP path, the tool turns 90 deg at 50 deg/s.
+  EXPECT_NEAR(jointMoveSeconds(robot, Joints{}, Joints{0, 0, 0, 0, 0, 90}, 100, 50), 1.8, 1e-9);
+  // Fast settings: J1's own 180 deg/s maximum limits.
+  EXPECT_NEAR(jointMoveSeconds(robot, Joints{}, Joints{90, 0, 0, 0, 0, 0}, 1e6, 1e6), 0.5, 1e-9);
 }
 
 }  // namespace

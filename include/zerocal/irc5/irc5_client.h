@@ -34,7 +34,7 @@ struct Irc5Options {
   std::chrono::milliseconds move_timeout_margin{2000};
 
   // Sent on connect (code 08): TCP mm/s, orientation deg/s, external axes mm/s and deg/s.
-  // The move-duration estimate caps every joint's speed at speed_ori_deg_s.
+  // Move deadlines follow from these too (zerocal/irc5/motion_time.h).
   double speed_tcp_mm_s = 100.0;
   double speed_ori_deg_s = 50.0;
   double speed_leax_mm_s = 0.0;

@@ -141,6 +141,11 @@ int expectedReplyFields(int code) {
 Completeness replyCompleteness(std::string_view buffer, int expected_fields) {
   const std::vector<std::string> f = splitFields(buffer);
   const bool trailing_space = !buffer.empty() && isSpace(buffer.back());
+  // Not the start of a reply at all: complete as far as waiting goes, parseReply will refuse it.
+  int number = 0;
+  if (!f.empty() && (f.size() > 1 || trailing_space) && !parseInt(f[0], &number)) {
+    return Completeness::kComplete;
+  }
   if (f.size() < 2 || (f.size() == 2 && !trailing_space)) return Completeness::kNeedMore;
   // A refusal carries no fixed field count ("30 0 not supported" from us, "4 0 " upstream).
   if (f[1] == "0") return Completeness::kMaybe;

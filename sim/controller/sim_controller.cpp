@@ -130,7 +130,13 @@ class SimController::Impl::Session : public std::enable_shared_from_this<Session
 
  private:
   void handleNext() {
-    if (writing_ || !socket_.is_open() || stalled_) return;
+    if (writing_ || !socket_.is_open()) return;
+    if (stalled_) {
+      // Blocked "inside a move": ignore requests but keep reading, to notice the client leave.
+      rx_.clear();
+      readMore();
+      return;
+    }
     // Stray whitespace between requests (a client's LF after '#') must not desynchronise us.
     const std::size_t start = rx_.find_first_not_of(" \r\n\t");
     rx_.erase(0, start == std::string::npos ? rx_.size() : start);

@@ -376,17 +376,22 @@ TEST_F(ClientSim, DelayWithinTheDeadlineIsFine) {
   EXPECT_NO_THROW(client.readJoints());
 }
 
-TEST_F(ClientSim, GarbageReplyIsAProtocolError) {
-  startSim();
-  Irc5Client client(clientOptions());
-  client.connect();
-  SimFaults f;
-  f.garbage_code = 4;
-  sim_->setFaults(f);
-  EXPECT_THROW(client.readJoints(), ProtocolError);
-  EXPECT_FALSE(client.connected());
-  EXPECT_NO_THROW(client.reconnect());
-  EXPECT_NO_THROW(client.ping());
+TEST_F(ClientSim, GarbageReplyIsAProtocolErrorWithAndWithoutLf) {
+  for (bool lf : {true, false}) {
+    startSim(lf);
+    Irc5Client client(clientOptions(lf));
+    client.connect();
+    SimFaults f;
+    f.garbage_code = 4;
+    sim_->setFaults(f);
+    const auto t0 = std::chrono::steady_clock::now();
+    EXPECT_THROW(client.readJoints(), ProtocolError) << lf;
+    EXPECT_LT(std::chrono::steady_clock::now() - t0, milliseconds(500)) << lf;  // no timeout
+    EXPECT_FALSE(client.connected());
+    sim_->setFaults({});
+    EXPECT_NO_THROW(client.reconnect());
+    EXPECT_NO_THROW(client.ping());
+  }
 }
 
 TEST_F(ClientSim, StalledMoveTimesOutAfterTheMoveDeadline) {

@@ -78,6 +78,7 @@ TEST(Protocol, CompletenessWithoutLf) {
   EXPECT_EQ(replyCompleteness("4 0 ", 6), Completeness::kMaybe);
   EXPECT_EQ(replyCompleteness("98 1 a*b", -1), Completeness::kNeedMore);
   EXPECT_EQ(replyCompleteness("98 1 a*b*c", -1), Completeness::kMaybe);
+  EXPECT_EQ(replyCompleteness("#?! garbage", 6), Completeness::kComplete);
 }
 
 TEST(MotionTime, JointMoveIsLimitedByJointTcpAndOrientationSpeeds) {

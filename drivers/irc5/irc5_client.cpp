@@ -19,6 +19,9 @@ using std::chrono::milliseconds;
 
 namespace {
 
+// Replies are at most 80 characters; anything much longer is not a reply of this protocol.
+constexpr std::size_t kMaxReplyBytes = 1024;
+
 double parseNumber(const std::string& field, int code) {
   char* end = nullptr;
   const double v = std::strtod(field.c_str(), &end);
@@ -205,12 +208,17 @@ irc5::Reply Irc5Client::transact(const std::string& request, int code, int expec
   if (options_.lf_terminated) {
     std::size_t n = 0;
     ec = asio::error::would_block;
-    asio::async_read_until(io_->socket, asio::dynamic_buffer(io_->rx), '\n',
+    // Bounded, so that a stream that never sends LF cannot grow the buffer without limit.
+    asio::async_read_until(io_->socket, asio::dynamic_buffer(io_->rx, kMaxReplyBytes), '\n',
                            [&](const error_code& e, std::size_t bytes) {
                              ec = e;
                              n = bytes;
                            });
     if (!io_->runUntil(deadline)) fail(timed_out());
+    if (ec == asio::error::not_found) {
+      fail(ProtocolError("no LF in the first " + std::to_string(kMaxReplyBytes) +
+                         " bytes of the reply to \"" + request + "\""));
+    }
     if (ec) fail(dropped(ec));
     line = io_->rx.substr(0, n - 1);
     io_->rx.erase(0, n);
@@ -311,7 +319,9 @@ void Irc5Client::moveJoints(const Joints& target_deg) {
   const std::string violation =
       options_.robot.limitViolation(target_deg, options_.limit_margin_deg);
   if (!violation.empty()) throw RequestRefusedError("joint target refused: " + violation);
-  if (!have_joints_) readJoints();
+  // The step limit compares with where the robot is now (it may have been jogged since the last
+  // read); the deadline alone can use the last known joints.
+  if (!have_joints_ || options_.max_step_deg > 0) readJoints();
   const Joints from = last_joints_;
   if (options_.max_step_deg > 0) {
     for (int i = 0; i < kJointCount; ++i) {

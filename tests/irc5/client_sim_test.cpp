@@ -6,8 +6,10 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <cctype>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <iomanip>
 #include <thread>
 
@@ -278,20 +280,52 @@ TEST_F(ClientSim, ServerAnswersARequestMissingItsHashWithItsOwnCode) {
   EXPECT_EQ(raw.line(), "4 1 0.00000 0.00000 0.00000 0.00000 30.00000 0.00000");
 }
 
+// What open_abb's abb.py does with a reply: split on ' ' and float() every token (Python's float
+// accepts surrounding whitespace, so our LF on the last token is fine, a trailing " \n" is not).
+bool pythonFloatsAll(const std::string& reply) {
+  std::size_t start = 0;
+  for (;;) {
+    const std::size_t end = std::min(reply.find(' ', start), reply.size());
+    std::string token = reply.substr(start, end - start);
+    while (!token.empty() && std::isspace(static_cast<unsigned char>(token.back())))
+      token.pop_back();
+    char* stop = nullptr;
+    std::strtod(token.c_str(), &stop);
+    if (token.empty() || *stop != '\0') return false;
+    if (end == reply.size()) return true;
+    start = end + 1;
+  }
+}
+
 TEST_F(ClientSim, ServerAcceptsTheUpstreamPythonClientsBytes) {
   startSim();
   RawSocket raw(sim_->port());
   ASSERT_TRUE(raw.connected());
-  raw.send("06 +000.0 +000.0 +000.0 +1.00000 +0.00000 +0.00000 +0.00000 #");
+  // Byte for byte what abb.py's Robot() sends: format(x, "+08.1f") etc.
+  raw.send("06 +00000.0 +00000.0 +00000.0 +1.00000 +0.00000 +0.00000 +0.00000 #");
   EXPECT_EQ(raw.line(), "6 1 ");
-  raw.send("08 +0100.0 +0050.0 +0050.0 +0050.0 #");
+  raw.send("07 +00000.0 +00000.0 +00000.0 +1.00000 +0.00000 +0.00000 +0.00000 #");
+  EXPECT_EQ(raw.line(), "7 1 ");
+  raw.send("08 +00100.0 +0050.00 +00050.0 +0050.00 #");
   EXPECT_EQ(raw.line(), "8 1 ");
-  raw.send("09 0 +0001.0 +0001.0 +0000.1 #");  // upstream's z1 fly-by, as abb.py sends it
+  raw.send("09 0 +01.0000 +01.0000 +00.1000 #");  // setZone('z1')
   EXPECT_EQ(raw.line(), "9 1 ");
   raw.send("02 +0010.00 -0005.25 +0000.00 +0000.00 +0090.00 +0000.00 #");
   EXPECT_EQ(raw.line(), "2 1 ");
   raw.send("04 #");
-  EXPECT_EQ(raw.line(), "4 1 10.00000 -5.25000 0.00000 0.00000 90.00000 0.00000");
+  const std::string joints = raw.line();
+  EXPECT_EQ(joints, "4 1 10.00000 -5.25000 0.00000 0.00000 90.00000 0.00000");
+  EXPECT_TRUE(pythonFloatsAll(joints + "\n"));
+  raw.send("01 +00900.0 +00000.0 +00900.0 +0.70711 +0.00000 +0.70711 +0.00000 #");
+  EXPECT_EQ(raw.line(), "1 1 ");
+  raw.send("03 #");
+  const std::string pose = raw.line();
+  EXPECT_EQ(pose.substr(0, 24), "3 1 900.000 0.000 900.00");
+  EXPECT_TRUE(pythonFloatsAll(pose + "\n"));
+  raw.send("05 #");
+  EXPECT_TRUE(pythonFloatsAll(raw.line() + "\n"));
+  raw.send("98 #");
+  EXPECT_EQ(raw.line().substr(5), "SIM-1600-0001*6.15.01.00*IRB 1600-10/1.45");  // abb.py: [5:]
   // A request split across segments, and a stray LF after '#', stay in step.
   raw.send("0");
   raw.send("0 #\n");

@@ -29,6 +29,10 @@ MODULE ZerocalServer
     ! Seconds a request may stay without its '#' before it is answered as a bad message.
     CONST num kFragmentTimeout := 1;
 
+    ! Decimals of joint angles in replies. 5 matches num's float32 resolution near 100 deg; if
+    ! NumToStr refuses 5 on this RobotWare, set 4 (the client reads either).
+    CONST num kJointDecimals := 5;
+
     ! ---- Protocol constants ----------------------------------------------------------------
     CONST num kMaxParams := 10;
     CONST string kLf := "\0A";
@@ -67,6 +71,10 @@ MODULE ZerocalServer
     VAR robtarget pose_now;
 
     PROC main()
+        ! As upstream: MoveL may change the arm configuration, and the wrist may pass near its
+        ! singularity, rather than stop with a configuration error.
+        ConfL \Off;
+        SingArea \Wrist;
         zc_zone := fine;
         ReadJointBounds;
         WHILE TRUE DO
@@ -222,9 +230,9 @@ MODULE ZerocalServer
     ENDFUNC
 
     FUNC string JointsText(jointtarget j)
-        RETURN NumToStr(j.robax.rax_1, 5) + " " + NumToStr(j.robax.rax_2, 5) + " "
-            + NumToStr(j.robax.rax_3, 5) + " " + NumToStr(j.robax.rax_4, 5) + " "
-            + NumToStr(j.robax.rax_5, 5) + " " + NumToStr(j.robax.rax_6, 5);
+        RETURN NumToStr(j.robax.rax_1, kJointDecimals) + " " + NumToStr(j.robax.rax_2, kJointDecimals)
+            + " " + NumToStr(j.robax.rax_3, kJointDecimals) + " " + NumToStr(j.robax.rax_4, kJointDecimals)
+            + " " + NumToStr(j.robax.rax_5, kJointDecimals) + " " + NumToStr(j.robax.rax_6, kJointDecimals);
     ENDFUNC
 
     ! Sets ok, data and close_after for `request`.

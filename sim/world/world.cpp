@@ -33,12 +33,6 @@ std::optional<BeamHit> beamHit(const World& world, const Joints& q_deg, const Jo
 
 namespace {
 
-// World file:
-//   robot: builtin              # or a robot file path (relative to this file)
-//   true_offsets_deg: [6 numbers]
-//   laser: {point_mm: [x, y, z], direction: [x, y, z]}          # flange frame
-//   psd: {position_mm: [x, y, z], rpy_deg: [roll, pitch, yaw]}  # base frame, R = Rz Ry Rx
-//   noise: {repeatability_deg: 5e-4, psd_mm: 0.001}             # optional
 class Reader {
  public:
   explicit Reader(std::vector<std::string>* problems) : problems_(problems) {}

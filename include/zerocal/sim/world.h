@@ -47,9 +47,13 @@ struct BeamHit {
 std::optional<BeamHit> beamHit(const World& world, const Joints& q_deg,
                                const Joints& extra_deg = Joints{});
 
-// Reads a world file (YAML, docs in the function's .cpp). Throws ConfigError listing every
-// problem found. Relative robot paths are resolved against the world file's folder; "builtin"
-// (the default) is the compiled-in IRB1600.
+// Reads a world file (config/worlds/example.yaml):
+//   robot: builtin                      # or a robot file, relative to the world file's folder
+//   true_offsets_deg: [6 numbers]
+//   laser: {point_mm: [x, y, z], direction: [x, y, z]}          # flange frame
+//   psd: {position_mm: [x, y, z], rpy_deg: [roll, pitch, yaw]}  # base frame, R = Rz Ry Rx
+//   noise: {repeatability_deg: 5e-4, psd_mm: 0.001}             # optional
+// Throws ConfigError listing every problem found.
 World loadWorld(const std::string& path);
 World parseWorld(const std::string& yaml_text, const std::string& origin,
                  const std::string& base_dir = ".");

@@ -334,6 +334,21 @@ TEST_F(ClientSim, ServerAcceptsTheUpstreamPythonClientsBytes) {
   EXPECT_EQ(raw.line(), "0 1 ");
 }
 
+TEST_F(ClientSim, EveryReplyFitsEightyCharactersWithItsLf) {
+  startSim();
+  RawSocket raw(sim_->port());
+  ASSERT_TRUE(raw.connected());
+  raw.send("02 -179.99999 -89.99999 -244.99999 -199.99999 -114.99999 -399.99999 #");
+  EXPECT_EQ(raw.line(), "2 1 ");
+  for (const char* request :
+       {"00 #", "03 #", "04 #", "05 #", "41 #", "42 0 #", "42 1 #", "98 #", "30 #", "77 #"}) {
+    raw.send(request);
+    const std::string line = raw.line();
+    EXPECT_LE(line.size() + 1, 80u) << request << " -> " << line;
+    EXPECT_EQ(line.find("<timeout>"), std::string::npos) << request;
+  }
+}
+
 TEST_F(ClientSim, LimitsAreRefusedOnBothSides) {
   startSim();
   Irc5Client client(clientOptions());

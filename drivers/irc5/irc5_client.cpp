@@ -1,0 +1,407 @@
+#include "zerocal/irc5/irc5_client.h"
+
+#include <algorithm>
+#include <boost/asio.hpp>
+#include <cmath>
+#include <exception>
+#include <thread>
+
+#include "zerocal/irc5/motion_time.h"
+#include "zerocal/irc5/protocol.h"
+
+namespace zerocal {
+
+namespace asio = boost::asio;
+using asio::ip::tcp;
+using boost::system::error_code;
+using Clock = std::chrono::steady_clock;
+using std::chrono::milliseconds;
+
+namespace {
+
+// Replies are at most 80 characters; anything much longer is not a reply of this protocol.
+constexpr std::size_t kMaxReplyBytes = 1024;
+
+double parseNumber(const std::string& field, int code) {
+  char* end = nullptr;
+  const double v = std::strtod(field.c_str(), &end);
+  if (end == field.c_str() || *end != '\0' || !std::isfinite(v)) {
+    throw ProtocolError("reply to " + std::to_string(code) + ": \"" + field + "\" is not a number");
+  }
+  return v;
+}
+
+std::array<double, 6> sixNumbers(const irc5::Reply& r) {
+  std::array<double, 6> out{};
+  for (int i = 0; i < 6; ++i) out[i] = parseNumber(r.fields[i], r.code);
+  return out;
+}
+
+}  // namespace
+
+// The blocking-with-deadline pattern of Asio's blocking_tcp_client example: start an async
+// operation, run the io_context for at most the time left, cancel what is still pending.
+struct Irc5Client::Io {
+  asio::io_context ctx;
+  tcp::socket socket{ctx};
+  std::string rx;
+  bool open = false;
+
+  // Returns false when the deadline passed; pending operations are then cancelled and have
+  // completed (with operation_aborted) before this returns.
+  bool runUntil(Clock::time_point deadline) {
+    ctx.restart();
+    ctx.run_until(deadline);
+    if (ctx.stopped()) return true;
+    error_code ignored;
+    socket.cancel(ignored);
+    ctx.restart();
+    ctx.run();
+    return false;
+  }
+
+  void shut() {
+    error_code ignored;
+    socket.shutdown(tcp::socket::shutdown_both, ignored);
+    socket.close(ignored);
+    rx.clear();
+    open = false;
+  }
+};
+
+Irc5Client::Irc5Client(Irc5Options options) : options_(std::move(options)), io_(new Io) {
+  std::vector<std::string> problems;
+  for (int i = 0; i < kJointCount; ++i) {
+    const JointLimit& l = options_.robot.limits[i];
+    if (!(l.lower_deg < l.upper_deg)) {
+      problems.push_back("robot joint " + std::to_string(i + 1) +
+                         " has no usable limits: pass the robot file");
+      break;
+    }
+  }
+  if (options_.host.empty()) problems.push_back("host is empty");
+  if (options_.limit_margin_deg < 0) problems.push_back("limit_margin_deg is negative");
+  if (options_.max_step_deg < 0) problems.push_back("max_step_deg is negative");
+  if (options_.connect_timeout.count() <= 0 || options_.request_timeout.count() <= 0 ||
+      options_.move_timeout_margin.count() < 0 || options_.move_timeout_factor < 1.0) {
+    problems.push_back("timeouts must be positive and move_timeout_factor at least 1");
+  }
+  if (!(options_.speed_tcp_mm_s > 0) || !(options_.speed_ori_deg_s > 0)) {
+    problems.push_back("speed_tcp_mm_s and speed_ori_deg_s must be positive");
+  }
+  if (options_.reconnect_attempts < 1) problems.push_back("reconnect_attempts must be >= 1");
+  if (!problems.empty()) throw ConfigError("Irc5Options", problems);
+}
+
+Irc5Client::~Irc5Client() { close(); }
+
+bool Irc5Client::connected() const noexcept { return io_->open; }
+
+void Irc5Client::connect() {
+  io_->shut();
+  have_joints_ = false;
+  error_code ec;
+  tcp::resolver resolver(io_->ctx);
+  const auto endpoints = resolver.resolve(options_.host, std::to_string(options_.port), ec);
+  if (ec) throw ConnectionError("cannot resolve " + options_.host + ": " + ec.message());
+  ec = asio::error::would_block;
+  asio::async_connect(io_->socket, endpoints,
+                      [&](const error_code& e, const tcp::endpoint&) { ec = e; });
+  const std::string where = options_.host + ":" + std::to_string(options_.port);
+  if (!io_->runUntil(Clock::now() + options_.connect_timeout)) {
+    io_->shut();
+    throw TimeoutError("no connection to " + where + " within " +
+                       std::to_string(options_.connect_timeout.count()) + " ms");
+  }
+  if (ec) {
+    io_->shut();
+    throw ConnectionError("cannot connect to " + where + ": " + ec.message());
+  }
+  // Each request leaves in one segment at once; Nagle would hold small writes back.
+  io_->socket.set_option(tcp::no_delay(true), ec);
+  io_->open = true;
+  try {
+    using irc5::Param;
+    ping();
+    info_ = robotInfo();
+    constexpr int q = irc5::kQuatDecimals, x = irc5::kXyzDecimals;
+    const std::vector<Param> identity = {{0, x}, {0, x}, {0, x}, {1, q}, {0, q}, {0, q}, {0, q}};
+    const auto rt = options_.request_timeout;
+    transact(irc5::formatRequest(irc5::kSetTool, identity), irc5::kSetTool, 0, rt);
+    transact(irc5::formatRequest(irc5::kSetWorkObject, identity), irc5::kSetWorkObject, 0, rt);
+    constexpr int s = irc5::kSpeedDecimals;
+    transact(irc5::formatRequest(irc5::kSetSpeed, {{options_.speed_tcp_mm_s, s},
+                                                   {options_.speed_ori_deg_s, s},
+                                                   {options_.speed_leax_mm_s, s},
+                                                   {options_.speed_reax_deg_s, s}}),
+             irc5::kSetSpeed, 0, rt);
+    // Fine point: a move reply then means the robot stopped at the target, not fly-by.
+    transact(irc5::formatRequest(irc5::kSetZone, {{1, 0}, {0, 0}, {0, 0}, {0, 0}}), irc5::kSetZone,
+             0, rt);
+  } catch (...) {
+    io_->shut();
+    throw;
+  }
+}
+
+void Irc5Client::reconnect() {
+  io_->shut();
+  auto backoff = options_.backoff_initial;
+  std::exception_ptr last;
+  for (int attempt = 1; attempt <= options_.reconnect_attempts; ++attempt) {
+    try {
+      connect();
+      return;
+    } catch (const LinkError&) {
+      last = std::current_exception();
+    }
+    if (attempt == options_.reconnect_attempts) break;
+    // A controller restarting its server needs a moment; hammering it does not help.
+    std::this_thread::sleep_for(backoff);
+    backoff = std::min(backoff * 2, options_.backoff_max);
+  }
+  std::rethrow_exception(last);
+}
+
+void Irc5Client::close() noexcept {
+  if (io_->open) {
+    const std::string bye = irc5::formatRequest(irc5::kClose);
+    io_->ctx.restart();
+    asio::async_write(io_->socket, asio::buffer(bye), [](const error_code&, std::size_t) {});
+    io_->runUntil(Clock::now() + milliseconds(200));
+  }
+  io_->shut();
+  have_joints_ = false;
+}
+
+irc5::Reply Irc5Client::transact(const std::string& request, int code, int expected_fields,
+                                 milliseconds timeout) {
+  irc5::checkRequest(request);
+  if (!io_->open)
+    throw ConnectionError("not connected to the controller (request " + request + ")");
+  const auto deadline = Clock::now() + timeout;
+  const auto fail = [&](auto error) {
+    io_->shut();
+    have_joints_ = false;
+    throw error;
+  };
+  if (!io_->rx.empty()) {
+    fail(ProtocolError("unsolicited bytes from the controller: \"" + io_->rx.substr(0, 60) + "\""));
+  }
+
+  error_code ec = asio::error::would_block;
+  asio::async_write(io_->socket, asio::buffer(request),
+                    [&](const error_code& e, std::size_t) { ec = e; });
+  if (!io_->runUntil(deadline)) fail(TimeoutError("timeout sending \"" + request + "\""));
+  if (ec) fail(ConnectionError("connection lost sending \"" + request + "\": " + ec.message()));
+
+  const auto timed_out = [&] {
+    return TimeoutError("no complete reply to \"" + request + "\" within " +
+                        std::to_string(timeout.count()) + " ms (received \"" +
+                        io_->rx.substr(0, 60) + "\")");
+  };
+  const auto dropped = [&](const error_code& e) {
+    return ConnectionError("connection lost waiting for the reply to \"" + request + "\": " +
+                           (e == asio::error::eof ? "closed by the controller" : e.message()));
+  };
+  std::string line;
+  if (options_.lf_terminated) {
+    std::size_t n = 0;
+    ec = asio::error::would_block;
+    // Bounded, so that a stream that never sends LF cannot grow the buffer without limit.
+    asio::async_read_until(io_->socket, asio::dynamic_buffer(io_->rx, kMaxReplyBytes), '\n',
+                           [&](const error_code& e, std::size_t bytes) {
+                             ec = e;
+                             n = bytes;
+                           });
+    if (!io_->runUntil(deadline)) fail(timed_out());
+    if (ec == asio::error::not_found) {
+      fail(ProtocolError("no LF in the first " + std::to_string(kMaxReplyBytes) +
+                         " bytes of the reply to \"" + request + "\""));
+    }
+    if (ec) fail(dropped(ec));
+    line = io_->rx.substr(0, n - 1);
+    io_->rx.erase(0, n);
+  } else {
+    char chunk[256];
+    for (;;) {
+      const auto state = irc5::replyCompleteness(io_->rx, expected_fields);
+      if (state == irc5::Completeness::kComplete) break;
+      const bool maybe = state == irc5::Completeness::kMaybe;
+      const auto wait_until =
+          maybe ? std::min(deadline, Clock::now() + options_.reply_settle) : deadline;
+      std::size_t n = 0;
+      ec = asio::error::would_block;
+      io_->socket.async_read_some(asio::buffer(chunk), [&](const error_code& e, std::size_t b) {
+        ec = e;
+        n = b;
+      });
+      const bool in_time = io_->runUntil(wait_until);
+      io_->rx.append(chunk, n);
+      if (!in_time) {
+        if (maybe && n == 0) break;  // nothing more came: the last field was complete
+        if (Clock::now() >= deadline) fail(timed_out());
+        continue;
+      }
+      if (ec) {
+        if (maybe && ec == asio::error::eof) break;
+        fail(dropped(ec));
+      }
+    }
+    line.swap(io_->rx);
+  }
+
+  irc5::Reply reply;
+  try {
+    reply = irc5::parseReply(line);
+  } catch (const ProtocolError& e) {
+    fail(e);
+  }
+  if (reply.code != code) {
+    fail(ProtocolError("reply \"" + line + "\" answers code " + std::to_string(reply.code) +
+                       ", not " + std::to_string(code) + " (stream out of step)"));
+  }
+  if (!reply.ok) throw BadMessageError(code, reply.data);
+  if (expected_fields >= 0 && reply.fields.size() != static_cast<std::size_t>(expected_fields)) {
+    fail(ProtocolError("reply \"" + line + "\" has " + std::to_string(reply.fields.size()) +
+                       " data fields, expected " + std::to_string(expected_fields)));
+  }
+  return reply;
+}
+
+std::string Irc5Client::rawRequest(const std::string& request, int expected_fields,
+                                   milliseconds timeout) {
+  const irc5::ParsedRequest parsed = irc5::parseRequest(request);
+  return transact(request, parsed.code, expected_fields, timeout).data;
+}
+
+void Irc5Client::ping() {
+  transact(irc5::formatRequest(irc5::kPing), irc5::kPing, 0, options_.request_timeout);
+}
+
+RobotInfo Irc5Client::robotInfo() {
+  const irc5::Reply r = transact(irc5::formatRequest(irc5::kRobotInfo), irc5::kRobotInfo, -1,
+                                 options_.request_timeout);
+  RobotInfo info;
+  const std::size_t a = r.data.find('*');
+  const std::size_t b = a == std::string::npos ? a : r.data.find('*', a + 1);
+  if (b == std::string::npos) throw ProtocolError("robot info \"" + r.data + "\" lacks two '*'");
+  info.serial = r.data.substr(0, a);
+  info.software_version = r.data.substr(a + 1, b - a - 1);
+  info.robot_type = r.data.substr(b + 1);
+  return info;
+}
+
+Joints Irc5Client::readJoints() {
+  const irc5::Reply r = transact(irc5::formatRequest(irc5::kReadJoints), irc5::kReadJoints, 6,
+                                 options_.request_timeout);
+  const auto v = sixNumbers(r);
+  Joints q;
+  std::copy(v.begin(), v.end(), q.begin());
+  last_joints_ = q;
+  have_joints_ = true;
+  return q;
+}
+
+milliseconds Irc5Client::jointMoveTimeout(const Joints& from, const Joints& to) const {
+  const double seconds = irc5::jointMoveSeconds(options_.robot, from, to, options_.speed_tcp_mm_s,
+                                                options_.speed_ori_deg_s);
+  return milliseconds(static_cast<long long>(seconds * options_.move_timeout_factor * 1000.0)) +
+         options_.move_timeout_margin;
+}
+
+void Irc5Client::moveJoints(const Joints& target_deg) {
+  for (int i = 0; i < kJointCount; ++i) {
+    if (!std::isfinite(target_deg[i])) {
+      throw RequestRefusedError("joint " + std::to_string(i + 1) + " target is not finite");
+    }
+  }
+  const std::string violation =
+      options_.robot.limitViolation(target_deg, options_.limit_margin_deg);
+  if (!violation.empty()) throw RequestRefusedError("joint target refused: " + violation);
+  // The step limit compares with where the robot is now (it may have been jogged since the last
+  // read); the deadline alone can use the last known joints.
+  if (!have_joints_ || options_.max_step_deg > 0) readJoints();
+  const Joints from = last_joints_;
+  if (options_.max_step_deg > 0) {
+    for (int i = 0; i < kJointCount; ++i) {
+      const double step = std::abs(target_deg[i] - from[i]);
+      if (step > options_.max_step_deg) {
+        throw RequestRefusedError("joint " + std::to_string(i + 1) + " step of " +
+                                  std::to_string(step) + " deg exceeds the " +
+                                  std::to_string(options_.max_step_deg) + " deg limit");
+      }
+    }
+  }
+  std::vector<irc5::Param> params;
+  for (double q : target_deg) params.push_back({q, irc5::kJointDecimals});
+  transact(irc5::formatRequest(irc5::kMoveJoints, params), irc5::kMoveJoints, 0,
+           jointMoveTimeout(from, target_deg));
+  last_joints_ = target_deg;
+}
+
+TcpPose Irc5Client::readPose() {
+  const irc5::Reply r =
+      transact(irc5::formatRequest(irc5::kReadPose), irc5::kReadPose, 7, options_.request_timeout);
+  TcpPose p;
+  for (int i = 0; i < 3; ++i) p.xyz_mm[i] = parseNumber(r.fields[i], r.code);
+  for (int i = 0; i < 4; ++i) p.quat_wxyz[i] = parseNumber(r.fields[3 + i], r.code);
+  return p;
+}
+
+void Irc5Client::moveLinear(const TcpPose& target) {
+  TcpPose t = target;
+  double norm = 0;
+  for (double c : t.quat_wxyz) norm += c * c;
+  norm = std::sqrt(norm);
+  if (!(norm > 1e-9) || !std::isfinite(norm)) {
+    throw RequestRefusedError("linear move target has a zero or non-finite quaternion");
+  }
+  for (double& c : t.quat_wxyz) c /= norm;
+  for (double c : t.xyz_mm)
+    if (!std::isfinite(c)) throw RequestRefusedError("linear move target is not finite");
+
+  // Deadline from the path length and rotation angle at the configured speeds.
+  const TcpPose from = readPose();
+  double dist = 0, dot = 0;
+  for (int i = 0; i < 3; ++i) dist += std::pow(t.xyz_mm[i] - from.xyz_mm[i], 2);
+  for (int i = 0; i < 4; ++i) dot += t.quat_wxyz[i] * from.quat_wxyz[i];
+  const double angle_deg = 2.0 * std::acos(std::min(1.0, std::abs(dot))) * 180.0 / M_PI;
+  const double seconds =
+      std::max(std::sqrt(dist) / options_.speed_tcp_mm_s, angle_deg / options_.speed_ori_deg_s);
+  const auto timeout =
+      milliseconds(static_cast<long long>(seconds * options_.move_timeout_factor * 1000.0)) +
+      options_.move_timeout_margin;
+
+  std::vector<irc5::Param> params;
+  for (double c : t.xyz_mm) params.push_back({c, irc5::kXyzDecimals});
+  for (double c : t.quat_wxyz) params.push_back({c, irc5::kQuatDecimals});
+  have_joints_ = false;
+  transact(irc5::formatRequest(irc5::kMoveLinear, params), irc5::kMoveLinear, 0, timeout);
+}
+
+void Irc5Client::stop() {
+  transact(irc5::formatRequest(irc5::kStop), irc5::kStop, 0, options_.request_timeout);
+}
+
+std::array<double, 6> Irc5Client::readExternalAxes() {
+  return sixNumbers(transact(irc5::formatRequest(irc5::kReadExternalAxes), irc5::kReadExternalAxes,
+                             6, options_.request_timeout));
+}
+
+std::array<double, 6> Irc5Client::readCalOffsets() {
+  return sixNumbers(transact(irc5::formatRequest(irc5::kReadCalOffset), irc5::kReadCalOffset, 6,
+                             options_.request_timeout));
+}
+
+std::array<JointLimit, kJointCount> Irc5Client::readJointBounds() {
+  const auto lower = sixNumbers(transact(irc5::formatRequest(irc5::kReadJointBounds, {{0, 0}}),
+                                         irc5::kReadJointBounds, 6, options_.request_timeout));
+  const auto upper = sixNumbers(transact(irc5::formatRequest(irc5::kReadJointBounds, {{1, 0}}),
+                                         irc5::kReadJointBounds, 6, options_.request_timeout));
+  std::array<JointLimit, kJointCount> out;
+  for (int i = 0; i < kJointCount; ++i) out[i] = {lower[i], upper[i]};
+  return out;
+}
+
+}  // namespace zerocal

@@ -1,0 +1,165 @@
+#include "zerocal/irc5/protocol.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+
+#include "zerocal/irc5/errors.h"
+
+namespace zerocal {
+namespace irc5 {
+namespace {
+
+bool isSpace(char c) { return c == ' ' || c == '\n' || c == '\r' || c == '\t'; }
+
+std::vector<std::string> splitFields(std::string_view text) {
+  std::vector<std::string> out;
+  std::size_t i = 0;
+  while (i < text.size()) {
+    while (i < text.size() && isSpace(text[i])) ++i;
+    std::size_t j = i;
+    while (j < text.size() && !isSpace(text[j])) ++j;
+    if (j > i) out.emplace_back(text.substr(i, j - i));
+    i = j;
+  }
+  return out;
+}
+
+bool parseInt(const std::string& s, int* value) {
+  if (s.empty() || s.size() > 3) return false;
+  for (char c : s)
+    if (!std::isdigit(static_cast<unsigned char>(c))) return false;
+  *value = std::atoi(s.c_str());
+  return true;
+}
+
+}  // namespace
+
+std::string formatRequest(int code, const std::vector<Param>& params) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%02d ", code);
+  std::string out = buf;
+  for (const Param& p : params) {
+    // Values that round to zero would print "-0.00000"; RAPID reads it but logs read oddly.
+    const double v = std::abs(p.value) < 0.5 * std::pow(10.0, -p.decimals) ? 0.0 : p.value;
+    std::snprintf(buf, sizeof buf, "%+.*f ", p.decimals, v);
+    out += buf;
+  }
+  out += '#';
+  return out;
+}
+
+std::string formatRequest(int code, std::initializer_list<Param> params) {
+  return formatRequest(code, std::vector<Param>(params));
+}
+
+void checkRequest(std::string_view request) {
+  const auto refuse = [&](const std::string& why) {
+    throw RequestRefusedError("request \"" + std::string(request.substr(0, 90)) +
+                              "\" refused: " + why);
+  };
+  if (request.size() > kMaxMessageLength)
+    refuse(std::to_string(request.size()) + " characters, the RAPID limit is 80");
+  const std::size_t hash = request.find('#');
+  if (hash == std::string_view::npos) refuse("no terminating '#'");
+  // Upstream's server reads one segment; bytes after '#' would start the next request.
+  if (hash + 1 != request.size()) refuse("characters after '#'");
+  std::size_t i = 0;
+  while (i < request.size() && std::isdigit(static_cast<unsigned char>(request[i]))) ++i;
+  if (i == 0 || i > 2 || request[i] != ' ') refuse("the code must be 1 or 2 digits and a space");
+}
+
+ParsedRequest parseRequest(std::string_view request) {
+  ParsedRequest out;
+  const std::size_t hash = request.find('#');
+  const std::string_view body = request.substr(0, hash);
+  std::size_t i = 0;
+  while (i < body.size() && isSpace(body[i])) ++i;
+  std::size_t j = i;
+  while (j < body.size() && std::isdigit(static_cast<unsigned char>(body[j]))) ++j;
+  if (j == i || j - i > 2) return out;
+  out.code = std::atoi(std::string(body.substr(i, j - i)).c_str());
+  out.valid = true;
+  // Upstream's rule: a parameter counts only when a space follows it.
+  std::size_t pos = j;
+  while (pos < body.size()) {
+    while (pos < body.size() && body[pos] == ' ') ++pos;
+    std::size_t end = pos;
+    while (end < body.size() && body[end] != ' ') ++end;
+    if (end == pos) break;
+    if (end >= body.size()) break;  // written against '#': not counted
+    const std::string token(body.substr(pos, end - pos));
+    char* stop = nullptr;
+    const double v = std::strtod(token.c_str(), &stop);
+    if (stop == token.c_str() || *stop != '\0' || !std::isfinite(v)) {
+      out.valid = false;
+      return out;
+    }
+    out.params.push_back(v);
+    pos = end;
+  }
+  return out;
+}
+
+Reply parseReply(std::string_view text) {
+  const std::vector<std::string> f = splitFields(text);
+  Reply r;
+  int ok = -1;
+  if (f.size() < 2 || !parseInt(f[0], &r.code) || !parseInt(f[1], &ok) || ok > 1) {
+    throw ProtocolError("unreadable reply \"" + std::string(text.substr(0, 100)) + "\"");
+  }
+  r.ok = ok == 1;
+  r.fields.assign(f.begin() + 2, f.end());
+  // data: the text after the second field, trimmed (robot info may contain spaces).
+  std::size_t pos = text.find(f[1], text.find(f[0]) + f[0].size()) + f[1].size();
+  std::string_view rest = text.substr(pos);
+  while (!rest.empty() && isSpace(rest.front())) rest.remove_prefix(1);
+  while (!rest.empty() && isSpace(rest.back())) rest.remove_suffix(1);
+  r.data = std::string(rest);
+  return r;
+}
+
+int expectedReplyFields(int code) {
+  switch (code) {
+    case kReadPose:
+      return 7;
+    case kReadJoints:
+    case kReadExternalAxes:
+    case kReadCalOffset:
+    case kReadJointBounds:
+      return 6;
+    case kRobotInfo:
+      return -1;
+    default:
+      return 0;
+  }
+}
+
+Completeness replyCompleteness(std::string_view buffer, int expected_fields) {
+  const std::vector<std::string> f = splitFields(buffer);
+  const bool trailing_space = !buffer.empty() && isSpace(buffer.back());
+  // Not the start of a reply at all: complete as far as waiting goes, parseReply will refuse it.
+  int number = 0;
+  if (!f.empty() && (f.size() > 1 || trailing_space) && !parseInt(f[0], &number)) {
+    return Completeness::kComplete;
+  }
+  if (f.size() < 2 || (f.size() == 2 && !trailing_space)) return Completeness::kNeedMore;
+  // A refusal carries no fixed field count ("30 0 not supported" from us, "4 0 " upstream).
+  if (f[1] == "0") return Completeness::kMaybe;
+  const std::size_t data = f.size() - 2;
+  if (expected_fields < 0) {
+    // Robot info: "serial*version*type", the type may contain spaces.
+    const std::size_t stars = std::count(buffer.begin(), buffer.end(), '*');
+    return stars >= 2 && buffer.back() != '*' ? Completeness::kMaybe : Completeness::kNeedMore;
+  }
+  const auto want = static_cast<std::size_t>(expected_fields);
+  if (data < want) return Completeness::kNeedMore;
+  if (want == 0) return Completeness::kComplete;
+  return trailing_space ? Completeness::kComplete : Completeness::kMaybe;
+}
+
+}  // namespace irc5
+}  // namespace zerocal

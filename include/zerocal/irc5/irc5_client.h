@@ -1,0 +1,112 @@
+// The blocking TCP client for zerocal's RAPID server (and upstream open_abb servers) on an IRC5.
+// One request at a time, each in one write, each with a deadline; Boost.Asio stays inside the
+// .cpp. Not thread-safe: one owner thread calls it.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "zerocal/irc5/controller_link.h"
+#include "zerocal/irc5/errors.h"
+#include "zerocal/irc5/protocol.h"
+#include "zerocal/model/robot.h"
+
+namespace zerocal {
+
+struct Irc5Options {
+  std::string host = "192.168.125.1";  // the IRC5 service port's address
+  std::uint16_t port = 5000;
+  // The robot file: its joint limits and speeds bound every move and its deadline.
+  Robot robot;
+  // Refuse joint targets closer than this to a limit (deg).
+  double limit_margin_deg = 0.0;
+  // Refuse joint moves whose largest joint step exceeds this (deg); 0 = no step limit.
+  double max_step_deg = 0.0;
+
+  std::chrono::milliseconds connect_timeout{2000};
+  // Deadline of every request that does not move the robot.
+  std::chrono::milliseconds request_timeout{1000};
+  // A move's deadline: estimated duration * move_timeout_factor + move_timeout_margin.
+  double move_timeout_factor = 2.0;
+  std::chrono::milliseconds move_timeout_margin{2000};
+
+  // Sent on connect (code 08): TCP mm/s, orientation deg/s, external axes mm/s and deg/s.
+  // Move deadlines follow from these too (zerocal/irc5/motion_time.h).
+  double speed_tcp_mm_s = 100.0;
+  double speed_ori_deg_s = 50.0;
+  double speed_leax_mm_s = 0.0;
+  double speed_reax_deg_s = 0.0;
+
+  // false: the server ends replies with no LF (upstream open_abb); replies are then read until the
+  // expected fields have arrived, and a possibly unfinished last field is given reply_settle to
+  // grow before it is accepted.
+  bool lf_terminated = true;
+  std::chrono::milliseconds reply_settle{30};
+
+  // reconnect(): attempts, and the back-off between them (doubling up to the maximum).
+  int reconnect_attempts = 5;
+  std::chrono::milliseconds backoff_initial{100};
+  std::chrono::milliseconds backoff_max{2000};
+};
+
+class Irc5Client final : public ControllerLink {
+ public:
+  // Does not connect. Throws ConfigError when the options are inconsistent.
+  explicit Irc5Client(Irc5Options options);
+  ~Irc5Client() override;
+  Irc5Client(const Irc5Client&) = delete;
+  Irc5Client& operator=(const Irc5Client&) = delete;
+
+  // Connects within connect_timeout and runs the setup sequence: ping, robot info, tool0, wobj0,
+  // speed, zone fine (09 1 0 0 0). Throws ConnectionError, TimeoutError, ProtocolError,
+  // BadMessageError; on any failure the connection is closed.
+  void connect();
+  // Closes and connects again, up to reconnect_attempts times with exponential back-off. Throws
+  // the last attempt's LinkError when all fail.
+  void reconnect();
+  // Sends 99 (the server closes and listens again) when connected, then closes. Never throws.
+  void close() noexcept;
+  bool connected() const noexcept;
+  // Robot info from the last connect() (empty before).
+  const RobotInfo& info() const noexcept { return info_; }
+
+  void ping() override;
+  RobotInfo robotInfo() override;
+  Joints readJoints() override;
+  // Throws RequestRefusedError, before sending, for a target outside limits (less the margin) or
+  // a step over max_step_deg; BadMessageError when the controller refuses it.
+  void moveJoints(const Joints& target_deg) override;
+  TcpPose readPose() override;
+  // The quaternion is normalised before sending; throws RequestRefusedError for a zero one.
+  void moveLinear(const TcpPose& target) override;
+
+  // Extensions (zerocal's server and simulator only; upstream replies ok = 0).
+  void stop();
+  std::array<double, 6> readExternalAxes();
+  // MOC cal_offset of the six motors, radians, read only.
+  std::array<double, 6> readCalOffsets();
+  // The controller's own joint bounds, degrees.
+  std::array<JointLimit, kJointCount> readJointBounds();
+
+  // Sends one raw request (checked by checkRequest) and returns the reply, verified to answer
+  // the same code with ok = 1. For diagnostics and tests.
+  std::string rawRequest(const std::string& request, int expected_fields,
+                         std::chrono::milliseconds timeout);
+
+ private:
+  struct Io;
+  irc5::Reply transact(const std::string& request, int code, int expected_fields,
+                       std::chrono::milliseconds timeout);
+  std::chrono::milliseconds jointMoveTimeout(const Joints& from, const Joints& to) const;
+
+  Irc5Options options_;
+  std::unique_ptr<Io> io_;
+  RobotInfo info_;
+  bool have_joints_ = false;
+  Joints last_joints_{};
+};
+
+}  // namespace zerocal

@@ -1,0 +1,97 @@
+// The simulated IRC5: a real TCP server speaking zerocal's RAPID module's protocol (and
+// upstream open_abb's, without LF, behind a switch), moving a simulated robot whose true pose
+// differs from what it reports by the world's joint offsets. Time is simulated: a move advances
+// the simulated clock by its duration and replies at once, unless real-time pacing is asked for.
+//
+// Runs in-process on its own I/O thread (start()) or on the caller's thread (run(), for the
+// zerocal-sim program). The state accessors are thread-safe.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "zerocal/model/robot.h"
+#include "zerocal/sim/world.h"
+
+namespace zerocal {
+
+// Fault injection. Every switch can be changed while the server runs (setFaults).
+struct SimFaults {
+  // Answer this many requests on a connection, then close it instead of answering the next;
+  // -1 = never.
+  int drop_after_requests = -1;
+  // Wall-clock delay before every reply.
+  std::chrono::milliseconds reply_delay{0};
+  // Send each reply in three writes split_gap apart (separate TCP segments).
+  bool split_replies = false;
+  std::chrono::milliseconds split_gap{5};
+  // Requests with this code get an unparsable reply; -1 = none.
+  int garbage_code = -1;
+  // Moves (codes 1 and 2) never reply, and the connection answers nothing more: the RAPID
+  // server blocked inside a move.
+  bool stall_moves = false;
+};
+
+struct SimControllerOptions {
+  World world;
+  std::string address = "127.0.0.1";
+  std::uint16_t port = 0;  // 0: an ephemeral port, see SimController::port()
+  // false: replies end with no LF, like upstream's server.
+  bool lf_terminated = true;
+  // true: a move's reply also waits its duration on the wall clock.
+  bool pace_real_time = false;
+  // Seeds the repeatability noise.
+  std::uint64_t seed = 1;
+  // A request still missing its '#' after this long gets a bad-message reply and is discarded
+  // (upstream would answer it with the previous request's code).
+  std::chrono::milliseconds partial_request_timeout{1000};
+  // Initial joints (deg), as the controller believes them.
+  Joints start_joints{0, 0, 0, 0, 30, 0};
+  std::string serial = "SIM-1600-0001";
+  std::string software_version = "6.15.01.00";
+  std::string robot_type = "IRB 1600-10/1.45";
+  SimFaults faults;
+};
+
+class SimController {
+ public:
+  // Binds and listens at once (so port() is valid). Throws Error when the address cannot be
+  // bound, ConfigError when the start joints are outside the robot's limits.
+  explicit SimController(SimControllerOptions options);
+  ~SimController();
+  SimController(const SimController&) = delete;
+  SimController& operator=(const SimController&) = delete;
+
+  // Serves on a new thread until stop() or destruction.
+  void start();
+  // Serves on the calling thread until stop() is called from another thread or, when
+  // stop_on_signals, SIGINT or SIGTERM arrives.
+  void run(bool stop_on_signals = false);
+  // Closes the listener and every connection; run() returns. Idempotent.
+  void stop();
+
+  std::uint16_t port() const;
+  void setFaults(const SimFaults& faults);
+
+  // Joints as the controller believes them (the float32 values it stores), degrees.
+  Joints commandedJoints() const;
+  // The repeatability error of the last move (deg); true joints = commanded + offsets + this.
+  Joints moveErrorDeg() const;
+  // Where the true beam meets the PSD plane now.
+  std::optional<BeamHit> beamHitNow() const;
+  // Simulated seconds since construction (advanced by moves only).
+  double simTimeS() const;
+  // Requests answered or dropped, over all connections.
+  long requestCount() const;
+  long connectionCount() const;
+  const World& world() const;
+
+ private:
+  struct Impl;
+  std::shared_ptr<Impl> impl_;
+};
+
+}  // namespace zerocal

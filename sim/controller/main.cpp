@@ -1,0 +1,47 @@
+// zerocal-sim: the simulated IRC5 cell as its own process, so that tests and demos can kill and
+// restart the controller from outside.
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <iostream>
+
+#include "zerocal/error.h"
+#include "zerocal/sim/sim_controller.h"
+
+int main(int argc, char** argv) {
+  CLI::App app("Simulated ABB IRC5 controller speaking zerocal's RAPID server protocol");
+  zerocal::SimControllerOptions options;
+  options.port = 5000;  // the RAPID server's port; 0 picks a free one
+  std::string world_file;
+  int delay_ms = 0;
+  app.add_option("--port", options.port, "TCP port (0: ephemeral, printed on stdout)")
+      ->capture_default_str();
+  app.add_option("--address", options.address, "address to listen on")->capture_default_str();
+  app.add_option("--world", world_file, "world YAML file (default: a random world from --seed)");
+  app.add_option("--seed", options.seed, "seed of the random world and of the noise")
+      ->capture_default_str();
+  app.add_flag(
+      "--no-lf", [&](std::int64_t) { options.lf_terminated = false; },
+      "end replies with no LF, like upstream open_abb");
+  app.add_flag("--real-time", options.pace_real_time, "moves take their duration in wall time");
+  app.add_option("--drop-after", options.faults.drop_after_requests,
+                 "close each connection instead of answering its request N+1");
+  app.add_option("--delay-ms", delay_ms, "delay every reply (ms)");
+  app.add_flag("--split", options.faults.split_replies, "send each reply in three segments");
+  app.add_option("--garbage-code", options.faults.garbage_code,
+                 "answer requests with this code with garbage");
+  app.add_flag("--stall-moves", options.faults.stall_moves, "never answer a move");
+  CLI11_PARSE(app, argc, argv);
+  options.faults.reply_delay = std::chrono::milliseconds(delay_ms);
+
+  try {
+    options.world =
+        world_file.empty() ? zerocal::randomWorld(options.seed) : zerocal::loadWorld(world_file);
+    zerocal::SimController sim(options);
+    std::cout << "zerocal-sim listening on " << options.address << ":" << sim.port() << std::endl;
+    sim.run(/*stop_on_signals=*/true);
+  } catch (const zerocal::Error& e) {
+    std::cerr << "zerocal-sim: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,536 @@
+#include "zerocal/sim/sim_controller.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <boost/asio.hpp>
+#include <cmath>
+#include <cstdio>
+#include <deque>
+#include <mutex>
+#include <random>
+#include <set>
+#include <thread>
+
+#include "zerocal/error.h"
+#include "zerocal/irc5/motion_time.h"
+#include "zerocal/irc5/protocol.h"
+#include "zerocal/model/kinematics.h"
+
+namespace zerocal {
+
+namespace asio = boost::asio;
+using asio::ip::tcp;
+using boost::system::error_code;
+using std::chrono::milliseconds;
+
+namespace {
+
+// RAPID's num is a 32-bit float: every stored number goes through this. The volatile store keeps
+// the rounding: with a plain cast, GCC 12 at -O3 vectorised moveTo()'s loop and left the last
+// two of six joints unrounded (caught by the float32 read-back test).
+double f32(double v) {
+  volatile float f = static_cast<float>(v);
+  return static_cast<double>(f);
+}
+
+std::string fmt(double v, int decimals) {
+  char buf[48];
+  // Values that round to zero print as "0.000", never "-0.000".
+  if (std::abs(v) < 0.5 * std::pow(10.0, -decimals)) v = 0.0;
+  std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
+  return buf;
+}
+
+Frame<double> frameOf(const std::vector<double>& p) {
+  Frame<double> f;
+  f.p = Eigen::Vector3d(p[0], p[1], p[2]);
+  Eigen::Quaterniond q(p[3], p[4], p[5], p[6]);
+  if (q.norm() < 1e-9) q = Eigen::Quaterniond::Identity();
+  f.R = q.normalized().toRotationMatrix();
+  return f;
+}
+
+Frame<double> inverse(const Frame<double>& f) { return {f.R.transpose(), -f.R.transpose() * f.p}; }
+
+}  // namespace
+
+struct SimController::Impl {
+  class Session;
+
+  explicit Impl(SimControllerOptions o)
+      : options(std::move(o)), acceptor(ctx), rng(options.seed), faults(options.faults) {
+    commanded = options.start_joints;
+    for (double& q : commanded) q = f32(q);
+    const std::string violation = options.world.robot.limitViolation(commanded);
+    if (!violation.empty())
+      throw ConfigError("SimControllerOptions", {"start joints: " + violation});
+    error_code ec;
+    const tcp::endpoint ep(asio::ip::make_address(options.address, ec), options.port);
+    if (ec) throw Error("simulated controller: bad address " + options.address);
+    acceptor.open(ep.protocol(), ec);
+    if (!ec) acceptor.set_option(tcp::acceptor::reuse_address(true), ec);
+    if (!ec) acceptor.bind(ep, ec);
+    if (!ec) acceptor.listen(asio::socket_base::max_listen_connections, ec);
+    if (ec) {
+      throw Error("simulated controller: cannot listen on " + options.address + ":" +
+                  std::to_string(options.port) + ": " + ec.message());
+    }
+  }
+
+  void accept();
+  void closeAll();
+
+  // The reply text (without terminator) to one request, or nullopt for no reply (99). Also
+  // returns, through wall_delay, how long a paced move takes. Locks the state.
+  std::optional<std::string> respond(const irc5::ParsedRequest& r, milliseconds* wall_delay);
+  // linear_seconds >= 0: a MoveL of that duration (straight path) instead of a joint move.
+  std::string moveTo(const Joints& target, int code, milliseconds* wall_delay,
+                     double linear_seconds = -1);
+  Frame<double> toolInWobj(const Joints& q) const;
+  bool solveIk(const Frame<double>& flange_target, Joints* q) const;
+
+  SimControllerOptions options;
+  asio::io_context ctx;
+  tcp::acceptor acceptor;
+  std::thread thread;
+  std::set<std::shared_ptr<Session>> sessions;  // I/O thread only
+
+  mutable std::mutex mutex;  // guards everything below
+  std::mt19937_64 rng;
+  SimFaults faults;
+  Joints commanded{};
+  Joints move_error{};
+  Frame<double> tool, wobj;
+  double speed_tcp_mm_s = 100, speed_ori_deg_s = 50;
+  bool fine = false;
+  double sim_time_s = 0;
+  long requests = 0, connections = 0;
+};
+
+class SimController::Impl::Session : public std::enable_shared_from_this<Session> {
+ public:
+  // impl outlives every session: it owns the io_context whose handlers hold the sessions.
+  Session(Impl* impl, tcp::socket socket)
+      : impl_(impl), socket_(std::move(socket)), timer_(impl_->ctx), partial_timer_(impl_->ctx) {}
+
+  void start() {
+    error_code ignored;
+    socket_.set_option(tcp::no_delay(true), ignored);  // so that split replies stay split
+    handleNext();
+  }
+
+  void close() {
+    error_code ignored;
+    socket_.shutdown(tcp::socket::shutdown_both, ignored);
+    socket_.close(ignored);
+    timer_.cancel();
+    partial_timer_.cancel();
+    impl_->sessions.erase(shared_from_this());
+  }
+
+ private:
+  void handleNext() {
+    if (writing_ || !socket_.is_open()) return;
+    if (stalled_) {
+      // Blocked "inside a move": ignore requests but keep reading, to notice the client leave.
+      rx_.clear();
+      readMore();
+      return;
+    }
+    // Stray whitespace between requests (a client's LF after '#') must not desynchronise us.
+    const std::size_t start = rx_.find_first_not_of(" \r\n\t");
+    rx_.erase(0, start == std::string::npos ? rx_.size() : start);
+    const std::size_t hash = rx_.find('#');
+    if (hash == std::string::npos) {
+      if (!rx_.empty()) armPartialTimer();
+      readMore();
+      return;
+    }
+    partial_timer_.cancel();
+    partial_armed_ = false;
+    const std::string request = rx_.substr(0, hash + 1);
+    rx_.erase(0, hash + 1);
+    process(request);
+  }
+
+  void readMore() {
+    if (reading_) return;
+    reading_ = true;
+    auto self = shared_from_this();
+    socket_.async_read_some(asio::buffer(chunk_),
+                            [this, self](const error_code& ec, std::size_t n) {
+                              reading_ = false;
+                              if (ec) {
+                                if (ec != asio::error::operation_aborted) close();
+                                return;
+                              }
+                              rx_.append(chunk_, n);
+                              handleNext();
+                            });
+  }
+
+  void armPartialTimer() {
+    if (partial_armed_) return;
+    partial_armed_ = true;
+    auto self = shared_from_this();
+    partial_timer_.expires_after(impl_->options.partial_request_timeout);
+    partial_timer_.async_wait([this, self](const error_code& ec) {
+      partial_armed_ = false;
+      if (ec || writing_ || rx_.empty() || rx_.find('#') != std::string::npos) return;
+      // Answer the fragment as a bad message with its own code rather than let it merge with the
+      // next request.
+      const irc5::ParsedRequest r = irc5::parseRequest(rx_);
+      rx_.clear();
+      send(std::to_string(r.valid ? r.code : 0) + " 0 request without '#'", milliseconds(0));
+    });
+  }
+
+  void process(const std::string& request) {
+    SimFaults faults;
+    {
+      std::lock_guard<std::mutex> lock(impl_->mutex);
+      faults = impl_->faults;
+      ++impl_->requests;
+    }
+    ++answered_;
+    if (faults.drop_after_requests >= 0 && answered_ > faults.drop_after_requests) {
+      close();
+      return;
+    }
+    const irc5::ParsedRequest r = irc5::parseRequest(request);
+    const bool move = r.valid && (r.code == irc5::kMoveJoints || r.code == irc5::kMoveLinear);
+    if (move && faults.stall_moves) {
+      stalled_ = true;
+      return;
+    }
+    if (r.valid && r.code == faults.garbage_code) {
+      send("#?!\x7f garbage", faults.reply_delay);
+      return;
+    }
+    milliseconds pace(0);
+    const std::optional<std::string> reply = impl_->respond(r, &pace);
+    if (!reply) {
+      close();  // 99: the server closes and listens again
+      return;
+    }
+    send(*reply, faults.reply_delay + pace);
+  }
+
+  void send(std::string text, milliseconds delay) {
+    if (impl_->options.lf_terminated) text += '\n';
+    SimFaults faults;
+    {
+      std::lock_guard<std::mutex> lock(impl_->mutex);
+      faults = impl_->faults;
+    }
+    pieces_.clear();
+    if (faults.split_replies && text.size() >= 3) {
+      const std::size_t a = text.size() / 3, b = 2 * text.size() / 3;
+      pieces_ = {text.substr(0, a), text.substr(a, b - a), text.substr(b)};
+    } else {
+      pieces_ = {text};
+    }
+    split_gap_ = faults.split_gap;
+    writing_ = true;
+    if (delay.count() > 0) {
+      auto self = shared_from_this();
+      timer_.expires_after(delay);
+      timer_.async_wait([this, self](const error_code& ec) {
+        if (ec) return;
+        writePiece();
+      });
+    } else {
+      writePiece();
+    }
+  }
+
+  void writePiece() {
+    auto self = shared_from_this();
+    asio::async_write(socket_, asio::buffer(pieces_.front()),
+                      [this, self](const error_code& ec, std::size_t) {
+                        if (ec) {
+                          close();
+                          return;
+                        }
+                        pieces_.pop_front();
+                        if (pieces_.empty()) {
+                          writing_ = false;
+                          handleNext();
+                          return;
+                        }
+                        timer_.expires_after(split_gap_);
+                        timer_.async_wait([this, self](const error_code& e) {
+                          if (!e) writePiece();
+                        });
+                      });
+  }
+
+  Impl* impl_;
+  tcp::socket socket_;
+  asio::steady_timer timer_;
+  asio::steady_timer partial_timer_;
+  char chunk_[512];
+  std::string rx_;
+  std::deque<std::string> pieces_;
+  milliseconds split_gap_{0};
+  bool reading_ = false, writing_ = false, stalled_ = false, partial_armed_ = false;
+  int answered_ = 0;
+};
+
+void SimController::Impl::accept() {
+  acceptor.async_accept([this](const error_code& ec, tcp::socket socket) {
+    if (ec) return;  // closed by stop()
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      ++connections;
+    }
+    auto session = std::make_shared<Session>(this, std::move(socket));
+    sessions.insert(session);
+    session->start();
+    accept();
+  });
+}
+
+void SimController::Impl::closeAll() {
+  error_code ignored;
+  acceptor.close(ignored);
+  const auto copy = sessions;
+  for (const auto& s : copy) s->close();
+}
+
+Frame<double> SimController::Impl::toolInWobj(const Joints& q) const {
+  return inverse(wobj) * (flangePoseDeg(options.world.robot, q) * tool);
+}
+
+// Damped Newton on the flange pose from the current joints: the simulator only needs the
+// nearby solution a MoveL would reach, not every branch of the analytic inverse.
+bool SimController::Impl::solveIk(const Frame<double>& target, Joints* q) const {
+  const Robot& robot = options.world.robot;
+  const auto error = [&](const Joints& x) {
+    const Frame<double> f = flangePoseDeg(robot, x);
+    Eigen::Matrix<double, 6, 1> e;
+    e.head<3>() = target.p - f.p;
+    const Eigen::AngleAxisd aa(target.R * f.R.transpose());
+    e.tail<3>() = aa.angle() * aa.axis() * 1000.0;  // weight: 1 rad ~ 1000 mm
+    return e;
+  };
+  Joints x = *q;
+  for (int iter = 0; iter < 100; ++iter) {
+    const Eigen::Matrix<double, 6, 1> e = error(x);
+    if (e.head<3>().norm() < 1e-7 && e.tail<3>().norm() < 1e-7) {
+      *q = x;
+      return robot.withinLimits(x);
+    }
+    Eigen::Matrix<double, 6, 6> jac;
+    constexpr double h = 1e-6;  // deg
+    for (int j = 0; j < kJointCount; ++j) {
+      Joints xp = x;
+      xp[j] += h;
+      jac.col(j) = (e - error(xp)) / h;
+    }
+    const Eigen::Matrix<double, 6, 1> step =
+        (jac.transpose() * jac + 1e-9 * Eigen::Matrix<double, 6, 6>::Identity())
+            .ldlt()
+            .solve(jac.transpose() * e);
+    const double scale = std::min(1.0, 10.0 / step.cwiseAbs().maxCoeff());  // at most 10 deg
+    for (int j = 0; j < kJointCount; ++j) x[j] += scale * step[j];
+  }
+  return false;
+}
+
+std::string SimController::Impl::moveTo(const Joints& target, int code, milliseconds* wall_delay,
+                                        double linear_seconds) {
+  Joints stored;
+  for (int i = 0; i < kJointCount; ++i) stored[i] = f32(target[i]);
+  const std::string violation = options.world.robot.limitViolation(stored);
+  if (!violation.empty()) return std::to_string(code) + " 0 out of bounds";
+  const double seconds = linear_seconds >= 0
+                             ? linear_seconds
+                             : irc5::jointMoveSeconds(options.world.robot, commanded, stored,
+                                                      speed_tcp_mm_s, speed_ori_deg_s);
+  sim_time_s += seconds;
+  if (options.pace_real_time) *wall_delay = milliseconds(static_cast<long long>(seconds * 1000));
+  commanded = stored;
+  std::normal_distribution<double> noise(0.0, options.world.noise.repeatability_deg);
+  for (double& e : move_error) e = options.world.noise.repeatability_deg > 0 ? noise(rng) : 0.0;
+  return std::to_string(code) + " 1 ";
+}
+
+std::optional<std::string> SimController::Impl::respond(const irc5::ParsedRequest& r,
+                                                        milliseconds* wall_delay) {
+  std::lock_guard<std::mutex> lock(mutex);
+  const std::string c = std::to_string(r.code);
+  const std::string bad = c + " 0 ";
+  const std::string done = c + " 1 ";
+  if (!r.valid) return std::string("0 0 ");
+  const std::size_t n = r.params.size();
+  const auto six = [&](const std::array<double, 6>& v, int decimals) {
+    std::string s = done;
+    for (int i = 0; i < 6; ++i) s += fmt(v[i], decimals) + (i < 5 ? " " : "");
+    return s;
+  };
+  switch (r.code) {
+    case irc5::kPing:
+      return n == 0 ? done : bad;
+    case irc5::kMoveLinear: {
+      if (n != 7) return bad;
+      std::vector<double> p;
+      for (double v : r.params) p.push_back(f32(v));
+      const Frame<double> flange = wobj * frameOf(p) * inverse(tool);
+      Joints q = commanded;
+      if (!solveIk(flange, &q)) return c + " 0 unreachable";
+      const Frame<double> from = toolInWobj(commanded);
+      const double dist = (from.p - Eigen::Vector3d(p[0], p[1], p[2])).norm();
+      const double angle = Eigen::AngleAxisd(from.R.transpose() * frameOf(p).R).angle();
+      const double linear = std::max(dist / speed_tcp_mm_s, angle * kRadToDeg / speed_ori_deg_s);
+      const std::string reply = moveTo(q, r.code, wall_delay, linear);
+      return reply;
+    }
+    case irc5::kMoveJoints: {
+      if (n != 6) return bad;
+      Joints q;
+      std::copy(r.params.begin(), r.params.end(), q.begin());
+      return moveTo(q, r.code, wall_delay);
+    }
+    case irc5::kReadPose: {
+      if (n != 0) return bad;
+      const Frame<double> f = toolInWobj(commanded);
+      Eigen::Quaterniond q(f.R);
+      if (q.w() < 0) q.coeffs() *= -1;
+      std::string s = done;
+      for (int i = 0; i < 3; ++i) s += fmt(f32(f.p[i]), irc5::kXyzDecimals) + " ";
+      const double qs[4] = {q.w(), q.x(), q.y(), q.z()};
+      for (int i = 0; i < 4; ++i) s += fmt(f32(qs[i]), irc5::kQuatDecimals) + (i < 3 ? " " : "");
+      return s;
+    }
+    case irc5::kReadJoints:
+      return n == 0 ? six(commanded, irc5::kJointDecimals) : bad;
+    case irc5::kReadExternalAxes:
+      // No external axes: RAPID reports 9E9 for unused ones.
+      return n == 0 ? done + "9E+09 9E+09 9E+09 9E+09 9E+09 9E+09" : bad;
+    case irc5::kSetTool:
+    case irc5::kSetWorkObject: {
+      if (n != 7) return bad;
+      std::vector<double> p;
+      for (double v : r.params) p.push_back(f32(v));
+      (r.code == irc5::kSetTool ? tool : wobj) = frameOf(p);
+      return done;
+    }
+    case irc5::kSetSpeed:
+      if (n != 4 && n != 2) return bad;
+      if (!(r.params[0] > 0) || !(r.params[1] > 0)) return c + " 0 speeds must be positive";
+      speed_tcp_mm_s = f32(r.params[0]);
+      speed_ori_deg_s = f32(r.params[1]);
+      return done;
+    case irc5::kSetZone:
+      if (n != 4) return bad;
+      fine = r.params[0] == 1;
+      return done;
+    case irc5::kStop:
+      return n == 0 ? done : bad;  // moves are instantaneous on the simulated clock
+    case irc5::kReadCalOffset: {
+      if (n != 0) return bad;
+      std::array<double, 6> cal;
+      std::mt19937_64 fixed(options.seed ^ 0x5eed);
+      std::uniform_real_distribution<double> u(-2 * kPi, 2 * kPi);
+      for (double& v : cal) v = f32(u(fixed));
+      return six(cal, 6);
+    }
+    case irc5::kReadJointBounds: {
+      if (n != 1 || (r.params[0] != 0 && r.params[0] != 1)) return bad;
+      std::array<double, 6> b;
+      for (int i = 0; i < 6; ++i) {
+        const JointLimit& l = options.world.robot.limits[i];
+        b[i] = r.params[0] == 0 ? l.lower_deg : l.upper_deg;
+      }
+      return six(b, 3);
+    }
+    case irc5::kRobotInfo:
+      return n == 0
+                 ? done + options.serial + "*" + options.software_version + "*" + options.robot_type
+                 : bad;
+    case irc5::kClose:
+      return std::nullopt;
+    default:
+      if (r.code >= 30 && r.code <= 36) return c + " 0 not supported";
+      return bad;
+  }
+}
+
+SimController::SimController(SimControllerOptions options)
+    : impl_(std::make_shared<Impl>(std::move(options))) {
+  impl_->accept();
+}
+
+SimController::~SimController() {
+  stop();
+  if (impl_->thread.joinable()) impl_->thread.join();
+}
+
+void SimController::start() {
+  impl_->thread = std::thread([impl = impl_] { impl->ctx.run(); });
+}
+
+void SimController::run(bool stop_on_signals) {
+  asio::signal_set signals(impl_->ctx);
+  if (stop_on_signals) {
+    signals.add(SIGINT);
+    signals.add(SIGTERM);
+    signals.async_wait([this](const error_code& ec, int) {
+      if (!ec) stop();
+    });
+  }
+  impl_->ctx.run();
+}
+
+void SimController::stop() {
+  // Closing everything lets run() return by itself; posted so that it runs on the I/O thread.
+  asio::post(impl_->ctx, [impl = impl_] {
+    impl->closeAll();
+    impl->ctx.stop();
+  });
+  if (impl_->thread.joinable() && impl_->thread.get_id() != std::this_thread::get_id()) {
+    impl_->thread.join();
+  }
+}
+
+std::uint16_t SimController::port() const { return impl_->acceptor.local_endpoint().port(); }
+
+void SimController::setFaults(const SimFaults& faults) {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  impl_->faults = faults;
+}
+
+Joints SimController::commandedJoints() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->commanded;
+}
+
+Joints SimController::moveErrorDeg() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->move_error;
+}
+
+std::optional<BeamHit> SimController::beamHitNow() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return beamHit(impl_->options.world, impl_->commanded, impl_->move_error);
+}
+
+double SimController::simTimeS() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->sim_time_s;
+}
+
+long SimController::requestCount() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->requests;
+}
+
+long SimController::connectionCount() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->connections;
+}
+
+const World& SimController::world() const { return impl_->options.world; }
+
+}  // namespace zerocal

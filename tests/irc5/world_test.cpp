@@ -1,0 +1,116 @@
+#include "zerocal/sim/world.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+
+#include "zerocal/error.h"
+#include "zerocal/model/builtin.h"
+#include "zerocal/model/kinematics.h"
+
+namespace zerocal {
+namespace {
+
+// At q = 0 the flange is at (815, 0, 1186.5) with its x axis along base -z (irb1600.md): a beam
+// along flange x goes straight down.
+World downwardBeam() {
+  World w;
+  w.robot = builtinIrb1600();
+  w.psd_position_mm = Eigen::Vector3d(825, -20, 400);
+  return w;
+}
+
+TEST(World, BeamStraightDownHitsTheHorizontalPsdBelowTheFlange) {
+  const auto hit = beamHit(downwardBeam(), Joints{});
+  ASSERT_TRUE(hit);
+  EXPECT_NEAR(hit->u_mm, -10, 1e-9);
+  EXPECT_NEAR(hit->v_mm, 20, 1e-9);
+  EXPECT_NEAR(hit->range_mm, 786.5, 1e-9);
+}
+
+TEST(World, PsdRotationMapsIntoItsOwnFrame) {
+  World w = downwardBeam();
+  // Rotated 90 deg about z: PSD x = base y, PSD y = base -x.
+  w.psd_rotation = Eigen::AngleAxisd(kPi / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const auto hit = beamHit(w, Joints{});
+  ASSERT_TRUE(hit);
+  EXPECT_NEAR(hit->u_mm, 20, 1e-9);
+  EXPECT_NEAR(hit->v_mm, 10, 1e-9);
+}
+
+TEST(World, TrueOffsetsAndExtraErrorAddToTheControllerJoints) {
+  World w = downwardBeam();
+  w.true_offsets_deg = {0.3, -0.2, 0.1, 0.5, -0.4, 0.25};
+  const Joints q{1, 2, 3, 4, 5, 6}, extra{1e-3, 0, 0, 0, -2e-3, 0};
+  World zero = w;
+  zero.true_offsets_deg = Joints{};
+  Joints shifted;
+  for (int i = 0; i < kJointCount; ++i) shifted[i] = q[i] + w.true_offsets_deg[i] + extra[i];
+  const auto a = beamHit(w, q, extra), b = beamHit(zero, shifted);
+  ASSERT_TRUE(a && b);
+  EXPECT_NEAR(a->u_mm, b->u_mm, 1e-9);
+  EXPECT_NEAR(a->v_mm, b->v_mm, 1e-9);
+  const auto nominal = beamHit(zero, q);
+  EXPECT_GT(std::abs(a->u_mm - nominal->u_mm) + std::abs(a->v_mm - nominal->v_mm), 1.0);
+}
+
+TEST(World, ParallelOrBackwardBeamMisses) {
+  World w = downwardBeam();
+  w.psd_position_mm.z() = 1500;  // above the flange, beam points down
+  EXPECT_FALSE(beamHit(w, Joints{}));
+  w = downwardBeam();
+  w.psd_rotation = Eigen::AngleAxisd(kPi / 2, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  EXPECT_FALSE(beamHit(w, Joints{}));  // plane contains the beam direction
+}
+
+TEST(World, RandomWorldIsReproducibleBoundedAndReachable) {
+  const World a = randomWorld(42), b = randomWorld(42), c = randomWorld(43);
+  EXPECT_EQ(a.true_offsets_deg, b.true_offsets_deg);
+  EXPECT_TRUE(a.psd_rotation.isApprox(b.psd_rotation));
+  EXPECT_NE(a.true_offsets_deg, c.true_offsets_deg);
+  for (double d : a.true_offsets_deg) EXPECT_LE(std::abs(d), 1.0);
+  EXPECT_NEAR(a.laser_direction.norm(), 1.0, 1e-12);
+  EXPECT_LT((a.psd_position_mm - Eigen::Vector3d(900, -50, 400)).norm(), 40);
+  EXPECT_TRUE(beamHit(a, Joints{}));
+}
+
+TEST(World, ParsesAFile) {
+  const World w = parseWorld(R"(
+robot: builtin
+true_offsets_deg: [0.1, -0.2, 0.3, -0.4, 0.5, -0.6]
+laser: {point_mm: [0, 1, 2], direction: [2, 0, 0]}
+psd: {position_mm: [900, -50, 400], rpy_deg: [0, 0, 90]}
+noise: {repeatability_deg: 0.001, psd_mm: 0.002}
+)",
+                             "test");
+  EXPECT_EQ(w.true_offsets_deg[5], -0.6);
+  EXPECT_TRUE(w.laser_direction.isApprox(Eigen::Vector3d::UnitX()));
+  EXPECT_TRUE(w.psd_rotation.col(0).isApprox(Eigen::Vector3d::UnitY()));
+  EXPECT_EQ(w.noise.repeatability_deg, 0.001);
+  EXPECT_EQ(w.robot.limits[2].upper_deg, 65);
+}
+
+TEST(World, TheShippedExampleLoadsAndItsBeamHitsThePsdPlane) {
+  const World w = loadWorld(ZEROCAL_SOURCE_DIR "/config/worlds/example.yaml");
+  EXPECT_EQ(w.true_offsets_deg[3], -0.65);
+  EXPECT_TRUE(beamHit(w, Joints{0, 0, 0, 0, 30, 0}));
+}
+
+TEST(World, ReportsEveryProblemAtOnce) {
+  try {
+    parseWorld(R"(
+robot: no/such/robot.yaml
+true_offsets_deg: [0.1, 0.2]
+laser: {point_mm: [0, 0, x], direction: [0, 0, 0]}
+noise: {repeatability_deg: -1}
+)",
+               "bad.yaml");
+    FAIL();
+  } catch (const ConfigError& e) {
+    EXPECT_GE(e.problems().size(), 6u) << e.what();  // robot, offsets, point, direction, psd, noise
+  }
+  EXPECT_THROW(loadWorld("/nonexistent/world.yaml"), ConfigError);
+}
+
+}  // namespace
+}  // namespace zerocal

@@ -13,12 +13,6 @@ namespace {
 
 const std::string kIdentity = "Measurement Computing USB-1408FS (USB VID:PID 09db:00a1)";
 
-std::string udevAdvice() {
-  return std::string("install the udev rule ") + kUdevRulePath +
-         " into /etc/udev/rules.d/, run `sudo udevadm control --reload-rules && sudo udevadm "
-         "trigger`, and replug the board";
-}
-
 TransferStatus mapStatus(int status) {
   switch (status) {
     case LIBUSB_TRANSFER_COMPLETED:
@@ -44,14 +38,9 @@ void LibusbTransport::raise(int code, const std::string& what) {
   const std::string detail = std::string(" (") + libusb_error_name(code) + ")";
   switch (code) {
     case LIBUSB_ERROR_NO_DEVICE:
-      throw DisconnectedError("the " + kIdentity + " went away during " + what +
-                                  ": unplugged or reset" + detail +
-                                  "; reconnect it, then reopen the link",
-                              code);
+      throw DisconnectedError(noDeviceDuring(what), code);
     case LIBUSB_ERROR_ACCESS:
-      throw PermissionError("permission denied opening the " + kIdentity + " for " + what + detail +
-                                "; " + udevAdvice(),
-                            code);
+      throw PermissionError(permissionDeniedMessage(what), code);
     case LIBUSB_ERROR_PIPE:
       throw StallError("the " + kIdentity + " stalled " + what + detail, code);
     case LIBUSB_ERROR_TIMEOUT:
@@ -113,17 +102,13 @@ std::unique_ptr<LibusbTransport> LibusbTransport::open(const std::string& serial
   if (handle == nullptr) {
     libusb_exit(context);
     if (denied > 0) {
-      throw PermissionError("permission denied opening the " + kIdentity + "; " + udevAdvice(),
-                            LIBUSB_ERROR_ACCESS);
+      throw PermissionError(permissionDeniedMessage("opening it"), LIBUSB_ERROR_ACCESS);
     }
-    std::string which = serial.empty() ? "" : " with serial number " + serial;
-    std::string seen = matching > 0 && !serial.empty()
-                           ? " (" + std::to_string(matching) + " other USB-1408FS attached)"
-                           : "";
-    throw DeviceNotFoundError("no " + kIdentity + which + " found" + seen +
-                                  ". Check the cable and `lsusb -d 09db:00a1`; if it is listed, " +
-                                  udevAdvice(),
-                              LIBUSB_ERROR_NOT_FOUND);
+    std::string message = deviceNotFoundMessage(serial);
+    if (matching > 0) {
+      message += " (" + std::to_string(matching) + " USB-1408FS with another serial attached)";
+    }
+    throw DeviceNotFoundError(message, LIBUSB_ERROR_NOT_FOUND);
   }
 
   // Auto-detach hands the HID driver back on release. Where it is unsupported, or the kernel

@@ -59,4 +59,9 @@ class ProtocolError : public UsbError {
 // The path of the udev rule shipped in config/, quoted by the messages above.
 inline constexpr const char* kUdevRulePath = "config/udev/60-zerocal-usb1408fs.rules";
 
+// The texts of the errors every transport raises alike, so that a fake and libusb read the same.
+std::string deviceNotFoundMessage(const std::string& serial);
+std::string permissionDeniedMessage(const std::string& what);
+std::string noDeviceDuring(const std::string& what);
+
 }  // namespace zerocal::usb1408fs

@@ -168,6 +168,7 @@ void LibusbTransport::onTransfer(libusb_transfer* transfer) {
   slot->in_flight = false;
   LibusbTransport* self = slot->owner;
   if (!self->streaming_) return;
+  ++self->completions_;
   const TransferStatus status = mapStatus(transfer->status);
   self->sink_->onPacket(transfer->endpoint, transfer->buffer,
                         static_cast<std::size_t>(transfer->actual_length), status);
@@ -214,11 +215,22 @@ void LibusbTransport::startStream(const std::uint8_t* endpoints, std::size_t end
 }
 
 void LibusbTransport::pollStream(std::chrono::milliseconds timeout) {
-  timeval tv{};
-  tv.tv_sec = static_cast<long>(timeout.count() / 1000);
-  tv.tv_usec = static_cast<long>((timeout.count() % 1000) * 1000);
-  const int r = libusb_handle_events_timeout_completed(context_, &tv, nullptr);
-  if (r < 0 && r != LIBUSB_ERROR_INTERRUPTED) raise(r, "handling scan transfers");
+  // libusb may return from one round of event handling with nothing completed (a spurious
+  // wake-up, or a device node that always polls readable); keep going until a packet arrived or
+  // the caller's time is really up, so that "nothing for T ms" means what it says.
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  const std::uint64_t before = completions_;
+  for (;;) {
+    const auto left = std::chrono::duration_cast<std::chrono::microseconds>(
+        deadline - std::chrono::steady_clock::now());
+    if (left.count() <= 0) return;
+    timeval tv{};
+    tv.tv_sec = static_cast<long>(left.count() / 1000000);
+    tv.tv_usec = static_cast<long>(left.count() % 1000000);
+    const int r = libusb_handle_events_timeout_completed(context_, &tv, nullptr);
+    if (r < 0 && r != LIBUSB_ERROR_INTERRUPTED) raise(r, "handling scan transfers");
+    if (completions_ != before || !streaming_) return;
+  }
 }
 
 void LibusbTransport::stopStream() noexcept {

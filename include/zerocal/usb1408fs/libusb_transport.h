@@ -54,6 +54,7 @@ class LibusbTransport final : public UsbTransport {
   std::vector<std::unique_ptr<Slot>> slots_;
   StreamSink* sink_ = nullptr;
   bool streaming_ = false;
+  std::uint64_t completions_ = 0;
 };
 
 }  // namespace zerocal::usb1408fs

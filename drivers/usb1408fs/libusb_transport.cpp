@@ -11,7 +11,9 @@
 namespace zerocal::usb1408fs {
 namespace {
 
-const std::string kIdentity = "Measurement Computing USB-1408FS (USB VID:PID 09db:00a1)";
+// A literal, not a std::string: it may be needed during another translation unit's static
+// initialisation.
+constexpr const char* kIdentity = "Measurement Computing USB-1408FS (USB VID:PID 09db:00a1)";
 
 TransferStatus mapStatus(int status) {
   switch (status) {
@@ -42,19 +44,21 @@ void LibusbTransport::raise(int code, const std::string& what) {
     case LIBUSB_ERROR_ACCESS:
       throw PermissionError(permissionDeniedMessage(what), code);
     case LIBUSB_ERROR_PIPE:
-      throw StallError("the " + kIdentity + " stalled " + what + detail, code);
+      throw StallError(std::string("the ") + kIdentity + " stalled " + what + detail, code);
     case LIBUSB_ERROR_TIMEOUT:
-      throw TimeoutError("the " + kIdentity + " did not answer " + what + " in time" + detail,
-                         code);
+      throw TimeoutError(
+          std::string("the ") + kIdentity + " did not answer " + what + " in time" + detail, code);
     case LIBUSB_ERROR_OVERFLOW:
-      throw ProtocolError("the " + kIdentity + " sent more data than asked for in " + what + detail,
-                          code);
+      throw ProtocolError(
+          std::string("the ") + kIdentity + " sent more data than asked for in " + what + detail,
+          code);
     case LIBUSB_ERROR_BUSY:
-      throw UsbError("the " + kIdentity + " is in use by another program (" + what + ")" + detail,
-                     code);
+      throw UsbError(
+          std::string("the ") + kIdentity + " is in use by another program (" + what + ")" + detail,
+          code);
     default:
-      throw UsbError("USB error in " + what + " with the " + kIdentity + detail + ": " +
-                         libusb_strerror(static_cast<libusb_error>(code)),
+      throw UsbError("USB error in " + what + " with the " + std::string(kIdentity) + detail +
+                         ": " + libusb_strerror(static_cast<libusb_error>(code)),
                      code);
   }
 }
@@ -149,7 +153,7 @@ void LibusbTransport::controlOut(std::uint8_t request_type, std::uint8_t request
       static_cast<std::uint16_t>(length), static_cast<unsigned>(timeout.count()));
   if (r < 0) raise(r, "a control transfer");
   if (static_cast<std::size_t>(r) != length) {
-    throw ProtocolError("the " + kIdentity + " took " + std::to_string(r) + " of " +
+    throw ProtocolError(std::string("the ") + kIdentity + " took " + std::to_string(r) + " of " +
                         std::to_string(length) + " command bytes");
   }
 }

@@ -322,7 +322,9 @@ Pacer Usb1408fs::startScan(const ScanConfig& config, ScanConsumer& consumer) {
   });
   scanning_ = true;
 
-  // With the queue, low and high channel are positions in the queue (first, last).
+  // Inferred from the reference drivers, to be confirmed on a board: with the queue option, low
+  // and high channel are positions in the queue (first, last), and count is in conversions
+  // (scans x channels), which is also how the single-execution end is recognised here.
   std::uint8_t request[11] = {cmd::kAInScan, 0, static_cast<std::uint8_t>(n - 1)};
   putU32(request + 3, static_cast<std::uint32_t>(total_samples));
   request[7] = pacer.prescale;

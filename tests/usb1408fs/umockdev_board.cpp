@@ -85,6 +85,13 @@ UmockdevBoard::~UmockdevBoard() {
   g_object_unref(testbed_);
 }
 
+std::string UmockdevBoard::rootDir() const {
+  gchar* dir = umockdev_testbed_get_root_dir(testbed_);
+  std::string result = dir;
+  g_free(dir);
+  return result;
+}
+
 int UmockdevBoard::urbsSubmitted() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return submitted_;

@@ -36,6 +36,8 @@ class UmockdevBoard {
     return f(model_);
   }
   std::string devnode() const { return "/dev/bus/usb/001/002"; }
+  // Where the testbed keeps its files (the devnode is rootDir() + devnode()).
+  std::string rootDir() const;
   int urbsSubmitted() const;
   int urbsDiscarded() const;
 

@@ -3,9 +3,19 @@
 // streaming with several transfers in flight, cancellation, stalls, timeouts and unplugging.
 // Runs under umockdev-wrapper (see CMakeLists.txt). Timeouts stay short because libusb
 // busy-polls a mocked device node.
+#include <fcntl.h>
+#include <ftw.h>
 #include <gmock/gmock.h>
+#include <grp.h>
 #include <gtest/gtest.h>
 #include <libusb.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
 
 #include "umockdev_board.h"
 #include "zerocal/usb1408fs/libusb_transport.h"
@@ -55,6 +65,31 @@ class Collector : public ScanConsumer {
   std::vector<std::vector<double>> values;
   std::vector<std::pair<std::uint32_t, std::uint16_t>> losses;
 };
+
+// When started as the helper of PermissionDeniedNamesTheUdevRule (an unprivileged process in the
+// parent's testbed), try to open the board and report through the exit status, before gtest runs.
+constexpr const char* kPermissionChildEnv = "ZEROCAL_UMOCKDEV_PERMISSION_CHILD";
+const struct PermissionChild {
+  PermissionChild() {
+    if (std::getenv(kPermissionChildEnv) == nullptr) return;
+    int code = 3;
+    try {
+      LibusbTransport::open();
+      code = 1;
+    } catch (const PermissionError& e) {
+      const std::string what = e.what();
+      code = what.find("09db:00a1") != std::string::npos &&
+                     what.find("config/udev/60-zerocal-usb1408fs.rules") != std::string::npos
+                 ? 0
+                 : 2;
+      std::fprintf(stderr, "child: %s\n", e.what());
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "child: %s\n", e.what());
+      code = 4;
+    }
+    std::_Exit(code);
+  }
+} permission_child;
 
 class UmockdevTest : public ::testing::Test {
  protected:
@@ -234,6 +269,48 @@ TEST_F(UmockdevTest, UnpluggedMidScanThenReopenedWhenBack) {
   });
   dev.reopen();
   EXPECT_NEAR(dev.readVolts(se(3)), testVolts(se(3), 0), lsb(se(3)));
+}
+
+// The helper runs as nobody in the parent's testbed: it must read sysfs, create umockdev's
+// netlink stand-in and reach the ioctl socket, and still be refused the device node.
+int makeReadable(const char* path, const struct stat* st, int type, FTW*) {
+  chmod(path, (st->st_mode & 07777) | (type == FTW_D || S_ISSOCK(st->st_mode) ? 0777 : 0444));
+  return 0;
+}
+
+// libusb reports EACCES on the device node as LIBUSB_ERROR_ACCESS. Root ignores file modes, so
+// when the suite runs as root the open is made by a child that has dropped to nobody.
+TEST_F(UmockdevTest, PermissionDeniedNamesTheUdevRule) {
+  const std::string root = board_.rootDir();
+  ASSERT_EQ(nftw(root.c_str(), makeReadable, 16, FTW_PHYS), 0);
+  const std::string node = root + board_.devnode();
+  ASSERT_EQ(chmod(node.c_str(), 0), 0);
+
+  std::vector<std::string> env_storage;
+  for (char** e = environ; *e != nullptr; ++e) env_storage.emplace_back(*e);
+  env_storage.push_back(std::string(kPermissionChildEnv) + "=1");
+  std::vector<char*> envp;
+  for (auto& e : env_storage) envp.push_back(e.data());
+  envp.push_back(nullptr);
+  char exe[] = "/proc/self/exe";
+  char* argv[] = {exe, nullptr};
+  const bool drop = geteuid() == 0;
+
+  const pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    if (drop && (setgroups(0, nullptr) != 0 || setgid(65534) != 0 || setuid(65534) != 0)) {
+      _exit(5);
+    }
+    execve(exe, argv, envp.data());
+    _exit(6);
+  }
+  int status = 0;
+  ASSERT_EQ(waitpid(pid, &status, 0), pid);
+  chmod(node.c_str(), 0644);
+  ASSERT_TRUE(WIFEXITED(status));
+  // 0: PermissionError naming VID:PID and the rule; 1 opened; 2 wrong text; 3/4 other error.
+  EXPECT_EQ(WEXITSTATUS(status), 0);
 }
 
 }  // namespace

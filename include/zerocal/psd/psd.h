@@ -32,6 +32,7 @@ struct VoltageReading {
 // onScanData runs on the polling thread.
 class BlockAverager : public usb1408fs::ScanConsumer {
  public:
+  // Throws std::invalid_argument if block is 0.
   explicit BlockAverager(std::size_t block);
   void onScanData(const usb1408fs::ScanBlock& block) noexcept override;
   void onPacketsLost(std::uint32_t lost, std::uint16_t index) noexcept override;
@@ -96,7 +97,8 @@ struct SpotPosition {
 // X, Y scaled to volts / 5.
 class PsdMap {
  public:
-  // Least-squares fit. Throws zerocal::InputError if the sweep has too few usable points.
+  // Least-squares fit over the sweep points inside the zone. Throws zerocal::InputError if the
+  // sweep has too few usable points, std::invalid_argument for a degree outside 1..12.
   static PsdMap fit(const std::vector<SweepPoint>& sweep, const MapFitOptions& options,
                     MapFitReport* report = nullptr);
 

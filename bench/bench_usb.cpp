@@ -7,6 +7,8 @@
 //                           layer's own CPU per second of data.
 //   BM_AveragedReading64    one PSD reading of 64 samples per channel at 16 kHz: simulated time
 //                           from request to result, and the CPU it costs.
+//   BM_StreamReading64      the same readings from a continuous scan (PsdStream): interval
+//                           between readings, no command round trips.
 #include <benchmark/benchmark.h>
 
 #include <chrono>
@@ -142,6 +144,27 @@ void BM_AveragedReading64(benchmark::State& state) {
       1e3 * simulated / static_cast<double>(state.iterations());
 }
 BENCHMARK(BM_AveragedReading64)->Unit(benchmark::kMicrosecond);
+
+void BM_StreamReading64(benchmark::State& state) {
+  sim::PsdModel psd;
+  sim::Usb1408fsModel board;
+  board.setAnalogSource(sim::psdAnalogSource(psd, [](double) {
+    return sim::SpotPosition{0.1, -0.2};
+  }));
+  usb1408fs::Usb1408fs daq(sim::FakeTransport::opener(board));
+  psd::PsdStream stream(daq, psd::PsdChannels{}, 64, 16000.0);
+  psd::VoltageReading r;
+  stream.next(r, 10ms);
+  const auto t0 = board.now();
+  for (auto _ : state) {
+    if (!stream.next(r, 10ms)) state.SkipWithError("no reading");
+    benchmark::DoNotOptimize(r.x);
+  }
+  state.counters["simulated_interval_ms"] =
+      std::chrono::duration<double, std::milli>(board.now() - t0).count() /
+      static_cast<double>(state.iterations());
+}
+BENCHMARK(BM_StreamReading64)->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 

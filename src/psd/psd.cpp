@@ -1,7 +1,9 @@
 #include "zerocal/psd/psd.h"
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <iomanip>
 #include <limits>
 #include <sstream>
@@ -111,6 +113,83 @@ VoltageReading readAveraged(usb1408fs::Usb1408fs& daq, const PsdChannels& channe
                                    " USB packets; it was discarded");
   }
   return reading;
+}
+
+PsdStream::PsdStream(usb1408fs::Usb1408fs& daq, const PsdChannels& channels, std::size_t samples,
+                     double rate_hz)
+    : daq_(daq), averager_(samples) {
+  usb1408fs::ScanConfig config;
+  config.channels = {channels.x, channels.y, channels.sum};
+  config.rate_hz = rate_hz;
+  config.scans = 0;
+  daq_.startScan(config, averager_);
+}
+
+PsdStream::~PsdStream() { daq_.stopScan(); }
+
+bool PsdStream::next(VoltageReading& reading, std::chrono::milliseconds timeout) {
+  if (averager_.take(reading)) return true;
+  // pollScan returns as soon as packets arrive; keep polling until a block completes or the
+  // caller's time is used up.
+  auto left = timeout;
+  const auto step = std::min(timeout, std::chrono::milliseconds(2));
+  while (left.count() > 0) {
+    // Only empty polls use up the caller's time: a poll that brought packets returned early.
+    if (daq_.pollScan(step) == 0) left -= step;
+    if (averager_.take(reading)) return true;
+  }
+  return false;
+}
+
+std::vector<SweepPoint> readSweepCsv(std::istream& in, const std::string& origin) {
+  auto split = [](const std::string& line) {
+    std::vector<std::string> cells;
+    std::string cell;
+    std::istringstream row(line);
+    while (std::getline(row, cell, ',')) {
+      const auto b = cell.find_first_not_of(" \t\r");
+      const auto e = cell.find_last_not_of(" \t\r");
+      cells.push_back(b == std::string::npos ? "" : cell.substr(b, e - b + 1));
+    }
+    return cells;
+  };
+  std::string line;
+  if (!std::getline(in, line)) throw InputError(origin + ": empty sweep file");
+  const std::vector<std::string> header = split(line);
+  const char* names[5] = {"u_mm", "v_mm", "x_v", "y_v", "sum_v"};
+  int column[5];
+  std::vector<std::string> problems;
+  for (int k = 0; k < 5; ++k) {
+    column[k] = -1;
+    for (std::size_t c = 0; c < header.size(); ++c) {
+      if (header[c] == names[k]) column[k] = static_cast<int>(c);
+    }
+    if (column[k] < 0) problems.push_back(std::string("no column ") + names[k] + " in the header");
+  }
+  std::vector<SweepPoint> sweep;
+  const bool header_ok = problems.empty();
+  for (int number = 2; header_ok && std::getline(in, line); ++number) {
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    const std::vector<std::string> cells = split(line);
+    double values[5];
+    bool ok = true;
+    for (int k = 0; k < 5 && ok; ++k) {
+      const auto c = static_cast<std::size_t>(column[k]);
+      char* end = nullptr;
+      values[k] = c < cells.size() ? std::strtod(cells[c].c_str(), &end) : 0.0;
+      ok = c < cells.size() && !cells[c].empty() && end && *end == '\0' && std::isfinite(values[k]);
+      if (!ok) {
+        problems.push_back("line " + std::to_string(number) + ": " + names[k] + " is not a number");
+      }
+    }
+    if (ok) sweep.push_back({values[0], values[1], values[2], values[3], values[4]});
+  }
+  if (!problems.empty()) {
+    std::string message = origin + ": the sweep cannot be used:";
+    for (const auto& p : problems) message += "\n  " + p;
+    throw InputError(message);
+  }
+  return sweep;
 }
 
 SpotDetector::SpotDetector(double on_threshold_v, double off_threshold_v)

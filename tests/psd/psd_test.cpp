@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <sstream>
 
 #include "zerocal/error.h"
 #include "zerocal/sim/fake_transport.h"
@@ -80,6 +81,52 @@ TEST(ReadAveraged, SixtyFourSamplesThroughTheSimulatedBoard) {
   EXPECT_NEAR(r.sum, ideal.sum, 4 * r.sum_se + 0.001);
   EXPECT_NEAR(r.x_se, 0.005 / 8, 0.0003);  // noise / sqrt(64)
   EXPECT_FALSE(daq.scanning());
+}
+
+TEST(PsdStream, AReadingEveryFourMillisecondsAtSixteenKilohertz) {
+  PsdModel psd;
+  sim::Usb1408fsModel board;
+  board.setAnalogSource(sim::psdAnalogSource(psd, [](double) {
+    return sim::SpotPosition{-0.3, 0.2};
+  }));
+  usb1408fs::Usb1408fs daq(sim::FakeTransport::opener(board));
+  const sim::PsdVoltages ideal = PsdModel().ideal(sim::SpotPosition{-0.3, 0.2});
+  {
+    PsdStream stream(daq, PsdChannels{}, 64, 16000.0);
+    VoltageReading r;
+    ASSERT_TRUE(stream.next(r, std::chrono::milliseconds(10)));
+    auto t0 = board.now();
+    for (int k = 0; k < 10; ++k) {
+      ASSERT_TRUE(stream.next(r, std::chrono::milliseconds(10)));
+      EXPECT_NEAR(r.x, ideal.x, 4 * r.x_se + 0.001);
+    }
+    const double per_reading_ms =
+        std::chrono::duration<double, std::milli>(board.now() - t0).count() / 10;
+    EXPECT_LT(per_reading_ms, 5.0);
+    EXPECT_GT(per_reading_ms, 3.5);
+    EXPECT_EQ(stream.blocksDiscarded(), 0u);
+  }
+  EXPECT_FALSE(daq.scanning());
+}
+
+TEST(SweepCsv, ReadsNamedColumnsAndReportsEveryBadLine) {
+  std::istringstream good(
+      "x_v, y_v,sum_v,u_mm,v_mm,note\n1,2,3,0.1,0.2,a\n\n-1,-2,3.5,-0.1,-0.2,b\n");
+  const auto sweep = readSweepCsv(good, "good.csv");
+  ASSERT_EQ(sweep.size(), 2u);
+  EXPECT_DOUBLE_EQ(sweep[0].u_mm, 0.1);
+  EXPECT_DOUBLE_EQ(sweep[1].x_v, -1);
+  EXPECT_DOUBLE_EQ(sweep[1].sum_v, 3.5);
+  std::istringstream bad("u_mm,v_mm,x_v,y_v,sum_v\n1,2,x,4,5\n1,2,3,4\n");
+  try {
+    readSweepCsv(bad, "bad.csv");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("line 2: x_v is not a number"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("line 3: sum_v is not a number"), std::string::npos);
+  }
+  std::istringstream no_column("u_mm,v_mm,x_v\n");
+  EXPECT_THROW(readSweepCsv(no_column, "short.csv"), InputError);
 }
 
 // A sweep like the paper's: the stage moves the spot over a grid, 64 samples averaged per point.

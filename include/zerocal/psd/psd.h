@@ -4,8 +4,10 @@
 #pragma once
 
 #include <array>
+#include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <istream>
 #include <string>
 #include <vector>
 
@@ -55,6 +57,28 @@ class BlockAverager : public usb1408fs::ScanConsumer {
 VoltageReading readAveraged(usb1408fs::Usb1408fs& daq, const PsdChannels& channels,
                             std::size_t samples, double rate_hz);
 
+// Continuous readings: a hardware-paced scan of the three channels that never stops, averaged in
+// blocks, so a reading is ready every `samples / rate_hz` seconds without the command round trips
+// of readAveraged(). Owns the scan while it lives; the Usb1408fs must outlive it.
+class PsdStream {
+ public:
+  // Starts the scan. Throws as Usb1408fs::startScan.
+  PsdStream(usb1408fs::Usb1408fs& daq, const PsdChannels& channels, std::size_t samples,
+            double rate_hz);
+  ~PsdStream();
+  PsdStream(const PsdStream&) = delete;
+  PsdStream& operator=(const PsdStream&) = delete;
+
+  // Waits up to `timeout` for the next complete reading; false if none came. Throws as
+  // Usb1408fs::pollScan (the scan is then stopped).
+  bool next(VoltageReading& reading, std::chrono::milliseconds timeout);
+  std::uint64_t blocksDiscarded() const noexcept { return averager_.blocksDiscarded(); }
+
+ private:
+  usb1408fs::Usb1408fs& daq_;
+  BlockAverager averager_;
+};
+
 // Spot present when SUM exceeds a threshold (volts); hysteresis keeps a spot on the rim from
 // flickering.
 class SpotDetector {
@@ -73,6 +97,11 @@ struct SweepPoint {
   double u_mm = 0, v_mm = 0;
   double x_v = 0, y_v = 0, sum_v = 0;
 };
+
+// Reads a sweep as CSV: a header line naming the columns u_mm, v_mm, x_v, y_v, sum_v (any order,
+// other columns ignored), then one row per stage position. Throws zerocal::InputError naming
+// every bad line.
+std::vector<SweepPoint> readSweepCsv(std::istream& in, const std::string& origin);
 
 struct MapFitOptions {
   int degree = 7;                   // total degree of the polynomial in (X, Y)

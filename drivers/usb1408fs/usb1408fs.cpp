@@ -305,7 +305,6 @@ Pacer Usb1408fs::startScan(const ScanConfig& config, ScanConsumer& consumer) {
   for (const Channel& ch : scan_channels_) scan_cal_.push_back(calibration(ch));
   consumer_ = &consumer;
   stats_ = ScanStats{};
-  first_packet_ = true;
   expected_index_ = 0;
   channel_phase_ = 0;
   samples_left_ = total_samples;
@@ -314,6 +313,7 @@ Pacer Usb1408fs::startScan(const ScanConfig& config, ScanConsumer& consumer) {
   silent_for_ = std::chrono::milliseconds{0};
   pending_ = PendingError::kNone;
   if (!router_) router_ = std::make_unique<PacketRouter>(*this);
+  held_.assign(kScanEndpoints.size() * config.transfers_per_endpoint, Held{});
 
   // Transfers go in before the command so that no early packet finds the endpoints unserviced.
   guarded([&] {
@@ -367,10 +367,80 @@ void Usb1408fs::onPacket(std::uint8_t endpoint, const std::uint8_t* data, std::s
     pending_length_ = length;
     return;
   }
-  const std::size_t n = scan_channels_.size();
-  const std::uint16_t index = getU16(data + kScanIndexOffset);
-  const auto lost = static_cast<std::uint16_t>(index - expected_index_);
   ++stats_.packets;
+  const std::uint16_t index = getU16(data + kScanIndexOffset);
+  const auto ahead = static_cast<std::uint16_t>(index - expected_index_);
+  if (ahead == 0) {
+    deliver(data, index);
+    drainReorderBuffer();
+    return;
+  }
+  if (ahead >= 0x8000) {
+    // Behind: a packet already given up as lost turned up after all. Too late to use.
+    ++stats_.late_packets;
+    return;
+  }
+  // Ahead: the endpoints complete independently, so a later packet may overtake an earlier one
+  // on another endpoint. Hold it until the gap fills or the buffer (as deep as the transfers in
+  // flight) overflows; only then is the gap real.
+  for (;;) {
+    for (Held& h : held_) {
+      if (!h.used) {
+        std::memcpy(h.bytes.data(), data, kPacketSize);
+        h.index = index;
+        h.used = true;
+        return;
+      }
+    }
+    releaseOldestHeld();
+    const auto now_ahead = static_cast<std::uint16_t>(index - expected_index_);
+    if (now_ahead == 0) {
+      deliver(data, index);
+      drainReorderBuffer();
+      return;
+    }
+    if (now_ahead >= 0x8000) {
+      ++stats_.late_packets;
+      return;
+    }
+  }
+}
+
+void Usb1408fs::drainReorderBuffer() noexcept {
+  for (bool found = true; found && !scan_complete_;) {
+    found = false;
+    for (Held& h : held_) {
+      if (h.used && h.index == expected_index_) {
+        h.used = false;
+        deliver(h.bytes.data(), h.index);
+        found = true;
+      }
+    }
+  }
+  if (scan_complete_) {
+    for (Held& h : held_) h.used = false;
+  }
+}
+
+bool Usb1408fs::releaseOldestHeld() noexcept {
+  Held* oldest = nullptr;
+  for (Held& h : held_) {
+    if (h.used &&
+        (oldest == nullptr || static_cast<std::uint16_t>(h.index - expected_index_) <
+                                  static_cast<std::uint16_t>(oldest->index - expected_index_))) {
+      oldest = &h;
+    }
+  }
+  if (oldest == nullptr) return false;
+  oldest->used = false;
+  deliver(oldest->bytes.data(), oldest->index);  // records the gap before it
+  drainReorderBuffer();
+  return true;
+}
+
+void Usb1408fs::deliver(const std::uint8_t* data, std::uint16_t index) noexcept {
+  const std::size_t n = scan_channels_.size();
+  const auto lost = static_cast<std::uint16_t>(index - expected_index_);
   if (lost != 0) {
     // Keep the channel assignment right across the hole: each lost packet held 31 samples.
     ++stats_.gaps;
@@ -383,7 +453,6 @@ void Usb1408fs::onPacket(std::uint8_t endpoint, const std::uint8_t* data, std::s
     consumer_->onPacketsLost(lost, index);
   }
   expected_index_ = static_cast<std::uint16_t>(index + 1);
-  first_packet_ = false;
 
   std::size_t count = kSamplesPerPacket;
   const bool single = single_execution_;
@@ -419,6 +488,11 @@ std::size_t Usb1408fs::pollScan(std::chrono::milliseconds timeout) {
   guarded([&] { link().pollStream(timeout); });
   if (pending_ != PendingError::kNone) raisePending();
   const auto received = static_cast<std::size_t>(stats_.packets - before);
+  if (received == 0) {
+    // Nothing more is coming to fill a hole: the held packets are as good as they will get.
+    while (releaseOldestHeld()) {
+    }
+  }
   if (received > 0 || scan_complete_) {
     silent_for_ = std::chrono::milliseconds{0};
   } else {

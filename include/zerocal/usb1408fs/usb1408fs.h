@@ -56,6 +56,7 @@ struct ScanStats {
   std::uint64_t samples = 0;       // delivered to the consumer
   std::uint64_t lost_packets = 0;  // inferred from scan-index gaps
   std::uint64_t gaps = 0;          // number of discontinuities
+  std::uint64_t late_packets = 0;  // arrived after their gap had been declared; not used
 };
 
 class Usb1408fs {
@@ -123,6 +124,9 @@ class Usb1408fs {
   void readCalibration();
   void onPacket(std::uint8_t endpoint, const std::uint8_t* data, std::size_t length,
                 TransferStatus status) noexcept;
+  void deliver(const std::uint8_t* data, std::uint16_t index) noexcept;
+  void drainReorderBuffer() noexcept;
+  bool releaseOldestHeld() noexcept;
   [[noreturn]] void raisePending();
   template <typename F>
   auto guarded(F&& f) -> decltype(f());
@@ -139,10 +143,16 @@ class Usb1408fs {
   std::vector<Channel> scan_channels_;
   std::vector<Calibration> scan_cal_;
   std::array<double, kSamplesPerPacket> block_{};
+  // Packets that overtook an earlier one, held until it arrives (one slot per transfer in flight).
+  struct Held {
+    std::array<std::uint8_t, kPacketSize> bytes{};
+    std::uint16_t index = 0;
+    bool used = false;
+  };
+  std::vector<Held> held_;
   bool scanning_ = false;
   bool scan_complete_ = false;
   bool single_execution_ = false;
-  bool first_packet_ = true;
   std::uint16_t expected_index_ = 0;
   std::size_t channel_phase_ = 0;
   std::uint64_t samples_left_ = 0;  // single execution only

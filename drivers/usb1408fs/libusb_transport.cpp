@@ -65,7 +65,12 @@ void LibusbTransport::raise(int code, const std::string& what) {
 
 std::unique_ptr<LibusbTransport> LibusbTransport::open(const std::string& serial) {
   libusb_context* context = nullptr;
-  if (int r = libusb_init(&context); r < 0) raise(r, "libusb initialisation");
+  if (int r = libusb_init(&context); r < 0) {
+    // Typically no usbfs at all: a container without /dev/bus/usb passed through.
+    throw UsbError(std::string("libusb cannot start (") + libusb_error_name(r) +
+                       "): is /dev/bus/usb present? A container needs it passed through",
+                   r);
+  }
 
   libusb_device** list = nullptr;
   const ssize_t count = libusb_get_device_list(context, &list);

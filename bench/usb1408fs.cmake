@@ -1,0 +1,5 @@
+# USB-1408FS benchmarks against the simulated board. Included from bench/CMakeLists.txt with
+# include(${CMAKE_CURRENT_LIST_DIR}/usb1408fs.cmake); run build/bench/bench_usb.
+add_executable(bench_usb ${CMAKE_CURRENT_LIST_DIR}/bench_usb.cpp)
+target_link_libraries(bench_usb PRIVATE zerocal::usb1408fs zerocal::sim_usb1408fs zerocal::sim_psd
+                      zerocal::psd benchmark::benchmark zerocal::warnings)

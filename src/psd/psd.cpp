@@ -1,0 +1,340 @@
+#include "zerocal/psd/psd.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <iomanip>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+#include "zerocal/error.h"
+
+namespace zerocal::psd {
+namespace {
+
+using namespace std::chrono_literals;
+
+// Voltages enter the polynomial divided by this, so that powers up to the degree stay near 1 and
+// the least-squares problem stays well conditioned.
+constexpr double kVoltScale = 5.0;
+
+std::size_t termCount(int degree) {
+  return static_cast<std::size_t>((degree + 1) * (degree + 2) / 2);
+}
+
+// Monomials X^i Y^j for i + j <= degree, in a fixed order (by total degree, then by i).
+template <typename F>
+void forEachTerm(int degree, F&& f) {
+  std::size_t k = 0;
+  for (int total = 0; total <= degree; ++total) {
+    for (int i = total; i >= 0; --i) f(k++, i, total - i);
+  }
+}
+
+double meanOf(double sum, std::size_t n) { return n ? sum / static_cast<double>(n) : 0.0; }
+
+double standardError(double sum, double sum2, std::size_t n) {
+  if (n < 2) return 0.0;
+  const double dn = static_cast<double>(n);
+  const double var = std::max(0.0, (sum2 - sum * sum / dn) / (dn - 1.0));
+  return std::sqrt(var / dn);
+}
+
+}  // namespace
+
+BlockAverager::BlockAverager(std::size_t block) : block_(block) {
+  if (block_ == 0) throw std::invalid_argument("PSD averaging block must be at least 1 sample");
+}
+
+void BlockAverager::reset() noexcept {
+  sum_ = {};
+  sum2_ = {};
+  count_ = {};
+}
+
+void BlockAverager::onScanData(const usb1408fs::ScanBlock& block) noexcept {
+  for (std::size_t i = 0; i < block.count; ++i) {
+    const std::size_t c = (block.first_channel + i) % 3;
+    const double v = block.volts[i];
+    sum_[c] += v;
+    sum2_[c] += v * v;
+    ++count_[c];
+    // SUM is last in the scan: when its count reaches the block, X and Y have as many.
+    if (c == 2 && count_[2] == block_) {
+      VoltageReading r;
+      r.samples = block_;
+      r.x = meanOf(sum_[0], count_[0]);
+      r.y = meanOf(sum_[1], count_[1]);
+      r.sum = meanOf(sum_[2], count_[2]);
+      r.x_se = standardError(sum_[0], sum2_[0], count_[0]);
+      r.y_se = standardError(sum_[1], sum2_[1], count_[1]);
+      r.sum_se = standardError(sum_[2], sum2_[2], count_[2]);
+      ready_ = r;
+      has_ready_ = true;
+      reset();
+    }
+  }
+}
+
+void BlockAverager::onPacketsLost(std::uint32_t, std::uint16_t) noexcept {
+  // A block with a hole would mix times; drop it rather than average around the hole.
+  ++discarded_;
+  reset();
+}
+
+bool BlockAverager::take(VoltageReading& reading) noexcept {
+  if (!has_ready_) return false;
+  reading = ready_;
+  has_ready_ = false;
+  return true;
+}
+
+VoltageReading readAveraged(usb1408fs::Usb1408fs& daq, const PsdChannels& channels,
+                            std::size_t samples, double rate_hz) {
+  BlockAverager averager(samples);
+  usb1408fs::ScanConfig config;
+  config.channels = {channels.x, channels.y, channels.sum};
+  config.rate_hz = rate_hz;
+  config.scans = static_cast<std::uint32_t>(samples);
+  daq.startScan(config, averager);
+  try {
+    while (!daq.scanComplete()) daq.pollScan(5ms);
+  } catch (...) {
+    daq.stopScan();
+    throw;
+  }
+  daq.stopScan();
+  VoltageReading reading;
+  if (!averager.take(reading)) {
+    throw usb1408fs::ProtocolError("the PSD reading lost " +
+                                   std::to_string(daq.scanStats().lost_packets) +
+                                   " USB packets; it was discarded");
+  }
+  return reading;
+}
+
+PsdStream::PsdStream(usb1408fs::Usb1408fs& daq, const PsdChannels& channels, std::size_t samples,
+                     double rate_hz)
+    : daq_(daq), averager_(samples) {
+  usb1408fs::ScanConfig config;
+  config.channels = {channels.x, channels.y, channels.sum};
+  config.rate_hz = rate_hz;
+  config.scans = 0;
+  daq_.startScan(config, averager_);
+}
+
+PsdStream::~PsdStream() { daq_.stopScan(); }
+
+bool PsdStream::next(VoltageReading& reading, std::chrono::milliseconds timeout) {
+  if (averager_.take(reading)) return true;
+  // pollScan returns as soon as packets arrive; keep polling until a block completes or the
+  // caller's time is used up.
+  auto left = timeout;
+  const auto step = std::min(timeout, std::chrono::milliseconds(2));
+  while (left.count() > 0) {
+    // Only empty polls use up the caller's time: a poll that brought packets returned early.
+    if (daq_.pollScan(step) == 0) left -= step;
+    if (averager_.take(reading)) return true;
+  }
+  return false;
+}
+
+std::vector<SweepPoint> readSweepCsv(std::istream& in, const std::string& origin) {
+  auto split = [](const std::string& line) {
+    std::vector<std::string> cells;
+    std::string cell;
+    std::istringstream row(line);
+    while (std::getline(row, cell, ',')) {
+      const auto b = cell.find_first_not_of(" \t\r");
+      const auto e = cell.find_last_not_of(" \t\r");
+      cells.push_back(b == std::string::npos ? "" : cell.substr(b, e - b + 1));
+    }
+    return cells;
+  };
+  std::string line;
+  if (!std::getline(in, line)) throw InputError(origin + ": empty sweep file");
+  const std::vector<std::string> header = split(line);
+  const char* names[5] = {"u_mm", "v_mm", "x_v", "y_v", "sum_v"};
+  int column[5];
+  std::vector<std::string> problems;
+  for (int k = 0; k < 5; ++k) {
+    column[k] = -1;
+    for (std::size_t c = 0; c < header.size(); ++c) {
+      if (header[c] == names[k]) column[k] = static_cast<int>(c);
+    }
+    if (column[k] < 0) problems.push_back(std::string("no column ") + names[k] + " in the header");
+  }
+  std::vector<SweepPoint> sweep;
+  const bool header_ok = problems.empty();
+  for (int number = 2; header_ok && std::getline(in, line); ++number) {
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    const std::vector<std::string> cells = split(line);
+    double values[5];
+    bool ok = true;
+    for (int k = 0; k < 5 && ok; ++k) {
+      const auto c = static_cast<std::size_t>(column[k]);
+      char* end = nullptr;
+      values[k] = c < cells.size() ? std::strtod(cells[c].c_str(), &end) : 0.0;
+      ok = c < cells.size() && !cells[c].empty() && end && *end == '\0' && std::isfinite(values[k]);
+      if (!ok) {
+        problems.push_back("line " + std::to_string(number) + ": " + names[k] + " is not a number");
+      }
+    }
+    if (ok) sweep.push_back({values[0], values[1], values[2], values[3], values[4]});
+  }
+  if (!problems.empty()) {
+    std::string message = origin + ": the sweep cannot be used:";
+    for (const auto& p : problems) message += "\n  " + p;
+    throw InputError(message);
+  }
+  return sweep;
+}
+
+SpotDetector::SpotDetector(double on_threshold_v, double off_threshold_v)
+    : on_(on_threshold_v), off_(std::min(off_threshold_v, on_threshold_v)) {}
+
+bool SpotDetector::update(const VoltageReading& reading) noexcept {
+  present_ = present_ ? reading.sum > off_ : reading.sum > on_;
+  return present_;
+}
+
+PsdMap PsdMap::fit(const std::vector<SweepPoint>& sweep, const MapFitOptions& options,
+                   MapFitReport* report) {
+  if (options.degree < 1 || options.degree > 12) {
+    throw std::invalid_argument("PSD map degree must be 1..12, got " +
+                                std::to_string(options.degree));
+  }
+  std::vector<const SweepPoint*> used;
+  const double half = options.zone_half_width_mm + 1e-9;  // stage grids land on the limit
+  for (const SweepPoint& p : sweep) {
+    if (std::abs(p.u_mm) <= half && std::abs(p.v_mm) <= half && p.sum_v >= options.min_sum_v) {
+      used.push_back(&p);
+    }
+  }
+  const std::size_t m = termCount(options.degree);
+  if (used.size() < 2 * m) {
+    throw InputError("the PSD sweep has " + std::to_string(used.size()) +
+                     " usable points within +-" + std::to_string(options.zone_half_width_mm) +
+                     " mm; a degree-" + std::to_string(options.degree) + " map needs at least " +
+                     std::to_string(2 * m));
+  }
+  Eigen::MatrixXd a(used.size(), m);
+  Eigen::VectorXd bu(used.size()), bv(used.size());
+  for (std::size_t r = 0; r < used.size(); ++r) {
+    const double x = used[r]->x_v / kVoltScale, y = used[r]->y_v / kVoltScale;
+    forEachTerm(options.degree, [&](std::size_t k, int i, int j) {
+      a(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(k)) =
+          std::pow(x, i) * std::pow(y, j);
+    });
+    bu(static_cast<Eigen::Index>(r)) = used[r]->u_mm;
+    bv(static_cast<Eigen::Index>(r)) = used[r]->v_mm;
+  }
+  const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(a);
+  const Eigen::VectorXd cu = qr.solve(bu), cv = qr.solve(bv);
+
+  PsdMap map;
+  map.degree_ = options.degree;
+  map.u_coeff_.assign(cu.data(), cu.data() + cu.size());
+  map.v_coeff_.assign(cv.data(), cv.data() + cv.size());
+  map.min_sum_v_ = options.min_sum_v;
+  map.u_min_ = map.v_min_ = std::numeric_limits<double>::infinity();
+  map.u_max_ = map.v_max_ = -std::numeric_limits<double>::infinity();
+  double sum2 = 0, worst = 0;
+  const Eigen::VectorXd ru = a * cu - bu, rv = a * cv - bv;
+  for (std::size_t r = 0; r < used.size(); ++r) {
+    const double e = std::hypot(ru(static_cast<Eigen::Index>(r)), rv(static_cast<Eigen::Index>(r)));
+    sum2 += e * e;
+    worst = std::max(worst, e);
+    map.u_min_ = std::min(map.u_min_, used[r]->u_mm);
+    map.u_max_ = std::max(map.u_max_, used[r]->u_mm);
+    map.v_min_ = std::min(map.v_min_, used[r]->v_mm);
+    map.v_max_ = std::max(map.v_max_, used[r]->v_mm);
+  }
+  if (report) {
+    report->points_used = used.size();
+    report->rms_residual_mm = std::sqrt(sum2 / static_cast<double>(used.size()));
+    report->max_residual_mm = worst;
+    report->u_min = map.u_min_;
+    report->u_max = map.u_max_;
+    report->v_min = map.v_min_;
+    report->v_max = map.v_max_;
+  }
+  return map;
+}
+
+void PsdMap::evaluate(double xv, double yv, double& u, double& v, double& du_dx, double& du_dy,
+                      double& dv_dx, double& dv_dy) const {
+  const double x = xv / kVoltScale, y = yv / kVoltScale;
+  u = v = du_dx = du_dy = dv_dx = dv_dy = 0.0;
+  forEachTerm(degree_, [&](std::size_t k, int i, int j) {
+    const double term = std::pow(x, i) * std::pow(y, j);
+    const double dx = i > 0 ? i * std::pow(x, i - 1) * std::pow(y, j) : 0.0;
+    const double dy = j > 0 ? j * std::pow(x, i) * std::pow(y, j - 1) : 0.0;
+    u += u_coeff_[k] * term;
+    v += v_coeff_[k] * term;
+    du_dx += u_coeff_[k] * dx;
+    du_dy += u_coeff_[k] * dy;
+    dv_dx += v_coeff_[k] * dx;
+    dv_dy += v_coeff_[k] * dy;
+  });
+  // Derivatives per volt, not per scaled unit.
+  du_dx /= kVoltScale;
+  du_dy /= kVoltScale;
+  dv_dx /= kVoltScale;
+  dv_dy /= kVoltScale;
+}
+
+SpotPosition PsdMap::apply(const VoltageReading& reading) const {
+  SpotPosition p;
+  p.present = reading.sum >= min_sum_v_;
+  if (!p.present) return p;
+  double du_dx, du_dy, dv_dx, dv_dy;
+  evaluate(reading.x, reading.y, p.u_mm, p.v_mm, du_dx, du_dy, dv_dx, dv_dy);
+  p.u_se_mm = std::hypot(du_dx * reading.x_se, du_dy * reading.y_se);
+  p.v_se_mm = std::hypot(dv_dx * reading.x_se, dv_dy * reading.y_se);
+  p.valid = p.u_mm >= u_min_ && p.u_mm <= u_max_ && p.v_mm >= v_min_ && p.v_mm <= v_max_;
+  return p;
+}
+
+std::string PsdMap::serialize() const {
+  std::ostringstream out;
+  out << std::setprecision(17);
+  out << "zerocal-psd-map 1\ndegree " << degree_ << "\nzone " << u_min_ << ' ' << u_max_ << ' '
+      << v_min_ << ' ' << v_max_ << "\nmin_sum_v " << min_sum_v_ << "\nu";
+  for (double c : u_coeff_) out << ' ' << c;
+  out << "\nv";
+  for (double c : v_coeff_) out << ' ' << c;
+  out << '\n';
+  return out.str();
+}
+
+PsdMap PsdMap::parse(const std::string& text) {
+  std::istringstream in(text);
+  std::string magic, key;
+  int version = 0;
+  PsdMap map;
+  auto fail = [](const std::string& why) -> PsdMap { throw InputError("PSD map: " + why); };
+  if (!(in >> magic >> version) || magic != "zerocal-psd-map" || version != 1) {
+    return fail("not a zerocal-psd-map version 1");
+  }
+  if (!(in >> key >> map.degree_) || key != "degree" || map.degree_ < 1 || map.degree_ > 12) {
+    return fail("bad or missing degree");
+  }
+  if (!(in >> key >> map.u_min_ >> map.u_max_ >> map.v_min_ >> map.v_max_) || key != "zone") {
+    return fail("bad or missing zone");
+  }
+  if (!(in >> key >> map.min_sum_v_) || key != "min_sum_v") return fail("bad or missing min_sum_v");
+  const std::size_t m = termCount(map.degree_);
+  for (auto* coeff : {&map.u_coeff_, &map.v_coeff_}) {
+    if (!(in >> key) || (key != "u" && key != "v")) return fail("missing coefficient line");
+    coeff->resize(m);
+    for (double& c : *coeff) {
+      if (!(in >> c)) return fail("expected " + std::to_string(m) + " coefficients for " + key);
+    }
+  }
+  return map;
+}
+
+}  // namespace zerocal::psd

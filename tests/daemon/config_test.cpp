@@ -291,5 +291,18 @@ TEST_F(ConfigTest, ShippedExampleIsCompleteAndEqualsTheDefaults) {
   EXPECT_EQ(configToJson(c), configToJson(DaemonConfig{}));
 }
 
+TEST_F(ConfigTest, ReferenceDocumentNamesEveryKey) {
+  std::ifstream in(fs::path(ZEROCAL_SOURCE_DIR) / "docs" / "configuration.md");
+  ASSERT_TRUE(in);
+  std::stringstream text;
+  text << in.rdbuf();
+  for (const auto& key : configKeys()) {
+    const std::string leaf = key.substr(key.rfind('.') + 1);
+    const std::string section = "## " + key.substr(0, key.find('.'));
+    EXPECT_NE(text.str().find(leaf + "`"), std::string::npos) << key;
+    EXPECT_NE(text.str().find(section), std::string::npos) << key;
+  }
+}
+
 }  // namespace
 }  // namespace zerocal

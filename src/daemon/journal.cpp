@@ -8,6 +8,7 @@
 #include <cerrno>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <ctime>
 #include <filesystem>
@@ -114,7 +115,12 @@ std::string newSessionId(const fs::path& data_dir) {
   char stamp[32];
   std::strftime(stamp, sizeof stamp, "%Y%m%dT%H%M%SZ", &utc);
   std::string id = stamp;
-  for (int n = 2; fs::exists(data_dir / id); ++n) id = std::string(stamp) + "-" + std::to_string(n);
+  // Zero-padded so that ids made within one second still sort in creation order.
+  for (int n = 2; fs::exists(data_dir / id); ++n) {
+    char suffix[16];
+    std::snprintf(suffix, sizeof suffix, "-%03d", n);
+    id = std::string(stamp) + suffix;
+  }
   return id;
 }
 
@@ -306,7 +312,10 @@ std::vector<SessionInfo> SessionStore::list() const {
   std::error_code ec;
   if (!fs::is_directory(data_dir_, ec)) return sessions;
   for (const auto& entry : fs::directory_iterator(data_dir_, ec)) {
-    if (!entry.is_directory() || !fs::is_regular_file(entry.path() / kSessionFile)) continue;
+    std::error_code entry_ec;
+    if (!entry.is_directory(entry_ec) ||
+        !fs::is_regular_file(entry.path() / kSessionFile, entry_ec))
+      continue;
     SessionInfo info;
     info.id = entry.path().filename().string();
     info.dir = entry.path().string();

@@ -5,8 +5,8 @@
 //                  moves on; a pose is committed when its line, newline included, is on disk
 //   result.json    written (atomically) when the solve is done; a session without it is
 //                  unfinished and may be resumed
-// Ids are UTC creation times (20261122T050102Z, with a -N suffix on a clash), so they sort by
-// age. Units: joints in degrees, PSD coordinates and their standard errors in millimetres,
+// Ids are UTC creation times (20261122T050102Z, with a -002, -003... suffix on a clash), so they
+// sort by age. Units: joints in degrees, PSD coordinates and their standard errors in millimetres,
 // timestamps in nanoseconds since the Unix epoch (system clock), durations in seconds.
 #pragma once
 

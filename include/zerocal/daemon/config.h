@@ -1,0 +1,152 @@
+// The configuration of zerocald: one struct per section, filled in layers (compiled defaults, the
+// main file, every *.yaml of the drop-in folder in lexical order, then command-line overrides
+// `section.key=value`) and validated once, reporting every problem at once. docs/configuration.md
+// describes every key; config/zerocald.yaml is the commented example.
+//
+// Units are in the key names and the member names: _mm millimetres, _um micrometres, _deg
+// degrees, _s seconds, _ms milliseconds (std::chrono::milliseconds), _v volts, _hz hertz.
+// Relative paths written in a file are resolved against that file's folder, those on the command
+// line against the working directory.
+#pragma once
+
+#include <array>
+#include <chrono>
+#include <cstdint>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "zerocal/psd/psd.h"
+
+namespace zerocal {
+
+inline constexpr const char* kDefaultConfigPath = "/etc/zerocal/zerocald.yaml";
+inline constexpr const char* kDefaultDropInDir = "/etc/zerocal/zerocald.d";
+
+enum class BackendKind { kHardware, kSim };
+
+struct BackendConfig {
+  BackendKind kind = BackendKind::kHardware;
+  // Simulated cell: a world file, or a seed from which a random world is drawn; not both. With
+  // neither, the seed 1 world.
+  std::string sim_world;
+  std::optional<std::uint64_t> sim_seed;
+  // An external zerocal-sim process instead of the in-process one: both set, or neither.
+  std::string sim_host;
+  std::uint16_t sim_port = 0;
+};
+
+// The IRC5 link (mapped onto Irc5Options by the daemon).
+struct ControllerConfig {
+  std::string robot = "builtin";  // robot file, or the compiled-in IRB 1600-10/1.45
+  std::string host = "192.168.125.1";
+  std::uint16_t port = 5000;
+  std::chrono::milliseconds connect_timeout{2000};
+  std::chrono::milliseconds request_timeout{1000};
+  double move_timeout_factor = 2.0;  // a move's deadline: estimated duration * factor + margin
+  std::chrono::milliseconds move_timeout_margin{2000};
+  double speed_tcp_mm_s = 100.0;
+  double speed_ori_deg_s = 50.0;
+  double limit_margin_deg = 1.0;  // joint targets closer than this to a limit are refused
+  double max_step_deg = 10.0;     // largest joint step of any one move
+  int reconnect_attempts = 5;
+};
+
+struct DaqConfig {
+  std::string serial;  // USB serial-number string; empty = the first USB-1408FS found
+  psd::PsdChannels channels;
+  double scan_rate_hz = 1000.0;   // scans per second (each scan converts x, y and sum once)
+  int samples_per_reading = 100;  // scans averaged into one reading
+  double sum_threshold_v = 0.5;   // SUM below this: no spot on the detector
+};
+
+enum class ServoStop { kCentre, kZone };
+
+struct ServoConfig {
+  ServoStop stop = ServoStop::kCentre;  // centre: within tolerance_um; zone: settled in the zone
+  double tolerance_um = 2.0;
+  double max_step_deg = 0.05;  // largest joint step of one servo move (<= controller.max_step_deg)
+  int max_iterations = 50;
+  double timeout_s = 30.0;
+  double settle_s = 0.2;          // wait after a move before a reading counts
+  double search_radius_mm = 5.0;  // acquisition: spiral search around the planned spot
+  double search_step_mm = 0.5;    // spacing of the spiral (smaller than the spot)
+  double search_time_s = 60.0;
+};
+
+enum class PlanKind { kOptimal, kI, kII, kMixed, kFile };
+
+struct SessionConfig {
+  PlanKind plan = PlanKind::kOptimal;
+  std::string plan_file;  // a joint-set file; required by plan: file, refused otherwise
+  int poses = 8;
+  std::array<double, 3> target_mm{900.0, -50.0, 400.0};  // nominal PSD centre, robot base frame
+  double noise_mm = 0.001;  // PSD reading sigma assumed by the planner's predicted uncertainty
+  std::string data_dir = "/var/lib/zerocal/sessions";  // one folder per session (journal.h)
+};
+
+struct ControlConfig {
+  std::string bind_address = "127.0.0.1";
+  std::uint16_t port = 7450;
+  std::string token_file;  // required when bind_address is not a loopback address
+};
+
+enum class LogLevel { kTrace, kDebug, kInfo, kWarn, kError, kCritical, kOff };
+
+struct LoggingConfig {
+  LogLevel level = LogLevel::kInfo;
+  std::string directory;  // empty: stderr only (the systemd journal); else also zerocald.log there
+};
+
+struct DaemonConfig {
+  BackendConfig backend;
+  ControllerConfig controller;
+  DaqConfig daq;
+  ServoConfig servo;
+  SessionConfig session;
+  ControlConfig control;
+  LoggingConfig logging;
+};
+
+// Where the layers come from. A missing main file is fine when it is the default one and an error
+// when it was named explicitly; the same holds for the drop-in folder.
+struct ConfigSources {
+  std::string config_path = kDefaultConfigPath;
+  bool config_path_explicit = false;
+  std::string drop_in_dir = kDefaultDropInDir;
+  bool drop_in_dir_explicit = false;
+  std::vector<std::string> overrides;  // "section.key=value", value in YAML syntax
+};
+
+// Builds the configuration from all layers and validates it. Throws ConfigError carrying every
+// problem found in every layer (unreadable or malformed files, unknown keys, wrong types,
+// out-of-range values, inconsistent combinations), each naming its file and line, or the command
+// line, and the key path.
+DaemonConfig loadDaemonConfig(const ConfigSources& sources);
+
+// Incremental building, for tests and for the daemon's reload: each call layers one source on top
+// of `config` and adds its problems to `problems`; `origins` records where every key was last set
+// ("file:line"), so that validation messages can point at it.
+using ConfigOrigins = std::map<std::string, std::string>;
+void applyConfigYaml(DaemonConfig& config, const std::string& yaml_text, const std::string& origin,
+                     const std::string& base_dir, ConfigOrigins& origins,
+                     std::vector<std::string>& problems);
+void applyConfigOverride(DaemonConfig& config, const std::string& assignment,
+                         ConfigOrigins& origins, std::vector<std::string>& problems);
+
+// Range and consistency checks of a complete configuration, including that referenced files
+// exist. Returns the problems (empty when valid); never throws.
+std::vector<std::string> validateDaemonConfig(const DaemonConfig& config,
+                                              const ConfigOrigins& origins = {});
+
+// Every key with its value, nested by section, as written in a file; for session.json snapshots.
+nlohmann::json configToJson(const DaemonConfig& config);
+
+// Every key path the files accept ("servo.tolerance_um", "daq.channels.x.number", ...).
+std::vector<std::string> configKeys();
+
+std::string logLevelName(LogLevel level);
+
+}  // namespace zerocal

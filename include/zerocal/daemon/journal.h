@@ -1,0 +1,128 @@
+// Sessions on disk, so that a calibration survives a crash or kill -9 without losing or
+// duplicating a pose. Layout of one session, <data_dir>/<id>/:
+//   session.json   written once at creation: format, id, creation time, plan, config snapshot
+//   journal.jsonl  one JSON object per recorded pose, appended and fsync()ed before the caller
+//                  moves on; a pose is committed when its line, newline included, is on disk
+//   result.json    written (atomically) when the solve is done; a session without it is
+//                  unfinished and may be resumed
+// Ids are UTC creation times (20261122T050102Z, with a -002, -003... suffix on a clash), so they
+// sort by age. Units: joints in degrees, PSD coordinates and their standard errors in millimetres,
+// timestamps in nanoseconds since the Unix epoch (system clock), durations in seconds.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "zerocal/error.h"
+#include "zerocal/model/robot.h"
+
+namespace zerocal {
+
+// A session folder or journal cannot be written or read back consistently.
+class JournalError : public Error {
+ public:
+  using Error::Error;
+};
+
+// What the servo did for one pose; durations in seconds of cell time.
+struct ServoStats {
+  int moves = 0;             // servo and search moves, the planned move not counted
+  int iterations = 0;        // fine-servo iterations
+  double move_s = 0;         // the planned move
+  double acquisition_s = 0;  // spot search
+  double servo_s = 0;
+  double settle_s = 0;
+  double final_error_um = 0;  // distance of the spot from the centre at the recorded reading
+};
+
+struct PoseRecord {
+  int index = 0;        // 0-based position in the plan; journal lines are 0, 1, 2, ... with no gaps
+  Joints joints_deg{};  // controller joint angles at the recorded reading
+  double u_mm = 0, v_mm = 0;
+  double u_se_mm = 0, v_se_mm = 0;  // standard errors of u and v
+  std::int64_t move_started_ns = 0;
+  std::int64_t recorded_ns = 0;
+  ServoStats servo;
+};
+
+nlohmann::json toJson(const PoseRecord& record);
+// Throws JournalError when a member is missing or of the wrong type.
+PoseRecord poseRecordFromJson(const nlohmann::json& json);
+
+struct JournalContents {
+  std::vector<PoseRecord> records;
+  std::size_t committed_bytes = 0;  // length of the file up to the last committed line
+  std::string dropped;              // empty, or why a torn last line was dropped (for a warning)
+  int nextIndex() const { return static_cast<int>(records.size()); }
+};
+
+// Reads a journal back. A last line that has no newline or does not parse is a write cut short by
+// a crash: it is dropped and described in `dropped` (and warned about on the "journal" logger).
+// A missing file is an empty journal. Throws JournalError for anything else: a bad line before
+// the last one, or indices that are not 0, 1, 2, ... (never skips, guesses or renumbers).
+JournalContents readJournal(const std::string& path);
+
+// The append side of journal.jsonl. Not thread-safe: the session worker owns it.
+class Journal {
+ public:
+  // Opens (creating it if needed, then fsync()ing its folder) the journal at `path` for
+  // appending, after reading it back; a torn last line is cut off the file so that the next
+  // append starts on a line of its own. Throws JournalError.
+  explicit Journal(const std::string& path);
+  ~Journal();
+  Journal(const Journal&) = delete;
+  Journal& operator=(const Journal&) = delete;
+
+  // Writes the record as one line with one write() and fsync()s the file; when this returns the
+  // pose is on disk. record.index must equal nextIndex() and every number must be finite.
+  // Throws JournalError (the journal is then unusable if the write itself failed).
+  void append(const PoseRecord& record);
+  int nextIndex() const { return next_index_; }
+  const std::vector<PoseRecord>& recovered() const { return recovered_; }
+  const std::string& dropped() const { return dropped_; }
+
+ private:
+  std::string path_;
+  int fd_ = -1;
+  int next_index_ = 0;
+  bool broken_ = false;
+  std::vector<PoseRecord> recovered_;
+  std::string dropped_;
+};
+
+struct SessionInfo {
+  std::string id;
+  std::string dir;
+  bool finished = false;   // result.json present
+  int planned_poses = 0;   // from session.json's plan.poses when present, else 0
+  int recorded_poses = 0;  // committed journal lines
+};
+
+class SessionStore {
+ public:
+  // Does not touch the disk.
+  explicit SessionStore(std::string data_dir);
+
+  // Creates <data_dir>/<id>/ (and data_dir if needed) and session.json with the plan and config
+  // snapshot given, durably. Throws JournalError when the folder or file cannot be written.
+  SessionInfo create(const nlohmann::json& plan, const nlohmann::json& config_snapshot);
+  // Every folder of data_dir with a readable session.json, oldest first; others are skipped. A
+  // missing data_dir has none. Throws JournalError when a journal is inconsistent.
+  std::vector<SessionInfo> list() const;
+  std::vector<SessionInfo> unfinished() const;
+  // session.json of that session. Throws JournalError.
+  nlohmann::json readSession(const std::string& id) const;
+  // Writes result.json atomically (temporary file, fsync, rename, fsync of the folder).
+  void writeResult(const std::string& id, const nlohmann::json& result);
+  std::string journalPath(const std::string& id) const;
+  std::string sessionDir(const std::string& id) const;
+
+ private:
+  std::string data_dir_;
+};
+
+}  // namespace zerocal

@@ -1,0 +1,616 @@
+#include "zerocal/daemon/config.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <boost/asio/ip/address.hpp>
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <limits>
+#include <sstream>
+#include <utility>
+
+#include "zerocal/error.h"
+
+namespace zerocal {
+namespace {
+
+namespace fs = std::filesystem;
+using Json = nlohmann::json;
+
+// One key of the schema. The setter parses completely before it assigns, so a wrong value never
+// leaves a half-changed member behind; it returns the reason for refusing, or "".
+struct Field {
+  std::string path;
+  std::function<std::string(const YAML::Node&, const std::string& base_dir)> set;
+  std::function<Json()> get;
+};
+
+std::string describe(const YAML::Node& node) {
+  switch (node.Type()) {
+    case YAML::NodeType::Null:
+      return "no value";
+    case YAML::NodeType::Sequence:
+      return "a list";
+    case YAML::NodeType::Map:
+      return "a mapping";
+    default:
+      return "'" + node.Scalar() + "'";
+  }
+}
+
+std::string where(const std::string& origin, const YAML::Node& node) {
+  const YAML::Mark mark = node.Mark();
+  if (mark.is_null()) return origin;
+  return origin + ":" + std::to_string(mark.line + 1);
+}
+
+bool parseInteger(const YAML::Node& node, long long& value) {
+  if (!node.IsScalar()) return false;
+  const std::string& text = node.Scalar();
+  if (text.empty()) return false;
+  errno = 0;
+  char* end = nullptr;
+  value = std::strtoll(text.c_str(), &end, 10);
+  return errno == 0 && end == text.c_str() + text.size();
+}
+
+bool parseReal(const YAML::Node& node, double& value) {
+  if (!node.IsScalar()) return false;
+  const std::string& text = node.Scalar();
+  if (text.empty()) return false;
+  char* end = nullptr;
+  value = std::strtod(text.c_str(), &end);
+  return end == text.c_str() + text.size();
+}
+
+template <class T>
+Field integerField(std::string path, T& target) {
+  return {std::move(path),
+          [&target](const YAML::Node& node, const std::string&) -> std::string {
+            long long value = 0;
+            if (!parseInteger(node, value)) return "expected an integer, got " + describe(node);
+            if (value < static_cast<long long>(std::numeric_limits<T>::min()) ||
+                value > static_cast<long long>(std::numeric_limits<T>::max()))
+              return node.Scalar() + " does not fit (" +
+                     std::to_string(std::numeric_limits<T>::min()) + ".." +
+                     std::to_string(std::numeric_limits<T>::max()) + ")";
+            target = static_cast<T>(value);
+            return {};
+          },
+          [&target] { return Json(target); }};
+}
+
+Field millisField(std::string path, std::chrono::milliseconds& target) {
+  return {std::move(path),
+          [&target](const YAML::Node& node, const std::string&) -> std::string {
+            long long value = 0;
+            if (!parseInteger(node, value))
+              return "expected an integer (milliseconds), got " + describe(node);
+            target = std::chrono::milliseconds(value);
+            return {};
+          },
+          [&target] { return Json(target.count()); }};
+}
+
+Field realField(std::string path, double& target) {
+  return {std::move(path),
+          [&target](const YAML::Node& node, const std::string&) -> std::string {
+            double value = 0;
+            if (!parseReal(node, value)) return "expected a number, got " + describe(node);
+            if (!std::isfinite(value)) return "expected a finite number, got " + describe(node);
+            target = value;
+            return {};
+          },
+          [&target] { return Json(target); }};
+}
+
+Field textField(std::string path, std::string& target) {
+  return {std::move(path),
+          [&target](const YAML::Node& node, const std::string&) -> std::string {
+            if (!node.IsScalar()) return "expected a text, got " + describe(node);
+            target = node.Scalar();
+            return {};
+          },
+          [&target] { return Json(target); }};
+}
+
+// A file or folder name; relative names are resolved against the folder of the file that wrote
+// them, so a drop-in can name a neighbour. `keep` is a word that is not a path ("builtin").
+Field pathField(std::string path, std::string& target, std::string keep = {}) {
+  return {std::move(path),
+          [&target, keep](const YAML::Node& node, const std::string& base_dir) -> std::string {
+            if (!node.IsScalar()) return "expected a path, got " + describe(node);
+            std::string value = node.Scalar();
+            if (!value.empty() && value != keep && fs::path(value).is_relative())
+              value = (fs::path(base_dir.empty() ? fs::current_path() : fs::path(base_dir)) / value)
+                          .lexically_normal()
+                          .string();
+            target = value;
+            return {};
+          },
+          [&target] { return Json(target); }};
+}
+
+template <class E>
+Field choiceField(std::string path, E& target, std::vector<std::pair<std::string, E>> choices) {
+  auto name_of = [choices](E value) {
+    for (const auto& [name, e] : choices)
+      if (e == value) return name;
+    return std::string("?");
+  };
+  return {std::move(path),
+          [&target, choices](const YAML::Node& node, const std::string&) -> std::string {
+            std::string list;
+            for (const auto& [name, e] : choices) {
+              if (node.IsScalar() && node.Scalar() == name) {
+                target = e;
+                return {};
+              }
+              list += (list.empty() ? "" : ", ") + name;
+            }
+            return "expected one of " + list + ", got " + describe(node);
+          },
+          [&target, name_of] { return Json(name_of(target)); }};
+}
+
+Field seedField(std::string path, std::optional<std::uint64_t>& target) {
+  return {std::move(path),
+          [&target](const YAML::Node& node, const std::string&) -> std::string {
+            // null is a value here: a later layer can take back an earlier layer's seed.
+            if (node.IsNull()) {
+              target.reset();
+              return {};
+            }
+            long long value = 0;
+            if (!parseInteger(node, value) || value < 0)
+              return "expected a non-negative integer or null, got " + describe(node);
+            target = static_cast<std::uint64_t>(value);
+            return {};
+          },
+          [&target] { return target ? Json(*target) : Json(nullptr); }};
+}
+
+Field vec3Field(std::string path, std::array<double, 3>& target) {
+  return {std::move(path),
+          [&target](const YAML::Node& node, const std::string&) -> std::string {
+            const std::string expected = "expected a list of 3 numbers, got ";
+            if (!node.IsSequence() || node.size() != 3) {
+              return expected + (node.IsSequence() ? "a list of " + std::to_string(node.size())
+                                                   : describe(node));
+            }
+            std::array<double, 3> value{};
+            for (std::size_t i = 0; i < 3; ++i)
+              if (!parseReal(node[i], value[i]) || !std::isfinite(value[i]))
+                return expected + describe(node[i]) + " at position " + std::to_string(i + 1);
+            target = value;
+            return {};
+          },
+          [&target] { return Json(target); }};
+}
+
+const std::vector<std::pair<std::string, usb1408fs::Range>> kRanges = {
+    {"20V", usb1408fs::Range::kBip20V},     {"10V", usb1408fs::Range::kBip10V},
+    {"5V", usb1408fs::Range::kBip5V},       {"4V", usb1408fs::Range::kBip4V},
+    {"2.5V", usb1408fs::Range::kBip2_5V},   {"2V", usb1408fs::Range::kBip2V},
+    {"1.25V", usb1408fs::Range::kBip1_25V}, {"1V", usb1408fs::Range::kBip1V}};
+
+const std::vector<std::pair<std::string, LogLevel>> kLevels = {
+    {"trace", LogLevel::kTrace}, {"debug", LogLevel::kDebug}, {"info", LogLevel::kInfo},
+    {"warn", LogLevel::kWarn},   {"error", LogLevel::kError}, {"critical", LogLevel::kCritical},
+    {"off", LogLevel::kOff}};
+
+void addChannel(std::vector<Field>& fields, const std::string& name, usb1408fs::Channel& channel) {
+  const std::string prefix = "daq.channels." + name + ".";
+  fields.push_back(integerField(prefix + "number", channel.number));
+  fields.push_back(
+      choiceField<usb1408fs::InputMode>(prefix + "mode", channel.mode,
+                                        {{"differential", usb1408fs::InputMode::kDifferential},
+                                         {"single_ended", usb1408fs::InputMode::kSingleEnded}}));
+  fields.push_back(choiceField(prefix + "range", channel.range, kRanges));
+}
+
+// The whole schema, bound to one configuration. Adding a key means one line here, one in
+// validate(), one in config/zerocald.yaml and one in docs/configuration.md.
+std::vector<Field> schema(DaemonConfig& c) {
+  std::vector<Field> f;
+  f.push_back(
+      choiceField<BackendKind>("backend.kind", c.backend.kind,
+                               {{"hardware", BackendKind::kHardware}, {"sim", BackendKind::kSim}}));
+  f.push_back(pathField("backend.sim_world", c.backend.sim_world));
+  f.push_back(seedField("backend.sim_seed", c.backend.sim_seed));
+  f.push_back(textField("backend.sim_host", c.backend.sim_host));
+  f.push_back(integerField("backend.sim_port", c.backend.sim_port));
+
+  auto& k = c.controller;
+  f.push_back(pathField("controller.robot", k.robot, "builtin"));
+  f.push_back(textField("controller.host", k.host));
+  f.push_back(integerField("controller.port", k.port));
+  f.push_back(millisField("controller.connect_timeout_ms", k.connect_timeout));
+  f.push_back(millisField("controller.request_timeout_ms", k.request_timeout));
+  f.push_back(realField("controller.move_timeout_factor", k.move_timeout_factor));
+  f.push_back(millisField("controller.move_timeout_margin_ms", k.move_timeout_margin));
+  f.push_back(realField("controller.speed_tcp_mm_s", k.speed_tcp_mm_s));
+  f.push_back(realField("controller.speed_ori_deg_s", k.speed_ori_deg_s));
+  f.push_back(realField("controller.limit_margin_deg", k.limit_margin_deg));
+  f.push_back(realField("controller.max_step_deg", k.max_step_deg));
+  f.push_back(integerField("controller.reconnect_attempts", k.reconnect_attempts));
+
+  f.push_back(textField("daq.serial", c.daq.serial));
+  addChannel(f, "x", c.daq.channels.x);
+  addChannel(f, "y", c.daq.channels.y);
+  addChannel(f, "sum", c.daq.channels.sum);
+  f.push_back(realField("daq.scan_rate_hz", c.daq.scan_rate_hz));
+  f.push_back(integerField("daq.samples_per_reading", c.daq.samples_per_reading));
+  f.push_back(realField("daq.sum_threshold_v", c.daq.sum_threshold_v));
+
+  auto& s = c.servo;
+  f.push_back(choiceField<ServoStop>("servo.stop", s.stop,
+                                     {{"centre", ServoStop::kCentre}, {"zone", ServoStop::kZone}}));
+  f.push_back(realField("servo.tolerance_um", s.tolerance_um));
+  f.push_back(realField("servo.max_step_deg", s.max_step_deg));
+  f.push_back(integerField("servo.max_iterations", s.max_iterations));
+  f.push_back(realField("servo.timeout_s", s.timeout_s));
+  f.push_back(realField("servo.settle_s", s.settle_s));
+  f.push_back(realField("servo.search_radius_mm", s.search_radius_mm));
+  f.push_back(realField("servo.search_step_mm", s.search_step_mm));
+  f.push_back(realField("servo.search_time_s", s.search_time_s));
+
+  f.push_back(choiceField<PlanKind>("session.plan", c.session.plan,
+                                    {{"optimal", PlanKind::kOptimal},
+                                     {"I", PlanKind::kI},
+                                     {"II", PlanKind::kII},
+                                     {"mixed", PlanKind::kMixed},
+                                     {"file", PlanKind::kFile}}));
+  f.push_back(pathField("session.plan_file", c.session.plan_file));
+  f.push_back(integerField("session.poses", c.session.poses));
+  f.push_back(vec3Field("session.target_mm", c.session.target_mm));
+  f.push_back(realField("session.noise_mm", c.session.noise_mm));
+  f.push_back(pathField("session.data_dir", c.session.data_dir));
+
+  f.push_back(textField("control.bind_address", c.control.bind_address));
+  f.push_back(integerField("control.port", c.control.port));
+  f.push_back(pathField("control.token_file", c.control.token_file));
+
+  f.push_back(choiceField("logging.level", c.logging.level, kLevels));
+  f.push_back(pathField("logging.directory", c.logging.directory));
+  return f;
+}
+
+const Field* findField(const std::vector<Field>& fields, const std::string& path) {
+  for (const auto& field : fields)
+    if (field.path == path) return &field;
+  return nullptr;
+}
+
+bool isSection(const std::vector<Field>& fields, const std::string& path) {
+  const std::string prefix = path + ".";
+  for (const auto& field : fields)
+    if (field.path.compare(0, prefix.size(), prefix) == 0) return true;
+  return false;
+}
+
+struct Layer {
+  const std::vector<Field>& fields;
+  const std::string& origin;
+  const std::string& base_dir;
+  ConfigOrigins& origins;
+  std::vector<std::string>& problems;
+  bool lines = true;  // a file has line numbers, the command line has not
+
+  std::string at(const YAML::Node& node) const { return lines ? where(origin, node) : origin; }
+
+  // `key` locates the problem: the key's line is where a reader looks, also when the value is
+  // missing or a block list starting on the next line.
+  void setLeaf(const Field& field, const YAML::Node& key, const YAML::Node& value) {
+    const std::string error = field.set(value, base_dir);
+    if (error.empty())
+      origins[field.path] = at(key);
+    else
+      problems.push_back(at(key) + ": " + field.path + ": " + error);
+  }
+
+  void walk(const YAML::Node& node, const std::string& prefix) {
+    // A section whose keys are all commented out is empty, not wrong.
+    if (node.IsNull()) return;
+    if (!node.IsMap()) {
+      problems.push_back(at(node) + ": " + (prefix.empty() ? "the document" : prefix) +
+                         ": expected a mapping, got " + describe(node));
+      return;
+    }
+    for (const auto& entry : node) {
+      if (!entry.first.IsScalar()) {
+        problems.push_back(at(entry.first) + ": a key must be a plain word");
+        continue;
+      }
+      const std::string path = (prefix.empty() ? "" : prefix + ".") + entry.first.Scalar();
+      if (const Field* field = findField(fields, path))
+        setLeaf(*field, entry.first, entry.second);
+      else if (isSection(fields, path))
+        walk(entry.second, path);
+      else
+        problems.push_back(at(entry.first) + ": unknown key '" + path + "'");
+    }
+  }
+};
+
+template <class T>
+std::string str(T value) {
+  std::ostringstream s;
+  s << value;
+  return s.str();
+}
+
+class Checker {
+ public:
+  Checker(const ConfigOrigins& origins, std::vector<std::string>& problems)
+      : origins_(origins), problems_(problems) {}
+
+  void fail(const std::string& path, const std::string& message) {
+    const auto it = origins_.find(path);
+    problems_.push_back((it == origins_.end() ? std::string("default") : it->second) + ": " + path +
+                        ": " + message);
+  }
+  // lo <= value <= hi, or lo < value when open_low.
+  void range(const std::string& path, double value, double lo, double hi, bool open_low = false) {
+    if (open_low ? !(value > lo) : !(value >= lo)) {
+      fail(path, str(value) + " must be " + (open_low ? "greater than " : "at least ") + str(lo));
+    } else if (!(value <= hi)) {
+      fail(path, str(value) + " must be at most " + str(hi));
+    }
+  }
+  void positive(const std::string& path, double value, double hi) {
+    range(path, value, 0.0, hi, true);
+  }
+  void fileExists(const std::string& path, const std::string& file) {
+    std::error_code ec;
+    if (!fs::is_regular_file(file, ec)) fail(path, "no such file: " + file);
+  }
+
+ private:
+  const ConfigOrigins& origins_;
+  std::vector<std::string>& problems_;
+};
+
+std::string readFile(const fs::path& path, std::string& error) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    error = "cannot be read";
+    return {};
+  }
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+}  // namespace
+
+void applyConfigYaml(DaemonConfig& config, const std::string& yaml_text, const std::string& origin,
+                     const std::string& base_dir, ConfigOrigins& origins,
+                     std::vector<std::string>& problems) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(yaml_text);
+  } catch (const YAML::Exception& e) {
+    problems.push_back(origin + (e.mark.is_null() ? "" : ":" + std::to_string(e.mark.line + 1)) +
+                       ": not valid YAML: " + e.msg);
+    return;
+  }
+  if (root.IsNull()) return;  // an empty or all-comment file changes nothing
+  const auto fields = schema(config);
+  Layer{fields, origin, base_dir, origins, problems}.walk(root, "");
+}
+
+void applyConfigOverride(DaemonConfig& config, const std::string& assignment,
+                         ConfigOrigins& origins, std::vector<std::string>& problems) {
+  const std::string origin = "command line '" + assignment + "'";
+  const auto equals = assignment.find('=');
+  if (equals == std::string::npos || equals == 0) {
+    problems.push_back(origin + ": expected section.key=value");
+    return;
+  }
+  const std::string path = assignment.substr(0, equals);
+  YAML::Node value;
+  try {
+    value = YAML::Load(assignment.substr(equals + 1));
+  } catch (const YAML::Exception& e) {
+    problems.push_back(origin + ": " + path + ": not valid YAML: " + e.msg);
+    return;
+  }
+  const auto fields = schema(config);
+  const std::string base_dir = fs::current_path().string();
+  Layer layer{fields, origin, base_dir, origins, problems, false};
+  if (const Field* field = findField(fields, path))
+    layer.setLeaf(*field, value, value);
+  else if (isSection(fields, path))
+    layer.walk(value, path);
+  else
+    problems.push_back(origin + ": unknown key '" + path + "'");
+}
+
+std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const ConfigOrigins& origins) {
+  std::vector<std::string> problems;
+  Checker check(origins, problems);
+
+  const auto& b = c.backend;
+  if (b.kind == BackendKind::kSim) {
+    if (!b.sim_world.empty() && b.sim_seed)
+      check.fail("backend.sim_seed", "give backend.sim_world or backend.sim_seed, not both");
+    if (!b.sim_world.empty()) check.fileExists("backend.sim_world", b.sim_world);
+    if (b.sim_host.empty() != (b.sim_port == 0))
+      check.fail(b.sim_host.empty() ? "backend.sim_port" : "backend.sim_host",
+                 "an external zerocal-sim needs both backend.sim_host and backend.sim_port");
+  }
+
+  const auto& k = c.controller;
+  if (k.robot != "builtin") check.fileExists("controller.robot", k.robot);
+  if (b.kind == BackendKind::kHardware && k.host.empty())
+    check.fail("controller.host", "must not be empty with backend.kind: hardware");
+  if (k.port == 0) check.fail("controller.port", "must be 1..65535");
+  check.positive("controller.connect_timeout_ms", k.connect_timeout.count(), 600000);
+  check.positive("controller.request_timeout_ms", k.request_timeout.count(), 600000);
+  check.range("controller.move_timeout_factor", k.move_timeout_factor, 1.0, 100.0);
+  check.range("controller.move_timeout_margin_ms", k.move_timeout_margin.count(), 0, 600000);
+  // 7000 mm/s and 1000 deg/s are above any IRC5 robot's maximum: beyond them a value is a typo.
+  check.positive("controller.speed_tcp_mm_s", k.speed_tcp_mm_s, 7000.0);
+  check.positive("controller.speed_ori_deg_s", k.speed_ori_deg_s, 1000.0);
+  check.range("controller.limit_margin_deg", k.limit_margin_deg, 0.0, 30.0);
+  check.positive("controller.max_step_deg", k.max_step_deg, 180.0);
+  check.range("controller.reconnect_attempts", k.reconnect_attempts, 0, 1000);
+
+  const auto& d = c.daq;
+  const std::pair<const char*, const usb1408fs::Channel*> channels[] = {
+      {"x", &d.channels.x}, {"y", &d.channels.y}, {"sum", &d.channels.sum}};
+  for (const auto& [name, channel] : channels) {
+    const int highest = channel->mode == usb1408fs::InputMode::kDifferential ? 3 : 7;
+    check.range(std::string("daq.channels.") + name + ".number", channel->number, 0, highest);
+  }
+  for (std::size_t i = 0; i < 3; ++i)
+    for (std::size_t j = i + 1; j < 3; ++j) {
+      const auto& a = *channels[i].second;
+      const auto& o = *channels[j].second;
+      // A differential pair n occupies single-ended inputs n and n + 4.
+      auto inputs = [](const usb1408fs::Channel& ch) {
+        return ch.mode == usb1408fs::InputMode::kDifferential
+                   ? std::vector<int>{ch.number, ch.number + 4}
+                   : std::vector<int>{ch.number};
+      };
+      bool shared = false;
+      for (int p : inputs(a))
+        for (int q : inputs(o)) shared = shared || p == q;
+      if (shared)
+        check.fail(std::string("daq.channels.") + channels[j].first,
+                   std::string("uses the same input as daq.channels.") + channels[i].first);
+    }
+  // The board converts at most 48 kS/s in all, shared by the three channels of a scan.
+  check.positive("daq.scan_rate_hz", d.scan_rate_hz, 16000.0);
+  check.range("daq.samples_per_reading", d.samples_per_reading, 1, 1000000);
+  check.range("daq.sum_threshold_v", d.sum_threshold_v, 0.0, 20.0);
+
+  const auto& s = c.servo;
+  check.positive("servo.tolerance_um", s.tolerance_um, 1000.0);
+  check.positive("servo.max_step_deg", s.max_step_deg, 180.0);
+  if (s.max_step_deg > k.max_step_deg)
+    check.fail("servo.max_step_deg", str(s.max_step_deg) + " exceeds controller.max_step_deg (" +
+                                         str(k.max_step_deg) + ")");
+  check.range("servo.max_iterations", s.max_iterations, 1, 100000);
+  check.positive("servo.timeout_s", s.timeout_s, 3600.0);
+  check.range("servo.settle_s", s.settle_s, 0.0, 60.0);
+  check.positive("servo.search_radius_mm", s.search_radius_mm, 100.0);
+  check.positive("servo.search_step_mm", s.search_step_mm, 100.0);
+  if (s.search_step_mm > s.search_radius_mm)
+    check.fail("servo.search_step_mm", str(s.search_step_mm) + " exceeds servo.search_radius_mm (" +
+                                           str(s.search_radius_mm) + ")");
+  check.positive("servo.search_time_s", s.search_time_s, 3600.0);
+
+  const auto& n = c.session;
+  if (n.plan == PlanKind::kFile) {
+    if (n.plan_file.empty())
+      check.fail("session.plan_file", "required by session.plan: file");
+    else
+      check.fileExists("session.plan_file", n.plan_file);
+  } else if (!n.plan_file.empty()) {
+    check.fail("session.plan_file", "only used with session.plan: file");
+  }
+  // Fewer than 4 poses cannot identify delta2..delta5 with the target unknown.
+  check.range("session.poses", n.poses, 4, 1000);
+  check.positive("session.noise_mm", n.noise_mm, 10.0);
+  if (n.data_dir.empty()) check.fail("session.data_dir", "must not be empty");
+
+  boost::system::error_code ec;
+  const auto address = boost::asio::ip::make_address(c.control.bind_address, ec);
+  if (ec) {
+    check.fail("control.bind_address", "'" + c.control.bind_address + "' is not an IP address");
+  } else if (!address.is_loopback() && c.control.token_file.empty()) {
+    check.fail("control.token_file", "required when control.bind_address (" +
+                                         c.control.bind_address +
+                                         ") is reachable from other machines");
+  }
+  if (c.control.port == 0) check.fail("control.port", "must be 1..65535");
+  if (!c.control.token_file.empty()) check.fileExists("control.token_file", c.control.token_file);
+
+  // The diagnostic log and the measured data are kept apart (house style).
+  if (!c.logging.directory.empty() && !n.data_dir.empty() &&
+      fs::path(c.logging.directory).lexically_normal() == fs::path(n.data_dir).lexically_normal())
+    check.fail("logging.directory", "must differ from session.data_dir");
+  return problems;
+}
+
+DaemonConfig loadDaemonConfig(const ConfigSources& sources) {
+  DaemonConfig config;
+  ConfigOrigins origins;
+  std::vector<std::string> problems;
+
+  auto applyFile = [&](const fs::path& path) {
+    std::string error;
+    const std::string text = readFile(path, error);
+    if (!error.empty()) {
+      problems.push_back(path.string() + ": " + error);
+      return;
+    }
+    applyConfigYaml(config, text, path.string(), fs::absolute(path).parent_path().string(), origins,
+                    problems);
+  };
+
+  std::error_code ec;
+  if (fs::exists(sources.config_path, ec))
+    applyFile(sources.config_path);
+  else if (sources.config_path_explicit)
+    problems.push_back(sources.config_path + ": no such file");
+
+  if (fs::is_directory(sources.drop_in_dir, ec)) {
+    std::vector<fs::path> files;
+    for (const auto& entry : fs::directory_iterator(sources.drop_in_dir, ec))
+      if (entry.path().extension() == ".yaml" && !entry.is_directory()) files.push_back(entry);
+    if (ec) problems.push_back(sources.drop_in_dir + ": cannot be listed: " + ec.message());
+    std::sort(files.begin(), files.end(),
+              [](const fs::path& a, const fs::path& o) { return a.filename() < o.filename(); });
+    for (const auto& file : files) applyFile(file);
+  } else if (fs::exists(sources.drop_in_dir, ec)) {
+    problems.push_back(sources.drop_in_dir + ": not a folder");
+  } else if (sources.drop_in_dir_explicit) {
+    problems.push_back(sources.drop_in_dir + ": no such folder");
+  }
+
+  for (const auto& assignment : sources.overrides)
+    applyConfigOverride(config, assignment, origins, problems);
+
+  auto invalid = validateDaemonConfig(config, origins);
+  problems.insert(problems.end(), invalid.begin(), invalid.end());
+  if (!problems.empty()) throw ConfigError("zerocald configuration", std::move(problems));
+  return config;
+}
+
+nlohmann::json configToJson(const DaemonConfig& config) {
+  DaemonConfig copy = config;
+  Json out = Json::object();
+  for (const auto& field : schema(copy)) {
+    Json* at = &out;
+    std::string::size_type start = 0, dot;
+    while ((dot = field.path.find('.', start)) != std::string::npos) {
+      at = &(*at)[field.path.substr(start, dot - start)];
+      start = dot + 1;
+    }
+    (*at)[field.path.substr(start)] = field.get();
+  }
+  return out;
+}
+
+std::vector<std::string> configKeys() {
+  DaemonConfig scratch;
+  std::vector<std::string> keys;
+  for (const auto& field : schema(scratch)) keys.push_back(field.path);
+  return keys;
+}
+
+std::string logLevelName(LogLevel level) {
+  for (const auto& [name, value] : kLevels)
+    if (value == level) return name;
+  return "?";
+}
+
+}  // namespace zerocal

@@ -1,0 +1,308 @@
+#include "zerocal/daemon/config.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "zerocal/error.h"
+
+namespace zerocal {
+namespace {
+
+namespace fs = std::filesystem;
+
+class ConfigTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("zerocal-config-" + std::to_string(::getpid()) + "-" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_ / "conf.d");
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  std::string write(const std::string& name, const std::string& text) {
+    const fs::path path = dir_ / name;
+    std::ofstream(path) << text;
+    return path.string();
+  }
+  ConfigSources sources(std::vector<std::string> overrides = {}) {
+    ConfigSources s;
+    s.config_path = (dir_ / "main.yaml").string();
+    s.config_path_explicit = true;
+    s.drop_in_dir = (dir_ / "conf.d").string();
+    s.overrides = std::move(overrides);
+    return s;
+  }
+  // The problems of a load that must fail.
+  std::vector<std::string> problems(const ConfigSources& s) {
+    try {
+      loadDaemonConfig(s);
+    } catch (const ConfigError& e) {
+      return e.problems();
+    }
+    ADD_FAILURE() << "the configuration was accepted";
+    return {};
+  }
+
+  fs::path dir_;
+};
+
+// True when exactly one problem contains every fragment.
+bool reported(const std::vector<std::string>& problems, std::vector<std::string> fragments) {
+  return std::count_if(problems.begin(), problems.end(), [&](const std::string& p) {
+           return std::all_of(fragments.begin(), fragments.end(),
+                              [&](const std::string& f) { return p.find(f) != std::string::npos; });
+         }) == 1;
+}
+
+std::string joined(const std::vector<std::string>& problems) {
+  std::string text;
+  for (const auto& p : problems) text += p + "\n";
+  return text;
+}
+
+TEST_F(ConfigTest, DefaultsAreValidAndDocumentedValues) {
+  const DaemonConfig c;
+  EXPECT_TRUE(validateDaemonConfig(c).empty()) << joined(validateDaemonConfig(c));
+  EXPECT_EQ(c.servo.tolerance_um, 2.0);
+  EXPECT_EQ(c.control.bind_address, "127.0.0.1");
+  EXPECT_EQ(c.control.port, 7450);
+  EXPECT_EQ(c.session.plan, PlanKind::kOptimal);
+}
+
+TEST_F(ConfigTest, MissingDefaultFilesAreFineMissingNamedOnesAreNot) {
+  ConfigSources s;
+  s.config_path = (dir_ / "absent.yaml").string();
+  s.drop_in_dir = (dir_ / "absent.d").string();
+  EXPECT_NO_THROW(loadDaemonConfig(s));
+  s.config_path_explicit = true;
+  s.drop_in_dir_explicit = true;
+  const auto p = problems(s);
+  EXPECT_EQ(p.size(), 2u) << joined(p);
+  EXPECT_TRUE(reported(p, {"absent.yaml", "no such file"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"absent.d", "no such folder"})) << joined(p);
+}
+
+TEST_F(ConfigTest, LayersApplyInOrderDefaultsFileDropInsCommandLine) {
+  write("main.yaml",
+        "servo:\n  tolerance_um: 3\n  max_iterations: 20\ncontrol:\n  port: 7000\n"
+        "session:\n  poses: 10\n");
+  write("conf.d/10-site.yaml", "servo:\n  tolerance_um: 4\ncontrol:\n  port: 7001\n");
+  const DaemonConfig c = loadDaemonConfig(sources({"control.port=7002"}));
+  EXPECT_EQ(c.servo.max_iterations, 20);  // file over default
+  EXPECT_EQ(c.session.poses, 10);
+  EXPECT_EQ(c.servo.tolerance_um, 4.0);  // drop-in over file
+  EXPECT_EQ(c.control.port, 7002);       // command line over drop-in
+  EXPECT_EQ(c.servo.search_radius_mm, DaemonConfig{}.servo.search_radius_mm);  // untouched
+}
+
+TEST_F(ConfigTest, DropInsApplyInLexicalOrderAndOnlyYamlFiles) {
+  write("main.yaml", "");
+  write("conf.d/20-b.yaml", "session:\n  poses: 20\n");
+  write("conf.d/10-a.yaml", "session:\n  poses: 10\n  noise_mm: 0.5\n");
+  write("conf.d/30-c.yaml", "session:\n  noise_mm: 0.25\n");
+  write("conf.d/99-z.yaml.disabled", "session:\n  poses: 99\n");
+  write("conf.d/50-notes.txt", "not: yaml at all: [");
+  const DaemonConfig c = loadDaemonConfig(sources());
+  EXPECT_EQ(c.session.poses, 20);
+  EXPECT_EQ(c.session.noise_mm, 0.25);
+}
+
+TEST_F(ConfigTest, CommandLineTakesYamlValuesAndNestedKeys) {
+  write("main.yaml", "");
+  const DaemonConfig c =
+      loadDaemonConfig(sources({"session.target_mm=[1, 2.5, -3]", "daq.channels.sum.number=3",
+                                "daq.channels.sum.mode=differential", "backend.kind=sim",
+                                "backend.sim_seed=42", "logging.level=debug"}));
+  EXPECT_EQ(c.session.target_mm, (std::array<double, 3>{1, 2.5, -3}));
+  EXPECT_EQ(c.daq.channels.sum.number, 3);
+  EXPECT_EQ(c.backend.kind, BackendKind::kSim);
+  EXPECT_EQ(c.backend.sim_seed, 42u);
+  EXPECT_EQ(c.logging.level, LogLevel::kDebug);
+}
+
+TEST_F(ConfigTest, EmptySectionsAndFilesChangeNothing) {
+  write("main.yaml", "# all commented out\n");
+  write("conf.d/10.yaml", "servo:\n  # tolerance_um: 1\nsession:\n");
+  EXPECT_EQ(configToJson(loadDaemonConfig(sources())), configToJson(DaemonConfig{}));
+}
+
+TEST_F(ConfigTest, LaterLayerCanClearTheSeed) {
+  write("main.yaml", "backend:\n  kind: sim\n  sim_seed: 7\n");
+  write("conf.d/10.yaml", "backend:\n  sim_seed: null\n");
+  EXPECT_FALSE(loadDaemonConfig(sources()).backend.sim_seed.has_value());
+}
+
+TEST_F(ConfigTest, RelativePathsResolveAgainstTheWritingFile) {
+  write("world.yaml", "robot: builtin\n");
+  write("conf.d/10.yaml", "backend:\n  kind: sim\n  sim_world: ../world.yaml\n");
+  write("main.yaml", "session:\n  data_dir: data\ncontroller:\n  robot: builtin\n");
+  const DaemonConfig c = loadDaemonConfig(sources());
+  EXPECT_EQ(fs::path(c.backend.sim_world), (dir_ / "world.yaml").lexically_normal());
+  EXPECT_EQ(fs::path(c.session.data_dir), dir_ / "data");
+  EXPECT_EQ(c.controller.robot, "builtin");
+}
+
+TEST_F(ConfigTest, UnknownKeysNameFileLineAndPath) {
+  write("main.yaml", "servo:\n  tolerance_um: 3\n  tolerence_um: 5\nsesion:\n  poses: 8\n");
+  write("conf.d/10.yaml", "daq:\n  channels:\n    z:\n      number: 1\n");
+  const auto p = problems(sources({"control.prot=1"}));
+  EXPECT_EQ(p.size(), 4u) << joined(p);
+  EXPECT_TRUE(reported(p, {"main.yaml:3", "unknown key 'servo.tolerence_um'"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"main.yaml:4", "unknown key 'sesion'"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"10.yaml:3", "unknown key 'daq.channels.z'"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"command line", "unknown key 'control.prot'"})) << joined(p);
+}
+
+TEST_F(ConfigTest, WrongTypesAreErrorsNotDefaults) {
+  write("main.yaml",
+        "servo:\n"
+        "  max_iterations: 2.5\n"  // 2
+        "  tolerance_um: two\n"    // 3
+        "  timeout_s:\n"           // 4: no value
+        "session:\n"
+        "  target_mm: [1, 2]\n"  // 6
+        "  plan: best\n"         // 7
+        "control:\n"
+        "  port: 70000\n"       // 9
+        "logging: verbose\n");  // 10
+  const auto p = problems(sources());
+  EXPECT_EQ(p.size(), 7u) << joined(p);
+  EXPECT_TRUE(reported(p, {"main.yaml:2", "servo.max_iterations", "integer", "'2.5'"}));
+  EXPECT_TRUE(reported(p, {"main.yaml:3", "servo.tolerance_um", "number", "'two'"}));
+  EXPECT_TRUE(reported(p, {"main.yaml:4", "servo.timeout_s", "no value"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"main.yaml:6", "session.target_mm", "list of 2"}));
+  EXPECT_TRUE(reported(p, {"main.yaml:7", "session.plan", "optimal, I, II, mixed, file"}));
+  EXPECT_TRUE(reported(p, {"main.yaml:9", "control.port", "does not fit"}));
+  EXPECT_TRUE(reported(p, {"main.yaml:10", "logging", "expected a mapping"}));
+}
+
+TEST_F(ConfigTest, OutOfRangeValuesNameWhereTheyWereSet) {
+  write("main.yaml", "servo:\n  tolerance_um: -1\n");
+  write("conf.d/10.yaml", "session:\n  poses: 3\n");
+  const auto p = problems(sources({"controller.speed_tcp_mm_s=1e6", "daq.channels.x.number=4"}));
+  EXPECT_EQ(p.size(), 4u) << joined(p);
+  EXPECT_TRUE(reported(p, {"main.yaml:2", "servo.tolerance_um", "greater than 0"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"10.yaml:2", "session.poses", "at least 4"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"command line", "controller.speed_tcp_mm_s", "at most 7000"}));
+  EXPECT_TRUE(reported(p, {"command line", "daq.channels.x.number", "at most 3"})) << joined(p);
+}
+
+TEST_F(ConfigTest, InconsistentCombinations) {
+  write("main.yaml",
+        "backend:\n  kind: sim\n  sim_world: /nonexistent/world.yaml\n  sim_seed: 3\n"
+        "  sim_host: localhost\n"
+        "servo:\n  max_step_deg: 20\n  search_step_mm: 6\n"
+        "session:\n  plan: file\n"
+        "control:\n  bind_address: 0.0.0.0\n"
+        "daq:\n  channels:\n    y:\n      number: 0\n"
+        "logging:\n  directory: /var/lib/zerocal/sessions\n");
+  const auto p = problems(sources());
+  EXPECT_TRUE(reported(p, {"backend.sim_seed", "not both"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"backend.sim_world", "no such file"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"backend.sim_host", "both"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"servo.max_step_deg", "exceeds controller.max_step_deg"}));
+  EXPECT_TRUE(reported(p, {"servo.search_step_mm", "exceeds servo.search_radius_mm"}));
+  EXPECT_TRUE(reported(p, {"session.plan_file", "required"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"control.token_file", "required"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"daq.channels.y", "same input as daq.channels.x"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"logging.directory", "differ from session.data_dir"})) << joined(p);
+  EXPECT_EQ(p.size(), 9u) << joined(p);
+}
+
+TEST_F(ConfigTest, PlanFileOnlyWithPlanFile) {
+  write("plan.txt", "");
+  write("main.yaml", "session:\n  plan_file: plan.txt\n");
+  EXPECT_TRUE(reported(problems(sources()), {"session.plan_file", "only used with"}));
+  write("main.yaml", "session:\n  plan: file\n  plan_file: plan.txt\n");
+  EXPECT_EQ(fs::path(loadDaemonConfig(sources()).session.plan_file), dir_ / "plan.txt");
+}
+
+TEST_F(ConfigTest, SeveralErrorsInSeveralSourcesAllReportedAtOnce) {
+  write("main.yaml", "servo:\n  tolerance_um: [1]\n  bogus: 1\n");
+  write("conf.d/10-broken.yaml", "session: {poses: 8\n");  // not YAML
+  write("conf.d/20.yaml", "control:\n  bind_address: not-an-ip\n");
+  const auto p = problems(sources({"nonsense", "session.poses=2"}));
+  EXPECT_EQ(p.size(), 6u) << joined(p);
+  EXPECT_TRUE(reported(p, {"main.yaml:2", "servo.tolerance_um"}));
+  EXPECT_TRUE(reported(p, {"main.yaml:3", "servo.bogus"}));
+  EXPECT_TRUE(reported(p, {"10-broken.yaml", "not valid YAML"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"20.yaml:2", "control.bind_address", "not an IP address"}));
+  EXPECT_TRUE(reported(p, {"command line 'nonsense'", "section.key=value"}));
+  EXPECT_TRUE(reported(p, {"command line 'session.poses=2'", "at least 4"}));
+}
+
+TEST_F(ConfigTest, ErrorMessageListsEveryProblem) {
+  write("main.yaml", "servo:\n  a: 1\n  b: 2\n");
+  try {
+    loadDaemonConfig(sources());
+    FAIL();
+  } catch (const ConfigError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("2 problems"), std::string::npos) << what;
+    EXPECT_NE(what.find("servo.a"), std::string::npos);
+    EXPECT_NE(what.find("servo.b"), std::string::npos);
+  }
+}
+
+TEST_F(ConfigTest, JsonSnapshotHasEveryKeyAndReadsBack) {
+  DaemonConfig c;
+  c.backend.sim_seed = 5;
+  c.daq.channels.y.range = usb1408fs::Range::kBip2_5V;
+  const nlohmann::json j = configToJson(c);
+  for (const auto& key : configKeys()) {
+    nlohmann::json::json_pointer pointer("/" + [&] {
+      std::string p = key;
+      std::replace(p.begin(), p.end(), '.', '/');
+      return p;
+    }());
+    EXPECT_TRUE(j.contains(pointer)) << key;
+  }
+  EXPECT_EQ(j["daq"]["channels"]["y"]["range"], "2.5V");
+  EXPECT_EQ(j["backend"]["sim_seed"], 5);
+  // JSON is YAML: the snapshot is a valid configuration file giving the same values.
+  DaemonConfig back;
+  back.servo.tolerance_um = 99;
+  ConfigOrigins origins;
+  std::vector<std::string> p;
+  applyConfigYaml(back, j.dump(), "snapshot", dir_.string(), origins, p);
+  EXPECT_TRUE(p.empty()) << joined(p);
+  EXPECT_EQ(configToJson(back), j);
+}
+
+TEST_F(ConfigTest, ShippedExampleIsCompleteAndEqualsTheDefaults) {
+  const fs::path example = fs::path(ZEROCAL_SOURCE_DIR) / "config" / "zerocald.yaml";
+  std::ifstream in(example);
+  ASSERT_TRUE(in) << example;
+  std::stringstream text;
+  text << in.rdbuf();
+  DaemonConfig c;
+  ConfigOrigins origins;
+  std::vector<std::string> p;
+  applyConfigYaml(c, text.str(), example.string(), example.parent_path().string(), origins, p);
+  EXPECT_TRUE(p.empty()) << joined(p);
+  for (const auto& key : configKeys()) EXPECT_TRUE(origins.count(key)) << key << " not in example";
+  EXPECT_EQ(configToJson(c), configToJson(DaemonConfig{}));
+}
+
+TEST_F(ConfigTest, ReferenceDocumentNamesEveryKey) {
+  std::ifstream in(fs::path(ZEROCAL_SOURCE_DIR) / "docs" / "configuration.md");
+  ASSERT_TRUE(in);
+  std::stringstream text;
+  text << in.rdbuf();
+  for (const auto& key : configKeys()) {
+    const std::string leaf = key.substr(key.rfind('.') + 1);
+    const std::string section = "## " + key.substr(0, key.find('.'));
+    EXPECT_NE(text.str().find(leaf + "`"), std::string::npos) << key;
+    EXPECT_NE(text.str().find(section), std::string::npos) << key;
+  }
+}
+
+}  // namespace
+}  // namespace zerocal

@@ -1,0 +1,254 @@
+#include "zerocal/daemon/journal.h"
+
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace zerocal {
+namespace {
+
+namespace fs = std::filesystem;
+
+class JournalTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("zerocal-journal-" + std::to_string(::getpid()) + "-" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  fs::path dir_;
+};
+
+// Values whose shortest decimal forms are long, so that any loss of precision shows.
+PoseRecord sample(int index) {
+  PoseRecord r;
+  r.index = index;
+  for (int j = 0; j < 6; ++j) r.joints_deg[j] = (0.1 + 0.2) * (j + 1) + index / 3.0 - 1e-13;
+  r.u_mm = 1.0 / 3.0 + index;
+  r.v_mm = -2.0 / 7.0;
+  r.u_se_mm = 1e-4 / 3.0;
+  r.v_se_mm = 5e-300;
+  r.move_started_ns = 1795000000123456789 + index;
+  r.recorded_ns = 1795000001987654321 + index;
+  r.servo = {7, 5, 2.25, 0.5, 1.0 / 3.0, 0.2, 1.2345678901234567};
+  return r;
+}
+
+void expectSame(const PoseRecord& a, const PoseRecord& b) {
+  EXPECT_EQ(a.index, b.index);
+  EXPECT_EQ(a.joints_deg, b.joints_deg);  // bit-exact, not near
+  EXPECT_EQ(a.u_mm, b.u_mm);
+  EXPECT_EQ(a.v_mm, b.v_mm);
+  EXPECT_EQ(a.u_se_mm, b.u_se_mm);
+  EXPECT_EQ(a.v_se_mm, b.v_se_mm);
+  EXPECT_EQ(a.move_started_ns, b.move_started_ns);
+  EXPECT_EQ(a.recorded_ns, b.recorded_ns);
+  EXPECT_EQ(a.servo.moves, b.servo.moves);
+  EXPECT_EQ(a.servo.iterations, b.servo.iterations);
+  EXPECT_EQ(a.servo.move_s, b.servo.move_s);
+  EXPECT_EQ(a.servo.acquisition_s, b.servo.acquisition_s);
+  EXPECT_EQ(a.servo.servo_s, b.servo.servo_s);
+  EXPECT_EQ(a.servo.settle_s, b.servo.settle_s);
+  EXPECT_EQ(a.servo.final_error_um, b.servo.final_error_um);
+}
+
+void appendRaw(const fs::path& path, const std::string& bytes) {
+  std::ofstream(path, std::ios::app | std::ios::binary) << bytes;
+}
+
+TEST_F(JournalTest, RoundTripIsBitExactAndCreatesTheFolders) {
+  const fs::path path = dir_ / "a" / "b" / "journal.jsonl";
+  {
+    Journal journal(path.string());
+    EXPECT_EQ(journal.nextIndex(), 0);
+    for (int i = 0; i < 3; ++i) journal.append(sample(i));
+    EXPECT_EQ(journal.nextIndex(), 3);
+  }
+  const JournalContents back = readJournal(path.string());
+  ASSERT_EQ(back.records.size(), 3u);
+  EXPECT_TRUE(back.dropped.empty());
+  EXPECT_EQ(back.committed_bytes, fs::file_size(path));
+  for (int i = 0; i < 3; ++i) expectSame(back.records[i], sample(i));
+}
+
+TEST_F(JournalTest, OneJsonObjectPerLine) {
+  const fs::path path = dir_ / "journal.jsonl";
+  Journal(path.string()).append(sample(0));
+  std::ifstream in(path);
+  std::string line;
+  ASSERT_TRUE(std::getline(in, line));
+  const auto j = nlohmann::json::parse(line);
+  EXPECT_EQ(j["index"], 0);
+  EXPECT_EQ(j["joints_deg"].size(), 6u);
+  EXPECT_FALSE(std::getline(in, line));
+}
+
+TEST_F(JournalTest, RefusesOutOfOrderDuplicateAndNonFiniteRecords) {
+  Journal journal((dir_ / "journal.jsonl").string());
+  EXPECT_THROW(journal.append(sample(1)), JournalError);
+  journal.append(sample(0));
+  EXPECT_THROW(journal.append(sample(0)), JournalError);
+  PoseRecord bad = sample(1);
+  bad.u_mm = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(journal.append(bad), JournalError);
+  journal.append(sample(1));
+  EXPECT_EQ(readJournal((dir_ / "journal.jsonl").string()).records.size(), 2u);
+}
+
+TEST_F(JournalTest, TornLastLineIsDroppedWithAWarningAndCutOnResume) {
+  const fs::path path = dir_ / "journal.jsonl";
+  { Journal(path.string()).append(sample(0)); }
+  const std::string full = toJson(sample(1)).dump();
+  appendRaw(path, full.substr(0, full.size() / 2));  // a write cut short
+
+  const JournalContents back = readJournal(path.string());
+  EXPECT_EQ(back.records.size(), 1u);
+  EXPECT_NE(back.dropped.find("torn"), std::string::npos) << back.dropped;
+
+  Journal resumed(path.string());
+  EXPECT_EQ(resumed.nextIndex(), 1);
+  EXPECT_FALSE(resumed.dropped().empty());
+  resumed.append(sample(1));
+  const JournalContents after = readJournal(path.string());
+  ASSERT_EQ(after.records.size(), 2u);
+  EXPECT_TRUE(after.dropped.empty());
+  expectSame(after.records[1], sample(1));
+}
+
+TEST_F(JournalTest, CompleteLookingLineWithoutNewlineWasNeverAcknowledged) {
+  const fs::path path = dir_ / "journal.jsonl";
+  appendRaw(path, toJson(sample(0)).dump());
+  const JournalContents back = readJournal(path.string());
+  EXPECT_TRUE(back.records.empty());
+  EXPECT_FALSE(back.dropped.empty());
+  EXPECT_EQ(back.committed_bytes, 0u);
+}
+
+TEST_F(JournalTest, GarbageAfterACrashIsDroppedOnlyAtTheEnd) {
+  const fs::path path = dir_ / "journal.jsonl";
+  { Journal(path.string()).append(sample(0)); }
+  appendRaw(path, std::string(40, '\0') + "\n");  // what some file systems leave after a crash
+  EXPECT_EQ(readJournal(path.string()).records.size(), 1u);
+  appendRaw(path, toJson(sample(1)).dump() + "\n");  // ... but not in the middle
+  EXPECT_THROW(readJournal(path.string()), JournalError);
+}
+
+TEST_F(JournalTest, GapsAndDuplicatesInAJournalAreErrorsNotGuesses) {
+  const fs::path path = dir_ / "journal.jsonl";
+  appendRaw(path, toJson(sample(0)).dump() + "\n" + toJson(sample(0)).dump() + "\n");
+  EXPECT_THROW(readJournal(path.string()), JournalError);
+  fs::remove(path);
+  appendRaw(path, toJson(sample(0)).dump() + "\n" + toJson(sample(2)).dump() + "\n");
+  EXPECT_THROW(readJournal(path.string()), JournalError);
+  EXPECT_THROW(Journal{path.string()}, JournalError);
+}
+
+TEST_F(JournalTest, MissingJournalIsEmpty) {
+  EXPECT_TRUE(readJournal((dir_ / "none.jsonl").string()).records.empty());
+}
+
+TEST_F(JournalTest, UnwritableFolderIsAnError) {
+  std::ofstream(dir_ / "file") << "x";
+  // A path through a regular file fails even for root, unlike a chmod'ed folder.
+  EXPECT_THROW(Journal((dir_ / "file" / "s" / "journal.jsonl").string()), JournalError);
+  SessionStore store((dir_ / "file" / "sessions").string());
+  EXPECT_THROW(store.create({}, {}), JournalError);
+  if (::geteuid() != 0) {
+    fs::create_directories(dir_ / "ro");
+    fs::permissions(dir_ / "ro", fs::perms::owner_read | fs::perms::owner_exec);
+    EXPECT_THROW(Journal((dir_ / "ro" / "journal.jsonl").string()), JournalError);
+    EXPECT_THROW(SessionStore((dir_ / "ro").string()).create({}, {}), JournalError);
+    fs::permissions(dir_ / "ro", fs::perms::owner_all);
+  }
+}
+
+// A child appends and reports each acknowledged index through a pipe; it is killed with SIGKILL
+// mid-way. Every acknowledged pose must be back, in order, none twice; at most the one being
+// written when the kill came may be there beyond the acknowledged ones.
+TEST_F(JournalTest, KillNineMidSessionLosesAndDuplicatesNothing) {
+  const fs::path path = dir_ / "session" / "journal.jsonl";
+  int acks[2];
+  ASSERT_EQ(::pipe(acks), 0);
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    ::close(acks[0]);
+    try {
+      Journal journal(path.string());
+      for (int i = 0;; ++i) {
+        journal.append(sample(i));
+        if (::write(acks[1], &i, sizeof i) != sizeof i) ::_exit(2);
+      }
+    } catch (...) {
+      ::_exit(3);
+    }
+  }
+  ::close(acks[1]);
+  int last_ack = -1, index = 0;
+  while (last_ack < 19 && ::read(acks[0], &index, sizeof index) == sizeof index) last_ack = index;
+  ::kill(child, SIGKILL);
+  int status = 0;
+  ::waitpid(child, &status, 0);
+  ::close(acks[0]);
+  ASSERT_TRUE(WIFSIGNALED(status)) << "the child ended before the kill";
+  ASSERT_EQ(last_ack, 19);
+
+  Journal resumed(path.string());
+  const auto& records = resumed.recovered();
+  ASSERT_GE(static_cast<int>(records.size()), last_ack + 1);
+  for (std::size_t i = 0; i < records.size(); ++i) expectSame(records[i], sample(i));
+  // Resuming continues right after the last committed pose.
+  const int next = resumed.nextIndex();
+  resumed.append(sample(next));
+  const JournalContents after = readJournal(path.string());
+  ASSERT_EQ(after.nextIndex(), next + 1);
+  EXPECT_TRUE(after.dropped.empty());
+}
+
+TEST_F(JournalTest, SessionStoreLayoutListAndUnfinished) {
+  SessionStore store((dir_ / "sessions").string());
+  EXPECT_TRUE(store.list().empty());  // no folder yet
+  const nlohmann::json plan = {{"pattern", "optimal"}, {"poses", {{1, 2}, {3, 4}, {5, 6}}}};
+  const SessionInfo first = store.create(plan, {{"servo", {{"tolerance_um", 2}}}});
+  const SessionInfo second = store.create(plan, {});
+  EXPECT_NE(first.id, second.id);
+  EXPECT_LT(first.id, second.id);  // ids sort by creation
+  EXPECT_EQ(first.planned_poses, 3);
+  EXPECT_TRUE(fs::is_regular_file(fs::path(first.dir) / "session.json"));
+
+  const nlohmann::json session = store.readSession(first.id);
+  EXPECT_EQ(session["plan"], plan);
+  EXPECT_EQ(session["config"]["servo"]["tolerance_um"], 2);
+  EXPECT_EQ(session["id"], first.id);
+
+  {
+    Journal journal(store.journalPath(first.id));
+    journal.append(sample(0));
+    journal.append(sample(1));
+  }
+  store.writeResult(second.id, {{"status", "done"}});
+  fs::create_directories(dir_ / "sessions" / "not-a-session");
+
+  const auto all = store.list();
+  ASSERT_EQ(all.size(), 2u);
+  EXPECT_EQ(all[0].id, first.id);
+  EXPECT_EQ(all[0].recorded_poses, 2);
+  EXPECT_EQ(all[0].planned_poses, 3);
+  EXPECT_FALSE(all[0].finished);
+  EXPECT_TRUE(all[1].finished);
+  const auto open = store.unfinished();
+  ASSERT_EQ(open.size(), 1u);
+  EXPECT_EQ(open[0].id, first.id);
+  EXPECT_FALSE(fs::exists(fs::path(second.dir) / "result.json.tmp"));
+}
+
+}  // namespace
+}  // namespace zerocal

@@ -233,6 +233,8 @@ int runPsd(const PsdArgs& args) {
       line += "no spot";
     } else if (!config.map) {
       line += "spot present";
+    } else if (!p.present) {
+      line += "spot present, too little light for the map (SUM below its min_sum_v)";
     } else {
       line += valid ? "spot present, in the valid zone" : "spot present, OUTSIDE the valid zone";
     }

@@ -164,6 +164,9 @@ YAML::Node loadYamlFile(const std::string& path) {
   }
 }
 
+PsdConfig parseSection(const YAML::Node& section, const std::string& origin,
+                       const std::string& base_dir);
+
 }  // namespace
 
 std::vector<std::string> PsdConfig::problems() const {
@@ -229,6 +232,17 @@ void PsdConfig::validate(const std::string& origin) const {
 
 PsdConfig parsePsdConfig(const YAML::Node& section, const std::string& origin,
                          const std::string& base_dir) {
+  try {
+    return parseSection(section, origin, base_dir);
+  } catch (const YAML::Exception& e) {
+    // Odd shapes (a list as a key, an alias to nothing) that the checks above did not foresee.
+    throw ConfigError(origin, {std::string("psd: cannot be read: ") + e.what()});
+  }
+}
+
+namespace {
+PsdConfig parseSection(const YAML::Node& section, const std::string& origin,
+                       const std::string& base_dir) {
   PsdConfig config;
   std::vector<std::string> problems;
   if (!section.IsMap()) throw ConfigError(origin, {"psd: must be a map"});
@@ -290,6 +304,7 @@ PsdConfig parsePsdConfig(const YAML::Node& section, const std::string& origin,
   if (!problems.empty()) throw ConfigError(origin, std::move(problems));
   return config;
 }
+}  // namespace
 
 PsdConfig loadPsdConfig(const std::string& path) {
   const YAML::Node root = loadYamlFile(path);
@@ -388,7 +403,12 @@ PsdMap loadPsdMap(const std::string& path) {
     throw ConfigError(path, {"the file must hold a 'psd_map:' section (zerocal psd-map --out)"});
   }
   std::vector<std::string> problems;
-  auto map = psdMapFromYaml(root["psd_map"], "psd_map", problems);
+  std::optional<PsdMap> map;
+  try {
+    map = psdMapFromYaml(root["psd_map"], "psd_map", problems);
+  } catch (const YAML::Exception& e) {
+    problems.push_back(std::string("psd_map: cannot be read: ") + e.what());
+  }
   if (!map) throw ConfigError(path, std::move(problems));
   return *map;
 }

@@ -147,6 +147,33 @@ TEST(PsdConfig, MapFileProblemsAreReported) {
   EXPECT_THROW(loadPsdConfig("/nonexistent/psd.yaml"), ConfigError);
 }
 
+TEST(PsdConfig, BrokenYamlIsAConfigError) {
+  const std::string path = ::testing::TempDir() + "/broken-psd.yaml";
+  std::ofstream(path) << "psd:\n  samples: [64\n";
+  try {
+    loadPsdConfig(path);
+    FAIL() << "no ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("not valid YAML"), std::string::npos) << e.what();
+  }
+  std::ofstream(path) << "other: 1\n";
+  EXPECT_THROW(loadPsdConfig(path), ConfigError);
+  EXPECT_THROW(parsePsdConfig(YAML::Load("{[1, 2]: 3}"), "odd.yaml", "."), ConfigError);
+}
+
+TEST(PsdMapYaml, FromPartsRefusesWhatIsNotAMap) {
+  const std::vector<double> three(3, 0.0);
+  EXPECT_THROW(PsdMap::fromParts(0, three, three, {-1, 1, -1, 1}, 0.5), std::invalid_argument);
+  EXPECT_THROW(PsdMap::fromParts(1, three, {0, 0}, {-1, 1, -1, 1}, 0.5), std::invalid_argument);
+  EXPECT_THROW(PsdMap::fromParts(1, three, three, {1, -1, -1, 1}, 0.5), std::invalid_argument);
+  const PsdMap map = PsdMap::fromParts(1, {0, 1, 0}, {0, 0, 1}, {-1, 1, -1, 1}, 0.5);
+  VoltageReading r;
+  r.x = 2.5;  // scaled by 5 V: u = 0.5
+  r.sum = 1;
+  EXPECT_DOUBLE_EQ(map.apply(r).u_mm, 0.5);
+  EXPECT_TRUE(map.apply(r).valid);
+}
+
 TEST(PsdMapYaml, InlineMapProblemsAreReported) {
   const auto problems = problemsOf(R"(
 map:

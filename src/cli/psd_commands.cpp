@@ -166,8 +166,6 @@ int runPsd(const PsdArgs& args) {
   if (!config.map && args.sim) {
     std::cerr << "zerocal: no map configured; using one fitted from a simulated sweep\n";
     config.map = mapFromSimulatedSweep(config, args.seed);
-  } else if (!config.map) {
-    std::cerr << "zerocal: no map configured (map_file in the psd: section): volts only\n";
   }
 
   // The simulated rig and the real board meet at the same Usb1408fs: only the transport differs.
@@ -187,6 +185,10 @@ int runPsd(const PsdArgs& args) {
     board = std::make_unique<usb1408fs::Usb1408fs>(
         [serial] { return usb1408fs::LibusbTransport::open(serial); });
     daq = board.get();
+  }
+  // Said once the board is open, so that a missing board is the only message when it is absent.
+  if (!config.map) {
+    std::cerr << "zerocal: no map configured (map_file in the psd: section): volts only\n";
   }
 
   psd::PsdStream stream(*daq, config.channels, config.samples, config.rate_hz);

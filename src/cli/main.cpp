@@ -1,12 +1,15 @@
-// zerocal: the calibration engine on the command line (solve, plan, experiment, sensitivity).
-// Exit codes: 0 done; 1 unexpected failure; 2 bad input or usage; 3 the solver did not
-// converge; 4 solved, but some of delta2..delta5 are not identifiable from the poses.
+// zerocal: the calibration engine on the command line (solve, plan, experiment, sensitivity), and
+// the PSD chain (psd-sweep, psd-map, psd).
+// Exit codes: 0 done; 1 unexpected failure; 2 bad input or usage, or no USB-1408FS / no permission
+// to open it; 3 the solver did not converge; 4 solved, but some of delta2..delta5 are not
+// identifiable from the poses.
 #include <CLI/CLI.hpp>
 #include <Eigen/Geometry>
 #include <fstream>
 #include <iostream>
 #include <sstream>
 
+#include "psd_commands.h"
 #include "report_format.h"
 #include "zerocal/calib/experiment.h"
 #include "zerocal/calib/planner.h"
@@ -15,6 +18,7 @@
 #include "zerocal/error.h"
 #include "zerocal/io/joint_set.h"
 #include "zerocal/model/builtin.h"
+#include "zerocal/usb1408fs/errors.h"
 
 namespace zerocal {
 namespace {
@@ -182,6 +186,9 @@ int main(int argc, char** argv) {
       ->default_val(sim_half_width);
   sim_cmd->add_option("--seed", sim_seed, "random seed")->default_val(sim_seed);
 
+  cli::PsdCommands psd_cmds;
+  cli::addPsdCommands(app, psd_cmds);
+
   CLI11_PARSE(app, argc, argv);
 
   try {
@@ -263,6 +270,9 @@ int main(int argc, char** argv) {
       std::cout << formatJointSet(recorded, comment.str());
       return kOk;
     }
+    if (psd_cmds.sweep->parsed()) return cli::runPsdSweep(psd_cmds.sweep_args);
+    if (psd_cmds.map->parsed()) return cli::runPsdMap(psd_cmds.map_args);
+    if (psd_cmds.live->parsed()) return cli::runPsd(psd_cmds.live_args);
     if (sens_cmd->parsed()) {
       const CellModel cell = sens_cell.cell();
       Joints q;
@@ -282,6 +292,16 @@ int main(int argc, char** argv) {
   } catch (const InputError& e) {
     std::cerr << "zerocal: " << e.what() << "\n";
     return kBadInput;
+  } catch (const usb1408fs::DeviceNotFoundError& e) {
+    // Absent or forbidden hardware is the technician's to fix, like a bad file.
+    std::cerr << "zerocal: " << e.what() << "\n";
+    return kBadInput;
+  } catch (const usb1408fs::PermissionError& e) {
+    std::cerr << "zerocal: " << e.what() << "\n";
+    return kBadInput;
+  } catch (const usb1408fs::UsbError& e) {
+    std::cerr << "zerocal: USB-1408FS: " << e.what() << "\n";
+    return kFailure;
   } catch (const std::exception& e) {
     std::cerr << "zerocal: unexpected failure: " << e.what() << "\n";
     return kFailure;

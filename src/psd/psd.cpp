@@ -20,10 +20,6 @@ using namespace std::chrono_literals;
 // the least-squares problem stays well conditioned.
 constexpr double kVoltScale = 5.0;
 
-std::size_t termCount(int degree) {
-  return static_cast<std::size_t>((degree + 1) * (degree + 2) / 2);
-}
-
 // Monomials X^i Y^j for i + j <= degree, in a fixed order (by total degree, then by i).
 template <typename F>
 void forEachTerm(int degree, F&& f) {
@@ -192,6 +188,16 @@ std::vector<SweepPoint> readSweepCsv(std::istream& in, const std::string& origin
   return sweep;
 }
 
+void writeSweepCsv(std::ostream& out, const std::vector<SweepPoint>& sweep) {
+  // 0.1 um stage positions and microvolt readings: finer than the stage and the board resolve.
+  out << "u_mm,v_mm,x_v,y_v,sum_v\n" << std::fixed;
+  for (const SweepPoint& p : sweep) {
+    out << std::setprecision(4) << p.u_mm << ',' << p.v_mm << ',' << std::setprecision(6) << p.x_v
+        << ',' << p.y_v << ',' << p.sum_v << '\n';
+  }
+  out.unsetf(std::ios::floatfield);
+}
+
 SpotDetector::SpotDetector(double on_threshold_v, double off_threshold_v)
     : on_(on_threshold_v), off_(std::min(off_threshold_v, on_threshold_v)) {}
 
@@ -261,6 +267,45 @@ PsdMap PsdMap::fit(const std::vector<SweepPoint>& sweep, const MapFitOptions& op
     report->v_min = map.v_min_;
     report->v_max = map.v_max_;
   }
+  return map;
+}
+
+std::size_t PsdMap::termCount(int degree) {
+  return degree < 0 ? 0 : static_cast<std::size_t>((degree + 1) * (degree + 2) / 2);
+}
+
+PsdMap PsdMap::fromParts(int degree, std::vector<double> u_coeff, std::vector<double> v_coeff,
+                         const std::array<double, 4>& zone_mm, double min_sum_v) {
+  if (degree < 1 || degree > 12) {
+    throw std::invalid_argument("PSD map degree must be 1..12, got " + std::to_string(degree));
+  }
+  const std::size_t m = termCount(degree);
+  if (u_coeff.size() != m || v_coeff.size() != m) {
+    throw std::invalid_argument("a degree-" + std::to_string(degree) + " PSD map needs " +
+                                std::to_string(m) + " coefficients for u and for v");
+  }
+  for (double c : u_coeff) {
+    if (!std::isfinite(c)) throw std::invalid_argument("PSD map coefficient is not finite");
+  }
+  for (double c : v_coeff) {
+    if (!std::isfinite(c)) throw std::invalid_argument("PSD map coefficient is not finite");
+  }
+  for (double z : zone_mm) {
+    if (!std::isfinite(z)) throw std::invalid_argument("PSD map zone is not finite");
+  }
+  if (!(zone_mm[0] < zone_mm[1]) || !(zone_mm[2] < zone_mm[3])) {
+    throw std::invalid_argument("PSD map zone is empty (each minimum must be below its maximum)");
+  }
+  if (!std::isfinite(min_sum_v)) throw std::invalid_argument("PSD map min_sum_v is not finite");
+  PsdMap map;
+  map.degree_ = degree;
+  map.u_coeff_ = std::move(u_coeff);
+  map.v_coeff_ = std::move(v_coeff);
+  map.u_min_ = zone_mm[0];
+  map.u_max_ = zone_mm[1];
+  map.v_min_ = zone_mm[2];
+  map.v_max_ = zone_mm[3];
+  map.min_sum_v_ = min_sum_v;
   return map;
 }
 

@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <istream>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -102,6 +103,8 @@ struct SweepPoint {
 // other columns ignored), then one row per stage position. Throws zerocal::InputError naming
 // every bad line.
 std::vector<SweepPoint> readSweepCsv(std::istream& in, const std::string& origin);
+// Writes a sweep in the form readSweepCsv reads (header u_mm,v_mm,x_v,y_v,sum_v).
+void writeSweepCsv(std::ostream& out, const std::vector<SweepPoint>& sweep);
 
 struct MapFitOptions {
   int degree = 7;                   // total degree of the polynomial in (X, Y)
@@ -135,6 +138,19 @@ class PsdMap {
   // Plain-text form for the configuration, and back (throws zerocal::InputError).
   std::string serialize() const;
   static PsdMap parse(const std::string& text);
+
+  // The parts, so that the configuration can store the map in its own format (psd_config.h).
+  // fromParts throws std::invalid_argument when the parts do not make a map: degree outside
+  // 1..12, coefficient counts other than termCount(degree), an empty or non-finite zone.
+  static std::size_t termCount(int degree);
+  static PsdMap fromParts(int degree, std::vector<double> u_coeff, std::vector<double> v_coeff,
+                          const std::array<double, 4>& zone_mm, double min_sum_v);
+  int degree() const noexcept { return degree_; }
+  const std::vector<double>& uCoefficients() const noexcept { return u_coeff_; }
+  const std::vector<double>& vCoefficients() const noexcept { return v_coeff_; }
+  // {u_min, u_max, v_min, v_max} in mm: where the map was fitted, hence valid.
+  std::array<double, 4> zone() const noexcept { return {u_min_, u_max_, v_min_, v_max_}; }
+  double minSumV() const noexcept { return min_sum_v_; }
 
  private:
   void evaluate(double x, double y, double& u, double& v, double& du_dx, double& du_dy,

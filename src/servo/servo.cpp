@@ -249,7 +249,7 @@ void PsdServo::fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& res
         settle_uv = uv;
         have_previous = false;
         if (result.iterations >= options_.max_iterations ||
-            r.time_s - result.start_s > options_.max_time_s) {
+            r.time_s - result.acquired_s > options_.max_time_s) {
           latch(result, ServoStatus::kNotConverged, "the reading did not settle in time");
           return;
         }
@@ -266,7 +266,7 @@ void PsdServo::fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& res
         j += ((e - e_previous) - predicted) * dq_previous.transpose() / dq_previous.squaredNorm();
     }
     if (result.iterations >= options_.max_iterations ||
-        r.time_s - result.start_s > options_.max_time_s) {
+        r.time_s - result.acquired_s > options_.max_time_s) {
       latch(result, ServoStatus::kNotConverged, "iterations or time exhausted");
       return;
     }

@@ -10,11 +10,13 @@ namespace {
 
 using Vector11 = Eigen::Matrix<double, 11, 1>;
 
-// Expected spread of each unknown before any pose: offsets up to 1 deg, laser slopes ~0.02,
-// laser point and taught centre within ~5 mm. The damping is measured in these units.
+// Expected spread of each unknown before any pose: offsets up to 1 deg; laser slopes ~0.02 plus
+// what delta6 (not identifiable, absorbed here) adds; laser point within ~5 mm; the centre as
+// taught within a few mm plus what delta1 (absorbed into it) moves it, ~16 mm at the PSD's reach.
+// The damping is measured in these units.
 Vector11 spread() {
   Vector11 s;
-  s << Eigen::Vector4d::Constant(1.0 * kDegToRad), 0.02, 0.02, 5, 5, 5, 5, 5;
+  s << Eigen::Vector4d::Constant(1.0 * kDegToRad), 0.04, 0.04, 5, 5, 20, 20, 20;
   return s;
 }
 
@@ -42,6 +44,10 @@ void SpotPredictor::addPose(const Joints& q_deg, const Eigen::Vector2d& uv_mm) {
 }
 
 Eigen::Vector2d SpotPredictor::predict(const Joints& q_deg) const { return spot(x_, q_deg); }
+
+Eigen::Vector2d SpotPredictor::searchCentre(const Joints& q_deg) const {
+  return poseCount() >= kConfidentPoses ? predict(q_deg) : Eigen::Vector2d::Zero();
+}
 
 void SpotPredictor::refit() {
   const Vector11 s = spread();

@@ -3,6 +3,7 @@
 // PSD model at the world's true beam hit, and the servo between them. Simulated time only.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <vector>
@@ -62,8 +63,8 @@ Plan planFor(const Knowledge& k) {
 }
 
 struct PoseFigures {
-  double move_s = 0, servo_s = 0;
-  int moves = 0;
+  double move_s = 0, acquisition_s = 0, servo_s = 0;
+  int moves = 0, search_moves = 0;
 };
 
 // Moves to each planned pose and servoes; returns the recorded poses (hit-point readings).
@@ -77,7 +78,7 @@ std::vector<Pose> record(Rig& rig, const Knowledge& k, const Plan& plan, const S
     rig.client.moveJoints(planned.q_deg);
     const double t1 = rig.cell.nowS();
     const ServoResult r =
-        servo.run(rig.client, rig.psd, planned.q_deg, predictor.predict(planned.q_deg));
+        servo.run(rig.client, rig.psd, planned.q_deg, predictor.searchCentre(planned.q_deg));
     EXPECT_TRUE(r.ok()) << statusName(r.status) << ": " << servo.fault().message;
     if (!r.ok()) break;
     Pose p;
@@ -85,7 +86,9 @@ std::vector<Pose> record(Rig& rig, const Knowledge& k, const Plan& plan, const S
     p.psd_uv_mm = Eigen::Vector2d(r.reading.u_mm, r.reading.v_mm);
     poses.push_back(p);
     predictor.addPose(p.q_deg, *p.psd_uv_mm);
-    if (figures) figures->push_back({t1 - t0, rig.cell.nowS() - t1, r.moves});
+    if (figures)
+      figures->push_back(
+          {t1 - t0, r.acquired_s - t1, rig.cell.nowS() - r.acquired_s, r.moves, r.search_moves});
   }
   return poses;
 }
@@ -102,7 +105,7 @@ TEST(SimulatedCell, ServoConvergesToTwoMicrometresOfTheCentre) {
   for (std::size_t i = 0; i < plan.poses.size(); ++i) {
     const Joints& planned = plan.poses[i].q_deg;
     rig.client.moveJoints(planned);
-    const ServoResult r = servo.run(rig.client, rig.psd, planned, predictor.predict(planned));
+    const ServoResult r = servo.run(rig.client, rig.psd, planned, predictor.searchCentre(planned));
     ASSERT_TRUE(r.ok()) << statusName(r.status) << ": " << servo.fault().message;
     EXPECT_LE(r.final_error_um, 2.0);
     const auto hit = rig.cell.controller().beamHitNow();
@@ -137,9 +140,9 @@ TEST(SimulatedCell, SpotNeverFoundLeavesTheRobotAtThePlannedPose) {
 // Records the optimal 8-pose plan by servoing on noisy cells (repeatability, PSD noise, float32
 // joints, 5 decimals) and solves: delta2..delta5 within 3 reported sigma of the truth.
 TEST(SimulatedCell, EightServoedPosesCalibrateWithinThreeSigma) {
-  double sum_sq = 0;
+  double sum_sq = 0, worst_sigmas = 0, worst_cell_s = 0;
   int count = 0;
-  for (std::uint64_t seed : {21u, 22u, 23u}) {
+  for (std::uint64_t seed = 21; seed <= 30; ++seed) {
     Rig rig(cellOptions(seed, 5e-4));
     const Knowledge k = knowledgeOf(rig.cell.world());
     const Plan plan = planFor(k);
@@ -148,15 +151,29 @@ TEST(SimulatedCell, EightServoedPosesCalibrateWithinThreeSigma) {
     std::vector<PoseFigures> figures;
     const std::vector<Pose> poses = record(rig, k, plan, o, &figures);
     ASSERT_EQ(poses.size(), plan.poses.size());
-    const SolveReport report = solve(k.cell, poses);
+    // The measurement sigma a session configures: the robot's repeatability (5e-4 deg per joint,
+    // about 0.01 mm per axis at the PSD, chi2/dof near 1 here) dwarfs the PSD's ~0.5 um. Estimating
+    // it from 5 degrees of freedom instead makes the reported sigmas themselves scatter by a factor
+    // of two.
+    SolveOptions so;
+    so.noise_mm = 0.010;
+    const SolveReport report = solve(k.cell, poses, so);
+    std::printf("seed %d: chi2/dof %.2f\n", static_cast<int>(seed),
+                report.chi2_per_dof.value_or(-1));
     ASSERT_TRUE(report.converged) << report.message;
     const Joints truth = rig.cell.world().true_offsets_deg;
     double cell_s = 0;
     int moves = 0;
-    for (const PoseFigures& f : figures) {
-      cell_s += f.move_s + f.servo_s;
+    std::printf("seed %d: pose  move_s  acquisition_s  servo_s  moves  search_moves\n",
+                static_cast<int>(seed));
+    for (std::size_t i = 0; i < figures.size(); ++i) {
+      const PoseFigures& f = figures[i];
+      cell_s += f.move_s + f.acquisition_s + f.servo_s;
       moves += f.moves;
+      std::printf("        %4zu  %6.2f  %13.2f  %7.2f  %5d  %12d\n", i, f.move_s, f.acquisition_s,
+                  f.servo_s, f.moves, f.search_moves);
     }
+    worst_cell_s = std::max(worst_cell_s, cell_s);
     std::printf("seed %d: cell time %.1f s, servo moves per pose %.1f\n", static_cast<int>(seed),
                 cell_s, static_cast<double>(moves) / figures.size());
     for (int i = 0; i < kOffsetCount; ++i) {
@@ -166,10 +183,15 @@ TEST(SimulatedCell, EightServoedPosesCalibrateWithinThreeSigma) {
       std::printf("  %s = %.5f, truth %.5f, error %.5f, sigma %.5f\n", e.name.c_str(), e.value,
                   truth[i + 1], error, e.sigma);
       sum_sq += error * error;
+      worst_sigmas = std::max(worst_sigmas, std::abs(error) / e.sigma);
       ++count;
     }
   }
-  std::printf("RMS error of delta2..delta5: %.5f deg\n", std::sqrt(sum_sq / count));
+  std::printf(
+      "RMS error of delta2..delta5: %.5f deg over %d worlds, worst %.2f sigma, "
+      "longest calibration %.1f s of cell time\n",
+      std::sqrt(sum_sq / count), count / kOffsetCount, worst_sigmas, worst_cell_s);
+  EXPECT_LE(std::sqrt(sum_sq / count), 0.005);
 }
 
 }  // namespace

@@ -61,14 +61,15 @@ struct ServoOptions {
   double gain = 0.9;              // below 1: no overshoot from a slightly wrong Jacobian
   double damping_mm = 1e-3;       // Tikhonov term of the pseudo-inverse (mm/deg)^2 scale
   int max_iterations = 40;
-  double max_time_s = 20;  // acquisition + fine servo, cell clock
+  double max_time_s = 20;  // fine servo, from acquisition, cell clock
 
   bool broyden = true;
   double broyden_min_motion_mm = 0.02;
 
   double search_step_mm = 2.0;
-  double search_radius_mm = 40.0;
-  int max_search_points = 1000;
+  // Offsets of 1 deg, the laser's mounting and the teaching error miss by up to ~55 mm.
+  double search_radius_mm = 60.0;
+  int max_search_points = 3000;
   double max_search_time_s = 300;
 
   // Empty when usable, else the first problem.

@@ -26,6 +26,10 @@ class SpotPredictor {
   void addPose(const Joints& q_deg, const Eigen::Vector2d& uv_mm);
   // Where the spot is expected on the PSD (PSD frame, mm) at controller joints q.
   Eigen::Vector2d predict(const Joints& q_deg) const;
+  // Where a search should start: predict() once kConfidentPoses poses are in, else (0, 0). With
+  // fewer the fit is under-determined and measured no better than no prediction at all.
+  Eigen::Vector2d searchCentre(const Joints& q_deg) const;
+  static constexpr int kConfidentPoses = 4;
   int poseCount() const { return static_cast<int>(poses_.size()); }
 
  private:

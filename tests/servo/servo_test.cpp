@@ -10,6 +10,7 @@
 
 #include "zerocal/calib/cell_model.h"
 #include "zerocal/calib/planner.h"
+#include "zerocal/servo/spot_predictor.h"
 #include "zerocal/sim/world.h"
 
 namespace zerocal::servo {
@@ -199,6 +200,12 @@ TEST(PsdServo, SpotNeverFoundFaultsWithTheRobotBackAtThePlannedPose) {
   EXPECT_GT(r.search_moves, 50);
   EXPECT_EQ(link.q, s.planned);
   expectMovesWithinBounds(s.cell.robot, s.planned, link.moves, o);
+  // The search points sit closer together on the PSD plane than the 2.5 mm spot is wide.
+  for (std::size_t i = 1; i < 100; ++i) {
+    const auto a = beamHit(s.world, link.moves[i - 1]), b = beamHit(s.world, link.moves[i]);
+    ASSERT_TRUE(a && b);
+    EXPECT_LT(std::hypot(a->u_mm - b->u_mm, a->v_mm - b->v_mm), 2.5) << "move " << i;
+  }
   // The latched samples are the last ones, in order.
   for (std::size_t i = 1; i < servo.fault().sample_count; ++i)
     EXPECT_GT(servo.fault().samples[i].time_s, servo.fault().samples[i - 1].time_s);
@@ -225,6 +232,39 @@ TEST(PsdServo, RobotNotAtThePlannedPoseIsABadStart) {
   PsdServo servo(s.cell, s.world.psd_position_mm, centreOptions());
   EXPECT_EQ(servo.run(link, psd, s.planned).status, ServoStatus::kBadStart);
   EXPECT_TRUE(link.moves.empty());
+}
+
+TEST(SpotPredictor, PredictsTheMissAfterAFewServoedPoses) {
+  Scenario s = scenario(4);
+  SpotPredictor predictor(s.cell, s.world.psd_position_mm);
+  EXPECT_EQ(predictor.searchCentre(s.planned), Eigen::Vector2d::Zero());
+  // Servoed poses: beams of the true world through the PSD centre from several directions.
+  const Eigen::Matrix3d r = s.world.psd_rotation;
+  int added = 0;
+  for (int k = 0; k < 8 && added < 6; ++k) {
+    const double a = k * kPi / 4;
+    const Eigen::Vector3d beam =
+        (-r.col(2) + 0.4 * (std::cos(a) * r.col(0) + std::sin(a) * r.col(1))).normalized();
+    const auto q = aimLaser(s.cell, s.world.psd_position_mm, beam, 500.0 + 30 * k,
+                            Joints{0, 10, 10, 0, 60, 0}, 5.0);
+    if (!q) continue;
+    // Walk the real spot onto the centre with the exact world (what the servo achieves).
+    RecordingLink link(*q);
+    ExactPsd psd(s.world, link);
+    PsdServo servo(s.cell, s.world.psd_position_mm, centreOptions());
+    const ServoResult res = servo.run(link, psd, *q);
+    if (!res.ok()) continue;
+    predictor.addPose(res.q_deg, Eigen::Vector2d(res.reading.u_mm, res.reading.v_mm));
+    ++added;
+  }
+  ASSERT_GE(added, SpotPredictor::kConfidentPoses);
+  const auto truth = beamHit(s.world, s.planned);
+  ASSERT_TRUE(truth);
+  const Eigen::Vector2d predicted = predictor.searchCentre(s.planned);
+  const double miss = std::hypot(truth->u_mm, truth->v_mm);
+  const double error = std::hypot(predicted.x() - truth->u_mm, predicted.y() - truth->v_mm);
+  std::printf("miss at the planned pose %.1f mm, predicted within %.2f mm\n", miss, error);
+  EXPECT_LT(error, std::max(2.0, 0.2 * miss));
 }
 
 TEST(ServoOptions, ValidateNamesTheProblem) {

@@ -4,7 +4,10 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cmath>
+#include <cstdlib>
+#include <new>
 #include <stdexcept>
 #include <vector>
 
@@ -12,6 +15,20 @@
 #include "zerocal/calib/planner.h"
 #include "zerocal/servo/spot_predictor.h"
 #include "zerocal/sim/world.h"
+
+// Counts heap allocations while a test asks, to check that run() makes none of its own.
+namespace {
+std::atomic<bool> g_counting{false};
+std::atomic<long> g_allocations{0};
+}  // namespace
+
+void* operator new(std::size_t size) {
+  if (g_counting.load()) ++g_allocations;
+  if (void* p = std::malloc(size ? size : 1)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 namespace zerocal::servo {
 namespace {
@@ -22,6 +39,7 @@ class RecordingLink final : public ControllerLink {
   void ping() override {}
   RobotInfo robotInfo() override { return {}; }
   Joints readJoints() override { return q; }
+  RecordingLink(const Joints& start, std::size_t capacity) : q(start) { moves.reserve(capacity); }
   void moveJoints(const Joints& target) override {
     if (fail_after >= 0 && static_cast<int>(moves.size()) >= fail_after)
       throw std::runtime_error("link down");
@@ -144,6 +162,20 @@ TEST(PsdServo, AcquiresAndConvergesToTwoMicrometresWithOneDegreeOffsets) {
                 static_cast<int>(seed), r.moves, r.search_moves, r.iterations, r.final_error_um,
                 r.end_s - r.start_s);
   }
+}
+
+TEST(PsdServo, RunAllocatesNothing) {
+  Scenario s = scenario(2);
+  RecordingLink link(s.planned, 10000);
+  ExactPsd psd(s.world, link);
+  PsdServo servo(s.cell, s.world.psd_position_mm, centreOptions());
+  g_allocations = 0;
+  g_counting = true;
+  const ServoResult r = servo.run(link, psd, s.planned);
+  g_counting = false;
+  EXPECT_TRUE(r.ok());
+  EXPECT_GT(r.moves, 10);
+  EXPECT_EQ(g_allocations.load(), 0);
 }
 
 TEST(PsdServo, NeverExceedsASmallStepLimit) {

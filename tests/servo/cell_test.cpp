@@ -137,6 +137,33 @@ TEST(SimulatedCell, SpotNeverFoundLeavesTheRobotAtThePlannedPose) {
   for (int i = 0; i < kJointCount; ++i) EXPECT_NEAR(now[i], planned[i], 1e-4);
 }
 
+// The controller connection drops mid-servo, then the board is unplugged: each is latched as a
+// fault with its samples, never thrown.
+TEST(SimulatedCell, LinkDropAndUnpluggedBoardAreLatchedFaults) {
+  Rig rig(cellOptions(13, 0.0));
+  const Knowledge k = knowledgeOf(rig.cell.world());
+  const Plan plan = planFor(k);
+  PsdServo servo(k.cell, k.taught_centre, ServoOptions{});
+  const Joints& planned = plan.poses[0].q_deg;
+  rig.client.moveJoints(planned);
+  SimFaults faults;
+  faults.drop_after_requests = 8;  // setup (6), the joint read-back, one move
+  rig.cell.controller().setFaults(faults);
+  rig.client.reconnect();
+  ServoResult r = servo.run(rig.client, rig.psd, planned);
+  EXPECT_EQ(r.status, ServoStatus::kLinkError);
+  EXPECT_TRUE(servo.faulted());
+  EXPECT_STRNE(servo.fault().message, "");
+
+  rig.cell.controller().setFaults(SimFaults{});
+  rig.client.reconnect();
+  rig.client.moveJoints(planned);
+  rig.cell.board().unplug();
+  r = servo.run(rig.client, rig.psd, planned);
+  EXPECT_EQ(r.status, ServoStatus::kSensorError);
+  EXPECT_EQ(servo.fault().status, ServoStatus::kSensorError);
+}
+
 // Records the optimal 8-pose plan by servoing on noisy cells (repeatability, PSD noise, float32
 // joints, 5 decimals) and solves: delta2..delta5 within 3 reported sigma of the truth.
 TEST(SimulatedCell, EightServoedPosesCalibrateWithinThreeSigma) {

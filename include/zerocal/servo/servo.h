@@ -52,7 +52,7 @@ struct ServoOptions {
   ServoMode mode = ServoMode::kCentre;
   double target_u_mm = 0, target_v_mm = 0;
   double tolerance_mm = 0.002;  // kCentre
-  double hit_zone_mm = 0.2;     // kHitPoint
+  double hit_zone_mm = 0.05;    // kHitPoint
   // kHitPoint: two readings at the same pose agreeing within this are settled.
   double settle_mm = 0.005;
 

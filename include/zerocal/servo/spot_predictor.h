@@ -4,7 +4,8 @@
 // the laser's mounting error and the teaching error put the real spot tens of millimetres away,
 // more than a short search covers. Every servoed pose says where the real beam went, so a
 // damped Gauss-Newton fit of the same unknowns as the solver (delta2..delta5, the laser's four
-// parameters, the PSD centre) predicts the next miss; the servo's search then starts there.
+// parameters, the PSD centre, and delta1, delta6 which the solver cannot separate but which move
+// the spot all the same) predicts the next miss; the servo's search then starts there.
 // With few poses the fit is under-determined; the damping pulls each unknown towards its nominal
 // value in units of its expected spread, so the prediction degrades gracefully to "no idea".
 //
@@ -18,6 +19,9 @@
 
 namespace zerocal::servo {
 
+// delta1..delta6 (rad), the laser's four parameters, the centre's offset from the taught one (mm).
+using PredictorState = Eigen::Matrix<double, 13, 1>;
+
 class SpotPredictor {
  public:
   SpotPredictor(const CellModel& cell, const Eigen::Vector3d& taught_centre_mm);
@@ -27,19 +31,19 @@ class SpotPredictor {
   // Where the spot is expected on the PSD (PSD frame, mm) at controller joints q.
   Eigen::Vector2d predict(const Joints& q_deg) const;
   // Where a search should start: predict() once kConfidentPoses poses are in, else (0, 0). With
-  // fewer the fit is under-determined and measured no better than no prediction at all.
+  // the prior spreads of the real cell even one pose helps (measured: fewer search moves).
   Eigen::Vector2d searchCentre(const Joints& q_deg) const;
-  static constexpr int kConfidentPoses = 4;
+  static constexpr int kConfidentPoses = 1;
   int poseCount() const { return static_cast<int>(poses_.size()); }
 
  private:
   void refit();
-  Eigen::Vector2d spot(const Eigen::Matrix<double, 11, 1>& x, const Joints& q) const;
+  Eigen::Vector2d spot(const PredictorState& x, const Joints& q) const;
 
   CellModel cell_;
   Eigen::Vector3d centre_;
   std::vector<std::pair<Joints, Eigen::Vector2d>> poses_;
-  Eigen::Matrix<double, 11, 1> x_ = Eigen::Matrix<double, 11, 1>::Zero();
+  PredictorState x_ = PredictorState::Zero();
 };
 
 }  // namespace zerocal::servo

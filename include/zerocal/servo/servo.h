@@ -3,8 +3,9 @@
 //
 // Acquisition: when SUM is below threshold at the planned pose, an Archimedean spiral in the PSD
 // plane around it (or around where the caller expects the spot), points `search_step_mm` apart
-// along the path and between turns (smaller than the 2.5 mm spot, so the 10 mm detector cannot slip
-// between points), out to `search_radius_mm`. The spiral is mapped to joints through the model's
+// along the path and between turns (smaller than the 2.5 mm spot: even a detector no larger than
+// the spot would be lit at some point; the 10 mm one is lit at several), out to
+// `search_radius_mm`. The spiral is mapped to joints through the model's
 // image Jacobian at the planned pose. Not found within the bounds: the robot is walked back to the
 // planned pose and the fault latched.
 //

@@ -1,0 +1,163 @@
+// The PSD servo: from a planned pose, find the laser spot on the PSD (acquisition) and bring it to
+// the detector's centre (fine servo), with small joint moves the caller can bound.
+//
+// Acquisition: when SUM is below threshold at the planned pose, an Archimedean spiral in the PSD
+// plane around it (or around where the caller expects the spot), points `search_step_mm` apart
+// along the path and between turns (smaller than the 2.5 mm spot: even a detector no larger than
+// the spot would be lit at some point; the 10 mm one is lit at several), out to
+// `search_radius_mm`. The spiral is mapped to joints through the model's
+// image Jacobian at the planned pose. Not found within the bounds: the robot is walked back to the
+// planned pose and the fault latched.
+//
+// Fine servo: e = (u, v) - target; dq = -gain J^+ e, with J = d(u, v)/dq the image Jacobian
+// predicted by the nominal kinematics and laser through the PSD's known orientation, and J^+ its
+// minimum-norm pseudo-inverse (damped). After each move J is corrected from the observed motion
+// (Broyden):
+//
+//   J <- J + (de - J dq) dq^T / (dq^T dq),      only when both readings are in the valid zone
+//                                               and the predicted motion clears the noise.
+//
+// Every move is checked before it is sent: no joint moves more than max_step_deg (longer walks
+// are split), and no target lies outside the limits less limit_margin_deg.
+//
+// Real-time discipline: run() allocates, locks, logs and throws nothing of its own; time comes
+// from the readings' cell clock, never the wall clock. Errors thrown by the seams (link, DAQ) are
+// caught at the cycle's edge and latched as a fault with the last kFaultHistory samples. The
+// seams themselves (a TCP client, a USB command) may allocate; that is theirs to avoid.
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <cstddef>
+#include <string>
+
+#include "zerocal/calib/cell_model.h"
+#include "zerocal/irc5/controller_link.h"
+#include "zerocal/servo/psd_reader.h"
+
+namespace zerocal::servo {
+
+using ImageJacobian = Eigen::Matrix<double, 2, kJointCount>;  // mm per deg
+
+// d(u, v)/dq of the nominal laser (cell.laser, zero offsets) on the plane through psd_centre_mm
+// (base frame) with the cell's PSD orientation, by central differences.
+ImageJacobian imageJacobian(const CellModel& cell, const Eigen::Vector3d& psd_centre_mm,
+                            const Joints& q_deg);
+
+enum class ServoMode {
+  kCentre,    // stop within tolerance_mm of the target
+  kHitPoint,  // stop at a settled reading inside the valid zone within hit_zone_mm of the target
+};
+
+struct ServoOptions {
+  ServoMode mode = ServoMode::kCentre;
+  double target_u_mm = 0, target_v_mm = 0;
+  double tolerance_mm = 0.002;  // kCentre
+  double hit_zone_mm = 0.05;    // kHitPoint
+  // kHitPoint: two readings at the same pose agreeing within this are settled.
+  double settle_mm = 0.005;
+
+  double max_step_deg = 0.5;      // largest joint change of any single move
+  double limit_margin_deg = 1.0;  // kept from every joint limit
+  double gain = 0.9;              // below 1: no overshoot from a slightly wrong Jacobian
+  double damping_mm = 1e-3;       // Tikhonov term of the pseudo-inverse (mm/deg)^2 scale
+  int max_iterations = 40;
+  double max_time_s = 20;  // fine servo, from acquisition, cell clock
+
+  bool broyden = true;
+  double broyden_min_motion_mm = 0.02;
+
+  double search_step_mm = 2.0;
+  // Offsets of 1 deg, the laser's mounting and the teaching error miss by up to ~55 mm.
+  double search_radius_mm = 60.0;
+  int max_search_points = 3000;
+  double max_search_time_s = 300;
+
+  // Empty when usable, else the first problem.
+  std::string validate() const;
+};
+
+enum class ServoStatus {
+  kConverged,
+  kSpotNotFound,  // acquisition exhausted; robot back at the planned pose
+  kSpotLost,      // the spot left the detector during the fine servo
+  kNotConverged,  // iterations or time exhausted
+  kLimit,         // a needed move would leave the limits less the margin
+  kLinkError,     // the controller link threw
+  kSensorError,   // the PSD reader threw
+  kBadStart,      // options invalid or the robot not where planned
+};
+const char* statusName(ServoStatus status) noexcept;
+
+struct ServoSample {
+  double time_s = 0;
+  Joints q_deg{};  // commanded joints when the reading was taken
+  PsdReading reading;
+};
+
+constexpr std::size_t kFaultHistory = 32;
+
+// A latched fault: what went wrong and the samples leading to it (oldest first).
+struct ServoFault {
+  ServoStatus status = ServoStatus::kConverged;
+  const char* message = "";  // static text
+  std::array<ServoSample, kFaultHistory> samples{};
+  std::size_t sample_count = 0;
+};
+
+struct ServoResult {
+  ServoStatus status = ServoStatus::kBadStart;
+  Joints q_deg{};      // commanded joints at the end
+  PsdReading reading;  // the last reading (the one to record when converged)
+  int moves = 0;       // all moves sent, search and return included
+  int search_moves = 0;
+  int iterations = 0;  // fine-servo cycles (readings taken after acquisition)
+  int readings = 0;
+  double final_error_um = 0;                      // |(u, v) - target| of the last reading
+  double start_s = 0, acquired_s = 0, end_s = 0;  // cell clock
+  double acquisitionS() const { return acquired_s - start_s; }
+  double servoS() const { return end_s - acquired_s; }
+  bool ok() const { return status == ServoStatus::kConverged; }
+};
+
+class PsdServo {
+ public:
+  // `psd_centre_mm`: the PSD's centre in the base frame as taught (a few mm off is fine; it only
+  // sets the plane of the predicted Jacobian). Copies what it needs; run() allocates nothing.
+  PsdServo(const CellModel& cell, const Eigen::Vector3d& psd_centre_mm, ServoOptions options);
+
+  // The robot must stand at `planned_deg` (what the caller last moved it to). `expected_uv_mm`:
+  // where the spot is expected at the planned pose (PSD frame, e.g. from SpotPredictor); the
+  // search is centred on it when the spot is not seen at once. Never throws. On anything but
+  // kConverged the fault is latched (fault()) until clearFault().
+  ServoResult run(ControllerLink& robot, PsdReader& psd, const Joints& planned_deg,
+                  const Eigen::Vector2d& expected_uv_mm = Eigen::Vector2d::Zero()) noexcept;
+
+  bool faulted() const noexcept { return faulted_; }
+  const ServoFault& fault() const noexcept { return fault_; }
+  void clearFault() noexcept { faulted_ = false; }
+  const ServoOptions& options() const noexcept { return options_; }
+
+ private:
+  enum class Step { kOk, kFailed };
+  Step move(ControllerLink& robot, const Joints& target, ServoResult& result) noexcept;
+  Step walkTo(ControllerLink& robot, const Joints& target, ServoResult& result) noexcept;
+  Step read(PsdReader& psd, ServoResult& result) noexcept;
+  bool acquire(ControllerLink& robot, PsdReader& psd, const Joints& planned,
+               const Eigen::Vector2d& expected_uv, ServoResult& result) noexcept;
+  void fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& result) noexcept;
+  ServoResult& latch(ServoResult& result, ServoStatus status, const char* message) noexcept;
+  void record(const PsdReading& reading) noexcept;
+  Joints solveStep(const ImageJacobian& j, const Eigen::Vector2d& e) const noexcept;
+
+  CellModel cell_;
+  Eigen::Vector3d psd_centre_;
+  ServoOptions options_;
+  Joints q_{};  // commanded joints
+  std::array<ServoSample, kFaultHistory> ring_{};
+  std::size_t ring_next_ = 0, ring_count_ = 0;
+  bool faulted_ = false;
+  ServoFault fault_;
+};
+
+}  // namespace zerocal::servo

@@ -1,0 +1,49 @@
+// Where the spot will land at the next planned pose, learned from the poses already servoed.
+//
+// The planner aims the nominal model at the taught PSD centre; joint offsets of up to a degree,
+// the laser's mounting error and the teaching error put the real spot tens of millimetres away,
+// more than a short search covers. Every servoed pose says where the real beam went, so a
+// damped Gauss-Newton fit of the same unknowns as the solver (delta2..delta5, the laser's four
+// parameters, the PSD centre, and delta1, delta6 which the solver cannot separate but which move
+// the spot all the same) predicts the next miss; the servo's search then starts there.
+// With few poses the fit is under-determined; the damping pulls each unknown towards its nominal
+// value in units of its expected spread, so the prediction degrades gracefully to "no idea".
+//
+// Runs between poses, not in the servo cycle: it allocates.
+#pragma once
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "zerocal/calib/cell_model.h"
+
+namespace zerocal::servo {
+
+// delta1..delta6 (rad), the laser's four parameters, the centre's offset from the taught one (mm).
+using PredictorState = Eigen::Matrix<double, 13, 1>;
+
+class SpotPredictor {
+ public:
+  SpotPredictor(const CellModel& cell, const Eigen::Vector3d& taught_centre_mm);
+
+  // A servoed pose: controller joints and the reading there (PSD frame, mm).
+  void addPose(const Joints& q_deg, const Eigen::Vector2d& uv_mm);
+  // Where the spot is expected on the PSD (PSD frame, mm) at controller joints q.
+  Eigen::Vector2d predict(const Joints& q_deg) const;
+  // Where a search should start: predict() once kConfidentPoses poses are in, else (0, 0). With
+  // the prior spreads of the real cell even one pose helps (measured: fewer search moves).
+  Eigen::Vector2d searchCentre(const Joints& q_deg) const;
+  static constexpr int kConfidentPoses = 1;
+  int poseCount() const { return static_cast<int>(poses_.size()); }
+
+ private:
+  void refit();
+  Eigen::Vector2d spot(const PredictorState& x, const Joints& q) const;
+
+  CellModel cell_;
+  Eigen::Vector3d centre_;
+  std::vector<std::pair<Joints, Eigen::Vector2d>> poses_;
+  PredictorState x_ = PredictorState::Zero();
+};
+
+}  // namespace zerocal::servo

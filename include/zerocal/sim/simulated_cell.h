@@ -1,0 +1,62 @@
+// The simulated cell in one object: one World shared by the simulated IRC5 (a real TCP server on
+// loopback, port 0) and the simulated USB-1408FS whose analog inputs come from the PSD model at
+// the world's current beam hit. Clients connect to it with the real Irc5Client and the real
+// Usb1408fs protocol code (through FakeTransport), exactly as to a real cell.
+//
+// Time: nowS() is the controller's simulated time (moves) plus the board's (scans); nothing
+// sleeps. The board must be driven from one thread (the one that owns the Usb1408fs).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+
+#include "zerocal/irc5/irc5_client.h"
+#include "zerocal/psd/psd.h"
+#include "zerocal/servo/psd_reader.h"
+#include "zerocal/sim/fake_transport.h"
+#include "zerocal/sim/psd_model.h"
+#include "zerocal/sim/sim_controller.h"
+#include "zerocal/sim/usb1408fs_model.h"
+#include "zerocal/sim/world.h"
+#include "zerocal/usb1408fs/usb1408fs.h"
+
+namespace zerocal::sim {
+
+struct SimulatedCellOptions {
+  World world;
+  std::uint64_t controller_seed = 1;  // repeatability noise of the moves
+  PsdModelOptions psd;                // detector, board noise and its seed
+  std::uint32_t board_seed = 1408;    // the board's calibration table
+  Joints start_joints{0, 0, 0, 0, 30, 0};
+  // The stage sweep the PSD map is fitted from (as in the paper: a probe stage over the centre).
+  double sweep_half_width_mm = 0.8, sweep_step_mm = 0.04;
+};
+
+class SimulatedCell final : public servo::CellClock {
+ public:
+  // Starts the controller on its own I/O thread. Throws as SimController.
+  explicit SimulatedCell(SimulatedCellOptions options);
+  ~SimulatedCell() override;
+  SimulatedCell(const SimulatedCell&) = delete;
+  SimulatedCell& operator=(const SimulatedCell&) = delete;
+
+  SimController& controller() { return *controller_; }
+  Usb1408fsModel& board() { return board_; }
+  usb1408fs::Usb1408fs::Opener boardOpener() { return FakeTransport::opener(board_); }
+  // The map fitted from a simulated sweep of this cell's detector.
+  const psd::PsdMap& psdMap() const { return map_; }
+  // Options for an Irc5Client pointed at this cell's controller.
+  Irc5Options clientOptions() const;
+  const World& world() const { return controller_->world(); }
+
+  double nowS() noexcept override;
+
+ private:
+  SimulatedCellOptions options_;
+  std::unique_ptr<SimController> controller_;
+  PsdModel psd_;
+  Usb1408fsModel board_;
+  psd::PsdMap map_;
+};
+
+}  // namespace zerocal::sim

@@ -1,0 +1,80 @@
+#include "zerocal/sim/simulated_cell.h"
+
+#include <cmath>
+#include <optional>
+#include <utility>
+#include <vector>
+
+namespace zerocal::sim {
+namespace {
+
+// The paper's mapping: a probe stage moves the spot over a grid, the averaged voltages are kept.
+std::vector<psd::SweepPoint> stageSweep(PsdModel& psd, double half_width, double step) {
+  std::vector<psd::SweepPoint> sweep;
+  const int n = static_cast<int>(std::lround(2 * half_width / step));
+  constexpr int kSamples = 64;
+  for (int i = 0; i <= n; ++i) {
+    for (int j = 0; j <= n; ++j) {
+      const SpotPosition p{-half_width + i * step, -half_width + j * step};
+      psd::SweepPoint s{p.u_mm, p.v_mm, 0, 0, 0};
+      for (int k = 0; k < kSamples; ++k) {
+        const PsdVoltages v = psd.measure(p);
+        s.x_v += v.x / kSamples;
+        s.y_v += v.y / kSamples;
+        s.sum_v += v.sum / kSamples;
+      }
+      sweep.push_back(s);
+    }
+  }
+  return sweep;
+}
+
+SimControllerOptions controllerOptions(const SimulatedCellOptions& o) {
+  SimControllerOptions c;
+  c.world = o.world;
+  c.seed = o.controller_seed;
+  c.start_joints = o.start_joints;
+  return c;
+}
+
+}  // namespace
+
+SimulatedCell::SimulatedCell(SimulatedCellOptions options)
+    : options_(std::move(options)),
+      controller_(std::make_unique<SimController>(controllerOptions(options_))),
+      psd_(options_.psd),
+      board_(options_.board_seed) {
+  // The sweep uses its own copy of the detector (another noise stream), as the mapping happened
+  // on the bench long before this session.
+  PsdModelOptions bench = options_.psd;
+  bench.seed += 1;
+  PsdModel bench_psd(bench);
+  map_ =
+      psd::PsdMap::fit(stageSweep(bench_psd, options_.sweep_half_width_mm, options_.sweep_step_mm),
+                       psd::MapFitOptions{});
+  SimController* controller = controller_.get();
+  board_.setAnalogSource(psdAnalogSource(psd_, [controller](double) -> std::optional<SpotPosition> {
+    const std::optional<BeamHit> hit = controller->beamHitNow();
+    if (!hit) return std::nullopt;
+    return SpotPosition{hit->u_mm, hit->v_mm};
+  }));
+  controller_->start();
+}
+
+SimulatedCell::~SimulatedCell() { controller_->stop(); }
+
+Irc5Options SimulatedCell::clientOptions() const {
+  Irc5Options o;
+  o.host = "127.0.0.1";
+  o.port = controller_->port();
+  o.robot = controller_->world().robot;
+  o.reconnect_attempts = 3;
+  o.backoff_initial = std::chrono::milliseconds(10);
+  return o;
+}
+
+double SimulatedCell::nowS() noexcept {
+  return controller_->simTimeS() + std::chrono::duration<double>(board_.now()).count();
+}
+
+}  // namespace zerocal::sim

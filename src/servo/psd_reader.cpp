@@ -1,0 +1,45 @@
+#include "zerocal/servo/psd_reader.h"
+
+#include <utility>
+
+namespace zerocal::servo {
+
+double SteadyCellClock::nowS() noexcept {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+}
+
+ChainPsdReader::ChainPsdReader(usb1408fs::Usb1408fs& daq, psd::PsdMap map, CellClock& clock,
+                               ChainPsdReaderOptions options)
+    : daq_(daq),
+      map_(std::move(map)),
+      clock_(clock),
+      options_(options),
+      detector_(options.on_threshold_v, options.off_threshold_v) {}
+
+PsdReading ChainPsdReader::read() {
+  const psd::VoltageReading v =
+      psd::readAveraged(daq_, options_.channels, options_.samples, options_.rate_hz);
+  const bool present = detector_.update(v);
+  const psd::SpotPosition p = map_.apply(v);
+  PsdReading r;
+  r.sum_v = v.sum;
+  r.spot_present = present;
+  r.in_valid_zone = present && p.valid;
+  if (r.in_valid_zone) {
+    r.u_mm = p.u_mm;
+    r.v_mm = p.v_mm;
+    r.u_se_mm = p.u_se_mm;
+    r.v_se_mm = p.v_se_mm;
+  } else {
+    // The map extrapolates wildly outside its zone; the saturating voltages over the centre slope
+    // still point the right way, which is all the servo needs to get back into the zone.
+    r.u_mm = v.x / options_.coarse_v_per_mm;
+    r.v_mm = v.y / options_.coarse_v_per_mm;
+    r.u_se_mm = v.x_se / options_.coarse_v_per_mm;
+    r.v_se_mm = v.y_se / options_.coarse_v_per_mm;
+  }
+  r.time_s = clock_.nowS();
+  return r;
+}
+
+}  // namespace zerocal::servo

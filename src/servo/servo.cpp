@@ -1,0 +1,314 @@
+#include "zerocal/servo/servo.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <exception>
+
+#include "zerocal/error.h"
+#include "zerocal/model/kinematics.h"
+
+namespace zerocal::servo {
+namespace {
+
+using JointVector = Eigen::Matrix<double, kJointCount, 1>;
+
+JointVector toVector(const Joints& q) { return Eigen::Map<const JointVector>(q.data()); }
+
+Joints toJoints(const JointVector& v) {
+  Joints q;
+  for (int i = 0; i < kJointCount; ++i) q[i] = v[i];
+  return q;
+}
+
+// Where the nominal beam meets the PSD plane, in PSD coordinates. False when it runs parallel.
+bool spotOnPlane(const CellModel& cell, const Eigen::Vector3d& centre, const Joints& q,
+                 Eigen::Vector2d& uv) {
+  const Line line = laserLine(cell, q, CalibrationParameters{});
+  const Eigen::Vector3d n = cell.psd_rotation.col(2);
+  const double denom = n.dot(line.direction);
+  if (std::abs(denom) < 1e-9) return false;
+  const double t = n.dot(centre - line.point) / denom;
+  const Eigen::Vector3d hit = line.point + t * line.direction;
+  uv = (cell.psd_rotation.transpose() * (hit - centre)).head<2>();
+  return true;
+}
+
+// Minimum-norm (damped) pseudo-inverse of a 2 x 6 Jacobian.
+Eigen::Matrix<double, kJointCount, 2> pseudoInverse(const ImageJacobian& j, double damping) {
+  const Eigen::Matrix2d jjt = j * j.transpose() + damping * Eigen::Matrix2d::Identity();
+  return j.transpose() * jjt.inverse();
+}
+
+double maxAbs(const JointVector& v) { return v.cwiseAbs().maxCoeff(); }
+
+}  // namespace
+
+ImageJacobian imageJacobian(const CellModel& cell, const Eigen::Vector3d& psd_centre_mm,
+                            const Joints& q_deg) {
+  // 1e-3 deg moves the spot ~10 um: far above rounding, far below the curvature of the map.
+  constexpr double kH = 1e-3;
+  ImageJacobian j = ImageJacobian::Zero();
+  for (int i = 0; i < kJointCount; ++i) {
+    Joints plus = q_deg, minus = q_deg;
+    plus[i] += kH;
+    minus[i] -= kH;
+    Eigen::Vector2d up, um;
+    if (spotOnPlane(cell, psd_centre_mm, plus, up) && spotOnPlane(cell, psd_centre_mm, minus, um))
+      j.col(i) = (up - um) / (2 * kH);
+  }
+  return j;
+}
+
+std::string ServoOptions::validate() const {
+  if (!(tolerance_mm > 0)) return "tolerance_mm must be positive";
+  if (!(hit_zone_mm > 0)) return "hit_zone_mm must be positive";
+  if (!(settle_mm > 0)) return "settle_mm must be positive";
+  if (!(max_step_deg > 0)) return "max_step_deg must be positive";
+  if (!(limit_margin_deg >= 0)) return "limit_margin_deg must not be negative";
+  if (!(gain > 0 && gain <= 1)) return "gain must be in (0, 1]";
+  if (!(damping_mm >= 0)) return "damping_mm must not be negative";
+  if (max_iterations < 1) return "max_iterations must be at least 1";
+  if (!(max_time_s > 0)) return "max_time_s must be positive";
+  if (!(search_step_mm > 0)) return "search_step_mm must be positive";
+  if (!(search_radius_mm >= 0)) return "search_radius_mm must not be negative";
+  if (max_search_points < 0) return "max_search_points must not be negative";
+  if (!(max_search_time_s > 0)) return "max_search_time_s must be positive";
+  return {};
+}
+
+const char* statusName(ServoStatus status) noexcept {
+  switch (status) {
+    case ServoStatus::kConverged:
+      return "converged";
+    case ServoStatus::kSpotNotFound:
+      return "spot not found";
+    case ServoStatus::kSpotLost:
+      return "spot lost";
+    case ServoStatus::kNotConverged:
+      return "not converged";
+    case ServoStatus::kLimit:
+      return "limit";
+    case ServoStatus::kLinkError:
+      return "link error";
+    case ServoStatus::kSensorError:
+      return "sensor error";
+    case ServoStatus::kBadStart:
+      return "bad start";
+  }
+  return "?";
+}
+
+PsdServo::PsdServo(const CellModel& cell, const Eigen::Vector3d& psd_centre_mm,
+                   ServoOptions options)
+    : cell_(cell), psd_centre_(psd_centre_mm), options_(options) {
+  const std::string problem = options_.validate();
+  if (!problem.empty()) throw ConfigError("servo options", {problem});
+}
+
+void PsdServo::record(const PsdReading& reading) noexcept {
+  ServoSample& s = ring_[ring_next_];
+  s.time_s = reading.time_s;
+  s.q_deg = q_;
+  s.reading = reading;
+  ring_next_ = (ring_next_ + 1) % kFaultHistory;
+  ring_count_ = std::min(ring_count_ + 1, kFaultHistory);
+}
+
+ServoResult& PsdServo::latch(ServoResult& result, ServoStatus status,
+                             const char* message) noexcept {
+  result.status = status;
+  result.q_deg = q_;
+  faulted_ = true;
+  fault_.status = status;
+  fault_.message = message;
+  fault_.sample_count = ring_count_;
+  const std::size_t first = (ring_next_ + kFaultHistory - ring_count_) % kFaultHistory;
+  for (std::size_t i = 0; i < ring_count_; ++i)
+    fault_.samples[i] = ring_[(first + i) % kFaultHistory];
+  return result;
+}
+
+PsdServo::Step PsdServo::move(ControllerLink& robot, const Joints& target,
+                              ServoResult& result) noexcept {
+  // Checked here, before anything is sent, whatever computed the target.
+  for (int i = 0; i < kJointCount; ++i) {
+    if (!(std::abs(target[i] - q_[i]) <= options_.max_step_deg * (1 + 1e-12))) {
+      latch(result, ServoStatus::kLimit, "a move would exceed the step limit");
+      return Step::kFailed;
+    }
+  }
+  if (!cell_.robot.withinLimits(target, options_.limit_margin_deg)) {
+    latch(result, ServoStatus::kLimit, "a move would leave the joint limits less the margin");
+    return Step::kFailed;
+  }
+  try {
+    robot.moveJoints(target);
+  } catch (...) {
+    latch(result, ServoStatus::kLinkError, "the controller link failed during a move");
+    return Step::kFailed;
+  }
+  q_ = target;
+  ++result.moves;
+  return Step::kOk;
+}
+
+PsdServo::Step PsdServo::walkTo(ControllerLink& robot, const Joints& target,
+                                ServoResult& result) noexcept {
+  const JointVector from = toVector(q_);
+  const JointVector delta = toVector(target) - from;
+  const int n = std::max(1, static_cast<int>(std::ceil(maxAbs(delta) / options_.max_step_deg)));
+  for (int k = 1; k <= n; ++k) {
+    const Joints q = k == n ? target : toJoints(from + delta * (static_cast<double>(k) / n));
+    if (move(robot, q, result) != Step::kOk) return Step::kFailed;
+  }
+  return Step::kOk;
+}
+
+PsdServo::Step PsdServo::read(PsdReader& psd, ServoResult& result) noexcept {
+  try {
+    result.reading = psd.read();
+  } catch (...) {
+    latch(result, ServoStatus::kSensorError, "the PSD reader failed");
+    return Step::kFailed;
+  }
+  ++result.readings;
+  result.end_s = result.reading.time_s;
+  record(result.reading);
+  return Step::kOk;
+}
+
+bool PsdServo::acquire(ControllerLink& robot, PsdReader& psd, const Joints& planned,
+                       const Eigen::Vector2d& expected_uv, ServoResult& result) noexcept {
+  const Eigen::Matrix<double, kJointCount, 2> pinv =
+      pseudoInverse(imageJacobian(cell_, psd_centre_, planned), options_.damping_mm);
+  const JointVector base = toVector(planned);
+  // Archimedean spiral r = b theta, b = step / 2 pi: turns step apart, points step apart along it.
+  const double b = options_.search_step_mm / (2 * kPi);
+  // The planned pose itself was read already; with a prediction the spiral's centre is new.
+  const bool centre_new = expected_uv.norm() > 0.5 * options_.search_step_mm;
+  double theta = centre_new ? 0.0 : 2 * kPi;
+  for (int point = 0; point < options_.max_search_points; ++point) {
+    const double r = b * theta;
+    if (r > options_.search_radius_mm) break;
+    if (result.reading.time_s - result.start_s > options_.max_search_time_s) break;
+    // Spot offsets wanted from where it is expected: dq = J^+ (wanted - expected).
+    const Eigen::Vector2d offset(r * std::cos(theta), r * std::sin(theta));
+    const Joints target = toJoints(base + pinv * (offset - expected_uv));
+    theta = theta == 0.0 ? 2 * kPi
+                         : theta + options_.search_step_mm / std::max(r, options_.search_step_mm);
+    // Points the arm cannot reach are skipped; the rest of the spiral may still find the spot.
+    if (!cell_.robot.withinLimits(target, options_.limit_margin_deg)) continue;
+    const int before = result.moves;
+    if (walkTo(robot, target, result) != Step::kOk) return false;
+    result.search_moves += result.moves - before;
+    if (read(psd, result) != Step::kOk) return false;
+    if (result.reading.spot_present) return true;
+  }
+  // Leave the robot where the caller put it, not somewhere on the spiral.
+  const int before = result.moves;
+  const Step back = walkTo(robot, planned, result);
+  result.search_moves += result.moves - before;
+  if (back == Step::kOk)
+    latch(result, ServoStatus::kSpotNotFound, "spot not found; robot back at the planned pose");
+  return false;
+}
+
+Joints PsdServo::solveStep(const ImageJacobian& j, const Eigen::Vector2d& e) const noexcept {
+  JointVector dq = -options_.gain * (pseudoInverse(j, options_.damping_mm) * e);
+  const double largest = maxAbs(dq);
+  if (largest > options_.max_step_deg) dq *= options_.max_step_deg / largest;
+  return toJoints(toVector(q_) + dq);
+}
+
+void PsdServo::fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& result) noexcept {
+  ImageJacobian j = imageJacobian(cell_, psd_centre_, q_);
+  const Eigen::Vector2d target(options_.target_u_mm, options_.target_v_mm);
+  bool have_previous = false;  // a move between the previous reading and this one
+  Eigen::Vector2d e_previous = Eigen::Vector2d::Zero();
+  bool previous_valid = false;
+  JointVector dq_previous = JointVector::Zero();
+  bool settling = false;
+  Eigen::Vector2d settle_uv = Eigen::Vector2d::Zero();
+
+  for (;;) {
+    const PsdReading& r = result.reading;
+    const Eigen::Vector2d uv(r.u_mm, r.v_mm);
+    const Eigen::Vector2d e = uv - target;
+    result.final_error_um = e.norm() * 1e3;
+    if (!r.spot_present) {
+      latch(result, ServoStatus::kSpotLost, "the spot left the detector");
+      return;
+    }
+    if (r.in_valid_zone) {
+      if (options_.mode == ServoMode::kCentre && e.norm() <= options_.tolerance_mm) break;
+      if (options_.mode == ServoMode::kHitPoint && e.norm() <= options_.hit_zone_mm) {
+        if (settling && (uv - settle_uv).norm() <= options_.settle_mm) break;
+        // Read again without moving: a reading is only recorded once it repeats.
+        settling = true;
+        settle_uv = uv;
+        have_previous = false;
+        if (result.iterations >= options_.max_iterations ||
+            r.time_s - result.acquired_s > options_.max_time_s) {
+          latch(result, ServoStatus::kNotConverged, "the reading did not settle in time");
+          return;
+        }
+        if (read(psd, result) != Step::kOk) return;
+        ++result.iterations;
+        continue;
+      }
+    }
+    settling = false;
+    // Broyden's correction, only from motion the noise cannot fake and readings the map trusts.
+    if (options_.broyden && have_previous && previous_valid && r.in_valid_zone) {
+      const Eigen::Vector2d predicted = j * dq_previous;
+      if (predicted.norm() >= options_.broyden_min_motion_mm)
+        j += ((e - e_previous) - predicted) * dq_previous.transpose() / dq_previous.squaredNorm();
+    }
+    if (result.iterations >= options_.max_iterations ||
+        r.time_s - result.acquired_s > options_.max_time_s) {
+      latch(result, ServoStatus::kNotConverged, "iterations or time exhausted");
+      return;
+    }
+    const Joints next = solveStep(j, e);
+    dq_previous = toVector(next) - toVector(q_);
+    e_previous = e;
+    previous_valid = r.in_valid_zone;
+    if (move(robot, next, result) != Step::kOk) return;
+    have_previous = true;
+    if (read(psd, result) != Step::kOk) return;
+    ++result.iterations;
+  }
+  result.status = ServoStatus::kConverged;
+  result.q_deg = q_;
+}
+
+ServoResult PsdServo::run(ControllerLink& robot, PsdReader& psd, const Joints& planned_deg,
+                          const Eigen::Vector2d& expected_uv_mm) noexcept {
+  ServoResult result;
+  ring_count_ = ring_next_ = 0;
+  faulted_ = false;
+  try {
+    q_ = robot.readJoints();
+  } catch (...) {
+    return latch(result, ServoStatus::kLinkError, "the controller link failed reading joints");
+  }
+  // The controller stores float32 and speaks 5 decimals: a few 1e-5 deg from the request.
+  for (int i = 0; i < kJointCount; ++i) {
+    if (!(std::abs(q_[i] - planned_deg[i]) <= 1e-3))
+      return latch(result, ServoStatus::kBadStart, "the robot is not at the planned pose");
+  }
+  // Continue from the pose requested, not its float32 echo, so the recorded joints are exact.
+  q_ = planned_deg;
+  if (read(psd, result) != Step::kOk) return result;
+  result.start_s = result.reading.time_s;
+  if (!result.reading.spot_present && !acquire(robot, psd, planned_deg, expected_uv_mm, result)) {
+    result.acquired_s = result.end_s;
+    return result;
+  }
+  result.acquired_s = result.reading.time_s;
+  fineServo(robot, psd, result);
+  return result;
+}
+
+}  // namespace zerocal::servo

@@ -1,0 +1,84 @@
+#include "zerocal/servo/spot_predictor.h"
+
+#include <Eigen/Dense>
+#include <cmath>
+
+#include "zerocal/model/kinematics.h"
+
+namespace zerocal::servo {
+namespace {
+
+// Spread (one sigma) of each unknown before any pose, as the cell is built: offsets uniform in
+// +-1 deg on all six joints, laser slopes +-0.02 and point +-5 mm, the centre taught within a few
+// mm. All six offsets are unknowns here, unlike in the solver: delta1 and delta6 cannot be told
+// apart from the centre and the laser, but they move the spot all the same, and a prior that
+// ignores them misplaces the early predictions by centimetres.
+PredictorState spread() {
+  PredictorState s;
+  s << Eigen::Matrix<double, 6, 1>::Constant(0.58 * kDegToRad), 0.012, 0.012, 2.9, 2.9, 5, 5, 5;
+  return s;
+}
+
+}  // namespace
+
+SpotPredictor::SpotPredictor(const CellModel& cell, const Eigen::Vector3d& taught_centre_mm)
+    : cell_(cell), centre_(taught_centre_mm) {}
+
+Eigen::Vector2d SpotPredictor::spot(const PredictorState& x, const Joints& q) const {
+  Joints delta_deg;
+  for (int i = 0; i < kJointCount; ++i) delta_deg[i] = x[i] * kRadToDeg;
+  const Frame<double> flange = flangePoseDeg(cell_.robot, q, delta_deg);
+  Eigen::Vector3d point, direction;
+  cell_.laser.line(x.data() + 6, &point, &direction);
+  const Eigen::Vector3d p = flange.apply(point), d = flange.R * direction;
+  const Eigen::Vector3d c = centre_ + x.tail<3>();
+  const Eigen::Vector3d n = cell_.psd_rotation.col(2);
+  const double t = n.dot(c - p) / n.dot(d);
+  // Relative to the estimated centre, in the PSD frame: the frame the readings are in.
+  return (cell_.psd_rotation.transpose() * (p + t * d - c)).head<2>();
+}
+
+void SpotPredictor::addPose(const Joints& q_deg, const Eigen::Vector2d& uv_mm) {
+  poses_.emplace_back(q_deg, uv_mm);
+  refit();
+}
+
+Eigen::Vector2d SpotPredictor::predict(const Joints& q_deg) const { return spot(x_, q_deg); }
+
+Eigen::Vector2d SpotPredictor::searchCentre(const Joints& q_deg) const {
+  return poseCount() >= kConfidentPoses ? predict(q_deg) : Eigen::Vector2d::Zero();
+}
+
+void SpotPredictor::refit() {
+  constexpr int kN = PredictorState::RowsAtCompileTime;
+  const PredictorState s = spread();
+  const int m = 2 * static_cast<int>(poses_.size());
+  PredictorState x = x_;
+  for (int iteration = 0; iteration < 10; ++iteration) {
+    Eigen::MatrixXd j(m + kN, kN);
+    Eigen::VectorXd r(m + kN);
+    for (int i = 0; i < static_cast<int>(poses_.size()); ++i) {
+      const Eigen::Vector2d f = spot(x, poses_[i].first);
+      r.segment<2>(2 * i) = f - poses_[i].second;
+      for (int k = 0; k < kN; ++k) {
+        PredictorState xp = x;
+        const double h = 1e-3 * s[k];
+        xp[k] += h;
+        j.block<2, 1>(2 * i, k) = (spot(xp, poses_[i].first) - f) / h;
+      }
+    }
+    // Maximum a posteriori: readings weighted as 0.02 mm (the robot's repeatability, not the
+    // PSD's noise), the prior in units of each spread.
+    constexpr double kReadingMm = 0.02;
+    j.topRows(m) /= kReadingMm;
+    r.head(m) /= kReadingMm;
+    j.bottomRows(kN) = s.cwiseInverse().asDiagonal();
+    r.tail(kN) = x.cwiseQuotient(s);
+    const PredictorState step = -(j.transpose() * j).ldlt().solve(j.transpose() * r);
+    x += step;
+    if (step.cwiseQuotient(s).norm() < 1e-6) break;
+  }
+  x_ = x;
+}
+
+}  // namespace zerocal::servo

@@ -1,0 +1,310 @@
+// Unit tests of the PSD servo against fakes of its two seams: a controller link that records
+// every move and a PSD whose spot is computed exactly from a World (no TCP, no board).
+#include "zerocal/servo/servo.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cmath>
+#include <cstdlib>
+#include <new>
+#include <stdexcept>
+#include <vector>
+
+#include "zerocal/calib/cell_model.h"
+#include "zerocal/calib/planner.h"
+#include "zerocal/servo/spot_predictor.h"
+#include "zerocal/sim/world.h"
+
+// Counts heap allocations while a test asks, to check that run() makes none of its own.
+namespace {
+std::atomic<bool> g_counting{false};
+std::atomic<long> g_allocations{0};
+}  // namespace
+
+void* operator new(std::size_t size) {
+  if (g_counting.load()) ++g_allocations;
+  if (void* p = std::malloc(size ? size : 1)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+
+namespace zerocal::servo {
+namespace {
+
+class RecordingLink final : public ControllerLink {
+ public:
+  explicit RecordingLink(const Joints& start) : q(start) {}
+  void ping() override {}
+  RobotInfo robotInfo() override { return {}; }
+  Joints readJoints() override { return q; }
+  RecordingLink(const Joints& start, std::size_t capacity) : q(start) { moves.reserve(capacity); }
+  void moveJoints(const Joints& target) override {
+    if (fail_after >= 0 && static_cast<int>(moves.size()) >= fail_after)
+      throw std::runtime_error("link down");
+    moves.push_back(target);
+    q = target;
+    time_s += 0.1;
+  }
+  TcpPose readPose() override { return {}; }
+  void moveLinear(const TcpPose&) override {}
+
+  Joints q;
+  std::vector<Joints> moves;
+  double time_s = 0;
+  int fail_after = -1;
+};
+
+// The exact spot of the world's beam; the detector is the 10 mm disk, the map's zone +-0.6 mm.
+class ExactPsd final : public PsdReader {
+ public:
+  ExactPsd(const World& world, RecordingLink& link) : world_(world), link_(link) {}
+  PsdReading read() override {
+    PsdReading r;
+    clock_s_ += 0.004;
+    r.time_s = link_.time_s + clock_s_;
+    const auto hit = beamHit(world_, link_.q);
+    if (!hit || std::hypot(hit->u_mm, hit->v_mm) > 5.0) return r;
+    r.spot_present = true;
+    r.sum_v = 4;
+    r.in_valid_zone = std::abs(hit->u_mm) <= 0.6 && std::abs(hit->v_mm) <= 0.6;
+    // Outside the zone a saturating estimate, as the real chain gives.
+    r.u_mm = r.in_valid_zone ? hit->u_mm : std::tanh(hit->u_mm);
+    r.v_mm = r.in_valid_zone ? hit->v_mm : std::tanh(hit->v_mm);
+    return r;
+  }
+
+ private:
+  const World& world_;
+  RecordingLink& link_;
+  double clock_s_ = 0;
+};
+
+struct Scenario {
+  World world;
+  CellModel cell;
+  Joints planned{};
+};
+
+// A world with random offsets up to 1 deg and a pose whose nominal beam meets the PSD centre
+// from 600 mm, tilted 20 deg from the normal.
+Scenario scenario(std::uint64_t seed) {
+  Scenario s;
+  s.world = randomWorld(seed);
+  s.world.noise.repeatability_deg = 0;
+  s.cell.robot = s.world.robot;
+  s.cell.psd_rotation = s.world.psd_rotation;
+  const Eigen::Vector3d n = s.world.psd_rotation.col(2);
+  const Eigen::Vector3d beam =
+      (-n + 0.36 * s.world.psd_rotation.col(0)).normalized();  // ~20 deg incidence
+  const auto q =
+      aimLaser(s.cell, s.world.psd_position_mm, beam, 600.0, Joints{0, 10, 10, 0, 60, 0}, 5.0);
+  EXPECT_TRUE(q.has_value());
+  if (q) s.planned = *q;
+  return s;
+}
+
+ServoOptions centreOptions() {
+  ServoOptions o;
+  o.mode = ServoMode::kCentre;
+  return o;
+}
+
+void expectMovesWithinBounds(const Robot& robot, const Joints& start,
+                             const std::vector<Joints>& moves, const ServoOptions& o) {
+  Joints prev = start;
+  for (const Joints& m : moves) {
+    for (int i = 0; i < kJointCount; ++i)
+      ASSERT_LE(std::abs(m[i] - prev[i]), o.max_step_deg + 1e-9) << "joint " << i + 1;
+    ASSERT_TRUE(robot.withinLimits(m, o.limit_margin_deg));
+    prev = m;
+  }
+}
+
+TEST(ImageJacobian, MatchesTheExactSpotMotionOfANominalWorld) {
+  Scenario s = scenario(3);
+  World nominal = s.world;
+  nominal.true_offsets_deg = Joints{};
+  nominal.laser_point_mm = Eigen::Vector3d::Zero();
+  nominal.laser_direction = Eigen::Vector3d::UnitX();
+  const ImageJacobian j = imageJacobian(s.cell, nominal.psd_position_mm, s.planned);
+  for (int i = 0; i < kJointCount; ++i) {
+    Joints plus = s.planned, minus = s.planned;
+    plus[i] += 1e-3;
+    minus[i] -= 1e-3;
+    const auto a = beamHit(nominal, plus), b = beamHit(nominal, minus);
+    ASSERT_TRUE(a && b);
+    EXPECT_NEAR(j(0, i), (a->u_mm - b->u_mm) / 2e-3, 1e-3 * (1 + std::abs(j(0, i))));
+    EXPECT_NEAR(j(1, i), (a->v_mm - b->v_mm) / 2e-3, 1e-3 * (1 + std::abs(j(1, i))));
+  }
+  // About 10 mm per degree at 600 mm for the wrist (calibration-math.md section 6).
+  EXPECT_GT(j.col(4).norm(), 5.0);
+}
+
+TEST(PsdServo, AcquiresAndConvergesToTwoMicrometresWithOneDegreeOffsets) {
+  for (std::uint64_t seed : {1u, 2u, 5u, 8u}) {
+    Scenario s = scenario(seed);
+    RecordingLink link(s.planned);
+    ExactPsd psd(s.world, link);
+    const ServoOptions o = centreOptions();
+    PsdServo servo(s.cell, s.world.psd_position_mm, o);
+    const ServoResult r = servo.run(link, psd, s.planned);
+    ASSERT_TRUE(r.ok()) << "seed " << seed << ": " << statusName(r.status) << " "
+                        << servo.fault().message;
+    EXPECT_FALSE(servo.faulted());
+    EXPECT_LE(r.final_error_um, 2.0);
+    const auto hit = beamHit(s.world, link.q);
+    EXPECT_LE(std::hypot(hit->u_mm, hit->v_mm), 0.002);
+    EXPECT_EQ(r.moves, static_cast<int>(link.moves.size()));
+    expectMovesWithinBounds(s.cell.robot, s.planned, link.moves, o);
+    std::printf("seed %d: %d moves (%d searching), %d iterations, %.2f um, %.2f s\n",
+                static_cast<int>(seed), r.moves, r.search_moves, r.iterations, r.final_error_um,
+                r.end_s - r.start_s);
+  }
+}
+
+TEST(PsdServo, RunAllocatesNothing) {
+  Scenario s = scenario(2);
+  RecordingLink link(s.planned, 10000);
+  ExactPsd psd(s.world, link);
+  PsdServo servo(s.cell, s.world.psd_position_mm, centreOptions());
+  g_allocations = 0;
+  g_counting = true;
+  const ServoResult r = servo.run(link, psd, s.planned);
+  g_counting = false;
+  EXPECT_TRUE(r.ok());
+  EXPECT_GT(r.moves, 10);
+  EXPECT_EQ(g_allocations.load(), 0);
+}
+
+TEST(PsdServo, NeverExceedsASmallStepLimit) {
+  Scenario s = scenario(2);
+  RecordingLink link(s.planned);
+  ExactPsd psd(s.world, link);
+  ServoOptions o = centreOptions();
+  o.max_step_deg = 0.02;
+  o.max_iterations = 400;
+  o.max_search_points = 5000;
+  o.max_time_s = o.max_search_time_s = 1e4;
+  PsdServo servo(s.cell, s.world.psd_position_mm, o);
+  const ServoResult r = servo.run(link, psd, s.planned);
+  EXPECT_TRUE(r.ok()) << statusName(r.status);
+  ASSERT_FALSE(link.moves.empty());
+  expectMovesWithinBounds(s.cell.robot, s.planned, link.moves, o);
+}
+
+TEST(PsdServo, RefusesAMoveBeyondTheLimitsAndSendsNothingOutside) {
+  Scenario s = scenario(2);
+  RecordingLink link(s.planned);
+  ExactPsd psd(s.world, link);
+  // The spot starts on the detector, about 1 mm off centre: the fine servo needs ~0.05 deg.
+  s.world.true_offsets_deg = Joints{0, 0.05, 0, 0, 0, 0};
+  s.world.laser_point_mm = Eigen::Vector3d::Zero();
+  s.world.laser_direction = Eigen::Vector3d::UnitX();
+  ServoOptions o = centreOptions();
+  // Limits shrunk around the planned pose: the servo may move 0.01 deg at most.
+  for (int i = 0; i < kJointCount; ++i) {
+    s.cell.robot.limits[i].lower_deg = s.planned[i] - 1.01;
+    s.cell.robot.limits[i].upper_deg = s.planned[i] + 1.01;
+  }
+  PsdServo servo(s.cell, s.world.psd_position_mm, o);
+  const ServoResult r = servo.run(link, psd, s.planned);
+  EXPECT_EQ(r.status, ServoStatus::kLimit);
+  EXPECT_TRUE(servo.faulted());
+  expectMovesWithinBounds(s.cell.robot, s.planned, link.moves, o);
+}
+
+TEST(PsdServo, SpotNeverFoundFaultsWithTheRobotBackAtThePlannedPose) {
+  Scenario s = scenario(1);
+  s.world.psd_position_mm += Eigen::Vector3d(0, 0, -300);  // far below the searched area
+  s.world.psd_position_mm += s.world.psd_rotation.col(0) * 200;
+  RecordingLink link(s.planned);
+  ExactPsd psd(s.world, link);
+  ServoOptions o = centreOptions();
+  o.search_radius_mm = 20;
+  PsdServo servo(s.cell, s.world.psd_position_mm, o);
+  const ServoResult r = servo.run(link, psd, s.planned);
+  EXPECT_EQ(r.status, ServoStatus::kSpotNotFound);
+  ASSERT_TRUE(servo.faulted());
+  EXPECT_EQ(servo.fault().status, ServoStatus::kSpotNotFound);
+  EXPECT_EQ(servo.fault().sample_count, kFaultHistory);
+  EXPECT_GT(r.search_moves, 50);
+  EXPECT_EQ(link.q, s.planned);
+  expectMovesWithinBounds(s.cell.robot, s.planned, link.moves, o);
+  // The search points sit closer together on the PSD plane than the 2.5 mm spot is wide.
+  for (std::size_t i = 1; i < 100; ++i) {
+    const auto a = beamHit(s.world, link.moves[i - 1]), b = beamHit(s.world, link.moves[i]);
+    ASSERT_TRUE(a && b);
+    EXPECT_LT(std::hypot(a->u_mm - b->u_mm, a->v_mm - b->v_mm), 2.5) << "move " << i;
+  }
+  // The latched samples are the last ones, in order.
+  for (std::size_t i = 1; i < servo.fault().sample_count; ++i)
+    EXPECT_GT(servo.fault().samples[i].time_s, servo.fault().samples[i - 1].time_s);
+}
+
+TEST(PsdServo, ALinkFailureIsLatchedNotThrown) {
+  Scenario s = scenario(1);
+  RecordingLink link(s.planned);
+  link.fail_after = 2;
+  ExactPsd psd(s.world, link);
+  PsdServo servo(s.cell, s.world.psd_position_mm, centreOptions());
+  const ServoResult r = servo.run(link, psd, s.planned);
+  EXPECT_EQ(r.status, ServoStatus::kLinkError);
+  EXPECT_TRUE(servo.faulted());
+  EXPECT_GE(servo.fault().sample_count, 1u);
+}
+
+TEST(PsdServo, RobotNotAtThePlannedPoseIsABadStart) {
+  Scenario s = scenario(1);
+  Joints elsewhere = s.planned;
+  elsewhere[2] += 0.1;
+  RecordingLink link(elsewhere);
+  ExactPsd psd(s.world, link);
+  PsdServo servo(s.cell, s.world.psd_position_mm, centreOptions());
+  EXPECT_EQ(servo.run(link, psd, s.planned).status, ServoStatus::kBadStart);
+  EXPECT_TRUE(link.moves.empty());
+}
+
+TEST(SpotPredictor, PredictsTheMissAfterAFewServoedPoses) {
+  Scenario s = scenario(4);
+  SpotPredictor predictor(s.cell, s.world.psd_position_mm);
+  EXPECT_EQ(predictor.searchCentre(s.planned), Eigen::Vector2d::Zero());
+  // Servoed poses: beams of the true world through the PSD centre from several directions.
+  const Eigen::Matrix3d r = s.world.psd_rotation;
+  int added = 0;
+  for (int k = 0; k < 8 && added < 6; ++k) {
+    const double a = k * kPi / 4;
+    const Eigen::Vector3d beam =
+        (-r.col(2) + 0.4 * (std::cos(a) * r.col(0) + std::sin(a) * r.col(1))).normalized();
+    const auto q = aimLaser(s.cell, s.world.psd_position_mm, beam, 500.0 + 30 * k,
+                            Joints{0, 10, 10, 0, 60, 0}, 5.0);
+    if (!q) continue;
+    // Walk the real spot onto the centre with the exact world (what the servo achieves).
+    RecordingLink link(*q);
+    ExactPsd psd(s.world, link);
+    PsdServo servo(s.cell, s.world.psd_position_mm, centreOptions());
+    const ServoResult res = servo.run(link, psd, *q);
+    if (!res.ok()) continue;
+    predictor.addPose(res.q_deg, Eigen::Vector2d(res.reading.u_mm, res.reading.v_mm));
+    ++added;
+  }
+  ASSERT_GE(added, SpotPredictor::kConfidentPoses);
+  const auto truth = beamHit(s.world, s.planned);
+  ASSERT_TRUE(truth);
+  const Eigen::Vector2d predicted = predictor.searchCentre(s.planned);
+  const double miss = std::hypot(truth->u_mm, truth->v_mm);
+  const double error = std::hypot(predicted.x() - truth->u_mm, predicted.y() - truth->v_mm);
+  std::printf("miss at the planned pose %.1f mm, predicted within %.2f mm\n", miss, error);
+  EXPECT_LT(error, std::max(2.0, 0.2 * miss));
+}
+
+TEST(ServoOptions, ValidateNamesTheProblem) {
+  ServoOptions o;
+  EXPECT_TRUE(o.validate().empty());
+  o.max_step_deg = 0;
+  EXPECT_NE(o.validate().find("max_step_deg"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace zerocal::servo

@@ -189,7 +189,13 @@ int main(int argc, char** argv) {
   cli::PsdCommands psd_cmds;
   cli::addPsdCommands(app, psd_cmds);
 
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    // --help and --version arrive here too, with exit code 0; every real usage error is bad
+    // input, so scripts see the same code as for a bad file.
+    return app.exit(e) == 0 ? kOk : kBadInput;
+  }
 
   try {
     if (solve_cmd->parsed()) {

@@ -14,9 +14,12 @@ namespace zerocal {
 // Flange pose for controller joints q (radians) with the offsets delta2..delta5 added.
 template <typename T>
 Frame<T> flangeWithOffsets(const Robot& robot, const double* q_rad, const T* delta) {
-  const T joints[kJointCount] = {T(q_rad[0]),            T(q_rad[1]) + delta[0],
-                                 T(q_rad[2]) + delta[1], T(q_rad[3]) + delta[2],
-                                 T(q_rad[4]) + delta[3], T(q_rad[5])};
+  const T joints[kJointCount] = {T(q_rad[0]),
+                                 T(q_rad[1]) + delta[0],
+                                 T(q_rad[2]) + delta[1],
+                                 T(q_rad[3]) + delta[2],
+                                 T(q_rad[4]) + delta[3],
+                                 T(q_rad[5])};
   return flangePose(robot, joints);
 }
 

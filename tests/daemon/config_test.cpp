@@ -198,7 +198,7 @@ TEST_F(ConfigTest, InconsistentCombinations) {
   write("main.yaml",
         "backend:\n  kind: sim\n  sim_world: /nonexistent/world.yaml\n  sim_seed: 3\n"
         "  sim_host: localhost\n"
-        "servo:\n  max_step_deg: 20\n  search_step_mm: 6\n"
+        "servo:\n  max_step_deg: 20\n  search_step_mm: 70\n"
         "session:\n  plan: file\n"
         "control:\n  bind_address: 0.0.0.0\n"
         "daq:\n  channels:\n    y:\n      number: 0\n"

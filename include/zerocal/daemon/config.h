@@ -65,15 +65,15 @@ struct DaqConfig {
 enum class ServoStop { kCentre, kZone };
 
 struct ServoConfig {
-  ServoStop stop = ServoStop::kCentre;  // centre: within tolerance_um; zone: settled in the zone
+  ServoStop stop = ServoStop::kZone;  // centre: within tolerance_um; zone: settled in the zone
   double tolerance_um = 2.0;
-  double max_step_deg = 0.05;  // largest joint step of one servo move (<= controller.max_step_deg)
-  int max_iterations = 50;
-  double timeout_s = 30.0;
+  double max_step_deg = 0.5;  // largest joint step of one servo move (<= controller.max_step_deg)
+  int max_iterations = 40;
+  double timeout_s = 20.0;
   double settle_s = 0.2;          // wait after a move before a reading counts
-  double search_radius_mm = 5.0;  // acquisition: spiral search around the planned spot
-  double search_step_mm = 0.5;    // spacing of the spiral (smaller than the spot)
-  double search_time_s = 60.0;
+  double search_radius_mm = 60.0;  // acquisition: spiral search around the planned spot
+  double search_step_mm = 2.0;    // spacing of the spiral (smaller than the spot)
+  double search_time_s = 300.0;
 };
 
 enum class PlanKind { kOptimal, kI, kII, kMixed, kFile };
@@ -83,7 +83,7 @@ struct SessionConfig {
   std::string plan_file;  // a joint-set file; required by plan: file, refused otherwise
   int poses = 8;
   std::array<double, 3> target_mm{900.0, -50.0, 400.0};  // nominal PSD centre, robot base frame
-  double noise_mm = 0.001;  // PSD reading sigma assumed by the planner's predicted uncertainty
+  double noise_mm = 0.010;  // measurement sigma: the robot's repeatability seen at the PSD
   std::string data_dir = "/var/lib/zerocal/sessions";  // one folder per session (journal.h)
 };
 

@@ -70,9 +70,9 @@ struct ServoConfig {
   double max_step_deg = 0.5;  // largest joint step of one servo move (<= controller.max_step_deg)
   int max_iterations = 40;
   double timeout_s = 20.0;
-  double settle_s = 0.2;          // wait after a move before a reading counts
+  double settle_s = 0.2;           // wait after a move before a reading counts
   double search_radius_mm = 60.0;  // acquisition: spiral search around the planned spot
-  double search_step_mm = 2.0;    // spacing of the spiral (smaller than the spot)
+  double search_step_mm = 2.0;     // spacing of the spiral (smaller than the spot)
   double search_time_s = 300.0;
 };
 

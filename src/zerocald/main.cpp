@@ -16,10 +16,9 @@
 #include "zerocal/daemon/journal.h"
 #include "zerocal/daemon/logging.h"
 #include "zerocal/error.h"
-#include "zerocal/irc5/irc5_client.h"
 #include "zerocal/model/builtin.h"
 #include "zerocal/session/calibration_run.h"
-#include "zerocal/sim/simulated_cell.h"
+#include "zerocal/sim/simulated_rig.h"
 
 namespace zerocal {
 namespace {
@@ -73,15 +72,8 @@ int runOnce(const DaemonConfig& cfg, bool json) {
   const std::uint64_t seed = cfg.backend.sim_seed.value_or(1);
   cell_options.controller_seed = seed;
   cell_options.psd.seed = static_cast<std::uint32_t>(seed) + 100;
-  sim::SimulatedCell cell(std::move(cell_options));
-  const World& world = cell.world();
-
-  Irc5Options client_options = cell.clientOptions();
-  client_options.limit_margin_deg = cfg.controller.limit_margin_deg;
-  Irc5Client robot(client_options);
-  robot.connect();
-  usb1408fs::Usb1408fs daq(cell.boardOpener());
-  servo::ChainPsdReader psd(daq, cell.psdMap(), cell);
+  sim::SimulatedRig rig(std::move(cell_options), cfg.controller.limit_margin_deg);
+  const World& world = rig.cell.world();
 
   // What the session knows: the nominal robot and laser, the PSD's mounting orientation, and its
   // centre as a technician would teach it by jogging (here 3 mm off the truth on each axis).
@@ -117,9 +109,9 @@ int runOnce(const DaemonConfig& cfg, bool json) {
     std::fprintf(stderr, "pose %d of %d recorded: %d servo moves, %.2f um from the aim point\n",
                  r.index + 1, n, r.servo.moves, r.servo.final_error_um);
   };
-  const double start_s = cell.nowS();
-  const RunOutcome outcome = run.run(robot, psd, cell, g_abort);
-  const double cell_time_s = cell.nowS() - start_s;
+  const double start_s = rig.cell.nowS();
+  const RunOutcome outcome = run.run(rig.client, rig.psd, rig.cell, g_abort);
+  const double cell_time_s = rig.cell.nowS() - start_s;
   if (outcome.state != RunState::kCompleted) {
     log->error("session {} {}: {} ({} poses journalled in {})", session.id,
                outcome.state == RunState::kAborted ? "aborted" : "faulted", outcome.message,

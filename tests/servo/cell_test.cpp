@@ -13,7 +13,7 @@
 #include "zerocal/irc5/irc5_client.h"
 #include "zerocal/servo/servo.h"
 #include "zerocal/servo/spot_predictor.h"
-#include "zerocal/sim/simulated_cell.h"
+#include "zerocal/sim/simulated_rig.h"
 
 namespace zerocal::servo {
 namespace {
@@ -33,19 +33,7 @@ Knowledge knowledgeOf(const World& world) {
   return k;
 }
 
-struct Rig {
-  explicit Rig(sim::SimulatedCellOptions options)
-      : cell(std::move(options)),
-        client(cell.clientOptions()),
-        daq(cell.boardOpener()),
-        psd(daq, cell.psdMap(), cell) {
-    client.connect();
-  }
-  sim::SimulatedCell cell;
-  Irc5Client client;
-  usb1408fs::Usb1408fs daq;
-  ChainPsdReader psd;
-};
+using Rig = sim::SimulatedRig;
 
 sim::SimulatedCellOptions cellOptions(std::uint64_t seed, double repeatability_deg) {
   sim::SimulatedCellOptions o;

@@ -13,31 +13,19 @@
 
 #include "zerocal/calib/planner.h"
 #include "zerocal/irc5/irc5_client.h"
-#include "zerocal/sim/simulated_cell.h"
+#include "zerocal/sim/simulated_rig.h"
 
 namespace zerocal {
 namespace {
 
-struct Rig {
-  explicit Rig(std::uint64_t seed)
-      : cell([&] {
-          sim::SimulatedCellOptions o;
-          o.world = randomWorld(seed);
-          o.world.noise.repeatability_deg = 5e-4;
-          o.controller_seed = seed;
-          o.psd.seed = static_cast<std::uint32_t>(seed) + 100;
-          return o;
-        }()),
-        client(cell.clientOptions()),
-        daq(cell.boardOpener()),
-        psd(daq, cell.psdMap(), cell) {
-    client.connect();
-  }
-  sim::SimulatedCell cell;
-  Irc5Client client;
-  usb1408fs::Usb1408fs daq;
-  servo::ChainPsdReader psd;
-};
+sim::SimulatedRig rigFor(std::uint64_t seed) {
+  sim::SimulatedCellOptions o;
+  o.world = randomWorld(seed);
+  o.world.noise.repeatability_deg = 5e-4;
+  o.controller_seed = seed;
+  o.psd.seed = static_cast<std::uint32_t>(seed) + 100;
+  return sim::SimulatedRig(std::move(o));
+}
 
 // A fresh folder, removed with everything in it when the test ends.
 struct TempDir {
@@ -51,7 +39,7 @@ struct TempDir {
 };
 
 TEST(CalibrationRun, InterruptedRunResumesFromItsJournalWithoutLosingOrRepeatingAPose) {
-  Rig rig(24);
+  sim::SimulatedRig rig(rigFor(24));
   const World& world = rig.cell.world();
   CellModel knowledge;
   knowledge.robot = world.robot;

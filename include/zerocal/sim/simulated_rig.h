@@ -1,0 +1,34 @@
+// The simulated cell with the production endpoints attached, as a session uses them: the real
+// Irc5Client connected over loopback TCP, the real Usb1408fs protocol code over FakeTransport, and
+// the real PSD chain reading it. Throws as its parts on setup.
+#pragma once
+
+#include <utility>
+
+#include "zerocal/irc5/irc5_client.h"
+#include "zerocal/servo/psd_reader.h"
+#include "zerocal/sim/simulated_cell.h"
+#include "zerocal/usb1408fs/usb1408fs.h"
+
+namespace zerocal::sim {
+
+struct SimulatedRig {
+  explicit SimulatedRig(SimulatedCellOptions options, double limit_margin_deg = 0.0)
+      : cell(std::move(options)),
+        client([&] {
+          Irc5Options o = cell.clientOptions();
+          o.limit_margin_deg = limit_margin_deg;
+          return o;
+        }()),
+        daq(cell.boardOpener()),
+        psd(daq, cell.psdMap(), cell) {
+    client.connect();
+  }
+
+  SimulatedCell cell;
+  Irc5Client client;
+  usb1408fs::Usb1408fs daq;
+  servo::ChainPsdReader psd;
+};
+
+}  // namespace zerocal::sim

@@ -72,7 +72,13 @@ int runOnce(const DaemonConfig& cfg, bool json) {
   const std::uint64_t seed = cfg.backend.sim_seed.value_or(1);
   cell_options.controller_seed = seed;
   cell_options.psd.seed = static_cast<std::uint32_t>(seed) + 100;
-  sim::SimulatedRig rig(std::move(cell_options), cfg.controller.limit_margin_deg);
+  // The controller section applies to the simulated controller as to a real one. Its
+  // max_step_deg is not applied here: the moves between planned poses are large by design.
+  sim::SimulatedRig rig(std::move(cell_options), [&](Irc5Options& o) {
+    o.limit_margin_deg = cfg.controller.limit_margin_deg;
+    o.speed_tcp_mm_s = cfg.controller.speed_tcp_mm_s;
+    o.speed_ori_deg_s = cfg.controller.speed_ori_deg_s;
+  });
   const World& world = rig.cell.world();
 
   // What the session knows: the nominal robot and laser, the PSD's mounting orientation, and its

@@ -47,8 +47,8 @@ struct ControllerConfig {
   std::chrono::milliseconds request_timeout{1000};
   double move_timeout_factor = 2.0;  // a move's deadline: estimated duration * factor + margin
   std::chrono::milliseconds move_timeout_margin{2000};
-  double speed_tcp_mm_s = 100.0;
-  double speed_ori_deg_s = 50.0;
+  double speed_tcp_mm_s = 250.0;  // calibration moves are short and the cell is closed
+  double speed_ori_deg_s = 100.0;
   double limit_margin_deg = 1.0;  // joint targets closer than this to a limit are refused
   double max_step_deg = 10.0;     // largest joint step of any one move
   int reconnect_attempts = 5;

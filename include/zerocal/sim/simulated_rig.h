@@ -3,6 +3,7 @@
 // the real PSD chain reading it. Throws as its parts on setup.
 #pragma once
 
+#include <functional>
 #include <utility>
 
 #include "zerocal/irc5/irc5_client.h"
@@ -13,11 +14,13 @@
 namespace zerocal::sim {
 
 struct SimulatedRig {
-  explicit SimulatedRig(SimulatedCellOptions options, double limit_margin_deg = 0.0)
+  // `adjust` may change the client's options (speeds, margins) before it connects.
+  explicit SimulatedRig(SimulatedCellOptions options,
+                        const std::function<void(Irc5Options&)>& adjust = {})
       : cell(std::move(options)),
         client([&] {
           Irc5Options o = cell.clientOptions();
-          o.limit_margin_deg = limit_margin_deg;
+          if (adjust) adjust(o);
           return o;
         }()),
         daq(cell.boardOpener()),

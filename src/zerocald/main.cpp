@@ -81,12 +81,9 @@ int runOnce(const DaemonConfig& cfg, bool json) {
   });
   const World& world = rig.cell.world();
 
-  // What the session knows: the nominal robot and laser, the PSD's mounting orientation, and its
-  // centre as a technician would teach it by jogging (here 3 mm off the truth on each axis).
-  CellModel knowledge;
-  knowledge.robot = world.robot;
-  knowledge.psd_rotation = world.psd_rotation;
-  const Eigen::Vector3d taught = world.psd_position_mm + Eigen::Vector3d(3, -3, 3);
+  const sim::SessionKnowledge given = sim::knowledgeOf(world);
+  const CellModel& knowledge = given.cell;
+  const Eigen::Vector3d& taught = given.taught_centre;
 
   PlanOptions plan_options;
   plan_options.pattern = patternOf(cfg.session.plan);

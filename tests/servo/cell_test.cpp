@@ -18,21 +18,8 @@
 namespace zerocal::servo {
 namespace {
 
-// What a session knows: the nominal robot and laser, the PSD's mounting orientation, and the
-// PSD centre as taught (here 3 mm off the truth on each axis).
-struct Knowledge {
-  CellModel cell;
-  Eigen::Vector3d taught_centre;
-};
-
-Knowledge knowledgeOf(const World& world) {
-  Knowledge k;
-  k.cell.robot = world.robot;
-  k.cell.psd_rotation = world.psd_rotation;
-  k.taught_centre = world.psd_position_mm + Eigen::Vector3d(3, -3, 3);
-  return k;
-}
-
+using Knowledge = sim::SessionKnowledge;
+using sim::knowledgeOf;
 using Rig = sim::SimulatedRig;
 
 sim::SimulatedCellOptions cellOptions(std::uint64_t seed, double repeatability_deg) {

@@ -41,10 +41,9 @@ struct TempDir {
 TEST(CalibrationRun, InterruptedRunResumesFromItsJournalWithoutLosingOrRepeatingAPose) {
   sim::SimulatedRig rig(rigFor(24));
   const World& world = rig.cell.world();
-  CellModel knowledge;
-  knowledge.robot = world.robot;
-  knowledge.psd_rotation = world.psd_rotation;
-  const Eigen::Vector3d taught = world.psd_position_mm + Eigen::Vector3d(3, -3, 3);
+  const sim::SessionKnowledge given = sim::knowledgeOf(world);
+  const CellModel& knowledge = given.cell;
+  const Eigen::Vector3d& taught = given.taught_centre;
   PlanOptions po;
   po.psd_normal = knowledge.psd_rotation.col(2);
   const Plan plan = planPoses(knowledge, taught, po);

@@ -6,6 +6,7 @@
 #include <functional>
 #include <utility>
 
+#include "zerocal/calib/cell_model.h"
 #include "zerocal/irc5/irc5_client.h"
 #include "zerocal/servo/psd_reader.h"
 #include "zerocal/sim/simulated_cell.h"
@@ -33,5 +34,21 @@ struct SimulatedRig {
   usb1408fs::Usb1408fs daq;
   servo::ChainPsdReader psd;
 };
+
+// What a session on the simulated cell is given, as a technician would give it on a real one:
+// the nominal robot and laser, the PSD's mounting orientation, and the PSD centre as taught by
+// jogging (3 mm off the truth on each axis, a realistic teaching error).
+struct SessionKnowledge {
+  CellModel cell;
+  Eigen::Vector3d taught_centre;
+};
+
+inline SessionKnowledge knowledgeOf(const World& world) {
+  SessionKnowledge k;
+  k.cell.robot = world.robot;
+  k.cell.psd_rotation = world.psd_rotation;
+  k.taught_centre = world.psd_position_mm + Eigen::Vector3d(3, -3, 3);
+  return k;
+}
 
 }  // namespace zerocal::sim

@@ -1,0 +1,51 @@
+// The hardware seam of the service: what a calibration session runs on. The daemon's main picks a
+// CellBackend from the configuration (the simulated cell, or the IRC5 link plus the USB-1408FS)
+// and hands it to the SessionManager, which knows nothing else about where the robot is.
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <memory>
+#include <optional>
+
+#include "zerocal/calib/cell_model.h"
+#include "zerocal/irc5/controller_link.h"
+#include "zerocal/servo/psd_reader.h"
+
+namespace zerocal::service {
+
+// What is known about the cell before anything is connected: the nominal robot and laser, the
+// PSD's mounting orientation, and its centre as taught (a few mm off is fine).
+struct CellKnowledge {
+  CellModel cell;
+  Eigen::Vector3d taught_centre_mm = Eigen::Vector3d::Zero();
+};
+
+// A connected cell, owned by one session at a time. Destroying it closes the links.
+class ConnectedCell {
+ public:
+  virtual ~ConnectedCell() = default;
+  virtual ControllerLink& robot() = 0;
+  virtual servo::PsdReader& psd() = 0;
+  virtual servo::CellClock& clock() = 0;
+  // Closes and reopens the controller connection (bounded attempts); throws the last LinkError.
+  virtual void reconnectRobot() = 0;
+  // Closes and reopens the acquisition board (after an unplug); throws the DAQ's error.
+  virtual void reopenPsd() = 0;
+  // Stops the robot (between moves: the controller finishes a move in progress). Never throws.
+  virtual void stopRobot() noexcept = 0;
+  // The true offsets delta2..delta5 in degrees, on a simulated cell only (for its reports).
+  virtual std::optional<std::array<double, 4>> truthDeg() const { return std::nullopt; }
+};
+
+class CellBackend {
+ public:
+  virtual ~CellBackend() = default;
+  virtual const char* name() const = 0;  // "sim" or "hardware", for logs and status
+  virtual CellKnowledge knowledge() const = 0;
+  // Connects the controller and the board. Throws zerocal::Error (LinkError, the DAQ's errors)
+  // with a message a technician can act on.
+  virtual std::unique_ptr<ConnectedCell> connect() = 0;
+};
+
+}  // namespace zerocal::service

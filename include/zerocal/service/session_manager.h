@@ -1,0 +1,177 @@
+// The daemon's one calibration session at a time: planning, the run on a worker thread, its state
+// and progress, abort, resume after a restart, and the result files. The control port (and
+// `zerocald --once`) drive it through SessionControl; the cell comes in through CellBackend.
+//
+// Threads: every SessionControl method may be called from any thread and returns promptly (none
+// waits for the robot). The session itself runs on the manager's worker thread; events are
+// delivered on that thread, without any lock held.
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <atomic>
+#include <condition_variable>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "zerocal/calib/planner.h"
+#include "zerocal/daemon/config.h"
+#include "zerocal/daemon/journal.h"
+#include "zerocal/error.h"
+#include "zerocal/service/cell.h"
+#include "zerocal/session/calibration_run.h"
+
+namespace zerocal::service {
+
+enum class SessionState {
+  kIdle,        // no session has run since the daemon started
+  kConnecting,  // to the controller and the board
+  kMoving,      // to pose i of N
+  kServoing,    // the spot onto the PSD at pose i
+  kRecording,   // pose i to the journal
+  kSolving,
+  kDone,
+  kAborted,
+  kFaulted,
+};
+const char* stateName(SessionState state);
+// A session in this state has a worker running it.
+bool isActive(SessionState state);
+
+// A request refused without harm: busy, not identifiable, unknown session, bad parameters. `code`
+// is a short stable word for scripts (docs/protocol.md lists them).
+class Refused : public Error {
+ public:
+  Refused(std::string code, const std::string& message) : Error(message), code_(std::move(code)) {}
+  const std::string& code() const { return code_; }
+
+ private:
+  std::string code_;
+};
+
+struct StartRequest {
+  PlanKind plan = PlanKind::kOptimal;
+  int poses = 8;
+  std::string plan_file;                     // plan: file
+  std::optional<Eigen::Vector3d> target_mm;  // nominal PSD centre; default the cell's taught one
+  std::optional<double> noise_mm;            // measurement sigma; default session.noise_mm
+};
+
+struct SessionStatus {
+  SessionState state = SessionState::kIdle;
+  std::string backend;     // "sim" or "hardware"
+  std::string session_id;  // the current or last session; empty before the first
+  int pose = 0;            // 1-based pose being worked on (moving, servoing, recording)
+  int pose_count = 0;
+  int recorded = 0;        // poses on disk in this session's journal
+  int resumed_from = 0;    // poses found in the journal when the run (re)started
+  std::string message;     // why it stopped, when aborted or faulted
+  double last_servo_error_um = 0;            // at the last recorded pose
+  std::vector<double> predicted_sigma_deg;   // delta2..delta5, from the plan (NaN: not identif.)
+  std::vector<double> achieved_sigma_deg;    // from the solve, when done
+  double cell_time_s = 0;                    // since the run (re)started
+};
+
+// The latest PSD reading seen, for the live `psd` command.
+struct LiveReading {
+  servo::PsdReading reading;
+  bool during_session = false;  // taken by the running session's servo, not on request
+};
+
+// What the control port needs; SessionManager implements it, protocol tests may fake it.
+class SessionControl {
+ public:
+  virtual ~SessionControl() = default;
+  virtual SessionStatus status() const = 0;
+  // Plans without moving; throws Refused("bad_request", ...) for an invalid request.
+  virtual Plan preview(const StartRequest& request) const = 0;
+  // Starts a session and returns its id. Throws Refused: "busy" (one session at a time),
+  // "bad_request", "not_identifiable" (the plan cannot identify delta2..delta5; nothing moved).
+  virtual std::string start(const StartRequest& request) = 0;
+  // Resumes an unfinished session from its journal (the latest unfinished one when `id` is
+  // empty). Throws Refused: "busy", "not_found", "finished".
+  virtual std::string resume(const std::string& id) = 0;
+  // Asks the running session to stop; the robot is stopped. False when nothing runs.
+  virtual bool abort() = 0;
+  virtual std::vector<SessionInfo> sessions() const = 0;
+  // result.json of a finished session (the latest one when `id` is empty). Throws
+  // Refused("not_found").
+  virtual nlohmann::json result(const std::string& id) const = 0;
+  // One PSD reading: the running session's latest, or one taken now when no session runs (on the
+  // worker thread). `done` is called exactly once, from any thread, with the reading or an error.
+  using ReadingDone = std::function<void(std::optional<LiveReading>, const std::string& error)>;
+  virtual void readPsd(ReadingDone done) = 0;
+  // Events: {"event": "state" | "pose" | "plan" | "result", ...}; docs/protocol.md. The sink is
+  // called on the worker thread and must not block.
+  using EventSink = std::function<void(const nlohmann::json& event)>;
+  virtual void setEventSink(EventSink sink) = 0;
+};
+
+struct ManagerSettings {
+  std::string data_dir;
+  RunSettings run;
+  double noise_mm = 0.010;         // default measurement sigma for plans and solves
+  PlanKind plan = PlanKind::kOptimal;
+  int poses = 8;
+  std::string plan_file;
+  std::optional<Eigen::Vector3d> target_mm;  // default nominal target; else the backend's
+  nlohmann::json config_snapshot;            // written into each session.json
+  // Called with a finished session's folder after result.json is written (summary, report).
+  std::function<void(const std::string& session_dir)> write_reports;
+};
+
+class SessionManager final : public SessionControl {
+ public:
+  SessionManager(CellBackend& backend, ManagerSettings settings);
+  // Aborts a running session and waits for the worker (the robot stopped, the journal closed).
+  ~SessionManager() override;
+
+  SessionStatus status() const override;
+  Plan preview(const StartRequest& request) const override;
+  std::string start(const StartRequest& request) override;
+  std::string resume(const std::string& id) override;
+  bool abort() override;
+  std::vector<SessionInfo> sessions() const override;
+  nlohmann::json result(const std::string& id) const override;
+  void readPsd(ReadingDone done) override;
+  void setEventSink(EventSink sink) override;
+
+  // Blocks until no session is active; returns the final status. For --once and shutdown.
+  SessionStatus waitIdle();
+  // The request the configuration describes (session.plan, poses, plan_file, target).
+  StartRequest defaultRequest() const;
+
+ private:
+  struct Job;
+  void workerLoop();
+  void post(std::function<void()> task);
+  void runSession(const std::string& id, std::vector<Pose> plan, Eigen::Vector3d target,
+                  double noise_mm);
+  void setState(SessionState state, int pose = 0);
+  void emit(const nlohmann::json& event);
+  Plan makePlan(const StartRequest& request, Eigen::Vector3d& target, double& noise) const;
+
+  CellBackend& backend_;
+  ManagerSettings settings_;
+  SessionStore store_;
+  CellKnowledge knowledge_;
+
+  mutable std::mutex mutex_;  // guards status_, sink_, tasks_, stopping_
+  std::condition_variable changed_;
+  SessionStatus status_;
+  EventSink sink_;
+  std::deque<std::function<void()>> tasks_;
+  bool stopping_ = false;
+  std::atomic<bool> abort_{false};
+  std::unique_ptr<ConnectedCell> cell_;  // worker thread only
+  std::thread worker_;                   // last member: starts after the others exist
+};
+
+}  // namespace zerocal::service

@@ -247,6 +247,7 @@ std::vector<Field> schema(DaemonConfig& c) {
   f.push_back(realField("daq.scan_rate_hz", c.daq.scan_rate_hz));
   f.push_back(integerField("daq.samples_per_reading", c.daq.samples_per_reading));
   f.push_back(realField("daq.sum_threshold_v", c.daq.sum_threshold_v));
+  f.push_back(pathField("daq.map_file", c.daq.map_file));
 
   auto& s = c.servo;
   f.push_back(choiceField<ServoStop>("servo.stop", s.stop,
@@ -269,6 +270,7 @@ std::vector<Field> schema(DaemonConfig& c) {
   f.push_back(pathField("session.plan_file", c.session.plan_file));
   f.push_back(integerField("session.poses", c.session.poses));
   f.push_back(vec3Field("session.target_mm", c.session.target_mm));
+  f.push_back(vec3Field("session.psd_rpy_deg", c.session.psd_rpy_deg));
   f.push_back(realField("session.noise_mm", c.session.noise_mm));
   f.push_back(pathField("session.data_dir", c.session.data_dir));
 
@@ -445,6 +447,10 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
       check.fail(b.sim_host.empty() ? "backend.sim_port" : "backend.sim_host",
                  "an external zerocal-sim needs both backend.sim_host and backend.sim_port");
   }
+
+  // An empty map_file is refused by the hardware backend when it starts, not here: the
+  // compiled-in defaults stay a valid configuration for the simulated cell.
+  if (!c.daq.map_file.empty()) check.fileExists("daq.map_file", c.daq.map_file);
 
   const auto& k = c.controller;
   if (k.robot != "builtin") check.fileExists("controller.robot", k.robot);

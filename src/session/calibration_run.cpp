@@ -31,6 +31,10 @@ CalibrationRun::CalibrationRun(CellModel knowledge, Eigen::Vector3d taught_centr
                      " poses but the plan only " + std::to_string(plan_.size()));
 }
 
+void CalibrationRun::phase(int pose_index, RunPhase phase) const {
+  if (on_phase) on_phase(pose_index, phase);
+}
+
 RunOutcome CalibrationRun::run(ControllerLink& robot, servo::PsdReader& psd,
                                servo::CellClock& clock, const std::atomic<bool>& abort) {
   RunOutcome out;
@@ -49,6 +53,7 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, servo::PsdReader& psd,
       return out;
     }
     const Joints& target = plan_[i].q_deg;
+    phase(i, RunPhase::kMoving);
     const double move_start = clock.nowS();
     try {
       robot.moveJoints(target);
@@ -57,12 +62,14 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, servo::PsdReader& psd,
       return out;
     }
     const double moved = clock.nowS();
+    phase(i, RunPhase::kServoing);
     const servo::ServoResult r = servo.run(robot, psd, target, predictor.searchCentre(target));
     if (!r.ok()) {
       out.message = "pose " + std::to_string(i + 1) + ": servo " + servo::statusName(r.status) +
                     ": " + servo.fault().message;
       return out;
     }
+    phase(i, RunPhase::kRecording);
     PoseRecord rec;
     rec.index = i;
     rec.joints_deg = r.q_deg;
@@ -84,6 +91,7 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, servo::PsdReader& psd,
     if (on_pose) on_pose(rec);
   }
 
+  phase(static_cast<int>(plan_.size()), RunPhase::kSolving);
   SolveOptions solve_options = settings_.solve;
   solve_options.cancelled = [&abort] { return abort.load(); };
   out.report = solve(knowledge_, posesOf(out.records), solve_options);

@@ -1,45 +1,35 @@
-// zerocald: the cell daemon. This version runs one calibration and exits (--once), on the
-// simulated cell (--sim, or backend.kind: sim); the long-running service with its control port,
-// and the hardware backend, are not built yet and are refused with a message saying so.
-// Exit codes: 0 calibrated; 1 unexpected failure; 2 bad configuration or usage; 3 the session
-// faulted or aborted (the journal keeps every recorded pose); 4 the plan cannot identify
-// delta2..delta5.
+// zerocald: the cell daemon. Reads its configuration (every error reported, none started with),
+// picks the backend (the IRC5 plus the USB-1408FS, or the simulated cell in-process), and either
+// runs one calibration and exits (--once), or serves the control port until SIGINT/SIGTERM.
+// On a signal the running session is aborted: the robot is stopped after the move in progress,
+// every recorded pose is already on disk, and the daemon exits 0.
+//
+// Exit codes: 0 calibrated (or stopped cleanly); 1 unexpected failure; 2 bad configuration or
+// usage; 3 the session faulted or was aborted (the journal keeps every recorded pose); 4 the plan
+// cannot identify delta2..delta5.
 #include <CLI/CLI.hpp>
-#include <atomic>
-#include <csignal>
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/post.hpp>
+#include <boost/asio/signal_set.hpp>
 #include <cstdio>
 #include <iostream>
 
 #include "report_format.h"
-#include "zerocal/calib/planner.h"
 #include "zerocal/daemon/config.h"
-#include "zerocal/daemon/journal.h"
 #include "zerocal/daemon/logging.h"
 #include "zerocal/error.h"
-#include "zerocal/model/builtin.h"
-#include "zerocal/session/calibration_run.h"
-#include "zerocal/sim/simulated_rig.h"
+#include "zerocal/service/hardware_backend.h"
+#include "zerocal/service/session_manager.h"
+#include "zerocal/sim/sim_backend.h"
 
 namespace zerocal {
 namespace {
 
+namespace asio = boost::asio;
+using service::SessionManager;
+using service::SessionState;
+
 enum ExitCode { kOk = 0, kFailure = 1, kBadInput = 2, kStopped = 3, kNotIdentifiable = 4 };
-
-std::atomic<bool> g_abort{false};
-extern "C" void onSignal(int) { g_abort = true; }  // only an atomic store: async-signal-safe
-
-Pattern patternOf(PlanKind kind) {
-  switch (kind) {
-    case PlanKind::kI:
-      return Pattern::kI;
-    case PlanKind::kII:
-      return Pattern::kII;
-    case PlanKind::kMixed:
-      return Pattern::kMixed;
-    default:
-      return Pattern::kOptimal;
-  }
-}
 
 servo::ServoOptions servoOptionsOf(const ServoConfig& c, double limit_margin_deg) {
   servo::ServoOptions o;
@@ -55,103 +45,111 @@ servo::ServoOptions servoOptionsOf(const ServoConfig& c, double limit_margin_deg
   return o;
 }
 
-int runOnce(const DaemonConfig& cfg, bool json) {
-  auto log = makeLogger("session");
-  if (cfg.backend.kind != BackendKind::kSim)
-    throw ConfigError("zerocald", {"--once on the hardware backend is not built yet; use --sim "
-                                   "(or backend.kind: sim)"});
+std::unique_ptr<service::CellBackend> makeBackend(const DaemonConfig& cfg) {
+  if (cfg.backend.kind == BackendKind::kHardware)
+    return std::make_unique<service::HardwareBackend>(cfg);
   if (!cfg.backend.sim_host.empty())
-    throw ConfigError("zerocald", {"an external zerocal-sim (backend.sim_host) is not supported "
-                                   "by --once yet; leave it empty for the in-process cell"});
-  if (cfg.session.plan == PlanKind::kFile)
-    throw ConfigError("zerocald", {"session.plan: file is not supported by --once yet"});
-
-  sim::SimulatedCellOptions cell_options;
-  cell_options.world = cfg.backend.sim_world.empty() ? randomWorld(cfg.backend.sim_seed.value_or(1))
-                                                     : loadWorld(cfg.backend.sim_world);
+    throw ConfigError("zerocald", {"backend.sim_host: an external zerocal-sim simulates the "
+                                   "controller only, not the PSD board; leave it empty for the "
+                                   "in-process simulated cell"});
+  sim::SimulatedCellOptions o;
   const std::uint64_t seed = cfg.backend.sim_seed.value_or(1);
-  cell_options.controller_seed = seed;
-  cell_options.psd.seed = static_cast<std::uint32_t>(seed) + 100;
-  // The controller section applies to the simulated controller as to a real one. Its
-  // max_step_deg is not applied here: the moves between planned poses are large by design.
-  sim::SimulatedRig rig(std::move(cell_options), [&](Irc5Options& o) {
-    o.limit_margin_deg = cfg.controller.limit_margin_deg;
-    o.speed_tcp_mm_s = cfg.controller.speed_tcp_mm_s;
-    o.speed_ori_deg_s = cfg.controller.speed_ori_deg_s;
-  });
-  const World& world = rig.cell.world();
+  o.world = cfg.backend.sim_world.empty() ? randomWorld(seed) : loadWorld(cfg.backend.sim_world);
+  o.controller_seed = seed;
+  o.psd.seed = static_cast<std::uint32_t>(seed) + 100;
+  // The controller section applies to the simulated controller as to a real one.
+  return std::make_unique<sim::SimBackend>(std::move(o),
+                                           [controller = cfg.controller](Irc5Options& client) {
+                                             client = service::irc5OptionsOf(controller, client);
+                                           });
+}
 
-  const sim::SessionKnowledge given = sim::knowledgeOf(world);
-  const CellModel& knowledge = given.cell;
-  const Eigen::Vector3d& taught = given.taught_centre;
+service::ManagerSettings managerSettingsOf(const DaemonConfig& cfg) {
+  service::ManagerSettings s;
+  s.data_dir = cfg.session.data_dir;
+  s.run.servo = servoOptionsOf(cfg.servo, cfg.controller.limit_margin_deg);
+  s.noise_mm = cfg.session.noise_mm;
+  s.plan = cfg.session.plan;
+  s.poses = cfg.session.poses;
+  s.plan_file = cfg.session.plan_file;
+  // On the simulated cell the nominal target is the one "taught" on its world; on a real cell
+  // it is the configured one.
+  if (cfg.backend.kind == BackendKind::kHardware) {
+    const auto& t = cfg.session.target_mm;
+    s.target_mm = Eigen::Vector3d(t[0], t[1], t[2]);
+  }
+  s.config_snapshot = configToJson(cfg);
+  return s;
+}
 
-  PlanOptions plan_options;
-  plan_options.pattern = patternOf(cfg.session.plan);
-  plan_options.poses = cfg.session.poses;
-  plan_options.noise_mm = cfg.session.noise_mm;
-  plan_options.psd_normal = knowledge.psd_rotation.col(2);
-  const Plan plan = planPoses(knowledge, taught, plan_options);
-  std::cerr << toText(plan);
-  for (int k = 0; k < kOffsetCount; ++k)
-    if (!plan.prediction.identifiable[k]) {
-      log->error("the plan cannot identify {}: refused before any move", unknownName(k));
-      return kNotIdentifiable;
+void logUnfinished(SessionManager& manager) {
+  auto log = makeLogger("session");
+  for (const SessionInfo& s : manager.sessions())
+    if (!s.finished)
+      log->warn(
+          "session {} is unfinished ({} of {} poses recorded): `zerocal resume {}` "
+          "continues it",
+          s.id, s.recorded_poses, s.planned_poses, s.id);
+}
+
+// One calibration, then exit; progress on stderr, the result on stdout.
+int runOnce(SessionManager& manager, asio::io_context& io, bool json) {
+  manager.setEventSink([&io](const nlohmann::json& e) {
+    if (e["event"] == "plan") {
+      std::fprintf(stderr, "plan: %s\n", e["description"].get<std::string>().c_str());
+      for (const auto& [name, sigma] : e["predicted_sigma_deg"].items())
+        std::fprintf(stderr, "  predicted sigma %-12s %s deg\n", name.c_str(),
+                     sigma.dump().c_str());
+    } else if (e["event"] == "pose") {
+      std::fprintf(stderr, "pose %d of %d recorded: %d servo moves, %.2f um from the aim point\n",
+                   e["pose"].get<int>(), e["pose_count"].get<int>(), e["servo_moves"].get<int>(),
+                   e["servo_error_um"].get<double>());
+    } else if (e["event"] == "state" &&
+               (e["state"] == "done" || e["state"] == "aborted" || e["state"] == "faulted")) {
+      asio::post(io, [&io] { io.stop(); });
     }
-
-  SessionStore store(cfg.session.data_dir);
-  const SessionInfo session = store.create(toJson(plan), configToJson(cfg));
-  log->info("session {} in {}", session.id, session.dir);
-  Journal journal(store.journalPath(session.id));
-
-  RunSettings settings;
-  settings.servo = servoOptionsOf(cfg.servo, cfg.controller.limit_margin_deg);
-  settings.solve.noise_mm = cfg.session.noise_mm;
-  CalibrationRun run(knowledge, taught, plan.poses, settings, journal);
-  const int n = static_cast<int>(plan.poses.size());
-  run.on_pose = [&](const PoseRecord& r) {
-    std::fprintf(stderr, "pose %d of %d recorded: %d servo moves, %.2f um from the aim point\n",
-                 r.index + 1, n, r.servo.moves, r.servo.final_error_um);
-  };
-  const double start_s = rig.cell.nowS();
-  const RunOutcome outcome = run.run(rig.client, rig.psd, rig.cell, g_abort);
-  const double cell_time_s = rig.cell.nowS() - start_s;
-  if (outcome.state != RunState::kCompleted) {
-    log->error("session {} {}: {} ({} poses journalled in {})", session.id,
-               outcome.state == RunState::kAborted ? "aborted" : "faulted", outcome.message,
-               outcome.records.size(), store.journalPath(session.id));
+  });
+  try {
+    manager.start(manager.defaultRequest());
+  } catch (const service::Refused& e) {
+    std::cerr << "zerocald: " << e.what() << "\n";
+    return e.code() == "not_identifiable" ? kNotIdentifiable : kBadInput;
+  }
+  io.run();  // until the session ends or a signal aborts it
+  const service::SessionStatus status = manager.waitIdle();
+  if (status.state != SessionState::kDone) {
+    std::cerr << "zerocald: session " << status.session_id << " " << stateName(status.state) << ": "
+              << status.message << "\n";
     return kStopped;
   }
-
-  nlohmann::json result = toJson(*outcome.report);
-  result["session"] = session.id;
-  result["cell_time_s"] = cell_time_s;
-  result["truth"] = nlohmann::json::object();
-  for (int k = 0; k < kOffsetCount; ++k)
-    result["truth"][unknownName(k)] = world.true_offsets_deg[k + 1];
-  nlohmann::json breakdown = nlohmann::json::array();
-  for (const PoseRecord& r : outcome.records)
-    breakdown.push_back({{"pose", r.index + 1},
-                         {"move_s", r.servo.move_s},
-                         {"acquisition_s", r.servo.acquisition_s},
-                         {"servo_s", r.servo.servo_s},
-                         {"servo_moves", r.servo.moves},
-                         {"final_error_um", r.servo.final_error_um}});
-  result["pose_breakdown"] = breakdown;
-  store.writeResult(session.id, result);
-
+  const nlohmann::json result = manager.result(status.session_id);
   if (json) {
     std::cout << result.dump(2) << "\n";
-  } else {
-    std::cout << toText(*outcome.report);
-    std::printf("\n%-12s %12s %12s %12s\n", "offset", "identified", "truth", "error");
-    for (int k = 0; k < kOffsetCount; ++k) {
-      const auto& e = outcome.report->parameters[k];
-      const double truth = world.true_offsets_deg[k + 1];
-      std::printf("%-12s %12.5f %12.5f %+12.5f  (%.1f sigma)\n", e.name.c_str(), e.value, truth,
-                  e.value - truth, std::abs(e.value - truth) / e.sigma);
-    }
-    std::printf("cell time %.1f s for %d poses; session %s\n", cell_time_s, n, session.dir.c_str());
+    return kOk;
   }
+  std::printf("%-12s %12s %10s %24s", "offset", "identified", "sigma", "95% interval");
+  const bool sim = result.contains("truth");
+  if (sim) std::printf(" %12s %12s", "truth", "error");
+  std::printf("\n");
+  for (int k = 0; k < kOffsetCount; ++k) {
+    const std::string name = unknownName(k);
+    const auto& e = result["parameters"][name];
+    if (e["value"].is_null()) {
+      std::printf("%-12s %12s\n", name.c_str(), "not identifiable");
+      continue;
+    }
+    const double value = e["value"], sigma = e["sigma"];
+    std::printf("%-12s %12.5f %10.5f  [%10.5f, %10.5f]", name.c_str(), value, sigma,
+                e["ci95"][0].get<double>(), e["ci95"][1].get<double>());
+    if (sim) {
+      const double truth = result["truth"][name];
+      std::printf(" %12.5f %+12.5f (%.1f sigma)", truth, value - truth,
+                  std::abs(value - truth) / sigma);
+    }
+    std::printf("\n");
+  }
+  std::printf("cell time %.1f s for %d poses; session %s\n", result["cell_time_s"].get<double>(),
+              status.pose_count, status.session_id.c_str());
   return kOk;
 }
 
@@ -161,8 +159,9 @@ int runOnce(const DaemonConfig& cfg, bool json) {
 int main(int argc, char** argv) {
   using namespace zerocal;
   CLI::App app{
-      "zerocald: the zerocal cell daemon. This version runs one calibration on the "
-      "simulated cell and exits (--sim --once)."};
+      "zerocald: the zerocal cell daemon. Serves the control port (docs/protocol.md) and runs "
+      "calibration sessions on the configured cell; with --once, runs one calibration and "
+      "exits."};
   ConfigSources sources;
   bool sim = false, once = false, json = false;
   std::optional<std::uint64_t> seed;
@@ -173,10 +172,10 @@ int main(int argc, char** argv) {
       ->default_str(kDefaultDropInDir);
   app.add_option("--set", sources.overrides, "override one key: section.key=value (repeatable)");
   app.add_flag("--sim", sim, "use the in-process simulated cell (backend.kind=sim)");
-  app.add_flag("--once", once, "run one calibration, then exit");
+  app.add_flag("--once", once, "run one calibration as configured (session.*), then exit");
   app.add_option("--seed", seed, "simulated world from this seed (backend.sim_seed)");
   app.add_option("--data-dir", data_dir, "where session folders go (session.data_dir)");
-  app.add_flag("--json", json, "print the result as one JSON object");
+  app.add_flag("--json", json, "--once: print the result as one JSON object");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -187,17 +186,26 @@ int main(int argc, char** argv) {
   if (sim) sources.overrides.push_back("backend.kind=sim");
   if (seed) sources.overrides.push_back("backend.sim_seed=" + std::to_string(*seed));
   if (!data_dir.empty()) sources.overrides.push_back("session.data_dir=\"" + data_dir + "\"");
-  if (!once) {
-    std::cerr << "zerocald: only --once is available in this version: the long-running service "
-                 "(control port, sessions on request) is not built yet\n";
-    return 2;
-  }
-  std::signal(SIGINT, onSignal);
-  std::signal(SIGTERM, onSignal);
   try {
     const DaemonConfig cfg = loadDaemonConfig(sources);
     initLogging(cfg.logging);
-    return runOnce(cfg, json);
+    auto log = makeLogger("zerocald");
+    std::unique_ptr<service::CellBackend> backend = makeBackend(cfg);
+    service::SessionManager manager(*backend, managerSettingsOf(cfg));
+    log->info("backend {}; sessions in {}", backend->name(), cfg.session.data_dir);
+    logUnfinished(manager);
+
+    asio::io_context io;
+    asio::signal_set signals(io, SIGINT, SIGTERM);
+    signals.async_wait([&](const boost::system::error_code& ec, int signal) {
+      if (ec) return;
+      log->warn("signal {}: aborting any session, stopping the robot", signal);
+      manager.abort();
+      if (!once) io.stop();  // --once stops when the aborted session reports its end
+    });
+    if (once) return runOnce(manager, io, json);
+    std::cerr << "zerocald: the control port is not built into this version yet; use --once\n";
+    return kBadInput;
   } catch (const ConfigError& e) {
     std::cerr << "zerocald: " << e.what() << "\n";
     return 2;

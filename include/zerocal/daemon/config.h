@@ -60,6 +60,7 @@ struct DaqConfig {
   double scan_rate_hz = 1000.0;   // scans per second (each scan converts x, y and sum once)
   int samples_per_reading = 100;  // scans averaged into one reading
   double sum_threshold_v = 0.5;   // SUM below this: no spot on the detector
+  std::string map_file;  // the PSD's volts-to-mm map (zerocal psd-map); required by hardware
 };
 
 enum class ServoStop { kCentre, kZone };
@@ -83,6 +84,8 @@ struct SessionConfig {
   std::string plan_file;  // a joint-set file; required by plan: file, refused otherwise
   int poses = 8;
   std::array<double, 3> target_mm{900.0, -50.0, 400.0};  // nominal PSD centre, robot base frame
+  // The PSD's orientation in the base frame: roll, pitch, yaw (fixed x, y, z); 0 0 0 faces up.
+  std::array<double, 3> psd_rpy_deg{0.0, 0.0, 0.0};
   double noise_mm = 0.010;  // measurement sigma: the robot's repeatability seen at the PSD
   std::string data_dir = "/var/lib/zerocal/sessions";  // one folder per session (journal.h)
 };

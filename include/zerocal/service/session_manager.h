@@ -70,13 +70,13 @@ struct SessionStatus {
   std::string session_id;  // the current or last session; empty before the first
   int pose = 0;            // 1-based pose being worked on (moving, servoing, recording)
   int pose_count = 0;
-  int recorded = 0;        // poses on disk in this session's journal
-  int resumed_from = 0;    // poses found in the journal when the run (re)started
-  std::string message;     // why it stopped, when aborted or faulted
-  double last_servo_error_um = 0;            // at the last recorded pose
-  std::vector<double> predicted_sigma_deg;   // delta2..delta5, from the plan (NaN: not identif.)
-  std::vector<double> achieved_sigma_deg;    // from the solve, when done
-  double cell_time_s = 0;                    // since the run (re)started
+  int recorded = 0;                         // poses on disk in this session's journal
+  int resumed_from = 0;                     // poses found in the journal when the run (re)started
+  std::string message;                      // why it stopped, when aborted or faulted
+  double last_servo_error_um = 0;           // at the last recorded pose
+  std::vector<double> predicted_sigma_deg;  // delta2..delta5, from the plan (NaN: not identif.)
+  std::vector<double> achieved_sigma_deg;   // from the solve, when done
+  double cell_time_s = 0;                   // since the run (re)started
 };
 
 // The latest PSD reading seen, for the live `psd` command.
@@ -117,7 +117,7 @@ class SessionControl {
 struct ManagerSettings {
   std::string data_dir;
   RunSettings run;
-  double noise_mm = 0.010;         // default measurement sigma for plans and solves
+  double noise_mm = 0.010;  // default measurement sigma for plans and solves
   PlanKind plan = PlanKind::kOptimal;
   int poses = 8;
   std::string plan_file;
@@ -149,25 +149,32 @@ class SessionManager final : public SessionControl {
   StartRequest defaultRequest() const;
 
  private:
-  struct Job;
+  class LiveSlot;
+  using Task = std::function<void(bool cancelled)>;  // cancelled: the daemon is stopping
   void workerLoop();
-  void post(std::function<void()> task);
-  void runSession(const std::string& id, std::vector<Pose> plan, Eigen::Vector3d target,
-                  double noise_mm);
-  void setState(SessionState state, int pose = 0);
+  void post(Task task);
+  void runSession(const std::string& id, const std::vector<Pose>& plan,
+                  const Eigen::Vector3d& target, double noise_mm);
+  void finish(SessionState state, const std::string& message);
+  void setPhase(SessionState state, int pose);
   void emit(const nlohmann::json& event);
-  Plan makePlan(const StartRequest& request, Eigen::Vector3d& target, double& noise) const;
+  nlohmann::json stateEvent() const;  // mutex_ held
+  Plan makePlan(const StartRequest& request, Eigen::Vector3d& target, double& noise_mm) const;
+  void claim();  // throws Refused("busy"); mutex_ held
 
   CellBackend& backend_;
   ManagerSettings settings_;
   SessionStore store_;
   CellKnowledge knowledge_;
+  std::unique_ptr<LiveSlot> live_;
 
-  mutable std::mutex mutex_;  // guards status_, sink_, tasks_, stopping_
+  mutable std::mutex mutex_;  // guards everything below it but abort_ and cell_
   std::condition_variable changed_;
   SessionStatus status_;
+  bool starting_ = false;  // start()/resume() between the busy check and the posted run
+  bool busy_ = false;      // the worker is running a task
   EventSink sink_;
-  std::deque<std::function<void()>> tasks_;
+  std::deque<Task> tasks_;
   bool stopping_ = false;
   std::atomic<bool> abort_{false};
   std::unique_ptr<ConnectedCell> cell_;  // worker thread only

@@ -26,6 +26,9 @@ struct RunSettings {
 
 enum class RunState { kCompleted, kAborted, kFaulted };
 
+// What the run is about to do, for progress display.
+enum class RunPhase { kMoving, kServoing, kRecording, kSolving };
+
 struct RunOutcome {
   RunState state = RunState::kFaulted;
   std::string message;                // why it stopped, when not completed
@@ -44,6 +47,8 @@ class CalibrationRun {
 
   // Called after each journalled pose (index, record); for progress display.
   std::function<void(const PoseRecord&)> on_pose;
+  // Called before each phase with the 0-based pose index (the pose count for kSolving).
+  std::function<void(int pose_index, RunPhase phase)> on_phase;
 
   // Runs the remaining poses and the solve. `abort` is polled between moves and during the solve
   // (a servo in progress finishes its bounded cycle first). Link and sensor failures end the run
@@ -52,6 +57,8 @@ class CalibrationRun {
                  const std::atomic<bool>& abort);
 
  private:
+  void phase(int pose_index, RunPhase phase) const;
+
   CellModel knowledge_;
   Eigen::Vector3d taught_centre_;
   std::vector<Pose> plan_;

@@ -1,0 +1,624 @@
+#include "zerocal/service/session_manager.h"
+
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <regex>
+
+#include "report_format.h"
+#include "zerocal/daemon/logging.h"
+#include "zerocal/io/joint_set.h"
+
+namespace zerocal::service {
+
+const char* stateName(SessionState state) {
+  switch (state) {
+    case SessionState::kIdle:
+      return "idle";
+    case SessionState::kConnecting:
+      return "connecting";
+    case SessionState::kMoving:
+      return "moving";
+    case SessionState::kServoing:
+      return "servoing";
+    case SessionState::kRecording:
+      return "recording";
+    case SessionState::kSolving:
+      return "solving";
+    case SessionState::kDone:
+      return "done";
+    case SessionState::kAborted:
+      return "aborted";
+    case SessionState::kFaulted:
+      return "faulted";
+  }
+  return "unknown";
+}
+
+bool isActive(SessionState state) {
+  return state != SessionState::kIdle && state != SessionState::kDone &&
+         state != SessionState::kAborted && state != SessionState::kFaulted;
+}
+
+// The latest reading of the running session, written by the servo's thread and read by the
+// control port's: a sequence lock over atomics, so the writer (inside the servo cycle) never
+// blocks, allocates or locks.
+class SessionManager::LiveSlot {
+ public:
+  void store(const servo::PsdReading& r) noexcept {
+    seq_.fetch_add(1, std::memory_order_acq_rel);  // odd: writing
+    u_.store(r.u_mm, std::memory_order_relaxed);
+    v_.store(r.v_mm, std::memory_order_relaxed);
+    u_se_.store(r.u_se_mm, std::memory_order_relaxed);
+    v_se_.store(r.v_se_mm, std::memory_order_relaxed);
+    sum_.store(r.sum_v, std::memory_order_relaxed);
+    time_.store(r.time_s, std::memory_order_relaxed);
+    flags_.store((r.spot_present ? 1 : 0) | (r.in_valid_zone ? 2 : 0), std::memory_order_relaxed);
+    seq_.fetch_add(1, std::memory_order_release);
+  }
+  std::optional<servo::PsdReading> load() const noexcept {
+    for (;;) {
+      const unsigned before = seq_.load(std::memory_order_acquire);
+      if (before == 0) return std::nullopt;
+      if (before & 1u) continue;
+      servo::PsdReading r;
+      r.u_mm = u_.load(std::memory_order_relaxed);
+      r.v_mm = v_.load(std::memory_order_relaxed);
+      r.u_se_mm = u_se_.load(std::memory_order_relaxed);
+      r.v_se_mm = v_se_.load(std::memory_order_relaxed);
+      r.sum_v = sum_.load(std::memory_order_relaxed);
+      r.time_s = time_.load(std::memory_order_relaxed);
+      const int flags = flags_.load(std::memory_order_relaxed);
+      r.spot_present = flags & 1;
+      r.in_valid_zone = flags & 2;
+      std::atomic_thread_fence(std::memory_order_acquire);
+      if (seq_.load(std::memory_order_relaxed) == before) return r;
+    }
+  }
+  void clear() noexcept { seq_.store(0, std::memory_order_release); }
+
+ private:
+  std::atomic<unsigned> seq_{0};
+  std::atomic<double> u_{0}, v_{0}, u_se_{0}, v_se_{0}, sum_{0}, time_{0};
+  std::atomic<int> flags_{0};
+};
+
+namespace {
+
+// The run's PSD reader, passing each reading on to the live slot.
+template <class Slot>
+class ObservedReader final : public servo::PsdReader {
+ public:
+  ObservedReader(servo::PsdReader& inner, Slot& slot) : inner_(inner), slot_(slot) {}
+  servo::PsdReading read() override {
+    const servo::PsdReading r = inner_.read();
+    slot_.store(r);
+    return r;
+  }
+
+ private:
+  servo::PsdReader& inner_;
+  Slot& slot_;
+};
+
+Pattern patternOf(PlanKind kind) {
+  switch (kind) {
+    case PlanKind::kI:
+      return Pattern::kI;
+    case PlanKind::kII:
+      return Pattern::kII;
+    case PlanKind::kMixed:
+      return Pattern::kMixed;
+    default:
+      return Pattern::kOptimal;
+  }
+}
+
+SessionState stateOf(RunPhase phase) {
+  switch (phase) {
+    case RunPhase::kMoving:
+      return SessionState::kMoving;
+    case RunPhase::kServoing:
+      return SessionState::kServoing;
+    case RunPhase::kRecording:
+      return SessionState::kRecording;
+    case RunPhase::kSolving:
+      return SessionState::kSolving;
+  }
+  return SessionState::kMoving;
+}
+
+nlohmann::json sigmaObject(const std::vector<double>& sigma) {
+  nlohmann::json j = nlohmann::json::object();
+  for (std::size_t k = 0; k < sigma.size(); ++k)
+    j[unknownName(static_cast<int>(k))] =
+        std::isfinite(sigma[k]) ? nlohmann::json(sigma[k]) : nlohmann::json();
+  return j;
+}
+
+// Session ids are UTC timestamps with an optional clash suffix; anything else (a path, "..") is
+// refused before it reaches the file system.
+void checkId(const std::string& id) {
+  static const std::regex kId("[0-9]{8}T[0-9]{6}Z(-[0-9]{3})?");
+  if (!std::regex_match(id, kId))
+    throw Refused("bad_request", "'" + id + "' is not a session id (like 20261122T050102Z)");
+}
+
+std::vector<Pose> posesOfPlanJson(const nlohmann::json& plan) {
+  std::vector<Pose> poses;
+  for (const auto& q : plan.at("poses")) {
+    Pose p;
+    p.q_deg = q.get<Joints>();
+    poses.push_back(p);
+  }
+  return poses;
+}
+
+}  // namespace
+
+SessionManager::SessionManager(CellBackend& backend, ManagerSettings settings)
+    : backend_(backend),
+      settings_(std::move(settings)),
+      store_(settings_.data_dir),
+      knowledge_(backend.knowledge()),
+      live_(std::make_unique<LiveSlot>()) {
+  status_.backend = backend_.name();
+  worker_ = std::thread([this] { workerLoop(); });
+}
+
+SessionManager::~SessionManager() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stopping_ = true;
+  }
+  abort_ = true;
+  changed_.notify_all();
+  worker_.join();
+}
+
+void SessionManager::workerLoop() {
+  for (;;) {
+    Task task;
+    bool cancelled = false;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      changed_.wait(lock, [this] { return stopping_ || !tasks_.empty(); });
+      if (tasks_.empty()) break;  // stopping, nothing left
+      task = std::move(tasks_.front());
+      tasks_.pop_front();
+      cancelled = stopping_;
+      busy_ = true;
+    }
+    task(cancelled);
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      busy_ = false;
+    }
+    changed_.notify_all();
+  }
+  if (cell_) cell_->stopRobot();
+  cell_.reset();
+}
+
+void SessionManager::post(Task task) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    tasks_.push_back(std::move(task));
+  }
+  changed_.notify_all();
+}
+
+void SessionManager::setEventSink(EventSink sink) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  sink_ = std::move(sink);
+}
+
+void SessionManager::emit(const nlohmann::json& event) {
+  EventSink sink;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    sink = sink_;
+  }
+  if (sink) sink(event);
+}
+
+SessionStatus SessionManager::status() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return status_;
+}
+
+SessionStatus SessionManager::waitIdle() {
+  std::unique_lock<std::mutex> lock(mutex_);
+  changed_.wait(
+      lock, [this] { return !isActive(status_.state) && !starting_ && !busy_ && tasks_.empty(); });
+  return status_;
+}
+
+StartRequest SessionManager::defaultRequest() const {
+  StartRequest r;
+  r.plan = settings_.plan;
+  r.poses = settings_.poses;
+  r.plan_file = settings_.plan_file;
+  r.target_mm = settings_.target_mm;
+  r.noise_mm = settings_.noise_mm;
+  return r;
+}
+
+Plan SessionManager::makePlan(const StartRequest& request, Eigen::Vector3d& target,
+                              double& noise_mm) const {
+  target = request.target_mm.value_or(settings_.target_mm.value_or(knowledge_.taught_centre_mm));
+  noise_mm = request.noise_mm.value_or(settings_.noise_mm);
+  if (!(noise_mm > 0) || !std::isfinite(noise_mm))
+    throw Refused("bad_request", "noise_mm must be a positive number of millimetres");
+  if (!target.allFinite()) throw Refused("bad_request", "target_mm must be three finite numbers");
+  try {
+    if (request.plan == PlanKind::kFile) {
+      if (request.plan_file.empty())
+        throw Refused("bad_request", "plan 'file' needs a plan_file (a joint-set file)");
+      Plan plan;
+      plan.poses = readJointSet(request.plan_file);
+      plan.description = "plan file " + request.plan_file;
+      CalibrationParameters nominal;
+      nominal.target_mm = target;
+      plan.prediction = predictUncertainty(knowledge_.cell, plan.poses, nominal, noise_mm);
+      return plan;
+    }
+    PlanOptions options;
+    options.pattern = patternOf(request.plan);
+    options.poses = request.poses;
+    options.noise_mm = noise_mm;
+    options.psd_normal = knowledge_.cell.psd_rotation.col(2);
+    return planPoses(knowledge_.cell, target, options);
+  } catch (const InputError& e) {
+    throw Refused("bad_request", e.what());
+  }
+}
+
+Plan SessionManager::preview(const StartRequest& request) const {
+  Eigen::Vector3d target;
+  double noise_mm = 0;
+  return makePlan(request, target, noise_mm);
+}
+
+void SessionManager::claim() {
+  if (stopping_) throw Refused("busy", "the daemon is stopping");
+  if (starting_ || isActive(status_.state) || busy_)
+    throw Refused("busy", "session " + status_.session_id + " is " + stateName(status_.state) +
+                              ": one session at a time (abort it first)");
+  starting_ = true;
+}
+
+std::string SessionManager::start(const StartRequest& request) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    claim();
+  }
+  struct Release {  // starting_ back to false on every exit
+    SessionManager& m;
+    ~Release() {
+      std::lock_guard<std::mutex> lock(m.mutex_);
+      m.starting_ = false;
+      m.changed_.notify_all();
+    }
+  } release{*this};
+
+  Eigen::Vector3d target;
+  double noise_mm = 0;
+  const Plan plan = makePlan(request, target, noise_mm);
+  std::string refusal;
+  for (int k = 0; k < kOffsetCount; ++k)
+    if (!plan.prediction.identifiable[k])
+      refusal += std::string(refusal.empty() ? "" : "; ") + unknownName(k) + ": " +
+                 plan.prediction.reason[k];
+  if (!refusal.empty())
+    throw Refused("not_identifiable",
+                  "the plan cannot identify every offset, nothing moved: " + refusal);
+
+  nlohmann::json plan_json = toJson(plan);
+  plan_json["target_mm"] = {target.x(), target.y(), target.z()};
+  plan_json["noise_mm"] = noise_mm;
+  const SessionInfo info = store_.create(plan_json, settings_.config_snapshot);
+  makeLogger("session")->info("session {} created in {}: {} ({} poses)", info.id, info.dir,
+                              plan.description, plan.poses.size());
+
+  nlohmann::json state_event;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    SessionStatus s;
+    s.state = SessionState::kConnecting;
+    s.backend = backend_.name();
+    s.session_id = info.id;
+    s.pose_count = static_cast<int>(plan.poses.size());
+    s.predicted_sigma_deg.assign(plan.prediction.sigma.begin(),
+                                 plan.prediction.sigma.begin() + kOffsetCount);
+    status_ = s;
+    abort_ = false;
+    state_event = stateEvent();
+  }
+  live_->clear();
+  emit({{"event", "plan"},
+        {"session", info.id},
+        {"pose_count", plan.poses.size()},
+        {"description", plan.description},
+        {"predicted_sigma_deg", sigmaObject(status().predicted_sigma_deg)}});
+  emit(state_event);
+  post([this, id = info.id, poses = plan.poses, target, noise_mm](bool cancelled) {
+    if (cancelled) return finish(SessionState::kAborted, "the daemon stopped before it began");
+    runSession(id, poses, target, noise_mm);
+  });
+  return info.id;
+}
+
+std::string SessionManager::resume(const std::string& requested) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    claim();
+  }
+  struct Release {
+    SessionManager& m;
+    ~Release() {
+      std::lock_guard<std::mutex> lock(m.mutex_);
+      m.starting_ = false;
+      m.changed_.notify_all();
+    }
+  } release{*this};
+
+  std::string id = requested;
+  if (id.empty()) {
+    const std::vector<SessionInfo> open = store_.unfinished();
+    if (open.empty()) throw Refused("not_found", "no unfinished session to resume");
+    id = open.back().id;
+  }
+  checkId(id);
+  std::optional<SessionInfo> info;
+  for (const SessionInfo& s : store_.list())
+    if (s.id == id) info = s;
+  if (!info) throw Refused("not_found", "no session " + id + " in " + settings_.data_dir);
+  if (info->finished) throw Refused("finished", "session " + id + " is finished: see its result");
+
+  const nlohmann::json session = store_.readSession(id);
+  std::vector<Pose> poses;
+  Eigen::Vector3d target;
+  double noise_mm = 0;
+  try {
+    const nlohmann::json& plan = session.at("plan");
+    poses = posesOfPlanJson(plan);
+    const auto t = plan.at("target_mm").get<std::array<double, 3>>();
+    target = Eigen::Vector3d(t[0], t[1], t[2]);
+    noise_mm = plan.at("noise_mm").get<double>();
+  } catch (const nlohmann::json::exception& e) {
+    throw Refused("bad_session", "session " + id + " cannot be resumed: its session.json " +
+                                     "lacks the plan's poses, target_mm or noise_mm (" + e.what() +
+                                     ")");
+  }
+  makeLogger("session")->info("resuming session {}: {} of {} poses recorded", id,
+                              info->recorded_poses, poses.size());
+  nlohmann::json state_event;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    SessionStatus s;
+    s.state = SessionState::kConnecting;
+    s.backend = backend_.name();
+    s.session_id = id;
+    s.pose_count = static_cast<int>(poses.size());
+    s.recorded = info->recorded_poses;
+    s.resumed_from = info->recorded_poses;
+    if (session["plan"].contains("predicted"))
+      for (int k = 0; k < kOffsetCount; ++k) {
+        const auto& sigma = session["plan"]["predicted"][unknownName(k)]["sigma"];
+        s.predicted_sigma_deg.push_back(sigma.is_number() ? sigma.get<double>() : std::nan(""));
+      }
+    status_ = s;
+    abort_ = false;
+    state_event = stateEvent();
+  }
+  live_->clear();
+  emit(state_event);
+  post([this, id, poses, target, noise_mm](bool cancelled) {
+    if (cancelled) return finish(SessionState::kAborted, "the daemon stopped before it resumed");
+    runSession(id, poses, target, noise_mm);
+  });
+  return id;
+}
+
+bool SessionManager::abort() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (!isActive(status_.state) && !starting_) return false;
+  abort_ = true;
+  makeLogger("session")->warn("abort requested for session {} ({})", status_.session_id,
+                              stateName(status_.state));
+  return true;
+}
+
+nlohmann::json SessionManager::stateEvent() const {
+  nlohmann::json e{
+      {"event", "state"},     {"state", stateName(status_.state)}, {"session", status_.session_id},
+      {"pose", status_.pose}, {"pose_count", status_.pose_count},  {"recorded", status_.recorded}};
+  if (!status_.message.empty()) e["message"] = status_.message;
+  return e;
+}
+
+void SessionManager::setPhase(SessionState state, int pose) {
+  nlohmann::json event;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    status_.state = state;
+    status_.pose = pose;
+    event = stateEvent();
+  }
+  changed_.notify_all();
+  emit(event);
+}
+
+void SessionManager::finish(SessionState state, const std::string& message) {
+  auto log = makeLogger("session");
+  if (state != SessionState::kDone && cell_) cell_->stopRobot();
+  nlohmann::json event;
+  std::string id;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    status_.state = state;
+    status_.message = message;
+    id = status_.session_id;
+    event = stateEvent();
+  }
+  if (state == SessionState::kDone)
+    log->info("session {} done", id);
+  else
+    log->error("session {} {}: {} (every recorded pose is in {})", id, stateName(state), message,
+               store_.journalPath(id));
+  changed_.notify_all();
+  emit(event);
+}
+
+void SessionManager::runSession(const std::string& id, const std::vector<Pose>& plan,
+                                const Eigen::Vector3d& target, double noise_mm) {
+  auto log = makeLogger("session");
+  if (abort_) return finish(SessionState::kAborted, "aborted before connecting");
+  try {
+    if (!cell_) {
+      setPhase(SessionState::kConnecting, 0);
+      log->info("connecting to the {} cell", backend_.name());
+      cell_ = backend_.connect();
+    }
+  } catch (const std::exception& e) {
+    return finish(SessionState::kFaulted, std::string("cannot connect to the cell: ") + e.what());
+  }
+
+  std::optional<RunOutcome> outcome;
+  double cell_time_s = 0;
+  try {
+    Journal journal(store_.journalPath(id));
+    if (!journal.dropped().empty())
+      log->warn("session {}: {} (the pose will be measured again)", id, journal.dropped());
+    RunSettings run_settings = settings_.run;
+    run_settings.solve.noise_mm = noise_mm;
+    CalibrationRun run(knowledge_.cell, target, plan, run_settings, journal);
+    run.on_phase = [this](int i, RunPhase phase) { setPhase(stateOf(phase), i + 1); };
+    run.on_pose = [this, &id](const PoseRecord& r) {
+      nlohmann::json event{{"event", "pose"},
+                           {"session", id},
+                           {"pose", r.index + 1},
+                           {"servo_error_um", r.servo.final_error_um},
+                           {"servo_moves", r.servo.moves}};
+      {
+        std::lock_guard<std::mutex> lock(mutex_);
+        status_.recorded = r.index + 1;
+        status_.last_servo_error_um = r.servo.final_error_um;
+        event["pose_count"] = status_.pose_count;
+      }
+      emit(event);
+    };
+    ObservedReader<LiveSlot> reader(cell_->psd(), *live_);
+    const double start_s = cell_->clock().nowS();
+    outcome = run.run(cell_->robot(), reader, cell_->clock(), abort_);
+    cell_time_s = cell_->clock().nowS() - start_s;
+  } catch (const std::exception& e) {
+    cell_.reset();
+    return finish(SessionState::kFaulted, e.what());
+  }
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    status_.cell_time_s = cell_time_s;
+    status_.resumed_from = outcome->resumed_from;
+  }
+  if (outcome->state == RunState::kAborted) return finish(SessionState::kAborted, outcome->message);
+  if (outcome->state == RunState::kFaulted) {
+    finish(SessionState::kFaulted, outcome->message);
+    cell_.reset();  // the links may be in any state: the next session connects afresh
+    return;
+  }
+
+  const SolveReport& report = *outcome->report;
+  nlohmann::json result = toJson(report);
+  result["session"] = id;
+  result["cell_time_s"] = cell_time_s;
+  result["resumed_from"] = outcome->resumed_from;
+  if (const auto truth = cell_->truthDeg()) {
+    result["truth"] = nlohmann::json::object();
+    for (int k = 0; k < kOffsetCount; ++k) result["truth"][unknownName(k)] = (*truth)[k];
+  }
+  nlohmann::json breakdown = nlohmann::json::array();
+  for (const PoseRecord& r : outcome->records)
+    breakdown.push_back({{"pose", r.index + 1},
+                         {"move_s", r.servo.move_s},
+                         {"acquisition_s", r.servo.acquisition_s},
+                         {"servo_s", r.servo.servo_s},
+                         {"settle_s", r.servo.settle_s},
+                         {"servo_moves", r.servo.moves},
+                         {"final_error_um", r.servo.final_error_um}});
+  result["pose_breakdown"] = breakdown;
+  try {
+    store_.writeResult(id, result);
+  } catch (const std::exception& e) {
+    return finish(SessionState::kFaulted, std::string("cannot write the result: ") + e.what());
+  }
+  if (settings_.write_reports) {
+    try {
+      settings_.write_reports(store_.sessionDir(id));
+    } catch (const std::exception& e) {
+      log->error("session {}: the result is written but the report is not: {}", id, e.what());
+    }
+  }
+  std::vector<double> achieved;
+  for (int k = 0; k < kOffsetCount; ++k)
+    achieved.push_back(report.parameters[k].identifiable ? report.parameters[k].sigma
+                                                         : std::nan(""));
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    status_.achieved_sigma_deg = achieved;
+  }
+  emit({{"event", "result"},
+        {"session", id},
+        {"converged", report.converged},
+        {"achieved_sigma_deg", sigmaObject(achieved)},
+        {"parameters", result["parameters"]}});
+  finish(SessionState::kDone, "");
+}
+
+std::vector<SessionInfo> SessionManager::sessions() const { return store_.list(); }
+
+nlohmann::json SessionManager::result(const std::string& requested) const {
+  std::string id = requested;
+  if (id.empty()) {
+    for (const SessionInfo& s : store_.list())
+      if (s.finished) id = s.id;  // oldest first: the last one is the latest
+    if (id.empty()) throw Refused("not_found", "no finished session yet");
+  }
+  checkId(id);
+  std::ifstream in(store_.sessionDir(id) + "/result.json");
+  if (!in) throw Refused("not_found", "session " + id + " has no result (unknown or unfinished)");
+  try {
+    return nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    throw Error("the result of session " + id + " does not parse: " + e.what());
+  }
+}
+
+void SessionManager::readPsd(ReadingDone done) {
+  bool session_running = false;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    session_running = isActive(status_.state) || starting_;
+  }
+  if (session_running) {  // the board belongs to the session: report what it last read
+    if (const std::optional<servo::PsdReading> r = live_->load())
+      done(LiveReading{*r, true}, "");
+    else
+      done(std::nullopt, "the session has not read the PSD yet");
+    return;
+  }
+  post([this, done = std::move(done)](bool cancelled) {
+    if (cancelled) return done(std::nullopt, "the daemon is stopping");
+    try {
+      if (!cell_) cell_ = backend_.connect();
+      const servo::PsdReading r = cell_->psd().read();
+      done(LiveReading{r, false}, "");
+    } catch (const std::exception& e) {
+      cell_.reset();
+      done(std::nullopt, std::string("cannot read the PSD: ") + e.what());
+    }
+  });
+}
+
+}  // namespace zerocal::service

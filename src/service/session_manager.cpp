@@ -282,7 +282,7 @@ Plan SessionManager::preview(const StartRequest& request) const {
 
 void SessionManager::claim() {
   if (stopping_) throw Refused("busy", "the daemon is stopping");
-  if (starting_ || isActive(status_.state) || busy_)
+  if (starting_ || isActive(status_.state))
     throw Refused("busy", "session " + status_.session_id + " is " + stateName(status_.state) +
                               ": one session at a time (abort it first)");
   starting_ = true;

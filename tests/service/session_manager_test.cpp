@@ -1,0 +1,321 @@
+// The session manager on the simulated cell (real client over TCP, real USB protocol code, real
+// journal on disk): the states and events of a session, one session at a time, refusals, abort,
+// resume, results and the live PSD reading.
+#include "zerocal/service/session_manager.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <future>
+#include <mutex>
+
+#include "zerocal/io/joint_set.h"
+#include "zerocal/sim/sim_backend.h"
+
+namespace zerocal::service {
+namespace {
+
+struct TempDir {
+  TempDir() {
+    char pattern[] = "/tmp/zerocal-manager-XXXXXX";
+    if (!::mkdtemp(pattern)) throw std::runtime_error("mkdtemp failed");
+    path = pattern;
+  }
+  ~TempDir() { std::filesystem::remove_all(path); }
+  std::string path;
+};
+
+sim::SimulatedCellOptions cellFor(std::uint64_t seed) {
+  sim::SimulatedCellOptions o;
+  o.world = randomWorld(seed);
+  o.controller_seed = seed;
+  o.psd.seed = static_cast<std::uint32_t>(seed) + 100;
+  return o;
+}
+
+ManagerSettings settingsIn(const std::string& dir) {
+  ManagerSettings s;
+  s.data_dir = dir;
+  s.run.servo.mode = servo::ServoMode::kHitPoint;
+  s.noise_mm = 0.010;
+  return s;
+}
+
+// Every event the manager emits, in order.
+struct EventLog {
+  std::mutex mutex;
+  std::vector<nlohmann::json> events;
+  std::function<void(const nlohmann::json&)> also;
+  SessionControl::EventSink sink() {
+    return [this](const nlohmann::json& e) {
+      {
+        std::lock_guard<std::mutex> lock(mutex);
+        events.push_back(e);
+      }
+      if (also) also(e);
+    };
+  }
+  std::vector<nlohmann::json> of(const std::string& kind) {
+    std::lock_guard<std::mutex> lock(mutex);
+    std::vector<nlohmann::json> out;
+    for (const auto& e : events)
+      if (e["event"] == kind) out.push_back(e);
+    return out;
+  }
+};
+
+std::vector<int> journalIndices(const std::string& path) {
+  std::vector<int> indices;
+  std::ifstream in(path);
+  for (std::string line; std::getline(in, line);)
+    indices.push_back(nlohmann::json::parse(line)["index"].get<int>());
+  return indices;
+}
+
+TEST(SessionManager, RunsASessionToDoneThroughEveryStateWithAResultNearTheTruth) {
+  const TempDir dir;
+  sim::SimBackend backend(cellFor(5));
+  SessionManager manager(backend, settingsIn(dir.path));
+  EventLog log;
+  manager.setEventSink(log.sink());
+  EXPECT_EQ(manager.status().state, SessionState::kIdle);
+
+  const std::string id = manager.start(manager.defaultRequest());
+  EXPECT_TRUE(isActive(manager.status().state));
+  const SessionStatus end = manager.waitIdle();
+  ASSERT_EQ(end.state, SessionState::kDone) << end.message;
+  EXPECT_EQ(end.session_id, id);
+  EXPECT_EQ(end.recorded, 8);
+  EXPECT_EQ(end.achieved_sigma_deg.size(), 4u);
+  EXPECT_EQ(end.predicted_sigma_deg.size(), 4u);
+
+  // The states in the order a technician would see them.
+  std::vector<std::string> states;
+  for (const auto& e : log.of("state")) {
+    const std::string s = e["state"];
+    if (states.empty() || states.back() != s) states.push_back(s);
+  }
+  ASSERT_GE(states.size(), 6u);
+  EXPECT_EQ(states.front(), "connecting");
+  EXPECT_EQ(states[1], "moving");
+  EXPECT_EQ(states[2], "servoing");
+  EXPECT_EQ(states[3], "recording");
+  EXPECT_EQ(states[states.size() - 2], "solving");
+  EXPECT_EQ(states.back(), "done");
+  // One pose event per pose, 1..8, each with its servo figures.
+  const auto poses = log.of("pose");
+  ASSERT_EQ(poses.size(), 8u);
+  for (int i = 0; i < 8; ++i) {
+    EXPECT_EQ(poses[i]["pose"], i + 1);
+    EXPECT_EQ(poses[i]["pose_count"], 8);
+    EXPECT_GE(poses[i]["servo_moves"].get<int>(), 0);
+  }
+  ASSERT_EQ(log.of("plan").size(), 1u);
+  ASSERT_EQ(log.of("result").size(), 1u);
+
+  const nlohmann::json result = manager.result(id);
+  EXPECT_EQ(result, manager.result(""));  // the latest finished one
+  for (int k = 0; k < kOffsetCount; ++k) {
+    const std::string name = unknownName(k);
+    const double error =
+        result["parameters"][name]["value"].get<double>() - result["truth"][name].get<double>();
+    EXPECT_LT(std::abs(error), 4 * result["parameters"][name]["sigma"].get<double>()) << name;
+  }
+  EXPECT_GT(result["cell_time_s"].get<double>(), 0);
+  EXPECT_EQ(result["pose_breakdown"].size(), 8u);
+  EXPECT_EQ(journalIndices(dir.path + "/" + id + "/journal.jsonl"),
+            (std::vector<int>{0, 1, 2, 3, 4, 5, 6, 7}));
+}
+
+TEST(SessionManager, OneSessionAtATimeAndAbortStopsIt) {
+  const TempDir dir;
+  sim::SimBackend backend(cellFor(6));
+  SessionManager manager(backend, settingsIn(dir.path));
+  const std::string id = manager.start(manager.defaultRequest());
+  try {
+    manager.start(manager.defaultRequest());
+    FAIL() << "a second start was accepted";
+  } catch (const Refused& e) {
+    EXPECT_EQ(e.code(), "busy");
+    EXPECT_NE(std::string(e.what()).find(id), std::string::npos) << e.what();
+  }
+  EXPECT_TRUE(manager.abort());
+  const SessionStatus end = manager.waitIdle();
+  EXPECT_EQ(end.state, SessionState::kAborted);
+  EXPECT_LT(end.recorded, 8);
+  EXPECT_FALSE(manager.abort());  // nothing left to abort
+  EXPECT_THROW(manager.result(id), Refused);
+}
+
+TEST(SessionManager, AnAbortedSessionResumesWithoutLosingOrRepeatingAPose) {
+  const TempDir dir;
+  sim::SimBackend backend(cellFor(7));
+  SessionManager manager(backend, settingsIn(dir.path));
+  EventLog log;
+  // Abort from the event thread as soon as the third pose is on disk.
+  log.also = [&manager](const nlohmann::json& e) {
+    if (e["event"] == "pose" && e["pose"] == 3) manager.abort();
+  };
+  manager.setEventSink(log.sink());
+  const std::string id = manager.start(manager.defaultRequest());
+  SessionStatus end = manager.waitIdle();
+  ASSERT_EQ(end.state, SessionState::kAborted);
+  ASSERT_EQ(end.recorded, 3);
+  ASSERT_EQ(manager.sessions().size(), 1u);
+  EXPECT_FALSE(manager.sessions()[0].finished);
+
+  EXPECT_EQ(manager.resume(""), id);  // the latest unfinished one
+  end = manager.waitIdle();
+  ASSERT_EQ(end.state, SessionState::kDone) << end.message;
+  EXPECT_EQ(end.resumed_from, 3);
+  EXPECT_EQ(journalIndices(dir.path + "/" + id + "/journal.jsonl"),
+            (std::vector<int>{0, 1, 2, 3, 4, 5, 6, 7}));
+  EXPECT_EQ(manager.result(id)["resumed_from"], 3);
+  try {
+    manager.resume(id);
+    FAIL() << "a finished session was resumed";
+  } catch (const Refused& e) {
+    EXPECT_EQ(e.code(), "finished");
+  }
+}
+
+TEST(SessionManager, APlanThatCannotIdentifyEveryOffsetIsRefusedBeforeAnything) {
+  const TempDir dir;
+  sim::SimBackend backend(cellFor(8));
+  SessionManager manager(backend, settingsIn(dir.path));
+  // Pattern II with joint 1 held: delta2 trades against the target (docs/maths.md).
+  PlanOptions options;
+  options.pattern = Pattern::kII;
+  options.joint1_fixed = true;
+  options.psd_normal = backend.knowledge().cell.psd_rotation.col(2);
+  const Plan weak =
+      planPoses(backend.knowledge().cell, backend.knowledge().taught_centre_mm, options);
+  const std::string plan_file = dir.path + "/weak.csv";
+  std::ofstream(plan_file) << formatJointSet(weak.poses);
+  StartRequest request = manager.defaultRequest();
+  request.plan = PlanKind::kFile;
+  request.plan_file = plan_file;
+  try {
+    manager.start(request);
+    FAIL() << "pattern II was accepted";
+  } catch (const Refused& e) {
+    EXPECT_EQ(e.code(), "not_identifiable");
+    EXPECT_NE(std::string(e.what()).find("delta"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(manager.status().state, SessionState::kIdle);
+  EXPECT_TRUE(manager.sessions().empty());
+  // The preview shows the same without refusing.
+  const Plan preview = manager.preview(request);
+  EXPECT_FALSE(preview.prediction.identifiable[0]);
+  request.plan_file = dir.path + "/missing.csv";
+  EXPECT_THROW(manager.preview(request), Refused);
+  request.plan = PlanKind::kOptimal;
+  request.poses = 2;
+  EXPECT_THROW(manager.preview(request), Refused);
+}
+
+TEST(SessionManager, IdsThatAreNotSessionIdsAndUnknownSessionsAreRefused) {
+  const TempDir dir;
+  sim::SimBackend backend(cellFor(9));
+  SessionManager manager(backend, settingsIn(dir.path));
+  const auto codeOf = [](const std::function<void()>& f) -> std::string {
+    try {
+      f();
+    } catch (const Refused& e) {
+      return e.code();
+    }
+    return "accepted";
+  };
+  EXPECT_EQ(codeOf([&] { manager.result("../../etc"); }), "bad_request");
+  EXPECT_EQ(codeOf([&] { manager.resume("/tmp"); }), "bad_request");
+  EXPECT_EQ(codeOf([&] { manager.result("20200101T000000Z"); }), "not_found");
+  EXPECT_EQ(codeOf([&] { manager.resume("20200101T000000Z"); }), "not_found");
+  EXPECT_EQ(codeOf([&] { manager.resume(""); }), "not_found");
+  EXPECT_EQ(codeOf([&] { manager.result(""); }), "not_found");
+}
+
+TEST(SessionManager, ReadsThePsdWhenIdleAndReportsTheSessionsLatestReadingDuringOne) {
+  const TempDir dir;
+  sim::SimBackend backend(cellFor(10));
+  SessionManager manager(backend, settingsIn(dir.path));
+  std::promise<std::pair<std::optional<LiveReading>, std::string>> idle;
+  manager.readPsd([&idle](std::optional<LiveReading> r, const std::string& error) {
+    idle.set_value({r, error});
+  });
+  const auto [reading, error] = idle.get_future().get();
+  ASSERT_TRUE(reading) << error;
+  EXPECT_FALSE(reading->during_session);
+
+  std::promise<std::optional<LiveReading>> during;
+  EventLog log;
+  log.also = [&](const nlohmann::json& e) {
+    if (e["event"] == "pose" && e["pose"] == 2)
+      manager.readPsd(
+          [&during](std::optional<LiveReading> r, const std::string&) { during.set_value(r); });
+  };
+  manager.setEventSink(log.sink());
+  manager.start(manager.defaultRequest());
+  const std::optional<LiveReading> live = during.get_future().get();
+  ASSERT_TRUE(live);
+  EXPECT_TRUE(live->during_session);
+  EXPECT_TRUE(live->reading.spot_present);  // the servo just recorded it on the detector
+  EXPECT_LT(std::hypot(live->reading.u_mm, live->reading.v_mm), 1.0);
+  manager.abort();
+  manager.waitIdle();
+}
+
+TEST(SessionManager, DestroyedMidSessionItStopsCleanlyWithEveryRecordedPoseOnDisk) {
+  const TempDir dir;
+  sim::SimBackend backend(cellFor(11));
+  std::string id;
+  std::promise<void> two_recorded;
+  {
+    SessionManager manager(backend, settingsIn(dir.path));
+    EventLog log;
+    log.also = [&](const nlohmann::json& e) {
+      if (e["event"] == "pose" && e["pose"] == 2) two_recorded.set_value();
+    };
+    manager.setEventSink(log.sink());
+    id = manager.start(manager.defaultRequest());
+    two_recorded.get_future().wait();
+  }  // as on SIGTERM: the destructor aborts, stops the robot and joins the worker
+  const std::vector<int> indices = journalIndices(dir.path + "/" + id + "/journal.jsonl");
+  ASSERT_GE(indices.size(), 2u);
+  for (std::size_t i = 0; i < indices.size(); ++i) EXPECT_EQ(indices[i], static_cast<int>(i));
+  EXPECT_FALSE(std::filesystem::exists(dir.path + "/" + id + "/result.json"));
+}
+
+class UnreachableBackend final : public CellBackend {
+ public:
+  explicit UnreachableBackend(CellKnowledge k) : k_(std::move(k)) {}
+  const char* name() const override { return "hardware"; }
+  CellKnowledge knowledge() const override { return k_; }
+  std::unique_ptr<ConnectedCell> connect() override {
+    throw Error("cannot connect to 192.0.2.1:5000: connection refused");
+  }
+
+ private:
+  CellKnowledge k_;
+};
+
+TEST(SessionManager, ACellThatCannotBeReachedFaultsTheSessionWithTheReason) {
+  const TempDir dir;
+  sim::SimBackend sim_backend(cellFor(12));
+  UnreachableBackend backend(sim_backend.knowledge());
+  SessionManager manager(backend, settingsIn(dir.path));
+  manager.start(manager.defaultRequest());
+  const SessionStatus end = manager.waitIdle();
+  EXPECT_EQ(end.state, SessionState::kFaulted);
+  EXPECT_NE(end.message.find("connection refused"), std::string::npos) << end.message;
+  EXPECT_EQ(end.recorded, 0);
+  std::promise<std::string> error;
+  manager.readPsd(
+      [&error](std::optional<LiveReading>, const std::string& e) { error.set_value(e); });
+  EXPECT_NE(error.get_future().get().find("connection refused"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace zerocal::service

@@ -223,8 +223,15 @@ void SessionManager::emit(const nlohmann::json& event) {
 }
 
 SessionStatus SessionManager::status() const {
-  std::lock_guard<std::mutex> lock(mutex_);
-  return status_;
+  SessionStatus s;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    s = status_;
+  }
+  if (s.state == SessionState::kServoing)
+    if (const std::optional<servo::PsdReading> r = live_->load())
+      s.live_servo_error_um = r->spot_present ? 1e3 * std::hypot(r->u_mm, r->v_mm) : std::nan("");
+  return s;
 }
 
 SessionStatus SessionManager::waitIdle() {

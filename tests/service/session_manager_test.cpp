@@ -11,6 +11,7 @@
 #include <fstream>
 #include <future>
 #include <mutex>
+#include <thread>
 
 #include "zerocal/io/joint_set.h"
 #include "zerocal/sim/sim_backend.h"
@@ -84,7 +85,22 @@ TEST(SessionManager, RunsASessionToDoneThroughEveryStateWithAResultNearTheTruth)
   EXPECT_EQ(manager.status().state, SessionState::kIdle);
 
   const std::string id = manager.start(manager.defaultRequest());
-  EXPECT_TRUE(isActive(manager.status().state));
+  // Polled as a terminal would: the live servo error shows while servoing, and only then.
+  int live_seen = 0, polls = 0, servoing = 0, any = 0;
+  for (SessionStatus s = manager.status(); isActive(s.state); s = manager.status()) {
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+    ++polls;
+    if (s.state == SessionState::kServoing) ++servoing;
+    if (s.live_servo_error_um) {
+      EXPECT_EQ(s.state, SessionState::kServoing);
+      ++any;
+      if (std::isfinite(*s.live_servo_error_um)) {
+        EXPECT_LT(*s.live_servo_error_um, 5000.0);  // on the 10 mm detector
+        ++live_seen;
+      }
+    }
+  }
+  EXPECT_GT(live_seen, 0) << polls << " polls, " << servoing << " servoing, " << any << " any";
   const SessionStatus end = manager.waitIdle();
   ASSERT_EQ(end.state, SessionState::kDone) << end.message;
   EXPECT_EQ(end.session_id, id);

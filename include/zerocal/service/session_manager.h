@@ -70,10 +70,13 @@ struct SessionStatus {
   std::string session_id;  // the current or last session; empty before the first
   int pose = 0;            // 1-based pose being worked on (moving, servoing, recording)
   int pose_count = 0;
-  int recorded = 0;                         // poses on disk in this session's journal
-  int resumed_from = 0;                     // poses found in the journal when the run (re)started
-  std::string message;                      // why it stopped, when aborted or faulted
-  double last_servo_error_um = 0;           // at the last recorded pose
+  int recorded = 0;                // poses on disk in this session's journal
+  int resumed_from = 0;            // poses found in the journal when the run (re)started
+  std::string message;             // why it stopped, when aborted or faulted
+  double last_servo_error_um = 0;  // at the last recorded pose
+  // While servoing: the spot's distance from the PSD centre at the latest reading, um (NaN when
+  // the spot is off the detector). Read without disturbing the servo; poll it for live display.
+  std::optional<double> live_servo_error_um;
   std::vector<double> predicted_sigma_deg;  // delta2..delta5, from the plan (NaN: not identif.)
   std::vector<double> achieved_sigma_deg;   // from the solve, when done
   double cell_time_s = 0;                   // since the run (re)started

@@ -33,6 +33,7 @@ SimControllerOptions controllerOptions(const SimulatedCellOptions& o) {
   SimControllerOptions c;
   c.world = o.world;
   c.seed = o.controller_seed;
+  c.pace = o.pace;
   c.start_joints = o.start_joints;
   return c;
 }

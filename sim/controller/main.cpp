@@ -22,7 +22,9 @@ int main(int argc, char** argv) {
   app.add_flag(
       "--no-lf", [&](std::int64_t) { options.lf_terminated = false; },
       "end replies with no LF, like upstream open_abb");
-  app.add_flag("--real-time", options.pace_real_time, "moves take their duration in wall time");
+  app.add_option("--pace", options.pace,
+                 "wall seconds per simulated second of a move (1: real time; default 0: at once)")
+      ->check(CLI::Range(0.0, 10.0));
   app.add_option("--drop-after", options.faults.drop_after_requests,
                  "close each connection instead of answering its request N+1");
   app.add_option("--delay-ms", delay_ms, "delay every reply (ms)");

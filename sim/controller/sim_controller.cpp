@@ -349,7 +349,8 @@ std::string SimController::Impl::moveTo(const Joints& target, int code, millisec
                              : irc5::jointMoveSeconds(options.world.robot, commanded, stored,
                                                       speed_tcp_mm_s, speed_ori_deg_s);
   sim_time_s += seconds;
-  if (options.pace_real_time) *wall_delay = milliseconds(static_cast<long long>(seconds * 1000));
+  if (options.pace > 0)
+    *wall_delay = milliseconds(static_cast<long long>(seconds * options.pace * 1000));
   commanded = stored;
   std::normal_distribution<double> noise(0.0, options.world.noise.repeatability_deg);
   for (double& e : move_error) e = options.world.noise.repeatability_deg > 0 ? noise(rng) : 0.0;

@@ -5,50 +5,34 @@
 #include "zerocal/model/builtin.h"
 #include "zerocal/model/kinematics.h"
 #include "zerocal/psd/psd_config.h"
+#include "zerocal/service/linked_cell.h"
 #include "zerocal/usb1408fs/libusb_transport.h"
-#include "zerocal/usb1408fs/usb1408fs.h"
 
 namespace zerocal::service {
 namespace {
 
-class ConnectedHardwareCell final : public ConnectedCell {
+servo::ChainPsdReaderOptions readerOptionsOf(const DaqConfig& daq) {
+  servo::ChainPsdReaderOptions o;
+  o.channels = daq.channels;
+  o.samples = static_cast<std::size_t>(daq.samples_per_reading);
+  o.rate_hz = daq.scan_rate_hz;
+  o.on_threshold_v = daq.sum_threshold_v;
+  o.off_threshold_v = 0.8 * daq.sum_threshold_v;  // hysteresis: no flicker at the edge
+  return o;
+}
+
+// Base-from-member: the steady clock is constructed before the LinkedCell that refers to it.
+struct SteadyClockHolder {
+  servo::SteadyCellClock steady_clock;
+};
+
+class HardwareCell final : private SteadyClockHolder, public LinkedCell {
  public:
-  ConnectedHardwareCell(Irc5Options options, const DaqConfig& daq, const psd::PsdMap& map)
-      : client_(std::move(options)),
-        daq_([serial = daq.serial] { return usb1408fs::LibusbTransport::open(serial); }),
-        psd_(daq_, map, clock_, readerOptionsOf(daq)) {
-    client_.connect();
-  }
-  ~ConnectedHardwareCell() override { client_.close(); }
-
-  ControllerLink& robot() override { return client_; }
-  servo::PsdReader& psd() override { return psd_; }
-  servo::CellClock& clock() override { return clock_; }
-  void reconnectRobot() override { client_.reconnect(); }
-  void reopenPsd() override { daq_.reopen(); }
-  void stopRobot() noexcept override {
-    try {
-      if (client_.connected()) client_.stop();
-    } catch (const std::exception&) {
-      // Unreachable controller: the RAPID server stops the robot when its client goes away.
-    }
-  }
-
- private:
-  static servo::ChainPsdReaderOptions readerOptionsOf(const DaqConfig& daq) {
-    servo::ChainPsdReaderOptions o;
-    o.channels = daq.channels;
-    o.samples = static_cast<std::size_t>(daq.samples_per_reading);
-    o.rate_hz = daq.scan_rate_hz;
-    o.on_threshold_v = daq.sum_threshold_v;
-    o.off_threshold_v = 0.8 * daq.sum_threshold_v;  // hysteresis: no flicker at the edge
-    return o;
-  }
-
-  servo::SteadyCellClock clock_;
-  Irc5Client client_;
-  usb1408fs::Usb1408fs daq_;
-  servo::ChainPsdReader psd_;
+  HardwareCell(Irc5Options options, const DaqConfig& daq, const psd::PsdMap& map)
+      : LinkedCell(
+            std::move(options),
+            [serial = daq.serial] { return usb1408fs::LibusbTransport::open(serial); }, map,
+            steady_clock, readerOptionsOf(daq)) {}
 };
 
 }  // namespace
@@ -94,7 +78,7 @@ std::unique_ptr<ConnectedCell> HardwareBackend::connect() {
   Irc5Options o = irc5OptionsOf(config_.controller);
   o.host = config_.controller.host;
   o.port = config_.controller.port;
-  return std::make_unique<ConnectedHardwareCell>(std::move(o), config_.daq, map_);
+  return std::make_unique<HardwareCell>(std::move(o), config_.daq, map_);
 }
 
 }  // namespace zerocal::service

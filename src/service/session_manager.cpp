@@ -287,27 +287,33 @@ Plan SessionManager::preview(const StartRequest& request) const {
   return makePlan(request, target, noise_mm);
 }
 
-void SessionManager::claim() {
-  if (stopping_) throw Refused("busy", "the daemon is stopping");
-  if (starting_ || isActive(status_.state))
-    throw Refused("busy", "session " + status_.session_id + " is " + stateName(status_.state) +
-                              ": one session at a time (abort it first)");
-  starting_ = true;
-}
+// Holds `starting_` from the busy check until the run is posted (or the request refused), so that
+// two requests cannot both pass the check while one of them plans.
+class SessionManager::Claim {
+ public:
+  explicit Claim(SessionManager& m) : m_(m) {
+    std::lock_guard<std::mutex> lock(m_.mutex_);
+    if (m_.stopping_) throw Refused("busy", "the daemon is stopping");
+    if (m_.starting_ || isActive(m_.status_.state))
+      throw Refused("busy", "session " + m_.status_.session_id + " is " +
+                                stateName(m_.status_.state) +
+                                ": one session at a time (abort it first)");
+    m_.starting_ = true;
+  }
+  ~Claim() {
+    {
+      std::lock_guard<std::mutex> lock(m_.mutex_);
+      m_.starting_ = false;
+    }
+    m_.changed_.notify_all();
+  }
+
+ private:
+  SessionManager& m_;
+};
 
 std::string SessionManager::start(const StartRequest& request) {
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    claim();
-  }
-  struct Release {  // starting_ back to false on every exit
-    SessionManager& m;
-    ~Release() {
-      std::lock_guard<std::mutex> lock(m.mutex_);
-      m.starting_ = false;
-      m.changed_.notify_all();
-    }
-  } release{*this};
+  const Claim claim(*this);
 
   Eigen::Vector3d target;
   double noise_mm = 0;
@@ -357,18 +363,7 @@ std::string SessionManager::start(const StartRequest& request) {
 }
 
 std::string SessionManager::resume(const std::string& requested) {
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    claim();
-  }
-  struct Release {
-    SessionManager& m;
-    ~Release() {
-      std::lock_guard<std::mutex> lock(m.mutex_);
-      m.starting_ = false;
-      m.changed_.notify_all();
-    }
-  } release{*this};
+  const Claim claim(*this);
 
   std::string id = requested;
   if (id.empty()) {

@@ -56,6 +56,7 @@ std::unique_ptr<service::CellBackend> makeBackend(const DaemonConfig& cfg) {
   const std::uint64_t seed = cfg.backend.sim_seed.value_or(1);
   o.world = cfg.backend.sim_world.empty() ? randomWorld(seed) : loadWorld(cfg.backend.sim_world);
   o.controller_seed = seed;
+  o.pace = cfg.backend.sim_pace;
   o.psd.seed = static_cast<std::uint32_t>(seed) + 100;
   // The controller section applies to the simulated controller as to a real one.
   return std::make_unique<sim::SimBackend>(std::move(o),

@@ -69,7 +69,7 @@ class ClientSim : public ::testing::Test {
     SimControllerOptions o;
     o.world = testWorld();
     o.lf_terminated = lf;
-    o.pace_real_time = real_time;
+    o.pace = real_time ? 1.0 : 0.0;
     o.partial_request_timeout = milliseconds(100);
     sim_ = std::make_unique<SimController>(o);
     sim_->start();

@@ -33,6 +33,9 @@ struct BackendConfig {
   // neither, the seed 1 world.
   std::string sim_world;
   std::optional<std::uint64_t> sim_seed;
+  // Wall seconds per simulated second of a move: 0 as fast as the computer goes, 1 real time,
+  // 0.1 ten times faster (to watch a session on the simulated cell).
+  double sim_pace = 0.0;
   // An external zerocal-sim process instead of the in-process one: both set, or neither.
   std::string sim_host;
   std::uint16_t sim_port = 0;

@@ -153,6 +153,7 @@ class SessionManager final : public SessionControl {
 
  private:
   class LiveSlot;
+  class Claim;
   using Task = std::function<void(bool cancelled)>;  // cancelled: the daemon is stopping
   void workerLoop();
   void post(Task task);
@@ -163,7 +164,6 @@ class SessionManager final : public SessionControl {
   void emit(const nlohmann::json& event);
   nlohmann::json stateEvent() const;  // mutex_ held
   Plan makePlan(const StartRequest& request, Eigen::Vector3d& target, double& noise_mm) const;
-  void claim();  // throws Refused("busy"); mutex_ held
 
   CellBackend& backend_;
   ManagerSettings settings_;

@@ -41,8 +41,9 @@ struct SimControllerOptions {
   std::uint16_t port = 0;  // 0: an ephemeral port, see SimController::port()
   // false: replies end with no LF, like upstream's server.
   bool lf_terminated = true;
-  // true: a move's reply also waits its duration on the wall clock.
-  bool pace_real_time = false;
+  // Wall-clock seconds a move's reply waits per simulated second of the move: 0 answers at once,
+  // 1 in real time, 0.1 ten times faster (a demonstration one can follow).
+  double pace = 0.0;
   // Seeds the repeatability noise.
   std::uint64_t seed = 1;
   // A request still missing its '#' after this long gets a bad-message reply and is discarded

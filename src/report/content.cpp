@@ -109,7 +109,8 @@ Section abbSection(const SessionReport& r) {
       "it valid_cal_offset and com_offset). Not ARM (joint bounds) and not ARM_CALIB (Absolute "
       "Accuracy). Read the present value from RAPID with ReadCfgData "
       "\"/MOC/MOTOR_CALIB/rob1_N\",\"cal_offset\",value, or over Robot Web Services at "
-      "/rw/cfg/MOC/MOTOR_CALIB/instances/rob1_N. Write both values down before changing anything.");
+      "/rw/cfg/MOC/MOTOR_CALIB/instances/rob1_N. Write the present values down before changing "
+      "anything.");
   p.push_back(
       "From arm side to motor side. An arm-side offset is not a cal_offset: the change of "
       "cal_offset for joint N is about the arm-side change in radians times the axis's gear "

@@ -146,8 +146,8 @@ std::string barChart(const std::string& id, const std::string& title,
 // servo (green) to the recorded reading (red). Each panel has its own scale, printed in it,
 // because a spot search spans millimetres and a fine servo micrometres.
 std::string servoPaths(const std::vector<PoseRow>& poses) {
-  const int columns = 4;
-  const double cell = 170, gap = 12, title_h = 26, label_h = 18;
+  const int columns = 6;
+  const double cell = 160, gap = 12, title_h = 26, label_h = 18;
   const int rows = static_cast<int>((poses.size() + columns - 1) / columns);
   const double w = columns * (cell + gap) + gap;
   const double h = title_h + rows * (cell + label_h + gap) + gap;
@@ -301,7 +301,13 @@ std::string reportHtml(const SessionReport& r) {
   o << "</table>\n";
 
   // Servo paths.
-  o << "<h2>PSD spot path during each servo</h2>\n" << servoPaths(r.poses);
+  o << "<h2>PSD spot path during each servo</h2>\n";
+  const bool any_path = std::any_of(r.poses.begin(), r.poses.end(),
+                                    [](const PoseRow& p) { return p.servo_path.has_value(); });
+  if (any_path)
+    o << servoPaths(r.poses);
+  else
+    o << "<p>The spot path was not recorded for any pose (the journal has no servo_path).</p>\n";
 
   // Predicted versus achieved.
   o << "<h2>Predicted versus achieved uncertainty</h2>\n"
@@ -318,8 +324,13 @@ std::string reportHtml(const SessionReport& r) {
       pred_o.values.push_back(pred * 1000);
       ach_o.values.push_back(ach * 1000);
     } else {
+      // "laser_offset_1_mm" -> "offset 1 (mm)": the axis is narrow, the table has the full name.
       const std::string unit = detail::unitOf(p.name);
-      laser_cats.push_back(p.name + (unit.empty() ? "" : " (" + unit + ")"));
+      std::string label = p.name.substr(p.name.rfind("laser_", 0) == 0 ? 6 : 0);
+      if (!unit.empty())
+        label = label.substr(0, label.size() - unit.size() - 1) + " (" + unit + ")";
+      std::replace(label.begin(), label.end(), '_', ' ');
+      laser_cats.push_back(label);
       pred_l.values.push_back(pred);
       ach_l.values.push_back(ach);
     }
@@ -334,8 +345,8 @@ std::string reportHtml(const SessionReport& r) {
   for (const ParameterRow& p : r.parameters) {
     const std::string unit = detail::unitOf(p.name);
     o << "<tr>" << td(p.name)
-      << td(p.predicted_sigma ? num("%.5f", *p.predicted_sigma) + " " + unit : "n/a", "n")
-      << td(p.identifiable ? num("%.5f", p.sigma) + " " + unit : "not identifiable", "n")
+      << td(p.predicted_sigma ? num("%.3g", *p.predicted_sigma) + " " + unit : "n/a", "n")
+      << td(p.identifiable ? num("%.3g", p.sigma) + " " + unit : "not identifiable", "n")
       << td(p.predicted_sigma && p.identifiable && *p.predicted_sigma > 0
                 ? format("%.2f", p.sigma / *p.predicted_sigma)
                 : "",

@@ -14,17 +14,18 @@ std::string summaryText(const SessionReport& r) {
   std::ostringstream o;
   o << "zerocal calibration summary, session " << r.session_id
     << (r.simulated ? " (SIMULATED cell: the truth is known)" : "") << "\n";
-  if (!r.plan_description.empty()) o << "plan: " << r.plan_description << "\n";
+  if (!r.plan_description.empty()) o << detail::wrap("plan: " + r.plan_description, 100, 0);
   o << detail::wrap(detail::verdict(r), 100, 0);
-  o << format("solved from %d poses (%s model, %s cost); noise %s mm (%s)", r.solved_poses,
-              r.model.c_str(), r.cost.c_str(), num("%.4f", r.noise_mm).c_str(),
-              r.noise_source.c_str());
+  std::string fit = format("Solved from %d poses (%s model, %s cost); noise %s mm (%s); ",
+                           r.solved_poses, r.model.c_str(), r.cost.c_str(),
+                           num("%.4f", r.noise_mm).c_str(), r.noise_source.c_str());
   if (r.chi2_per_dof)
-    o << format("; chi-square per degree of freedom %.2f, dof %d", *r.chi2_per_dof, r.dof);
+    fit += format("chi-square per degree of freedom %.2f, dof %d; ", *r.chi2_per_dof, r.dof);
   else
-    o << format("; dof %d (chi-square needs a given noise level)", r.dof);
-  o << format("\nRMS miss %.1f um; rank %d of 11, condition number %s\n", r.rms_miss_mm * 1000,
-              r.rank, num("%.1f", r.condition_number).c_str());
+    fit += format("dof %d (chi-square needs a given noise level); ", r.dof);
+  fit += format("RMS miss %.1f um; rank %d of 11, condition number %s.", r.rms_miss_mm * 1000,
+                r.rank, num("%.1f", r.condition_number).c_str());
+  o << detail::wrap(fit, 100, 0);
 
   o << "\nJoint offsets, ARM side (joint angle, not motor angle): the true joint angle is the\n"
        "controller's angle plus delta. 95% interval = value +- t * sigma.\n";
@@ -57,7 +58,7 @@ std::string summaryText(const SessionReport& r) {
     if (!p.identifiable)
       o << format("  %-18s not identifiable\n", p.name.c_str());
     else
-      o << format("  %-18s %+.5f %s (sigma %.5f)\n", p.name.c_str(), p.value, unit.c_str(),
+      o << format("  %-18s %+.6g %s (sigma %.3g)\n", p.name.c_str(), p.value, unit.c_str(),
                   p.sigma);
   }
   o << format("PSD centre in the base frame: %.3f %.3f %.3f mm (sigma %s %s %s mm)\n",
@@ -75,8 +76,8 @@ std::string summaryText(const SessionReport& r) {
   for (const ParameterRow& p : r.parameters) {
     const std::string unit = detail::unitOf(p.name);
     o << format("  %-18s predicted %s, achieved %s %s", p.name.c_str(),
-                p.predicted_sigma ? num("%.5f", *p.predicted_sigma).c_str() : "n/a",
-                p.identifiable ? num("%.5f", p.sigma).c_str() : "n/a", unit.c_str());
+                p.predicted_sigma ? num("%.3g", *p.predicted_sigma).c_str() : "n/a",
+                p.identifiable ? num("%.3g", p.sigma).c_str() : "n/a", unit.c_str());
     if (p.predicted_sigma && p.identifiable && *p.predicted_sigma > 0)
       o << format(" (ratio %.2f)", p.sigma / *p.predicted_sigma);
     o << "\n";

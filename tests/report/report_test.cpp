@@ -125,7 +125,14 @@ TEST(Summary, GivesEachOffsetInDegreesAndRadiansWithSigmaAndInterval) {
     EXPECT_TRUE(contains(s, ci)) << ci;
   }
   EXPECT_TRUE(contains(s, "ARM side"));
-  EXPECT_TRUE(contains(s, "chi-square per degree of freedom"));
+  std::string flowed = s;  // the fit line is wrapped at 100 columns
+  std::replace(flowed.begin(), flowed.end(), '\n', ' ');
+  char chi2[96];
+  std::snprintf(chi2, sizeof chi2, "chi-square per degree of freedom %.2f, dof %d", *r.chi2_per_dof,
+                r.dof);
+  EXPECT_TRUE(contains(flowed, chi2)) << chi2;
+  for (std::istringstream lines(s); std::getline(lines, flowed);)
+    EXPECT_LE(flowed.size(), 100u) << flowed;
 }
 
 TEST(Summary, SaysWhatIsNotIdentifiableAndWhy) {
@@ -213,6 +220,15 @@ TEST(Html, ServoPathSaysNotRecordedWhenAbsent) {
   EXPECT_EQ(count(h, "<polyline class=\"path\""), 9);
   EXPECT_EQ(count(h, ">not recorded</text>"), 1);
   EXPECT_TRUE(contains(h, "No poses were held out"));
+}
+
+TEST(Html, NoServoPathAtAllIsOneSentenceNotAnEmptyPlot) {
+  test::FixtureOptions o;
+  o.poses = 8;
+  o.poses_without_path = {1, 2, 3, 4, 5, 6, 7, 8};
+  const std::string h = reportHtml(parseSession(test::sessionFiles(o)));
+  EXPECT_FALSE(contains(h, "id=\"servo-paths\""));
+  EXPECT_TRUE(contains(h, "The spot path was not recorded for any pose"));
 }
 
 TEST(Html, EscapesEveryTextFromTheFiles) {

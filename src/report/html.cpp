@@ -33,6 +33,14 @@ std::vector<double> linearTicks(double lo, double hi, int n = 5) {
   return ticks;
 }
 
+// A round number not below x (x > 0) and not far above it: a panel's half-width.
+double niceCeil(double x) {
+  const double power = std::pow(10.0, std::floor(std::log10(x)));
+  for (const double m : {1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 8.0})
+    if (m * power >= x) return m * power;
+  return 10 * power;
+}
+
 std::string tickLabel(double v) {
   const double a = std::abs(v);
   if (a == 0) return "0";
@@ -51,7 +59,7 @@ std::string barChart(const std::string& id, const std::string& title,
                      const std::vector<std::string>& categories, const std::vector<Series>& series,
                      const std::string& x_label, const std::string& y_label, bool log_scale,
                      double reference = std::nan(""), const std::string& reference_label = "") {
-  const double w = 640, h = 300, left = 72, right = 16, top = 34, bottom = 56;
+  const double w = 640, h = 316, left = 72, right = 16, top = 50, bottom = 56;
   const double pw = w - left - right, ph = h - top - bottom;
   double lo = std::numeric_limits<double>::infinity(), hi = -lo;
   for (const Series& s : series)
@@ -133,9 +141,9 @@ std::string barChart(const std::string& id, const std::string& title,
   double lx = left + pw;
   for (auto s = series.rbegin(); s != series.rend(); ++s) {
     lx -= 12 + 7.0 * s->name.size() + 14;
-    o << format("<rect x=\"%.1f\" y=\"12\" width=\"10\" height=\"10\" fill=\"%s\"/>", lx,
+    o << format("<rect x=\"%.1f\" y=\"28\" width=\"10\" height=\"10\" fill=\"%s\"/>", lx,
                 s->colour.c_str())
-      << format("<text x=\"%.1f\" y=\"21\" class=\"tick\">", lx + 14) << esc(s->name)
+      << format("<text x=\"%.1f\" y=\"37\" class=\"tick\">", lx + 14) << esc(s->name)
       << "</text>\n";
   }
   o << "</svg>\n";
@@ -181,7 +189,7 @@ std::string servoPaths(const std::vector<PoseRow>& poses) {
     for (const ServoSample& s : *p.servo_path)
       if (std::isfinite(s.u_mm) && std::isfinite(s.v_mm))
         extent = std::max({extent, std::abs(s.u_mm), std::abs(s.v_mm)});
-    extent = extent > 0 ? linearTicks(0, extent * 1.05, 1).back() : 1e-3;
+    extent = extent > 0 ? niceCeil(extent * 1.05) : 1e-3;
     const double scale = (cell / 2 - 10) / extent;
     o << format("<line x1=\"%.1f\" x2=\"%.1f\" y1=\"%.1f\" y2=\"%.1f\" class=\"grid\"/>", x0,
                 x0 + cell, cy, cy)
@@ -198,10 +206,9 @@ std::string servoPaths(const std::vector<PoseRow>& poses) {
                 cx + first.u_mm * scale, cy - first.v_mm * scale)
       << format("<circle cx=\"%.2f\" cy=\"%.2f\" r=\"4\" class=\"end\"/>\n", cx + last.u_mm * scale,
                 cy - last.v_mm * scale);
-    o << format(
-        "<text x=\"%.1f\" y=\"%.1f\" class=\"tick\">u, v: +-%s mm; %zu samples, %.2f s"
-        "</text>\n",
-        x0, y0 + cell + 13, tickLabel(extent).c_str(), p.servo_path->size(), last.t_s - first.t_s);
+    o << format("<text x=\"%.1f\" y=\"%.1f\" class=\"tick\">+-%s mm, %zu points, %.2f s</text>\n",
+                x0, y0 + cell + 13, tickLabel(extent).c_str(), p.servo_path->size(),
+                last.t_s - first.t_s);
   }
   o << "</svg>\n";
   return o.str();

@@ -222,6 +222,24 @@ TEST(Html, ServoPathSaysNotRecordedWhenAbsent) {
   EXPECT_TRUE(contains(h, "No poses were held out"));
 }
 
+TEST(Html, ServoPanelsAreScaledToTheirPath) {
+  // The fixture's paths start 2 mm from the reading: a +-2 or +-2.5 mm panel, every point in it.
+  const std::string h = reportHtml(plainSession());
+  EXPECT_EQ(count(h, ">+-2.5 mm, 21 points, 1.00 s</text>") +
+                count(h, ">+-2 mm, 21 points, 1.00 s</text>"),
+            9);
+  const std::regex point(R"(([-0-9.]+),([-0-9.]+) )");
+  const auto start = h.find("<polyline class=\"path\" points=\"");
+  const std::string first = h.substr(start, h.find("\"/>", start) - start);
+  int points = 0;
+  for (auto it = std::sregex_iterator(first.begin(), first.end(), point);
+       it != std::sregex_iterator(); ++it, ++points) {
+    const double x = std::stod((*it)[1]), y = std::stod((*it)[2]);
+    EXPECT_TRUE(x >= 12 && x <= 12 + 160 && y >= 26 && y <= 26 + 160) << x << "," << y;
+  }
+  EXPECT_EQ(points, 21);
+}
+
 TEST(Html, NoServoPathAtAllIsOneSentenceNotAnEmptyPlot) {
   test::FixtureOptions o;
   o.poses = 8;

@@ -6,6 +6,7 @@ packages=(
   libeigen3-dev libceres-dev libboost-dev libyaml-cpp-dev nlohmann-json3-dev libcli11-dev
   libspdlog-dev libfmt-dev libusb-1.0-0-dev
   libgtest-dev libgmock-dev libbenchmark-dev umockdev libumockdev-dev
+  zlib1g-dev chromium
 )
 sudo=""
 [ "$(id -u)" -eq 0 ] || sudo="sudo"

@@ -1,5 +1,5 @@
-// zerocal: the calibration engine on the command line (solve, plan, experiment, sensitivity), and
-// the PSD chain (psd-sweep, psd-map, psd).
+// zerocal: the calibration engine on the command line (solve, plan, experiment, sensitivity), the
+// PSD chain (psd-sweep, psd-map, psd), and the report of a session folder (report).
 // Exit codes: 0 done; 1 unexpected failure; 2 bad input or usage, or no USB-1408FS / no permission
 // to open it; 3 the solver did not converge; 4 solved, but some of delta2..delta5 are not
 // identifiable from the poses.
@@ -15,9 +15,12 @@
 #include "zerocal/calib/planner.h"
 #include "zerocal/calib/sensitivity.h"
 #include "zerocal/calib/solver.h"
+#include "zerocal/calib/validation.h"
+#include "zerocal/daemon/journal.h"
 #include "zerocal/error.h"
 #include "zerocal/io/joint_set.h"
 #include "zerocal/model/builtin.h"
+#include "zerocal/report/session_report.h"
 #include "zerocal/usb1408fs/errors.h"
 
 namespace zerocal {
@@ -99,6 +102,27 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"none", "huber", "cauchy"}));
   solve_cmd->add_option("--loss-scale", loss_scale, "where the robust loss bends, in noise sigmas");
   solve_cmd->add_flag("--json", solve_json, "print one JSON object instead of text");
+  std::optional<int> holdout_count;
+  std::vector<int> holdout_poses;
+  auto* holdout_opt = solve_cmd->add_option(
+      "--holdout", holdout_count,
+      "validation: hold K poses (spread evenly over the set) out of the solve and report how "
+      "well the result predicts them, before and after calibration");
+  solve_cmd
+      ->add_option("--holdout-poses", holdout_poses,
+                   "validation: hold these poses out (1-based, comma separated, e.g. 3,5)")
+      ->delimiter(',')
+      ->excludes(holdout_opt);
+
+  // report
+  auto* report_cmd = app.add_subcommand(
+      "report", "(re)write summary.txt and report.html of a session folder and print the summary");
+  std::string session_dir;
+  bool report_json = false;
+  report_cmd->add_option("session-dir", session_dir, "the session folder (<data_dir>/<id>)")
+      ->required();
+  report_cmd->add_flag("--json", report_json,
+                       "print the paths and the offsets as one JSON object instead of the summary");
 
   // plan
   auto* plan_cmd = app.add_subcommand("plan", "plan poses and predict their uncertainty");
@@ -217,11 +241,19 @@ int main(int argc, char** argv) {
                            "with --psd-rpy R P Y, or --ignore-readings");
         cell.psd_rotation = fromRpyDeg(psd_rpy);
       }
-      const SolveReport report = solve(cell, poses, options);
-      if (solve_json)
-        emit(toJson(report));
-      else
+      std::vector<int> held_out = holdout_poses;
+      if (holdout_count) held_out = spreadHoldout(static_cast<int>(poses.size()), *holdout_count);
+      std::optional<HoldoutReport> validation;
+      if (!held_out.empty()) validation = validateHoldout(cell, poses, held_out, options);
+      const SolveReport report = validation ? validation->fit : solve(cell, poses, options);
+      if (solve_json) {
+        nlohmann::json j = toJson(report);
+        if (validation) j["validation"] = toJson(*validation);
+        emit(j);
+      } else {
         std::cout << toText(report);
+        if (validation) std::cout << toText(*validation);
+      }
       if (!report.converged) return kNotConverged;
       for (int k = 0; k < kOffsetCount; ++k)
         if (!report.parameters[k].identifiable) return kNotIdentifiable;
@@ -276,6 +308,30 @@ int main(int argc, char** argv) {
       std::cout << formatJointSet(recorded, comment.str());
       return kOk;
     }
+    if (report_cmd->parsed()) {
+      report::writeSessionReport(session_dir);
+      const report::SessionReport r = report::parseSession(report::readSessionFiles(session_dir));
+      if (!report_json) {
+        std::cout << report::summaryText(r);
+        return kOk;
+      }
+      nlohmann::json j{{"session", r.session_id},
+                       {"summary", session_dir + "/summary.txt"},
+                       {"report", session_dir + "/report.html"},
+                       {"converged", r.converged},
+                       {"offsets", nlohmann::json::object()}};
+      for (const auto& p : r.parameters) {
+        if (p.name.rfind("delta", 0) != 0) continue;
+        j["offsets"][p.name] = p.identifiable
+                                   ? nlohmann::json{{"value_deg", p.value},
+                                                    {"value_rad", p.value * kDegToRad},
+                                                    {"sigma_deg", p.sigma},
+                                                    {"ci95_deg", {p.ci95_low, p.ci95_high}}}
+                                   : nlohmann::json{{"identifiable", false}, {"reason", p.reason}};
+      }
+      emit(j);
+      return kOk;
+    }
     if (psd_cmds.sweep->parsed()) return cli::runPsdSweep(psd_cmds.sweep_args);
     if (psd_cmds.map->parsed()) return cli::runPsdMap(psd_cmds.map_args);
     if (psd_cmds.live->parsed()) return cli::runPsd(psd_cmds.live_args);
@@ -296,6 +352,12 @@ int main(int argc, char** argv) {
     std::cerr << "zerocal: " << e.what() << "\n";
     return kBadInput;
   } catch (const InputError& e) {
+    std::cerr << "zerocal: " << e.what() << "\n";
+    return kBadInput;
+  } catch (const report::ReportError& e) {
+    std::cerr << "zerocal: " << e.what() << "\n";
+    return kBadInput;
+  } catch (const JournalError& e) {
     std::cerr << "zerocal: " << e.what() << "\n";
     return kBadInput;
   } catch (const usb1408fs::DeviceNotFoundError& e) {

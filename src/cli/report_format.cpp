@@ -132,6 +132,49 @@ std::string toText(const SolveReport& r) {
   return o.str();
 }
 
+namespace {
+
+nlohmann::json toJson(const AimingError& e) {
+  return {{"on_psd_mm", {number(e.on_psd_mm.x()), number(e.on_psd_mm.y())}},
+          {"on_psd_norm_mm", number(e.on_psd_norm_mm)},
+          {"miss_mm", number(e.miss_mm)}};
+}
+
+}  // namespace
+
+nlohmann::json toJson(const HoldoutReport& r) {
+  nlohmann::json j;
+  j["held_out"] = r.held_out;
+  j["total_poses"] = r.total_poses;
+  j["nominal_target_mm"] = {r.nominal_target_mm.x(), r.nominal_target_mm.y(),
+                            r.nominal_target_mm.z()};
+  j["poses"] = nlohmann::json::array();
+  for (const HeldOutPose& p : r.poses)
+    j["poses"].push_back({{"pose", p.pose},
+                          {"line", p.source_line},
+                          {"before", toJson(p.before)},
+                          {"after", toJson(p.after)}});
+  j["rms_before_mm"] = number(r.rms_before_mm);
+  j["rms_after_mm"] = number(r.rms_after_mm);
+  return j;
+}
+
+std::string toText(const HoldoutReport& r) {
+  std::ostringstream o;
+  o << "\nValidation: " << r.poses.size() << " of " << r.total_poses
+    << " poses held out of the solve; aiming error at the PSD (predicted spot - measured spot on "
+       "the PSD plane)\nbefore: nominal model (zero offsets, nominal laser, its own best target); "
+       "after: the identified parameters\n";
+  o << printf("%5s %6s %12s %12s %14s %14s\n", "pose", "line", "before_mm", "after_mm",
+              "after_u_mm", "after_v_mm");
+  for (const HeldOutPose& p : r.poses)
+    o << printf("%5d %6d %12.4f %12.4f %+14.4f %+14.4f\n", p.pose, p.source_line,
+                p.before.on_psd_norm_mm, p.after.on_psd_norm_mm, p.after.on_psd_mm.x(),
+                p.after.on_psd_mm.y());
+  o << printf("RMS before %.4f mm, after %.4f mm\n", r.rms_before_mm, r.rms_after_mm);
+  return o.str();
+}
+
 nlohmann::json toJson(const Plan& plan) {
   nlohmann::json j;
   j["description"] = plan.description;

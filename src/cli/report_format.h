@@ -9,11 +9,16 @@
 #include "zerocal/calib/planner.h"
 #include "zerocal/calib/sensitivity.h"
 #include "zerocal/calib/solver.h"
+#include "zerocal/calib/validation.h"
 
 namespace zerocal {
 
 nlohmann::json toJson(const SolveReport& report);
 std::string toText(const SolveReport& report);
+
+// The "validation" member of a result (docs/results.md); the fit itself is toJson(report.fit).
+nlohmann::json toJson(const HoldoutReport& report);
+std::string toText(const HoldoutReport& report);
 
 nlohmann::json toJson(const Plan& plan);
 std::string toText(const Plan& plan);

@@ -1,0 +1,116 @@
+// The files a technician reads after a calibration: summary.txt and report.html, written next to
+// result.json in a session folder (<data_dir>/<id>/, see zerocal/daemon/journal.h). Nothing here
+// talks to a controller: the ABB section says what to enter, a person enters it.
+//
+// Units as in result.json (docs/results.md): offsets in degrees (arm side: the joint angle, not
+// the motor angle) with radians beside them, lengths in mm, PSD readings in mm, times in s.
+#pragma once
+
+#include <array>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "zerocal/error.h"
+
+namespace zerocal::report {
+
+// A session folder that cannot be reported on: a file missing or unreadable, or files that do
+// not belong together (pose counts, session id). The message names the file and the problem.
+class ReportError : public Error {
+ public:
+  using Error::Error;
+};
+
+// The three files of a session as parsed JSON, before any interpretation.
+struct SessionFiles {
+  std::string dir;
+  nlohmann::json session;               // session.json
+  std::vector<nlohmann::json> journal;  // journal.jsonl, one object per committed pose
+  nlohmann::json result;                // result.json
+};
+
+struct ParameterRow {
+  std::string name;  // "delta2_deg", "laser_slope_1", ... as in result.json
+  bool identifiable = false;
+  std::string reason;                     // why not, when not
+  double value = 0, sigma = 0;            // the parameter's unit (deg for offsets)
+  double ci95_low = 0, ci95_high = 0;     // same unit
+  std::optional<double> predicted_sigma;  // the plan's prediction, same unit
+  std::optional<double> truth;            // simulated sessions only
+};
+
+struct ServoSample {
+  double t_s = 0, u_mm = 0, v_mm = 0;
+};
+
+struct PoseRow {
+  int pose = 0;  // 1-based, as in the journal (index + 1)
+  std::array<double, 6> joints_deg{};
+  double u_mm = 0, v_mm = 0;  // PSD reading at the recorded moment
+  bool solved = true;         // false: held out of the solve (validation)
+  double miss_um = 0;         // line's miss of the hit point (solved poses)
+  double normalised = 0;      // miss / noise sigma
+  bool outlier = false;
+  double standoff_mm = 0;
+  std::optional<std::vector<ServoSample>> servo_path;  // absent: not recorded
+};
+
+struct HeldOutRow {
+  int pose = 0;              // 1-based
+  double before_mm = 0;      // nominal model: spot distance on the PSD plane
+  double after_mm = 0;       // calibrated model
+  double after_miss_mm = 0;  // calibrated line's perpendicular miss
+  std::array<double, 2> after_uv_mm{};
+};
+
+struct Validation {
+  std::vector<HeldOutRow> poses;
+  double rms_before_mm = 0, rms_after_mm = 0;
+};
+
+// Everything the summary and the report show, taken from the session's files.
+struct SessionReport {
+  std::string session_id;
+  std::string dir;
+  bool simulated = false;  // result.json carries the simulated truth
+  std::string plan_description;
+  bool converged = false;
+  std::string message, cost, model, noise_source;
+  int solved_poses = 0, rank = 0, dof = 0;
+  double condition_number = 0, noise_mm = 0, rms_miss_mm = 0;
+  std::optional<double> chi2_per_dof, cell_time_s;
+  std::vector<ParameterRow> parameters;  // the 8 identified, offsets first
+  struct NotIdentifiable {
+    std::string name, reason;
+  };
+  std::vector<NotIdentifiable> not_identifiable;
+  std::array<double, 3> target_mm{}, target_sigma_mm{};
+  std::vector<PoseRow> poses;  // every journalled pose, in order
+  std::optional<Validation> validation;
+};
+
+// Reads session.json, journal.jsonl (committed lines, through readJournal's checks) and
+// result.json of a session folder. Throws ReportError naming the missing or unreadable file, or
+// JournalError for an inconsistent journal.
+SessionFiles readSessionFiles(const std::string& session_dir);
+
+// Interprets the files. Throws ReportError when a key is missing or of the wrong type, or the
+// files disagree (session id, number of poses).
+SessionReport parseSession(const SessionFiles& files);
+
+// The plain-text summary (summary.txt) and the self-contained HTML report (report.html: inline
+// CSS and SVG, no script, no external resource). Pure functions of the parsed session.
+std::string summaryText(const SessionReport& report);
+std::string reportHtml(const SessionReport& report);
+
+// Reads the session folder and (re)writes summary.txt and report.html beside result.json,
+// each atomically (temporary file, then rename). Throws ReportError
+// (missing or inconsistent files, a file that cannot be written) or JournalError.
+void writeSessionReport(const std::string& session_dir);
+
+// For text that goes into HTML: & < > " ' replaced by entities.
+std::string escapeHtml(const std::string& text);
+
+}  // namespace zerocal::report

@@ -1,0 +1,149 @@
+#include "content.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdarg>
+#include <cstdio>
+#include <sstream>
+
+namespace zerocal::report::detail {
+namespace {
+
+constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
+
+}  // namespace
+
+std::string format(const char* fmt, ...) {
+  char buf[1024];
+  va_list args;
+  va_start(args, fmt);
+  std::vsnprintf(buf, sizeof buf, fmt, args);
+  va_end(args);
+  return buf;
+}
+
+std::string num(const char* fmt, double v) { return std::isfinite(v) ? format(fmt, v) : "n/a"; }
+
+bool isOffset(const ParameterRow& p) { return p.name.rfind("delta", 0) == 0; }
+
+int jointOf(const ParameterRow& p) { return isOffset(p) ? p.name[5] - '0' : 0; }
+
+std::string unitOf(const std::string& name) {
+  if (name.size() > 4 && name.compare(name.size() - 4, 4, "_deg") == 0) return "deg";
+  if (name.size() > 3 && name.compare(name.size() - 3, 3, "_mm") == 0) return "mm";
+  return "";
+}
+
+std::vector<const PoseRow*> worstPoses(const SessionReport& r, std::size_t count) {
+  std::vector<const PoseRow*> solved;
+  for (const PoseRow& p : r.poses)
+    if (p.solved) solved.push_back(&p);
+  std::stable_sort(solved.begin(), solved.end(), [](const PoseRow* a, const PoseRow* b) {
+    return a->normalised > b->normalised;
+  });
+  std::size_t keep = std::min(count, solved.size());
+  while (keep < solved.size() && solved[keep]->outlier) ++keep;  // never hide an outlier
+  solved.resize(keep);
+  return solved;
+}
+
+std::string verdict(const SessionReport& r) {
+  std::string v = r.converged ? "The solve converged" : "THE SOLVE DID NOT CONVERGE: do not use";
+  v += " (" + r.message + ").";
+  bool all = true;
+  for (const ParameterRow& p : r.parameters)
+    if (isOffset(p) && !p.identifiable) all = false;
+  v += all ? " delta2..delta5 are all identified."
+           : " Some of delta2..delta5 are NOT identifiable from these poses (see below).";
+  if (r.chi2_per_dof) {
+    // Five degrees of freedom (8 poses) make 0.2..2.5 unremarkable (docs/reading-a-result.md).
+    const double c = *r.chi2_per_dof;
+    v += format(" Chi-square per degree of freedom %.2f:", c);
+    v += c > 3     ? " the poses miss by more than the stated noise; look at the worst poses."
+         : c < 0.1 ? " far below 1: the stated noise is too pessimistic."
+                   : " consistent with the stated noise.";
+  }
+  int outliers = 0;
+  for (const PoseRow& p : r.poses) outliers += p.solved && p.outlier;
+  if (outliers) v += format(" %d pose(s) flagged as outliers.", outliers);
+  return v;
+}
+
+Section abbSection(const SessionReport& r) {
+  Section s;
+  s.heading = "ABB IRC5: the offsets as corrections (nothing is written to the controller)";
+  auto& p = s.paragraphs;
+  p.push_back(
+      "What an offset means. zerocal's model is theta_i = q_i + theta_offset_i + delta_i, where "
+      "q_i is the angle the controller reports for joint i (ABB's CJointT sign) and theta_i the "
+      "joint's true angle in the nominal kinematic model (the DH table of the IRB 1600). All "
+      "values are arm side: joint angles, not motor angles. A positive delta_i means the arm is "
+      "turned delta_i further in the joint's positive direction than the controller believes: "
+      "when the controller reports q_i the arm is at q_i + delta_i, and the arm is at its true "
+      "zero when the controller reports -delta_i.");
+  p.push_back(
+      "The correction. For each joint below, the controller's reading must grow by delta_i at "
+      "every arm position (new reading = old reading + delta_i); equivalently the joint's zero "
+      "(its calibration position) moves by -delta_i on the arm side. Joints 1 and 6 cannot be "
+      "determined by this method: leave them unchanged.");
+  for (const ParameterRow& o : r.parameters) {
+    if (!isOffset(o)) continue;
+    const int j = jointOf(o);
+    if (!o.identifiable) {
+      p.push_back(format("Joint %d: not identifiable from these poses; do not change it (%s).", j,
+                         o.reason.c_str()));
+      continue;
+    }
+    const bool significant = !(o.ci95_low <= 0 && 0 <= o.ci95_high);
+    p.push_back(format(
+        "Joint %d: delta%d = %+.5f deg = %+.7f rad (sigma %.5f deg). Controller reading: add "
+        "%+.5f deg. Zero moves by %+.5f deg = %+.7f rad arm side.%s",
+        j, j, o.value, o.value * kDegToRad, o.sigma, o.value, -o.value, -o.value * kDegToRad,
+        significant ? ""
+                    : " Its 95% interval contains zero: the offset is not distinguishable from "
+                      "zero and may be left alone."));
+  }
+  p.push_back(
+      "Where the IRC5 keeps joint calibration. MOC.cfg, type MOTOR_CALIB, one instance per motor "
+      "(rob1_1 .. rob1_6), attribute cal_offset: the MOTOR-side resolver angle in radians (beside "
+      "it valid_cal_offset and com_offset). Not ARM (joint bounds) and not ARM_CALIB (Absolute "
+      "Accuracy). Read the present value from RAPID with ReadCfgData "
+      "\"/MOC/MOTOR_CALIB/rob1_N\",\"cal_offset\",value, or over Robot Web Services at "
+      "/rw/cfg/MOC/MOTOR_CALIB/instances/rob1_N. Write the present values down before changing "
+      "anything.");
+  p.push_back(
+      "From arm side to motor side. An arm-side offset is not a cal_offset: the change of "
+      "cal_offset for joint N is about the arm-side change in radians times the axis's gear "
+      "ratio, wrapped to 2 pi, with a sign that depends on the axis (motor direction, and how "
+      "the controller applies cal_offset): |change of cal_offset_N| = |ratio_N x delta_N in "
+      "rad|. zerocal's reference does not hold the IRB 1600's gear ratios (they are not in the "
+      "product specification). Look up for each axis, on the robot itself: the transmission "
+      "ratio and its sign in the controller's MOC.cfg (type TRANSMISSION, instance rob1_N), and "
+      "ABB's rule for the sign of a cal_offset change on that axis for the installed RobotWare. "
+      "If the wrist axes are mechanically coupled on this arm (the controller's transmission "
+      "data say so), a change on joint 4 or 5 also moves the arm-side zero of the axes after it: "
+      "ask ABB before entering such a change.");
+  p.push_back(
+      "Checking the change. After an ABB-trained person has entered the new values and the "
+      "controller has restarted, repeat the calibration with the same plan: every new delta "
+      "should lie within about its 95% interval of zero. An offset that doubled instead of "
+      "vanishing was entered with the wrong sign.");
+  return s;
+}
+
+std::string wrap(const std::string& text, std::size_t width, std::size_t indent) {
+  std::istringstream words(text);
+  std::string word, line, out;
+  const std::string pad(indent, ' ');
+  while (words >> word) {
+    if (!line.empty() && pad.size() + line.size() + 1 + word.size() > width) {
+      out += pad + line + "\n";
+      line.clear();
+    }
+    line += (line.empty() ? "" : " ") + word;
+  }
+  if (!line.empty()) out += pad + line + "\n";
+  return out;
+}
+
+}  // namespace zerocal::report::detail

@@ -1,0 +1,37 @@
+// What the summary and the HTML report both say, decided once: formatting of numbers, the worst
+// poses, the ABB section's statements. The two renderings differ only in markup.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "zerocal/report/session_report.h"
+
+namespace zerocal::report::detail {
+
+std::string format(const char* fmt, ...) __attribute__((format(printf, 1, 2)));
+
+// "n/a" for a non-finite number, else printf with `fmt`.
+std::string num(const char* fmt, double v);
+
+bool isOffset(const ParameterRow& p);         // delta2_deg .. delta5_deg
+int jointOf(const ParameterRow& p);           // 2 for delta2_deg
+std::string unitOf(const std::string& name);  // "deg", "mm" or "" (dimensionless)
+
+// Solved poses by decreasing normalised residual, at most `count`, plus any outlier beyond.
+std::vector<const PoseRow*> worstPoses(const SessionReport& r, std::size_t count = 3);
+
+// One line: did it converge, and is the noise believable.
+std::string verdict(const SessionReport& r);
+
+// A heading and paragraphs: the ABB section as plain sentences (no markup).
+struct Section {
+  std::string heading;
+  std::vector<std::string> paragraphs;
+};
+Section abbSection(const SessionReport& r);
+
+// Wraps text at `width` columns with `indent` spaces before every line.
+std::string wrap(const std::string& text, std::size_t width, std::size_t indent);
+
+}  // namespace zerocal::report::detail

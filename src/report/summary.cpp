@@ -1,0 +1,105 @@
+// summary.txt: what a technician reads first, in 100 columns of plain text.
+#include <cmath>
+#include <sstream>
+
+#include "content.h"
+
+namespace zerocal::report {
+
+using detail::format;
+using detail::num;
+
+std::string summaryText(const SessionReport& r) {
+  constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
+  std::ostringstream o;
+  o << "zerocal calibration summary, session " << r.session_id
+    << (r.simulated ? " (SIMULATED cell: the truth is known)" : "") << "\n";
+  if (!r.plan_description.empty()) o << detail::wrap("plan: " + r.plan_description, 100, 0);
+  o << detail::wrap(detail::verdict(r), 100, 0);
+  std::string fit = format("Solved from %d poses (%s model, %s cost); noise %s mm (%s); ",
+                           r.solved_poses, r.model.c_str(), r.cost.c_str(),
+                           num("%.4f", r.noise_mm).c_str(), r.noise_source.c_str());
+  if (r.chi2_per_dof)
+    fit += format("chi-square per degree of freedom %.2f, dof %d; ", *r.chi2_per_dof, r.dof);
+  else
+    fit += format("dof %d (chi-square needs a given noise level); ", r.dof);
+  fit += format("RMS miss %.1f um; rank %d of 11, condition number %s.", r.rms_miss_mm * 1000,
+                r.rank, num("%.1f", r.condition_number).c_str());
+  o << detail::wrap(fit, 100, 0);
+
+  o << "\nJoint offsets, ARM side (joint angle, not motor angle): the true joint angle is the\n"
+       "controller's angle plus delta. 95% interval = value +- t * sigma.\n";
+  o << format("%-7s %12s %13s %11s %12s   %-25s", "offset", "value deg", "value rad", "sigma deg",
+              "sigma rad", "95% interval deg");
+  if (r.simulated) o << format(" %10s", "truth deg");
+  o << "\n";
+  for (const ParameterRow& p : r.parameters) {
+    if (!detail::isOffset(p)) continue;
+    const std::string name = p.name.substr(0, 6);
+    if (!p.identifiable) {
+      o << format("%-7s %s\n", name.c_str(), "NOT IDENTIFIABLE (see below)");
+      continue;
+    }
+    o << format("%-7s %+12.5f %+13.7f %11.5f %12.7f   [%+.5f, %+.5f]", name.c_str(), p.value,
+                p.value * kDegToRad, p.sigma, p.sigma * kDegToRad, p.ci95_low, p.ci95_high);
+    if (p.truth) o << format("  %+10.5f", *p.truth);
+    o << "\n";
+  }
+
+  o << "\nNot identifiable, and why:\n";
+  for (const auto& n : r.not_identifiable) {
+    o << "  " << n.name << ":\n" << detail::wrap(n.reason, 100, 4);
+  }
+
+  o << "\nLaser line on the flange (identified with the offsets):\n";
+  for (const ParameterRow& p : r.parameters) {
+    if (detail::isOffset(p)) continue;
+    const std::string unit = detail::unitOf(p.name);
+    if (!p.identifiable)
+      o << format("  %-18s not identifiable\n", p.name.c_str());
+    else
+      o << format("  %-18s %+.6g %s (sigma %.3g)\n", p.name.c_str(), p.value, unit.c_str(),
+                  p.sigma);
+  }
+  o << format("PSD centre in the base frame: %.3f %.3f %.3f mm (sigma %s %s %s mm)\n",
+              r.target_mm[0], r.target_mm[1], r.target_mm[2],
+              num("%.3f", r.target_sigma_mm[0]).c_str(), num("%.3f", r.target_sigma_mm[1]).c_str(),
+              num("%.3f", r.target_sigma_mm[2]).c_str());
+
+  o << "\nWorst poses (largest normalised residual = miss / noise sigma; outlier above 3.5):\n";
+  o << format("  %5s %10s %11s %12s\n", "pose", "miss um", "normalised", "standoff mm");
+  for (const PoseRow* p : detail::worstPoses(r))
+    o << format("  %5d %10.1f %11.2f %12.1f%s\n", p->pose, p->miss_um, p->normalised,
+                p->standoff_mm, p->outlier ? "  OUTLIER" : "");
+
+  o << "\nPredicted (plan, before any move) versus achieved one-sigma uncertainty:\n";
+  for (const ParameterRow& p : r.parameters) {
+    const std::string unit = detail::unitOf(p.name);
+    o << format("  %-18s predicted %s, achieved %s %s", p.name.c_str(),
+                p.predicted_sigma ? num("%.3g", *p.predicted_sigma).c_str() : "n/a",
+                p.identifiable ? num("%.3g", p.sigma).c_str() : "n/a", unit.c_str());
+    if (p.predicted_sigma && p.identifiable && *p.predicted_sigma > 0)
+      o << format(" (ratio %.2f)", p.sigma / *p.predicted_sigma);
+    o << "\n";
+  }
+
+  o << "\nValidation on held-out poses (aiming error at the PSD, spot distance on its plane):\n";
+  if (!r.validation) {
+    o << "  no poses were held out of this solve (zerocal solve --holdout K does it).\n";
+  } else {
+    o << format("  %5s %14s %14s %16s\n", "pose", "before mm", "after mm", "after miss mm");
+    for (const HeldOutRow& h : r.validation->poses)
+      o << format("  %5d %14.4f %14.4f %16.4f\n", h.pose, h.before_mm, h.after_mm, h.after_miss_mm);
+    o << format("  RMS: before (nominal model) %.4f mm, after calibration %.4f mm\n",
+                r.validation->rms_before_mm, r.validation->rms_after_mm);
+  }
+
+  const detail::Section abb = detail::abbSection(r);
+  o << "\n" << abb.heading << "\n";
+  for (const std::string& p : abb.paragraphs) o << detail::wrap(p, 100, 2) << "\n";
+  if (r.cell_time_s) o << format("cell time %.1f s\n", *r.cell_time_s);
+  o << "report.html beside this file has the plots.\n";
+  return o.str();
+}
+
+}  // namespace zerocal::report

@@ -1,0 +1,357 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+
+#include "session_fixture.h"
+#include "zerocal/daemon/journal.h"
+#include "zerocal/report/session_report.h"
+
+namespace zerocal::report {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string readFile(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+bool contains(const std::string& haystack, const std::string& needle) {
+  return haystack.find(needle) != std::string::npos;
+}
+
+int count(const std::string& haystack, const std::string& needle) {
+  int n = 0;
+  for (auto p = haystack.find(needle); p != std::string::npos; p = haystack.find(needle, p + 1))
+    ++n;
+  return n;
+}
+
+// Every non-void element closed in order: enough to know that a browser will not reparent the
+// plots into some other element.
+std::string unbalancedTag(const std::string& html) {
+  static const std::regex tag(R"(<(/?)([a-zA-Z][a-zA-Z0-9]*)[^>]*?(/?)>)");
+  static const std::vector<std::string> kVoid{"meta", "br", "hr", "img", "link", "input"};
+  std::vector<std::string> open;
+  for (auto it = std::sregex_iterator(html.begin(), html.end(), tag); it != std::sregex_iterator();
+       ++it) {
+    const std::string name = (*it)[2];
+    if ((*it)[3] == "/" || std::find(kVoid.begin(), kVoid.end(), name) != kVoid.end()) continue;
+    if ((*it)[1] == "/") {
+      if (open.empty() || open.back() != name)
+        return "</" + name + "> closes " + (open.empty() ? "nothing" : "<" + open.back() + ">");
+      open.pop_back();
+    } else {
+      open.push_back(name);
+    }
+  }
+  return open.empty() ? "" : "<" + open.back() + "> never closed";
+}
+
+const SessionReport& plainSession() {
+  static const SessionReport r = [] {
+    test::FixtureOptions o;
+    o.poses_without_path = {4};
+    return parseSession(test::sessionFiles(o));
+  }();
+  return r;
+}
+
+const SessionReport& heldOutSession() {
+  static const SessionReport r = [] {
+    test::FixtureOptions o;
+    o.poses = 12;
+    o.held_out = {3, 8};
+    return parseSession(test::sessionFiles(o));
+  }();
+  return r;
+}
+
+TEST(Parse, TakesOffsetsInTheSolverOrderWithPlanAndTruth) {
+  const SessionReport& r = plainSession();
+  EXPECT_EQ(r.session_id, "20261122T070000Z");
+  EXPECT_TRUE(r.simulated);
+  EXPECT_TRUE(r.converged);
+  ASSERT_EQ(r.parameters.size(), 8u);
+  EXPECT_EQ(r.parameters[0].name, "delta2_deg");
+  EXPECT_EQ(r.parameters[3].name, "delta5_deg");
+  EXPECT_EQ(r.parameters[4].name, "laser_slope_1");
+  for (int k = 0; k < 4; ++k) {
+    EXPECT_TRUE(r.parameters[k].identifiable);
+    ASSERT_TRUE(r.parameters[k].predicted_sigma);
+    ASSERT_TRUE(r.parameters[k].truth);
+    EXPECT_NEAR(r.parameters[k].value, *r.parameters[k].truth, 4 * r.parameters[k].sigma);
+  }
+  EXPECT_NEAR(*r.parameters[0].truth, -0.4, 1e-12);
+  ASSERT_EQ(r.poses.size(), 10u);
+  EXPECT_FALSE(r.poses[3].servo_path);
+  ASSERT_TRUE(r.poses[0].servo_path);
+  EXPECT_EQ(r.poses[0].servo_path->size(), 21u);
+  EXPECT_GE(r.not_identifiable.size(), 2u);
+}
+
+TEST(Parse, HeldOutPosesAreNotGivenSomeoneElsesResidual) {
+  const SessionReport& r = heldOutSession();
+  ASSERT_TRUE(r.validation);
+  EXPECT_EQ(r.solved_poses, 10);
+  ASSERT_EQ(r.poses.size(), 12u);
+  EXPECT_FALSE(r.poses[2].solved);
+  EXPECT_FALSE(r.poses[7].solved);
+  EXPECT_TRUE(r.poses[3].solved);
+  ASSERT_EQ(r.validation->poses.size(), 2u);
+  EXPECT_EQ(r.validation->poses[0].pose, 3);
+  EXPECT_GT(r.validation->rms_before_mm, 30 * r.validation->rms_after_mm);
+}
+
+TEST(Summary, GivesEachOffsetInDegreesAndRadiansWithSigmaAndInterval) {
+  const SessionReport& r = plainSession();
+  const std::string s = summaryText(r);
+  for (int k = 0; k < 4; ++k) {
+    const ParameterRow& p = r.parameters[k];
+    char deg[64], rad[64], sigma[64], ci[96];
+    std::snprintf(deg, sizeof deg, "%+.5f", p.value);
+    std::snprintf(rad, sizeof rad, "%+.7f", p.value * M_PI / 180);
+    std::snprintf(sigma, sizeof sigma, "%.5f", p.sigma);
+    std::snprintf(ci, sizeof ci, "[%+.5f, %+.5f]", p.ci95_low, p.ci95_high);
+    EXPECT_TRUE(contains(s, deg)) << deg << "\n" << s;
+    EXPECT_TRUE(contains(s, rad)) << rad;
+    EXPECT_TRUE(contains(s, sigma)) << sigma;
+    EXPECT_TRUE(contains(s, ci)) << ci;
+  }
+  EXPECT_TRUE(contains(s, "ARM side"));
+  std::string flowed = s;  // the fit line is wrapped at 100 columns
+  std::replace(flowed.begin(), flowed.end(), '\n', ' ');
+  char chi2[96];
+  std::snprintf(chi2, sizeof chi2, "chi-square per degree of freedom %.2f, dof %d", *r.chi2_per_dof,
+                r.dof);
+  EXPECT_TRUE(contains(flowed, chi2)) << chi2;
+  for (std::istringstream lines(s); std::getline(lines, flowed);)
+    EXPECT_LE(flowed.size(), 100u) << flowed;
+}
+
+TEST(Summary, SaysWhatIsNotIdentifiableAndWhy) {
+  const std::string s = summaryText(plainSession());
+  EXPECT_TRUE(contains(s, "Not identifiable, and why:"));
+  for (const auto& n : plainSession().not_identifiable) {
+    EXPECT_TRUE(contains(s, n.name + ":")) << n.name;
+    EXPECT_TRUE(contains(s, n.reason.substr(0, 30))) << n.reason;
+  }
+}
+
+TEST(Summary, ListsTheWorstPosesFirst) {
+  const SessionReport& r = plainSession();
+  const std::string s = summaryText(r);
+  int worst = 0;
+  double worst_value = -1;
+  for (const PoseRow& p : r.poses)
+    if (p.normalised > worst_value) worst_value = p.normalised, worst = p.pose;
+  char row[64];
+  std::snprintf(row, sizeof row, "  %5d %10.1f %11.2f", worst, r.poses[worst - 1].miss_um,
+                worst_value);
+  const auto table = s.find("Worst poses");
+  ASSERT_NE(table, std::string::npos);
+  // The first row under the header is the worst pose.
+  const auto first_row = s.find('\n', s.find('\n', table) + 1) + 1;
+  EXPECT_EQ(s.substr(first_row, std::strlen(row)), row) << s.substr(table, 300);
+}
+
+TEST(Summary, AbbSectionStatesTheSignAndWhatToLookUp) {
+  const SessionReport& r = plainSession();
+  const std::string s = summaryText(r);
+  EXPECT_TRUE(contains(s, "nothing is written to the controller"));
+  EXPECT_TRUE(contains(s, "theta_i = q_i + theta_offset_i + delta_i"));
+  EXPECT_TRUE(contains(s, "new reading = old reading + delta_i"));
+  EXPECT_TRUE(contains(s, "MOTOR_CALIB"));
+  EXPECT_TRUE(contains(s, "cal_offset"));
+  EXPECT_TRUE(contains(s, "TRANSMISSION"));
+  EXPECT_TRUE(contains(s, "Joints 1 and 6"));
+  // The correction of joint 2 is the negated offset, in both units.
+  const ParameterRow& d2 = r.parameters[0];
+  char zero[128];
+  std::snprintf(zero, sizeof zero, "Zero moves by %+.5f deg = %+.7f rad", -d2.value,
+                -d2.value * M_PI / 180);
+  EXPECT_TRUE(contains(s, zero)) << zero;
+}
+
+TEST(Summary, ValidationWhenPosesWereHeldOutAndSaysSoWhenNot) {
+  EXPECT_TRUE(contains(summaryText(plainSession()), "no poses were held out"));
+  const SessionReport& r = heldOutSession();
+  const std::string s = summaryText(r);
+  char rms[128];
+  std::snprintf(rms, sizeof rms, "RMS: before (nominal model) %.4f mm, after calibration %.4f mm",
+                r.validation->rms_before_mm, r.validation->rms_after_mm);
+  EXPECT_TRUE(contains(s, rms)) << s;
+}
+
+TEST(Html, IsSelfContainedAndBalanced) {
+  const std::string h = reportHtml(heldOutSession());
+  EXPECT_EQ(h.rfind("<!DOCTYPE html>", 0), 0u);
+  EXPECT_EQ(unbalancedTag(h), "");
+  EXPECT_FALSE(contains(h, "<script"));
+  EXPECT_FALSE(contains(h, "src="));
+  EXPECT_FALSE(contains(h, "<link"));
+  // The only URL is the SVG namespace, which is a name, not a resource.
+  EXPECT_EQ(count(h, "http"), count(h, "xmlns=\"http://www.w3.org/2000/svg\""));
+}
+
+TEST(Html, HasEveryPlotWithAxisLabels) {
+  const std::string h = reportHtml(heldOutSession());
+  for (const char* id : {"residuals", "servo-paths", "sigma-offsets", "sigma-laser", "validation"})
+    EXPECT_TRUE(contains(h, std::string("<svg class=\"plot\" id=\"") + id + "\"")) << id;
+  EXPECT_TRUE(contains(h, "miss / noise sigma"));
+  EXPECT_TRUE(contains(h, "sigma (millidegrees)"));
+  EXPECT_TRUE(contains(h, "spot distance on the PSD (mm, log)"));
+  // Bars: 10 solved poses; 4 predicted + 4 achieved offsets; 2 x 2 held-out poses.
+  const auto residuals = h.substr(h.find("id=\"residuals\""));
+  EXPECT_EQ(count(residuals.substr(0, residuals.find("</svg>")), "<rect "), 10 + 1);  // + legend
+  const auto offsets = h.substr(h.find("id=\"sigma-offsets\""));
+  EXPECT_EQ(count(offsets.substr(0, offsets.find("</svg>")), "<rect "), 8 + 2);  // + legend
+  EXPECT_EQ(count(h, "<polyline class=\"path\""), 12);
+}
+
+TEST(Html, ServoPathSaysNotRecordedWhenAbsent) {
+  const std::string h = reportHtml(plainSession());
+  EXPECT_EQ(count(h, "<polyline class=\"path\""), 9);
+  EXPECT_EQ(count(h, ">not recorded</text>"), 1);
+  EXPECT_TRUE(contains(h, "No poses were held out"));
+}
+
+TEST(Html, ServoPanelsAreScaledToTheirPath) {
+  // The fixture's paths start 2 mm from the reading: a +-2 or +-2.5 mm panel, every point in it.
+  const std::string h = reportHtml(plainSession());
+  EXPECT_EQ(count(h, ">+-2.5 mm, 21 points, 1.00 s</text>") +
+                count(h, ">+-2 mm, 21 points, 1.00 s</text>"),
+            9);
+  const std::regex point(R"(([-0-9.]+),([-0-9.]+) )");
+  const auto start = h.find("<polyline class=\"path\" points=\"");
+  const std::string first = h.substr(start, h.find("\"/>", start) - start);
+  int points = 0;
+  for (auto it = std::sregex_iterator(first.begin(), first.end(), point);
+       it != std::sregex_iterator(); ++it, ++points) {
+    const double x = std::stod((*it)[1]), y = std::stod((*it)[2]);
+    EXPECT_TRUE(x >= 12 && x <= 12 + 160 && y >= 26 && y <= 26 + 160) << x << "," << y;
+  }
+  EXPECT_EQ(points, 21);
+}
+
+TEST(Html, NoServoPathAtAllIsOneSentenceNotAnEmptyPlot) {
+  test::FixtureOptions o;
+  o.poses = 8;
+  o.poses_without_path = {1, 2, 3, 4, 5, 6, 7, 8};
+  const std::string h = reportHtml(parseSession(test::sessionFiles(o)));
+  EXPECT_FALSE(contains(h, "id=\"servo-paths\""));
+  EXPECT_TRUE(contains(h, "The spot path was not recorded for any pose"));
+}
+
+TEST(Html, EscapesEveryTextFromTheFiles) {
+  test::FixtureOptions o;
+  o.id = "x<script>alert('1')</script>&";
+  o.plan_description = "plan \"A\" <b>bold</b> & more";
+  const SessionReport r = parseSession(test::sessionFiles(o));
+  const std::string h = reportHtml(r);
+  EXPECT_FALSE(contains(h, "<script>"));
+  EXPECT_FALSE(contains(h, "<b>bold"));
+  EXPECT_TRUE(contains(h, "x&lt;script&gt;alert(&#39;1&#39;)&lt;/script&gt;&amp;"));
+  EXPECT_TRUE(contains(h, "plan &quot;A&quot; &lt;b&gt;bold&lt;/b&gt; &amp; more"));
+  EXPECT_EQ(unbalancedTag(h), "");
+  EXPECT_EQ(escapeHtml("a<b>&\"'"), "a&lt;b&gt;&amp;&quot;&#39;");
+}
+
+TEST(Files, WritesSummaryAndReportBesideTheResult) {
+  const std::string dir = test::makeSession("write");
+  writeSessionReport(dir);
+  const std::string summary = readFile(fs::path(dir) / "summary.txt");
+  const std::string html = readFile(fs::path(dir) / "report.html");
+  EXPECT_EQ(summary, summaryText(parseSession(readSessionFiles(dir))));
+  EXPECT_TRUE(contains(html, "</html>"));
+  EXPECT_FALSE(fs::exists(fs::path(dir) / "report.html.tmp"));
+  writeSessionReport(dir);  // again: the files are rewritten, not appended to
+  EXPECT_EQ(readFile(fs::path(dir) / "summary.txt"), summary);
+}
+
+TEST(Files, MissingResultSaysTheSessionIsUnfinished) {
+  const std::string dir = test::makeSession("no-result");
+  fs::remove(fs::path(dir) / "result.json");
+  try {
+    writeSessionReport(dir);
+    FAIL() << "expected ReportError";
+  } catch (const ReportError& e) {
+    EXPECT_TRUE(contains(e.what(), "result.json")) << e.what();
+    EXPECT_TRUE(contains(e.what(), "unfinished")) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(fs::path(dir) / "summary.txt"));
+}
+
+TEST(Files, MissingFolderOrSessionFile) {
+  EXPECT_THROW(writeSessionReport("/nonexistent/zerocal/session"), ReportError);
+  const std::string dir = test::makeSession("no-session");
+  fs::remove(fs::path(dir) / "session.json");
+  try {
+    writeSessionReport(dir);
+    FAIL() << "expected ReportError";
+  } catch (const ReportError& e) {
+    EXPECT_TRUE(contains(e.what(), "session.json")) << e.what();
+  }
+}
+
+TEST(Files, BadJournalLineIsAnError) {
+  const std::string dir = test::makeSession("bad-journal");
+  std::string journal = readFile(fs::path(dir) / "journal.jsonl");
+  journal.replace(journal.find('\n') + 1, 1, "#");  // corrupt the second line, not the last
+  std::ofstream(fs::path(dir) / "journal.jsonl") << journal;
+  EXPECT_THROW(writeSessionReport(dir), JournalError);
+}
+
+TEST(Files, JournalWithAPoseMissingIsInconsistent) {
+  const std::string dir = test::makeSession("short-journal");
+  std::string journal = readFile(fs::path(dir) / "journal.jsonl");
+  journal.erase(journal.rfind('\n', journal.size() - 2) + 1);  // drop the last pose
+  std::ofstream(fs::path(dir) / "journal.jsonl") << journal;
+  try {
+    writeSessionReport(dir);
+    FAIL() << "expected ReportError";
+  } catch (const ReportError& e) {
+    EXPECT_TRUE(contains(e.what(), "result.json solved 10 poses, but journal.jsonl has 9"))
+        << e.what();
+  }
+}
+
+TEST(Files, ResultOfAnotherSessionOrWithoutAKey) {
+  SessionFiles files = test::sessionFiles();
+  files.result["session"] = "20200101T000000Z";
+  EXPECT_THROW(parseSession(files), ReportError);
+  files = test::sessionFiles();
+  files.result.erase("converged");
+  try {
+    parseSession(files);
+    FAIL() << "expected ReportError";
+  } catch (const ReportError& e) {
+    EXPECT_EQ(std::string(e.what()), "result.json: 'converged' is missing");
+  }
+  files = test::sessionFiles();
+  files.result["written_by_a_newer_version"] = 1;  // unknown keys are tolerated
+  EXPECT_NO_THROW(parseSession(files));
+  files.journal[2]["servo_path"] = {{0.0, 1.0}};
+  EXPECT_THROW(parseSession(files), ReportError);
+}
+
+TEST(Files, InvalidJsonNamesTheFile) {
+  const std::string dir = test::makeSession("bad-json");
+  std::ofstream(fs::path(dir) / "result.json") << "{\"converged\": tru";
+  try {
+    writeSessionReport(dir);
+    FAIL() << "expected ReportError";
+  } catch (const ReportError& e) {
+    EXPECT_TRUE(contains(e.what(), "result.json")) << e.what();
+    EXPECT_TRUE(contains(e.what(), "not valid JSON")) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace zerocal::report

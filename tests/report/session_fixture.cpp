@@ -1,0 +1,84 @@
+#include "session_fixture.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "report_format.h"
+#include "zerocal/calib/experiment.h"
+#include "zerocal/calib/validation.h"
+#include "zerocal/daemon/journal.h"
+
+namespace zerocal::test {
+
+report::SessionFiles sessionFiles(const FixtureOptions& options) {
+  const Table2Scenario sc = table2Scenario();
+  PlanOptions po;
+  po.poses = options.poses;
+  const Plan plan = planPoses(sc.cell, sc.truth.target_mm, po);
+  std::mt19937_64 rng(5);
+  const auto recorded = simulateRecording(sc.cell, sc.truth, plan.poses, sc.half_width_mm, rng);
+  SolveOptions so;
+  so.noise_mm = sc.half_width_mm / std::sqrt(3.0);
+
+  report::SessionFiles files;
+  files.dir = "(in memory)";
+  nlohmann::json plan_json = toJson(plan);
+  if (!options.plan_description.empty()) plan_json["description"] = options.plan_description;
+  files.session = {{"format", "zerocal-session/1"},
+                   {"id", options.id},
+                   {"plan", plan_json},
+                   {"config", nlohmann::json::object()}};
+  for (std::size_t i = 0; i < recorded.size(); ++i) {
+    PoseRecord r;
+    r.index = static_cast<int>(i);
+    r.joints_deg = recorded[i].q_deg;
+    r.u_mm = 0.001 * static_cast<double>(i);
+    r.v_mm = -0.002;
+    r.u_se_mm = r.v_se_mm = 0.0005;
+    r.servo.moves = 3;
+    nlohmann::json line = toJson(r);
+    const int pose = static_cast<int>(i) + 1;
+    if (std::find(options.poses_without_path.begin(), options.poses_without_path.end(), pose) ==
+        options.poses_without_path.end()) {
+      // A spot found 2 mm off and servoed in: a decaying spiral to the recorded reading.
+      nlohmann::json path = nlohmann::json::array();
+      for (int k = 0; k <= 20; ++k) {
+        const double a = 0.6 * k + pose, rad = 2.0 * std::exp(-0.3 * k);
+        path.push_back({0.05 * k, r.u_mm + rad * std::cos(a), r.v_mm + rad * std::sin(a)});
+      }
+      line["servo_path"] = path;
+    }
+    files.journal.push_back(line);
+  }
+  if (options.held_out.empty()) {
+    files.result = toJson(solve(sc.cell, recorded, so));
+  } else {
+    const HoldoutReport h = validateHoldout(sc.cell, recorded, options.held_out, so);
+    files.result = toJson(h.fit);
+    files.result["validation"] = toJson(h);
+  }
+  files.result["session"] = options.id;
+  files.result["cell_time_s"] = 123.4;
+  files.result["truth"] = nlohmann::json::object();
+  for (int k = 0; k < kOffsetCount; ++k)
+    files.result["truth"][unknownName(k)] = sc.truth.delta_rad[k] * kRadToDeg;
+  return files;
+}
+
+std::string makeSession(const std::string& name, const FixtureOptions& options) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("zerocal-report-test-" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  report::SessionFiles files = sessionFiles(options);
+  std::ofstream(dir / "session.json") << files.session.dump(2) << "\n";
+  std::ofstream journal(dir / "journal.jsonl");
+  for (const auto& line : files.journal) journal << line.dump() << "\n";
+  journal.close();
+  std::ofstream(dir / "result.json") << files.result.dump(2) << "\n";
+  return dir.string();
+}
+
+}  // namespace zerocal::test

@@ -1,0 +1,28 @@
+// A finished session folder made the way zerocald makes one (session.json from toJson(Plan),
+// journal lines from toJson(PoseRecord), result.json from toJson(SolveReport)), from a simulated
+// recording, so that the report tests read real files without running the simulated cell.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "zerocal/report/session_report.h"
+
+namespace zerocal::test {
+
+struct FixtureOptions {
+  int poses = 10;
+  std::vector<int> held_out;            // validation, 1-based; empty: none
+  std::vector<int> poses_without_path;  // 1-based poses whose journal line has no servo_path
+  std::string id = "20261122T070000Z";
+  std::string plan_description;  // empty: the planner's own
+};
+
+// Writes session.json, journal.jsonl and result.json into a fresh folder under the test's
+// temporary directory and returns its path.
+std::string makeSession(const std::string& name, const FixtureOptions& options = {});
+
+// The same session's files in memory (what readSessionFiles would return).
+report::SessionFiles sessionFiles(const FixtureOptions& options = {});
+
+}  // namespace zerocal::test

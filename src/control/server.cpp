@@ -508,6 +508,25 @@ void ServerCore::startStatusTimer() {
   });
 }
 
+ServerOptions serverOptions(const ControlConfig& config, std::string token,
+                            std::string daemon_version) {
+  using std::chrono::duration;
+  using std::chrono::duration_cast;
+  using std::chrono::milliseconds;
+  ServerOptions o;
+  o.bind_address = config.bind_address;
+  o.port = config.port;
+  o.token = std::move(token);
+  o.daemon_version = std::move(daemon_version);
+  o.max_clients = static_cast<std::size_t>(config.max_clients);
+  o.max_line_bytes = static_cast<std::size_t>(config.max_line_bytes);
+  o.idle_timeout = duration_cast<milliseconds>(duration<double>(config.idle_timeout_s));
+  o.write_timeout = duration_cast<milliseconds>(duration<double>(config.write_timeout_s));
+  o.max_queued_bytes = static_cast<std::size_t>(config.max_queued_kib) * 1024;
+  o.max_auth_failures = config.max_auth_failures;
+  return o;
+}
+
 ControlServer::ControlServer(asio::io_context& io, service::SessionControl& session,
                              ServerOptions options) {
   if (options.token.empty()) throw Error("the control port needs a token (control.token_file)");

@@ -174,6 +174,19 @@ TEST(ControlServerSetup, RefusesToStartWithoutAToken) {
   EXPECT_THROW(ControlServer(io, session, ServerOptions{}), Error);
 }
 
+TEST(ControlServerSetup, OptionsFromTheConfiguration) {
+  ControlConfig config;
+  config.idle_timeout_s = 1.5;
+  config.max_queued_kib = 64;
+  const auto o = serverOptions(config, "t", "1.0");
+  EXPECT_EQ(o.bind_address, "127.0.0.1");
+  EXPECT_EQ(o.port, 7450);
+  EXPECT_EQ(o.max_line_bytes, 65536u);
+  EXPECT_EQ(o.idle_timeout, 1500ms);
+  EXPECT_EQ(o.max_queued_bytes, 65536u);
+  EXPECT_EQ(o.max_auth_failures, 3);
+}
+
 TEST(ControlServerSetup, ReportsAPortInUse) {
   boost::asio::io_context io;
   testing::FakeSession session;

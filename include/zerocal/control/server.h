@@ -14,6 +14,7 @@
 #include <memory>
 #include <string>
 
+#include "zerocal/daemon/config.h"
 #include "zerocal/service/session_manager.h"
 
 namespace zerocal::control {
@@ -43,6 +44,10 @@ struct ServerOptions {
   // `plan` previews queued or running at once (on one helper thread); more are refused "busy".
   int max_pending_previews = 4;
 };
+
+// The options the control section describes; the token comes from loadToken(token_file).
+ServerOptions serverOptions(const ControlConfig& config, std::string token,
+                            std::string daemon_version);
 
 class ControlServer {
  public:

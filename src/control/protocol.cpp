@@ -44,10 +44,11 @@ std::string optionalString(const json& request, const char* key, const std::stri
   return it->get<std::string>();
 }
 
-service::StartRequest parseStartRequest(const json& request) {
+service::StartRequest parseStartRequest(const json& request,
+                                        const service::StartRequest& defaults) {
   for (const auto& item : request.items())
     if (!kStartMembers.count(item.key())) throw BadRequest("unknown member '" + item.key() + "'");
-  service::StartRequest r;
+  service::StartRequest r = defaults;
   if (request.contains("plan")) r.plan = parsePlanKind(optionalString(request, "plan"));
   if (request.contains("poses")) {
     const auto& p = request["poses"];
@@ -57,7 +58,7 @@ service::StartRequest parseStartRequest(const json& request) {
       throw BadRequest("poses: " + p.dump() + " is outside 1..1000");
     r.poses = p.get<int>();
   }
-  r.plan_file = optionalString(request, "plan_file");
+  r.plan_file = optionalString(request, "plan_file", r.plan_file);
   if (request.contains("target_mm") && !request["target_mm"].is_null()) {
     const auto& t = request["target_mm"];
     if (!t.is_array() || t.size() != 3 || !t[0].is_number() || !t[1].is_number() ||

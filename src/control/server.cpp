@@ -232,7 +232,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
     } else if (cmd == "status") {
       r["status"] = toJson(session.status());
     } else if (cmd == "start") {
-      const auto start = parseStartRequest(request);
+      const auto start = parseStartRequest(request, options.default_request);
       const auto session_id = session.start(start);
       server_->log_->info("{}: started session {}", peer_, session_id);
       r["session"] = session_id;
@@ -258,7 +258,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
       readPsd(id);
       return false;
     } else if (cmd == "plan") {
-      return preview(id, parseStartRequest(request));
+      return preview(id, parseStartRequest(request, options.default_request));
     } else {
       send(errorResponse(id, code::kUnknownCommand, "unknown command '" + cmd + "'"));
       return true;

@@ -38,9 +38,11 @@ class BadRequest : public Error {
 };
 
 // The members of a `start` or `plan` request (plan, poses, plan_file, target_mm, noise_mm; all
-// optional), checked for type and plain range. Other members but id, cmd and token are refused
-// so that a misspelt option is not silently ignored. Throws BadRequest.
-service::StartRequest parseStartRequest(const nlohmann::json& request);
+// optional; those absent keep their value in `defaults`), checked for type and plain range. Other
+// members but id, cmd and token are refused so that a misspelt option is not silently ignored.
+// Throws BadRequest.
+service::StartRequest parseStartRequest(const nlohmann::json& request,
+                                        const service::StartRequest& defaults = {});
 // The inverse, for the client; only the members that are set.
 nlohmann::json toJson(const service::StartRequest& request);
 

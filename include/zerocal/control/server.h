@@ -26,6 +26,9 @@ struct ServerOptions {
   std::uint16_t port = 7450;  // 0: any free port (tests; port() tells which)
   std::string token;          // required, not empty (loadToken)
   std::string daemon_version = "unknown";
+  // What `start` and `plan` use for the members a request leaves out (SessionManager's
+  // defaultRequest(): the configuration's session section).
+  service::StartRequest default_request;
   std::size_t max_clients = 64;  // more connections get a too_many_clients error and are closed
   std::size_t max_line_bytes = 65536;  // a longer request line: line_too_long, then closed
   // A connection that completes no request line for this long is closed, unless it subscribed

@@ -1,14 +1,20 @@
 // zerocal: the calibration engine on the command line (solve, plan, experiment, sensitivity), the
-// PSD chain (psd-sweep, psd-map, psd), and the report of a session folder (report).
+// PSD chain (psd-sweep, psd-map, psd), the report of a session folder (report), and the client of
+// zerocald's control port (start, status, watch, abort, resume, sessions, result; plan without
+// --robot).
 // Exit codes: 0 done; 1 unexpected failure; 2 bad input or usage, or no USB-1408FS / no permission
 // to open it; 3 the solver did not converge; 4 solved, but some of delta2..delta5 are not
-// identifiable from the poses.
+// identifiable from the poses. The client commands add 3 (the watched session was aborted or
+// faulted), 5 (cannot connect) and 6 (token refused or unusable); control_commands.h.
+#include <unistd.h>
+
 #include <CLI/CLI.hpp>
 #include <Eigen/Geometry>
 #include <fstream>
 #include <iostream>
 #include <sstream>
 
+#include "control_commands.h"
 #include "psd_commands.h"
 #include "report_format.h"
 #include "zerocal/calib/experiment.h"
@@ -33,11 +39,12 @@ struct CellArgs {
   std::vector<double> laser_direction{1, 0, 0};
   std::vector<double> laser_point{0, 0, 0};
 
-  void add(CLI::App* app) {
-    app->add_option("--robot", robot,
-                    "robot model YAML (e.g. config/robots/irb1600-10-145.yaml), or 'builtin' "
-                    "for the compiled-in IRB 1600-10/1.45")
-        ->required();
+  void add(CLI::App* app, bool required = true) {
+    auto* option = app->add_option("--robot", robot,
+                                   "robot model YAML (e.g. config/robots/irb1600-10-145.yaml), or "
+                                   "'builtin' for the compiled-in IRB 1600-10/1.45" +
+                                       std::string(required ? "" : "; without it, zerocald plans"));
+    if (required) option->required();
     app->add_option("--laser-direction", laser_direction,
                     "nominal laser direction in the flange frame (default: flange x, 1 0 0)")
         ->expected(3);
@@ -125,9 +132,12 @@ int main(int argc, char** argv) {
                        "print the paths and the offsets as one JSON object instead of the summary");
 
   // plan
-  auto* plan_cmd = app.add_subcommand("plan", "plan poses and predict their uncertainty");
+  auto* plan_cmd = app.add_subcommand(
+      "plan", "plan poses and predict their uncertainty (with --robot here, else on zerocald)");
   CellArgs plan_cell;
-  plan_cell.add(plan_cmd);
+  plan_cell.add(plan_cmd, false);
+  cli::ClientArgs plan_client;
+  cli::addConnectionOptions(plan_cmd, plan_client);
   std::vector<double> target;
   std::string pattern = "optimal", out_file;
   PlanOptions plan_options;
@@ -135,13 +145,15 @@ int main(int argc, char** argv) {
   std::vector<double> psd_normal{0, 0, 1};
   bool plan_json = false;
   double plan_noise = 0.05 / std::sqrt(3.0);
-  plan_cmd->add_option("--target", target, "nominal target (PSD centre) in the base frame, mm")
-      ->expected(3)
-      ->required();
-  plan_cmd->add_option("--poses", plan_options.poses, "number of poses")->required();
-  plan_cmd->add_option("--pattern", pattern, "I, II, mixed or optimal (default)");
-  plan_cmd->add_option("--noise", plan_noise, "measurement sigma in mm for the prediction")
-      ->default_val(plan_noise);
+  auto* target_option =
+      plan_cmd->add_option("--target", target, "nominal target (PSD centre) in the base frame, mm")
+          ->expected(3);
+  auto* poses_option = plan_cmd->add_option("--poses", plan_options.poses, "number of poses");
+  auto* pattern_option =
+      plan_cmd->add_option("--pattern", pattern, "I, II, mixed or optimal (default)");
+  auto* noise_option =
+      plan_cmd->add_option("--noise", plan_noise, "measurement sigma in mm for the prediction")
+          ->default_val(plan_noise);
   plan_cmd->add_option("--standoff", standoff, "stand-off range MIN MAX in mm")->expected(2);
   plan_cmd->add_option("--margin", plan_options.margin_deg, "kept from every joint limit, deg")
       ->default_val(plan_options.margin_deg);
@@ -212,6 +224,8 @@ int main(int argc, char** argv) {
 
   cli::PsdCommands psd_cmds;
   cli::addPsdCommands(app, psd_cmds);
+  cli::ClientCommands client_cmds;
+  cli::addClientCommands(app, client_cmds);
 
   try {
     app.parse(argc, argv);
@@ -221,7 +235,31 @@ int main(int argc, char** argv) {
     return app.exit(e) == 0 ? kOk : kBadInput;
   }
 
+  for (auto* c : client_cmds.apps)
+    if (c->parsed()) return cli::runClient(client_cmds.args, std::cout, std::cerr, isatty(1));
+  if (plan_cmd->parsed() && plan_cell.robot.empty()) {
+    // On the daemon: its cell, its planner; only the options of a session request apply.
+    for (const char* local :
+         {"--standoff", "--margin", "--max-incidence", "--sweep", "--psd-normal", "--joint1-fixed",
+          "--out", "--laser-direction", "--laser-point"})
+      if (plan_cmd->count(local) > 0) {
+        std::cerr << "zerocal: plan " << local << " needs --robot (a plan made here)\n";
+        return kBadInput;
+      }
+    plan_client.command = "plan";
+    plan_client.json = plan_json;
+    if (pattern_option->count() > 0) plan_client.pattern = pattern;
+    if (poses_option->count() > 0) plan_client.poses = plan_options.poses;
+    if (target_option->count() > 0) plan_client.target = target;
+    if (noise_option->count() > 0) plan_client.noise_mm = plan_noise;
+    return cli::runClient(plan_client, std::cout, std::cerr, isatty(1));
+  }
+
   try {
+    if (plan_cmd->parsed() && (target.empty() || poses_option->count() == 0)) {
+      std::cerr << "zerocal: plan --robot needs --target and --poses\n";
+      return kBadInput;
+    }
     if (solve_cmd->parsed()) {
       CellModel cell = solve_cell.cell();
       const auto poses = readJointSet(joints_file);

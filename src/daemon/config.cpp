@@ -278,6 +278,12 @@ std::vector<Field> schema(DaemonConfig& c) {
   f.push_back(textField("control.bind_address", c.control.bind_address));
   f.push_back(integerField("control.port", c.control.port));
   f.push_back(pathField("control.token_file", c.control.token_file));
+  f.push_back(integerField("control.max_clients", c.control.max_clients));
+  f.push_back(integerField("control.max_line_bytes", c.control.max_line_bytes));
+  f.push_back(realField("control.idle_timeout_s", c.control.idle_timeout_s));
+  f.push_back(realField("control.write_timeout_s", c.control.write_timeout_s));
+  f.push_back(integerField("control.max_queued_kib", c.control.max_queued_kib));
+  f.push_back(integerField("control.max_auth_failures", c.control.max_auth_failures));
 
   f.push_back(choiceField("logging.level", c.logging.level, kLevels));
   f.push_back(pathField("logging.directory", c.logging.directory));
@@ -539,6 +545,12 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
                                          ") is reachable from other machines");
   }
   if (c.control.port == 0) check.fail("control.port", "must be 1..65535");
+  check.range("control.max_clients", c.control.max_clients, 1, 10000);
+  check.range("control.max_line_bytes", c.control.max_line_bytes, 1024, 16 << 20);
+  check.positive("control.idle_timeout_s", c.control.idle_timeout_s, 86400.0);
+  check.positive("control.write_timeout_s", c.control.write_timeout_s, 3600.0);
+  check.range("control.max_queued_kib", c.control.max_queued_kib, 64, 1 << 20);
+  check.range("control.max_auth_failures", c.control.max_auth_failures, 1, 100);
   if (!c.control.token_file.empty()) check.fileExists("control.token_file", c.control.token_file);
 
   // The diagnostic log and the measured data are kept apart (house style).

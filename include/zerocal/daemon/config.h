@@ -96,7 +96,13 @@ struct SessionConfig {
 struct ControlConfig {
   std::string bind_address = "127.0.0.1";
   std::uint16_t port = 7450;
-  std::string token_file;  // required when bind_address is not a loopback address
+  std::string token_file;  // required to serve the port; checked when bind_address is not loopback
+  int max_clients = 64;    // connections at once; more are refused politely
+  int max_line_bytes = 65536;   // longest request line; a longer one is refused and closed
+  double idle_timeout_s = 600;  // a connection that sends no request this long is closed
+  double write_timeout_s = 30;  // a client whose write is stuck this long is dropped
+  int max_queued_kib = 1024;    // output queued for one client before it is dropped
+  int max_auth_failures = 3;    // failed auth attempts before a connection is closed
 };
 
 enum class LogLevel { kTrace, kDebug, kInfo, kWarn, kError, kCritical, kOff };

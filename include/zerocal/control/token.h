@@ -1,0 +1,19 @@
+// The control port's shared secret: one line in a file only its owner may read.
+#pragma once
+
+#include <string>
+
+#include "zerocal/error.h"
+
+namespace zerocal::control {
+
+// Reads the token from `path` (surrounding whitespace removed). Throws Error, with a message that
+// says what to do, when the path is empty, the file is missing, not a regular file, unreadable,
+// empty, or its mode grants any permission to group or others (chmod 600 or 400).
+std::string loadToken(const std::string& path);
+
+// Compares in time that depends only on the lengths, not on where the strings first differ, so
+// that response times do not reveal a prefix of the token.
+bool tokensEqual(const std::string& given, const std::string& expected);
+
+}  // namespace zerocal::control

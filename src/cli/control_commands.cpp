@@ -1,0 +1,311 @@
+#include "control_commands.h"
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+
+#include "zerocal/control/client.h"
+#include "zerocal/control/token.h"
+
+namespace zerocal::cli {
+
+using control::CommandError;
+using control::ConnectionError;
+using nlohmann::json;
+
+namespace {
+
+const char* const kSigmaNames[] = {"delta2", "delta3", "delta4", "delta5"};
+
+bool isFinal(const std::string& state) {
+  return state == "done" || state == "aborted" || state == "faulted" || state == "idle";
+}
+
+std::string format(const char* fmt, double value) {
+  char text[64];
+  std::snprintf(text, sizeof text, fmt, value);
+  return text;
+}
+
+std::string sigmaText(const json& sigmas) {
+  std::string text;
+  for (std::size_t k = 0; k < sigmas.size() && k < 4; ++k) {
+    text += std::string(k ? ", " : "") + kSigmaNames[k] + " ";
+    text += sigmas[k].is_number() ? format("%.5f", sigmas[k].get<double>()) : "not identifiable";
+  }
+  return text.empty() ? "-" : text + " deg";
+}
+
+// One line of progress: what a technician at the cell wants at a glance.
+std::string progressLine(const json& s) {
+  std::string line = s.value("session", std::string("-")) + "  " + s.value("state", "?");
+  if (s.value("pose_count", 0) > 0)
+    line += "  pose " + std::to_string(s.value("pose", 0)) + " of " +
+            std::to_string(s.value("pose_count", 0)) + "  recorded " +
+            std::to_string(s.value("recorded", 0));
+  if (s.value("recorded", 0) > 0)
+    line += "  servo error " + format("%.1f", s.value("last_servo_error_um", 0.0)) + " um";
+  if (s.value("cell_time_s", 0.0) > 0)
+    line += "  " + format("%.0f", s["cell_time_s"].get<double>()) + " s";
+  return line;
+}
+
+void printStatus(const json& s, std::ostream& out) {
+  out << "state:      " << s.value("state", "?") << (s.value("active", false) ? " (active)" : "")
+      << "\n";
+  out << "backend:    " << s.value("backend", "") << "\n";
+  out << "session:    " << (s.value("session", "").empty() ? "-" : s.value("session", "")) << "\n";
+  out << "pose:       " << s.value("pose", 0) << " of " << s.value("pose_count", 0) << ", recorded "
+      << s.value("recorded", 0);
+  if (s.value("resumed_from", 0) > 0) out << " (resumed from " << s["resumed_from"] << ")";
+  out << "\n";
+  out << "servo:      " << format("%.2f", s.value("last_servo_error_um", 0.0))
+      << " um at the last recorded pose\n";
+  out << "predicted:  " << sigmaText(s.value("predicted_sigma_deg", json::array())) << "\n";
+  out << "achieved:   " << sigmaText(s.value("achieved_sigma_deg", json::array())) << "\n";
+  if (s.contains("message")) out << "message:    " << s["message"].get<std::string>() << "\n";
+}
+
+int exitFor(const std::string& state) {
+  return state == "aborted" || state == "faulted" ? kClientSessionFailed : kClientOk;
+}
+
+// Follows the session until it ends. Events drive the display; a status poll every few seconds
+// also ends the watch if an event was missed.
+int watch(control::ControlClient& client, const ClientArgs& args, std::ostream& out, bool tty) {
+  json status = client.call("subscribe")["status"];
+  auto show = [&](const json& s, bool changed) {
+    if (args.json) return;
+    if (tty)
+      out << "\r\033[K" << progressLine(s) << std::flush;
+    else if (changed)
+      out << progressLine(s) << "\n" << std::flush;
+  };
+  std::string last_line = progressLine(status);
+  show(status, true);
+  auto last_poll = std::chrono::steady_clock::now();
+  while (status.value("active", false)) {
+    auto event = client.nextEvent(std::chrono::seconds(1));
+    if (event) {
+      if (args.json) out << event->dump() << "\n" << std::flush;
+      const std::string kind = event->value("event", "");
+      if (kind == "status") {
+        status = (*event)["status"];
+      } else if (kind == "state" || kind == "pose") {
+        for (const auto& item : event->items())
+          if (item.key() != "event")
+            status[item.key() == "servo_error_um" ? "last_servo_error_um" : item.key()] =
+                item.value();
+        if (kind == "state") status["active"] = !isFinal(status.value("state", ""));
+        if (kind == "pose")
+          status["recorded"] = std::max(status.value("recorded", 0), event->value("pose", 0));
+      }
+    }
+    if (!event || std::chrono::steady_clock::now() - last_poll > std::chrono::seconds(5)) {
+      status = client.call("status")["status"];
+      last_poll = std::chrono::steady_clock::now();
+    }
+    const auto line = progressLine(status);
+    show(status, line != last_line);
+    last_line = line;
+  }
+  status = client.call("status")["status"];  // the final figures (achieved sigma, message)
+  if (tty && !args.json) out << "\r\033[K";
+  if (args.json) {
+    out << json{{"status", status}}.dump() << "\n";
+  } else {
+    out << progressLine(status) << "\n";
+    if (status.contains("message")) out << status["message"].get<std::string>() << "\n";
+    if (status.value("state", "") == "done")
+      out << "achieved: " << sigmaText(status.value("achieved_sigma_deg", json::array())) << "\n";
+  }
+  return exitFor(status.value("state", ""));
+}
+
+json startMembers(const ClientArgs& args) {
+  json m = json::object();
+  if (!args.pattern.empty()) m["plan"] = args.pattern;
+  if (args.poses) m["poses"] = *args.poses;
+  if (!args.plan_file.empty()) m["plan_file"] = args.plan_file;
+  if (!args.target.empty()) m["target_mm"] = args.target;
+  if (args.noise_mm) m["noise_mm"] = *args.noise_mm;
+  return m;
+}
+
+int printPlan(const json& plan, const ClientArgs& args, std::ostream& out) {
+  bool identifiable = true;
+  const auto& predicted = plan.value("predicted", json::object());
+  for (const char* name : {"delta2_deg", "delta3_deg", "delta4_deg", "delta5_deg"})
+    if (predicted.contains(name) && !predicted[name].value("identifiable", true))
+      identifiable = false;
+  if (args.json) {
+    out << plan.dump(2) << "\n";
+  } else {
+    out << plan.value("description", "") << "\n";
+    out << "predicted one-sigma uncertainty before any move:\n";
+    for (const auto& item : predicted.items()) {
+      char line[160];
+      if (item.value().value("identifiable", false) && item.value()["sigma"].is_number())
+        std::snprintf(line, sizeof line, "  %-19s %10.5f\n", item.key().c_str(),
+                      item.value()["sigma"].get<double>());
+      else
+        std::snprintf(line, sizeof line, "  %-19s not identifiable: %s\n", item.key().c_str(),
+                      item.value().value("reason", std::string()).c_str());
+      out << line;
+    }
+    out << plan.value("poses", json::array()).size() << " poses\n";
+  }
+  return identifiable ? kClientOk : kClientNotIdentifiable;
+}
+
+int run(const ClientArgs& args, std::ostream& out, std::ostream& err, bool tty) {
+  control::ControlClient client;
+  client.connect(args.host, args.port, std::chrono::seconds(5));
+  const auto timeout = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+      std::chrono::duration<double>(args.timeout_s));
+  const std::string token_file = args.token_file.empty() ? defaultTokenFile() : args.token_file;
+  std::string token;
+  try {
+    token = control::loadToken(token_file);
+  } catch (const Error& e) {
+    err << "zerocal: " << e.what() << " (--token-file or ZEROCAL_TOKEN_FILE)\n";
+    return kClientAuthRefused;
+  }
+  client.authenticate(token);
+
+  const auto& cmd = args.command;
+  if (cmd == "status") {
+    const auto s = client.call("status", json::object(), timeout)["status"];
+    if (args.json)
+      out << s.dump(2) << "\n";
+    else
+      printStatus(s, out);
+    return kClientOk;
+  }
+  if (cmd == "watch") return watch(client, args, out, tty);
+  if (cmd == "start" || cmd == "resume") {
+    const auto r =
+        cmd == "start"
+            ? client.call("start", startMembers(args), timeout)
+            : client.call("resume",
+                          args.session.empty() ? json::object() : json{{"session", args.session}},
+                          timeout);
+    const std::string id = r.value("session", "");
+    if (!args.watch) {
+      if (args.json)
+        out << json{{"session", id}}.dump() << "\n";
+      else
+        out << "session " << id << (cmd == "start" ? " started" : " resumed") << "\n";
+      return kClientOk;
+    }
+    return watch(client, args, out, tty);
+  }
+  if (cmd == "abort") {
+    const bool aborted = client.call("abort", json::object(), timeout).value("aborted", false);
+    if (args.json)
+      out << json{{"aborted", aborted}}.dump() << "\n";
+    else
+      out << (aborted ? "abort requested; the robot is stopped" : "no session was running") << "\n";
+    return kClientOk;
+  }
+  if (cmd == "sessions") {
+    const auto list = client.call("sessions", json::object(), timeout)["sessions"];
+    if (args.json) {
+      out << list.dump(2) << "\n";
+    } else {
+      for (const auto& s : list) {
+        char line[200];
+        std::snprintf(
+            line, sizeof line, "%-24s %-10s %3d of %3d poses  %s\n", s.value("id", "").c_str(),
+            s.value("finished", false) ? "finished" : "unfinished", s.value("recorded_poses", 0),
+            s.value("planned_poses", 0), s.value("dir", "").c_str());
+        out << line;
+      }
+      if (list.empty()) out << "no sessions\n";
+    }
+    return kClientOk;
+  }
+  if (cmd == "result") {
+    const auto r = client.call(
+        "result", args.session.empty() ? json::object() : json{{"session", args.session}},
+        timeout)["result"];
+    out << r.dump(2) << "\n";
+    return kClientOk;
+  }
+  if (cmd == "plan") {
+    // Planning takes the daemon a second or so of CPU; give it room beyond --timeout.
+    const auto r = client.call("plan", startMembers(args), timeout + std::chrono::seconds(30));
+    return printPlan(r["plan"], args, out);
+  }
+  err << "zerocal: unknown client command '" << cmd << "'\n";
+  return kClientBadRequest;
+}
+
+}  // namespace
+
+std::string defaultTokenFile() {
+  const char* env = std::getenv("ZEROCAL_TOKEN_FILE");
+  return env && *env ? env : "/etc/zerocal/token";
+}
+
+void addConnectionOptions(CLI::App* command, ClientArgs& args) {
+  command->add_option("--host", args.host, "zerocald's address")->default_val(args.host);
+  command->add_option("--port", args.port, "zerocald's control port")->default_val(args.port);
+  command->add_option("--token-file", args.token_file,
+                      "the access token (default $ZEROCAL_TOKEN_FILE, else /etc/zerocal/token)");
+  command->add_option("--timeout", args.timeout_s, "seconds to wait for an answer")
+      ->default_val(args.timeout_s)
+      ->check(CLI::PositiveNumber);
+}
+
+void addClientCommands(CLI::App& app, ClientCommands& commands) {
+  auto& a = commands.args;
+  auto add = [&](const char* name, const char* help) {
+    auto* c = app.add_subcommand(name, help);
+    addConnectionOptions(c, a);
+    c->add_flag("--json", a.json, "JSON instead of text (watch: one event per line)");
+    c->callback([&a, name] { a.command = name; });
+    commands.apps.push_back(c);
+    return c;
+  };
+  auto* start = add("start", "start a calibration session on zerocald");
+  start->add_option("--pattern", a.pattern, "optimal, I, II, mixed or file (default the daemon's)")
+      ->check(CLI::IsMember({"optimal", "I", "II", "mixed", "file"}));
+  start->add_option("--poses", a.poses, "number of poses (default the daemon's)")
+      ->check(CLI::Range(1, 1000));
+  start->add_option("--plan-file", a.plan_file,
+                    "joint-set file on the daemon's host (--pattern file)");
+  start->add_option("--target", a.target, "nominal PSD centre X Y Z in mm (default the cell's)")
+      ->expected(3);
+  start->add_option("--noise", a.noise_mm, "measurement sigma in mm")->check(CLI::PositiveNumber);
+  start->add_flag("--watch", a.watch, "then show its progress until it ends");
+  add("status", "the daemon's session state");
+  add("watch", "live progress of the running session; exits when it ends");
+  add("abort", "stop the running session (the robot stops)");
+  auto* resume = add("resume", "resume an unfinished session from its journal");
+  resume->add_option("session", a.session, "session id (default the latest unfinished)");
+  resume->add_flag("--watch", a.watch, "then show its progress until it ends");
+  add("sessions", "the sessions in the daemon's data folder");
+  auto* result = add("result", "result.json of a finished session");
+  result->add_option("session", a.session, "session id (default the latest)");
+}
+
+int runClient(const ClientArgs& args, std::ostream& out, std::ostream& err, bool tty) {
+  try {
+    return run(args, out, err, tty);
+  } catch (const CommandError& e) {
+    err << "zerocal: " << args.command << " refused (" << e.code() << "): " << e.what() << "\n";
+    if (e.code() == "auth_failed" || e.code() == "unauthenticated") return kClientAuthRefused;
+    if (e.code() == "not_identifiable") return kClientNotIdentifiable;
+    if (e.code() == "internal") return kClientFailure;
+    return kClientBadRequest;
+  } catch (const ConnectionError& e) {
+    err << "zerocal: " << e.what() << " (is zerocald running? --host, --port)\n";
+    return kClientCannotConnect;
+  } catch (const std::exception& e) {
+    err << "zerocal: unexpected failure: " << e.what() << "\n";
+    return kClientFailure;
+  }
+}
+
+}  // namespace zerocal::cli

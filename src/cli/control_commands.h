@@ -1,0 +1,59 @@
+// The client subcommands of zerocal, which drive zerocald's control port (docs/protocol.md):
+// start, status, watch, abort, resume, sessions, result, and plan when no --robot is given.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <cstdint>
+#include <optional>
+#include <ostream>
+#include <string>
+#include <vector>
+
+namespace zerocal::cli {
+
+// Exit codes of the client commands, beside those of the engine commands (0, 1, 2, 4 mean the
+// same there): docs/cli.md.
+enum ClientExit {
+  kClientOk = 0,
+  kClientFailure = 1,
+  kClientBadRequest = 2,     // usage, or the daemon refused the request (busy, not_found, ...)
+  kClientSessionFailed = 3,  // the watched session ended aborted or faulted
+  kClientNotIdentifiable = 4,
+  kClientCannotConnect = 5,  // no daemon at --host:--port, or the connection broke
+  kClientAuthRefused = 6,    // the token file cannot be used, or the daemon refused the token
+};
+
+struct ClientArgs {
+  std::string command;  // start, status, watch, abort, resume, sessions, result, plan
+  std::string host = "127.0.0.1";
+  std::uint16_t port = 7450;
+  std::string token_file;  // empty: $ZEROCAL_TOKEN_FILE, else /etc/zerocal/token
+  bool json = false;
+  bool watch = false;   // start, resume: then watch the session
+  std::string session;  // resume, result: a session id (default the latest)
+  std::string pattern;  // start, plan: optimal, I, II, mixed, file (default the daemon's)
+  std::optional<int> poses;
+  std::string plan_file;
+  std::vector<double> target;  // empty or X Y Z in mm
+  std::optional<double> noise_mm;
+  double timeout_s = 10;  // per request; `plan` takes its own time on the daemon
+};
+
+struct ClientCommands {
+  std::vector<CLI::App*> apps;  // start, status, watch, abort, resume, sessions, result
+  ClientArgs args;
+};
+
+// Registers the subcommands (all but plan, which main shares with the local planner); `commands`
+// must outlive the parse.
+void addClientCommands(CLI::App& app, ClientCommands& commands);
+// --host, --port, --token-file on one subcommand.
+void addConnectionOptions(CLI::App* command, ClientArgs& args);
+
+std::string defaultTokenFile();
+
+// Runs args.command against the daemon. `tty`: the live display redraws one line. Never throws;
+// every failure is a message on `err` and an exit code.
+int runClient(const ClientArgs& args, std::ostream& out, std::ostream& err, bool tty);
+
+}  // namespace zerocal::cli

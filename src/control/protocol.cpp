@@ -1,0 +1,144 @@
+#include "zerocal/control/protocol.h"
+
+#include <cmath>
+#include <set>
+
+namespace zerocal::control {
+
+using nlohmann::json;
+
+namespace {
+
+const std::set<std::string> kStartMembers{"id",    "cmd",       "token",     "plan",
+                                          "poses", "plan_file", "target_mm", "noise_mm"};
+
+}  // namespace
+
+const char* planKindName(PlanKind kind) {
+  switch (kind) {
+    case PlanKind::kOptimal:
+      return "optimal";
+    case PlanKind::kI:
+      return "I";
+    case PlanKind::kII:
+      return "II";
+    case PlanKind::kMixed:
+      return "mixed";
+    case PlanKind::kFile:
+      return "file";
+  }
+  return "?";
+}
+
+PlanKind parsePlanKind(const std::string& name) {
+  for (auto kind :
+       {PlanKind::kOptimal, PlanKind::kI, PlanKind::kII, PlanKind::kMixed, PlanKind::kFile})
+    if (name == planKindName(kind)) return kind;
+  throw BadRequest("plan: '" + name + "' is not one of optimal, I, II, mixed, file");
+}
+
+std::string optionalString(const json& request, const char* key, const std::string& fallback) {
+  const auto it = request.find(key);
+  if (it == request.end() || it->is_null()) return fallback;
+  if (!it->is_string()) throw BadRequest(std::string(key) + ": expected a string");
+  return it->get<std::string>();
+}
+
+service::StartRequest parseStartRequest(const json& request,
+                                        const service::StartRequest& defaults) {
+  for (const auto& item : request.items())
+    if (!kStartMembers.count(item.key())) throw BadRequest("unknown member '" + item.key() + "'");
+  service::StartRequest r = defaults;
+  if (request.contains("plan")) r.plan = parsePlanKind(optionalString(request, "plan"));
+  if (request.contains("poses")) {
+    const auto& p = request["poses"];
+    if (!p.is_number_integer()) throw BadRequest("poses: expected an integer");
+    // Bounds only against absurd values here; the planner knows the real minimum.
+    if (p.get<long long>() < 1 || p.get<long long>() > 1000)
+      throw BadRequest("poses: " + p.dump() + " is outside 1..1000");
+    r.poses = p.get<int>();
+  }
+  r.plan_file = optionalString(request, "plan_file", r.plan_file);
+  if (request.contains("target_mm") && !request["target_mm"].is_null()) {
+    const auto& t = request["target_mm"];
+    if (!t.is_array() || t.size() != 3 || !t[0].is_number() || !t[1].is_number() ||
+        !t[2].is_number())
+      throw BadRequest("target_mm: expected [x, y, z] in mm");
+    r.target_mm = Eigen::Vector3d(t[0].get<double>(), t[1].get<double>(), t[2].get<double>());
+    if (!r.target_mm->allFinite()) throw BadRequest("target_mm: not finite");
+  }
+  if (request.contains("noise_mm") && !request["noise_mm"].is_null()) {
+    const auto& n = request["noise_mm"];
+    if (!n.is_number()) throw BadRequest("noise_mm: expected a number");
+    const double v = n.get<double>();
+    if (!(v > 0 && v < 10)) throw BadRequest("noise_mm: " + n.dump() + " is outside (0, 10)");
+    r.noise_mm = v;
+  }
+  return r;
+}
+
+json toJson(const service::StartRequest& request) {
+  json j{{"plan", planKindName(request.plan)}, {"poses", request.poses}};
+  if (!request.plan_file.empty()) j["plan_file"] = request.plan_file;
+  if (request.target_mm)
+    j["target_mm"] = {request.target_mm->x(), request.target_mm->y(), request.target_mm->z()};
+  if (request.noise_mm) j["noise_mm"] = *request.noise_mm;
+  return j;
+}
+
+json toJson(const service::SessionStatus& s) {
+  // NaN (not identifiable) becomes null: JSON has no NaN and nlohmann writes null for it anyway.
+  auto sigmas = [](const std::vector<double>& v) {
+    json a = json::array();
+    for (double x : v) a.push_back(std::isfinite(x) ? json(x) : json(nullptr));
+    return a;
+  };
+  json j{{"state", service::stateName(s.state)},
+         {"active", service::isActive(s.state)},
+         {"backend", s.backend},
+         {"session", s.session_id},
+         {"pose", s.pose},
+         {"pose_count", s.pose_count},
+         {"recorded", s.recorded},
+         {"resumed_from", s.resumed_from},
+         {"last_servo_error_um", s.last_servo_error_um},
+         {"predicted_sigma_deg", sigmas(s.predicted_sigma_deg)},
+         {"achieved_sigma_deg", sigmas(s.achieved_sigma_deg)},
+         {"cell_time_s", s.cell_time_s}};
+  if (!s.message.empty()) j["message"] = s.message;
+  return j;
+}
+
+json toJson(const service::LiveReading& live) {
+  const auto& r = live.reading;
+  return {{"u_mm", r.u_mm},
+          {"v_mm", r.v_mm},
+          {"u_se_mm", r.u_se_mm},
+          {"v_se_mm", r.v_se_mm},
+          {"sum_v", r.sum_v},
+          {"spot_present", r.spot_present},
+          {"in_valid_zone", r.in_valid_zone},
+          {"time_s", r.time_s},
+          {"during_session", live.during_session}};
+}
+
+json toJson(const std::vector<SessionInfo>& sessions) {
+  json a = json::array();
+  for (const auto& s : sessions)
+    a.push_back({{"id", s.id},
+                 {"dir", s.dir},
+                 {"finished", s.finished},
+                 {"planned_poses", s.planned_poses},
+                 {"recorded_poses", s.recorded_poses}});
+  return a;
+}
+
+std::string toLine(const json& message) {
+  return message.dump(-1, ' ', false, json::error_handler_t::replace) + "\n";
+}
+
+json errorResponse(const json& id, const std::string& code, const std::string& message) {
+  return {{"id", id}, {"ok", false}, {"error", {{"code", code}, {"message", message}}}};
+}
+
+}  // namespace zerocal::control

@@ -1,0 +1,556 @@
+#include "zerocal/control/server.h"
+
+#include <atomic>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/post.hpp>
+#include <boost/asio/read_until.hpp>
+#include <boost/asio/steady_timer.hpp>
+#include <boost/asio/streambuf.hpp>
+#include <boost/asio/thread_pool.hpp>
+#include <boost/asio/write.hpp>
+#include <deque>
+#include <set>
+
+#include "report_format.h"
+#include "zerocal/control/protocol.h"
+#include "zerocal/control/token.h"
+#include "zerocal/daemon/logging.h"
+
+namespace zerocal::control {
+
+namespace asio = boost::asio;
+using asio::ip::tcp;
+using nlohmann::json;
+using Clock = std::chrono::steady_clock;
+using Line = std::shared_ptr<const std::string>;
+
+namespace {
+
+Line makeLine(const json& message) { return std::make_shared<const std::string>(toLine(message)); }
+
+json okResponse(const json& id) { return {{"id", id}, {"ok", true}}; }
+
+// Commands a connection may send before it has authenticated; none of them touches the session.
+bool isOpenCommand(const std::string& cmd) {
+  return cmd == "hello" || cmd == "version" || cmd == "auth";
+}
+
+const std::vector<std::string> kCommands{
+    "hello",    "version", "auth",      "status",      "start", "abort", "resume",
+    "sessions", "result",  "subscribe", "unsubscribe", "psd",   "plan"};
+
+}  // namespace
+
+class Connection;
+
+class ServerCore : public std::enable_shared_from_this<ServerCore> {
+ public:
+  ServerCore(asio::io_context& io, service::SessionControl& session, ServerOptions options)
+      : io_(io),
+        session_(session),
+        options_(std::move(options)),
+        acceptor_(io),
+        accept_retry_(io),
+        status_timer_(io),
+        log_(makeLogger("control")) {}
+
+  void start();
+  void stop();
+  void remove(Connection* connection);
+  void broadcast(const json& event);
+  void startStatusTimer();
+
+  asio::io_context& io_;
+  service::SessionControl& session_;
+  const ServerOptions options_;
+  tcp::acceptor acceptor_;
+  asio::steady_timer accept_retry_;
+  asio::steady_timer status_timer_;
+  std::shared_ptr<spdlog::logger> log_;
+  std::set<std::shared_ptr<Connection>> connections_;
+  asio::thread_pool previews_{1};
+  std::atomic<int> pending_previews_{0};
+  bool stopped_ = false;
+  std::uint16_t port_ = 0;
+
+ private:
+  void accept();
+  void refuse(tcp::socket socket);
+};
+
+class Connection : public std::enable_shared_from_this<Connection> {
+ public:
+  Connection(std::shared_ptr<ServerCore> server, tcp::socket socket)
+      : server_(std::move(server)),
+        socket_(std::move(socket)),
+        input_(server_->options_.max_line_bytes),
+        watchdog_(server_->io_),
+        delay_(server_->io_) {
+    boost::system::error_code ec;
+    const auto peer = socket_.remote_endpoint(ec);
+    peer_ = ec ? std::string("?") : peer.address().to_string() + ":" + std::to_string(peer.port());
+    socket_.set_option(tcp::no_delay(true), ec);
+    socket_.set_option(asio::socket_base::keep_alive(true), ec);
+  }
+
+  void start() {
+    last_line_ = Clock::now();
+    armWatchdog();
+    read();
+  }
+
+  void send(const Line& line) {
+    if (closed_) return;
+    if (queued_bytes_ + line->size() > server_->options_.max_queued_bytes) {
+      server_->log_->warn("{}: dropped, it does not read ({} bytes queued)", peer_, queued_bytes_);
+      close();
+      return;
+    }
+    queued_bytes_ += line->size();
+    queue_.push_back(line);
+    if (!writing_) write();
+  }
+
+  void send(const json& message) { send(makeLine(message)); }
+
+  // Answers, then closes once everything queued is written.
+  void sendAndClose(const json& message) {
+    send(message);
+    closing_ = true;
+    if (!writing_ && !closed_) close();
+  }
+
+  void close() {
+    if (closed_) return;
+    closed_ = true;
+    boost::system::error_code ec;
+    watchdog_.cancel();
+    delay_.cancel();
+    socket_.shutdown(tcp::socket::shutdown_both, ec);
+    socket_.close(ec);
+    server_->remove(this);
+  }
+
+  bool subscribed() const { return subscribed_; }
+  const std::string& peer() const { return peer_; }
+
+ private:
+  void read() {
+    if (closed_ || closing_) return;
+    asio::async_read_until(socket_, input_, '\n',
+                           [self = shared_from_this()](boost::system::error_code ec,
+                                                       std::size_t n) { self->onRead(ec, n); });
+  }
+
+  void onRead(boost::system::error_code ec, std::size_t n) {
+    if (closed_) return;
+    if (ec == asio::error::not_found) {
+      server_->log_->warn("{}: request line over {} bytes; closing", peer_,
+                          server_->options_.max_line_bytes);
+      sendAndClose(errorResponse(nullptr, code::kLineTooLong,
+                                 "a request line is limited to " +
+                                     std::to_string(server_->options_.max_line_bytes) +
+                                     " bytes; closing"));
+      return;
+    }
+    if (ec) {  // eof, reset, or closed by us
+      if (ec != asio::error::eof && ec != asio::error::operation_aborted)
+        server_->log_->debug("{}: read: {}", peer_, ec.message());
+      close();
+      return;
+    }
+    std::string line(asio::buffers_begin(input_.data()), asio::buffers_begin(input_.data()) + n);
+    input_.consume(n);
+    last_line_ = Clock::now();
+    while (!line.empty() && (line.back() == '\n' || line.back() == '\r')) line.pop_back();
+    if (line.empty()) return read();
+    // One request at a time per connection: the next line is read once this one is answered,
+    // which bounds what one client can have in flight.
+    try {
+      if (handle(line)) read();
+    } catch (const std::exception& e) {
+      server_->log_->error("{}: unexpected failure: {}", peer_, e.what());
+      send(errorResponse(nullptr, code::kInternal, e.what()));
+      read();
+    }
+  }
+
+  // Returns true when answered; false when the answer comes later (then it calls finish()).
+  bool handle(const std::string& line) {
+    json request;
+    try {
+      request = json::parse(line);
+    } catch (const json::exception& e) {
+      send(errorResponse(nullptr, code::kBadJson, std::string("not a JSON object: ") + e.what()));
+      return true;
+    }
+    if (!request.is_object()) {
+      send(errorResponse(nullptr, code::kBadRequest, "a request is a JSON object"));
+      return true;
+    }
+    const json id = request.contains("id") ? request["id"] : json(nullptr);
+    const auto cmd_it = request.find("cmd");
+    if (cmd_it == request.end() || !cmd_it->is_string()) {
+      send(errorResponse(id, code::kBadRequest, "cmd: expected a string"));
+      return true;
+    }
+    const std::string cmd = cmd_it->get<std::string>();
+    if (!isOpenCommand(cmd) && !authenticated_) {
+      return authFailure(id, code::kUnauthenticated,
+                         "'" + cmd + "' needs authentication: send {\"cmd\":\"auth\",...} first");
+    }
+    try {
+      return dispatch(id, cmd, request);
+    } catch (const BadRequest& e) {
+      send(errorResponse(id, code::kBadRequest, e.what()));
+    } catch (const service::Refused& e) {
+      send(errorResponse(id, e.code(), e.what()));
+    } catch (const json::exception& e) {
+      send(errorResponse(id, code::kBadRequest, e.what()));
+    }
+    return true;
+  }
+
+  bool dispatch(const json& id, const std::string& cmd, const json& request) {
+    auto& session = server_->session_;
+    const auto& options = server_->options_;
+    json r = okResponse(id);
+    if (cmd == "hello" || cmd == "version") {
+      r["protocol"] = kProtocolVersion;
+      r["daemon"] = options.daemon_version;
+      if (cmd == "hello") {
+        r["authenticated"] = authenticated_;
+        r["commands"] = kCommands;
+      }
+    } else if (cmd == "auth") {
+      const auto token = request.find("token");
+      if (token == request.end() || !token->is_string() ||
+          !tokensEqual(token->get<std::string>(), options.token))
+        return authFailure(id, code::kAuthFailed, "wrong token");
+      if (!authenticated_) server_->log_->info("{}: authenticated", peer_);
+      authenticated_ = true;
+    } else if (cmd == "status") {
+      r["status"] = toJson(session.status());
+    } else if (cmd == "start") {
+      const auto start = parseStartRequest(request, options.default_request);
+      const auto session_id = session.start(start);
+      server_->log_->info("{}: started session {}", peer_, session_id);
+      r["session"] = session_id;
+    } else if (cmd == "resume") {
+      const auto session_id = session.resume(optionalString(request, "session"));
+      server_->log_->info("{}: resumed session {}", peer_, session_id);
+      r["session"] = session_id;
+    } else if (cmd == "abort") {
+      const bool aborted = session.abort();
+      if (aborted) server_->log_->warn("{}: aborted the session", peer_);
+      r["aborted"] = aborted;
+    } else if (cmd == "sessions") {
+      r["sessions"] = toJson(session.sessions());
+    } else if (cmd == "result") {
+      r["result"] = session.result(optionalString(request, "session"));
+    } else if (cmd == "subscribe") {
+      subscribed_ = true;
+      server_->startStatusTimer();
+      r["status"] = toJson(session.status());  // the state the events that follow start from
+    } else if (cmd == "unsubscribe") {
+      subscribed_ = false;
+    } else if (cmd == "psd") {
+      readPsd(id);
+      return false;
+    } else if (cmd == "plan") {
+      return preview(id, parseStartRequest(request, options.default_request));
+    } else {
+      send(errorResponse(id, code::kUnknownCommand, "unknown command '" + cmd + "'"));
+      return true;
+    }
+    send(r);
+    return true;
+  }
+
+  bool authFailure(const json& id, const char* error_code, const std::string& message) {
+    ++auth_failures_;
+    const bool last = auth_failures_ >= server_->options_.max_auth_failures;
+    server_->log_->warn("{}: authentication failed ({}, {} of {}){}", peer_, error_code,
+                        auth_failures_, server_->options_.max_auth_failures,
+                        last ? "; closing" : "");
+    auto response = errorResponse(id, error_code, last ? message + "; closing" : message);
+    // The answer waits, so that guessing costs time; the connection reads nothing meanwhile.
+    delay_.expires_after(server_->options_.auth_failure_delay);
+    delay_.async_wait([self = shared_from_this(), response, last](boost::system::error_code ec) {
+      if (ec || self->closed_) return;
+      if (last) return self->sendAndClose(response);
+      self->send(response);
+      self->read();
+    });
+    return false;
+  }
+
+  void readPsd(const json& id) {
+    auto executor = server_->io_.get_executor();
+    std::weak_ptr<Connection> weak = shared_from_this();
+    server_->session_.readPsd([executor, weak, id](std::optional<service::LiveReading> reading,
+                                                   const std::string& error) {
+      asio::post(executor, [weak, id, reading = std::move(reading), error] {
+        auto self = weak.lock();
+        if (!self || self->closed_) return;
+        if (reading) {
+          json r = okResponse(id);
+          r["reading"] = toJson(*reading);
+          self->send(r);
+        } else {
+          self->send(errorResponse(id, code::kUnavailable, error));
+        }
+        self->read();
+      });
+    });
+  }
+
+  bool preview(const json& id, const service::StartRequest& request) {
+    auto& server = *server_;
+    if (server.pending_previews_.fetch_add(1) >= server.options_.max_pending_previews) {
+      server.pending_previews_.fetch_sub(1);
+      send(errorResponse(id, "busy", "too many plan previews queued; try again shortly"));
+      return true;
+    }
+    auto executor = server.io_.get_executor();
+    std::weak_ptr<Connection> weak = shared_from_this();
+    auto* session = &server.session_;
+    auto* pending = &server.pending_previews_;  // the pool is joined before the core dies
+    asio::post(server.previews_, [executor, weak, id, request, session, pending] {
+      json response;
+      try {
+        response = okResponse(id);
+        response["plan"] = toJson(session->preview(request));
+      } catch (const service::Refused& e) {
+        response = errorResponse(id, e.code(), e.what());
+      } catch (const std::exception& e) {
+        response = errorResponse(id, code::kBadRequest, e.what());
+      }
+      pending->fetch_sub(1);
+      asio::post(executor, [weak, response = std::move(response)] {
+        auto self = weak.lock();
+        if (!self || self->closed_) return;
+        self->send(response);
+        self->read();
+      });
+    });
+    return false;
+  }
+
+  void write() {
+    writing_ = true;
+    write_started_ = Clock::now();
+    asio::async_write(socket_, asio::buffer(*queue_.front()),
+                      [self = shared_from_this()](boost::system::error_code ec, std::size_t) {
+                        self->onWrite(ec);
+                      });
+  }
+
+  void onWrite(boost::system::error_code ec) {
+    writing_ = false;
+    if (closed_) return;
+    queued_bytes_ -= queue_.front()->size();
+    queue_.pop_front();
+    if (ec) return close();
+    if (!queue_.empty()) return write();
+    if (closing_) close();
+  }
+
+  void armWatchdog() {
+    const auto& o = server_->options_;
+    const auto tick =
+        std::min({std::chrono::milliseconds(1000), o.idle_timeout / 4, o.write_timeout / 4});
+    watchdog_.expires_after(std::max(tick, std::chrono::milliseconds(1)));
+    watchdog_.async_wait([self = shared_from_this()](boost::system::error_code ec) {
+      if (ec || self->closed_) return;
+      self->checkTimeouts();
+    });
+  }
+
+  void checkTimeouts() {
+    const auto& o = server_->options_;
+    const auto now = Clock::now();
+    if (writing_ && now - write_started_ > o.write_timeout) {
+      server_->log_->warn("{}: dropped, a write was stuck for over {} ms", peer_,
+                          o.write_timeout.count());
+      return close();
+    }
+    // Idle: no complete line for idle_timeout. A half-open peer, or one trickling a line byte by
+    // byte, never completes one. Subscribers and connections waiting for an answer are exempt.
+    if (!subscribed_ && !closing_ && now - last_line_ > o.idle_timeout) {
+      server_->log_->info("{}: idle for {} ms; closing", peer_, o.idle_timeout.count());
+      sendAndClose({{"event", "closing"}, {"reason", "idle timeout"}});
+      if (closed_) return;
+    }
+    armWatchdog();
+  }
+
+  std::shared_ptr<ServerCore> server_;
+  tcp::socket socket_;
+  asio::streambuf input_;
+  asio::steady_timer watchdog_;
+  asio::steady_timer delay_;
+  std::string peer_;
+  std::deque<Line> queue_;
+  std::size_t queued_bytes_ = 0;
+  bool writing_ = false;
+  bool closing_ = false;
+  bool closed_ = false;
+  bool authenticated_ = false;
+  bool subscribed_ = false;
+  int auth_failures_ = 0;
+  Clock::time_point last_line_;
+  Clock::time_point write_started_;
+};
+
+void ServerCore::start() {
+  boost::system::error_code ec;
+  const auto address = asio::ip::make_address(options_.bind_address, ec);
+  if (ec) throw Error("control.bind_address '" + options_.bind_address + "' is not an IP address");
+  const tcp::endpoint endpoint(address, options_.port);
+  acceptor_.open(endpoint.protocol(), ec);
+  if (!ec) acceptor_.set_option(tcp::acceptor::reuse_address(true), ec);
+  if (!ec) acceptor_.bind(endpoint, ec);
+  if (!ec) acceptor_.listen(asio::socket_base::max_listen_connections, ec);
+  if (ec)
+    throw Error("cannot listen on " + options_.bind_address + ":" + std::to_string(options_.port) +
+                ": " + ec.message());
+  port_ = acceptor_.local_endpoint().port();
+  log_->info("control port listening on {}:{}", options_.bind_address, port_);
+  accept();
+}
+
+void ServerCore::accept() {
+  acceptor_.async_accept(
+      [self = shared_from_this()](boost::system::error_code ec, tcp::socket socket) {
+        if (self->stopped_) return;
+        if (ec) {
+          // Out of descriptors, typically: wait a little rather than spin, then go on accepting.
+          self->log_->warn("accept: {}", ec.message());
+          self->accept_retry_.expires_after(std::chrono::milliseconds(100));
+          self->accept_retry_.async_wait([self](boost::system::error_code e) {
+            if (!e && !self->stopped_) self->accept();
+          });
+          return;
+        }
+        if (self->connections_.size() >= self->options_.max_clients) {
+          self->refuse(std::move(socket));
+        } else {
+          auto connection = std::make_shared<Connection>(self, std::move(socket));
+          self->connections_.insert(connection);
+          connection->start();
+        }
+        self->accept();
+      });
+}
+
+void ServerCore::refuse(tcp::socket socket) {
+  auto s = std::make_shared<tcp::socket>(std::move(socket));
+  boost::system::error_code ec;
+  const auto peer = s->remote_endpoint(ec);
+  log_->warn("{}: refused, {} clients connected already",
+             ec ? std::string("?") : peer.address().to_string(), connections_.size());
+  auto line = makeLine(errorResponse(
+      nullptr, code::kTooManyClients,
+      "the daemon serves " + std::to_string(options_.max_clients) + " clients at most; try later"));
+  // The socket's own buffer takes a line this short; if not, the peer loses the explanation only.
+  s->non_blocking(true, ec);
+  asio::write(*s, asio::buffer(*line), ec);
+  s->shutdown(tcp::socket::shutdown_both, ec);
+  s->close(ec);
+}
+
+void ServerCore::stop() {
+  if (stopped_) return;
+  stopped_ = true;
+  boost::system::error_code ec;
+  acceptor_.close(ec);
+  accept_retry_.cancel();
+  status_timer_.cancel();
+  auto open = connections_;  // close() removes from the set
+  for (const auto& c : open) c->close();
+  connections_.clear();
+  previews_.stop();
+  previews_.join();
+}
+
+void ServerCore::remove(Connection* connection) {
+  for (auto it = connections_.begin(); it != connections_.end(); ++it)
+    if (it->get() == connection) {
+      connections_.erase(it);
+      return;
+    }
+}
+
+void ServerCore::broadcast(const json& event) {
+  if (stopped_) return;
+  const auto line = makeLine(event);  // one copy shared by every subscriber
+  auto open = connections_;           // send() may drop a connection
+  for (const auto& c : open)
+    if (c->subscribed()) c->send(line);
+}
+
+void ServerCore::startStatusTimer() {
+  if (stopped_ || options_.status_period.count() <= 0) return;
+  // Already armed: expiry() is in the future.
+  if (status_timer_.expiry() > Clock::now()) return;
+  status_timer_.expires_after(options_.status_period);
+  status_timer_.async_wait([weak = weak_from_this()](boost::system::error_code ec) {
+    auto self = weak.lock();
+    if (ec || !self || self->stopped_) return;
+    bool any = false;
+    for (const auto& c : self->connections_) any = any || c->subscribed();
+    if (!any) return;  // re-armed by the next subscribe
+    const auto status = self->session_.status();
+    if (service::isActive(status.state))
+      self->broadcast({{"event", "status"}, {"status", toJson(status)}});
+    self->startStatusTimer();
+  });
+}
+
+ServerOptions serverOptions(const ControlConfig& config, std::string token,
+                            std::string daemon_version) {
+  using std::chrono::duration;
+  using std::chrono::duration_cast;
+  using std::chrono::milliseconds;
+  ServerOptions o;
+  o.bind_address = config.bind_address;
+  o.port = config.port;
+  o.token = std::move(token);
+  o.daemon_version = std::move(daemon_version);
+  o.max_clients = static_cast<std::size_t>(config.max_clients);
+  o.max_line_bytes = static_cast<std::size_t>(config.max_line_bytes);
+  o.idle_timeout = duration_cast<milliseconds>(duration<double>(config.idle_timeout_s));
+  o.write_timeout = duration_cast<milliseconds>(duration<double>(config.write_timeout_s));
+  o.max_queued_bytes = static_cast<std::size_t>(config.max_queued_kib) * 1024;
+  o.max_auth_failures = config.max_auth_failures;
+  return o;
+}
+
+ControlServer::ControlServer(asio::io_context& io, service::SessionControl& session,
+                             ServerOptions options) {
+  if (options.token.empty()) throw Error("the control port needs a token (control.token_file)");
+  if (options.max_clients < 1 || options.max_line_bytes < 64 || options.max_auth_failures < 1)
+    throw Error("control options out of range");
+  impl_ = std::make_shared<ServerCore>(io, session, std::move(options));
+  auto executor = io.get_executor();
+  std::weak_ptr<ServerCore> weak = impl_;
+  // Called on the session's worker thread: only a post, never a wait.
+  session.setEventSink([executor, weak](const json& event) {
+    asio::post(executor, [weak, event] {
+      if (auto self = weak.lock()) self->broadcast(event);
+    });
+  });
+}
+
+ControlServer::~ControlServer() {
+  impl_->session_.setEventSink(nullptr);
+  stop();
+}
+
+void ControlServer::start() { impl_->start(); }
+void ControlServer::stop() { impl_->stop(); }
+std::uint16_t ControlServer::port() const { return impl_->port_; }
+std::size_t ControlServer::connectionCount() const { return impl_->connections_.size(); }
+
+}  // namespace zerocal::control

@@ -1,0 +1,135 @@
+#include "fake_session.h"
+
+#include <cmath>
+
+namespace zerocal::control::testing {
+
+using service::Refused;
+using service::SessionState;
+
+FakeSession::~FakeSession() {
+  for (auto& t : readers_) t.join();
+}
+
+service::SessionStatus FakeSession::status() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return status_;
+}
+
+Plan FakeSession::preview(const service::StartRequest& request) const {
+  if (request.poses < 6) throw Refused("bad_request", "at least 6 poses are needed");
+  // Busy CPU like the planner, not a sleep: the io thread must not be the one doing it.
+  const auto until = std::chrono::steady_clock::now() + preview_time;
+  volatile double x = 0;
+  while (std::chrono::steady_clock::now() < until)
+    for (int i = 0; i < 1000; ++i) x = x + std::sqrt(static_cast<double>(i));
+  Plan plan;
+  plan.description = "fake plan of " + std::to_string(request.poses) + " poses";
+  plan.poses.resize(request.poses);
+  plan.prediction.sigma.assign(kIdentifiedCount, 0.001);
+  plan.prediction.identifiable.assign(kIdentifiedCount, true);
+  plan.prediction.reason.assign(kIdentifiedCount, "");
+  plan.prediction.rank = 11;
+  return plan;
+}
+
+std::string FakeSession::start(const service::StartRequest& request) {
+  ++start_calls_;
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (service::isActive(status_.state))
+    throw Refused("busy", "session " + status_.session_id + " is " +
+                              service::stateName(status_.state) + ": one session at a time");
+  if (request.poses == 7) throw Refused("not_identifiable", "delta5 is not identifiable");
+  last_request_ = request;
+  status_.state = SessionState::kConnecting;
+  status_.session_id = "20261122-0001";
+  status_.pose_count = request.poses;
+  status_.predicted_sigma_deg = {0.001, 0.002, std::nan(""), 0.004};
+  return status_.session_id;
+}
+
+std::string FakeSession::resume(const std::string& id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (service::isActive(status_.state)) throw Refused("busy", "a session is running");
+  if (!id.empty() && id != "20261122-0001") throw Refused("not_found", "no session " + id);
+  status_.state = SessionState::kConnecting;
+  status_.session_id = "20261122-0001";
+  return status_.session_id;
+}
+
+bool FakeSession::abort() {
+  ++abort_calls_;
+  nlohmann::json event;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!service::isActive(status_.state)) return false;
+    status_.state = SessionState::kAborted;
+    status_.message = "aborted on request";
+    event = {{"event", "state"}, {"state", "aborted"}, {"session", status_.session_id}};
+  }
+  emit(event);
+  return true;
+}
+
+std::vector<SessionInfo> FakeSession::sessions() const {
+  return {SessionInfo{"20261122-0000", "/tmp/s0", true, 8, 8},
+          SessionInfo{"20261122-0001", "/tmp/s1", false, 8, 3}};
+}
+
+nlohmann::json FakeSession::result(const std::string& id) const {
+  if (!id.empty() && id != "20261122-0000") throw Refused("not_found", "no result for " + id);
+  return {{"session", "20261122-0000"}, {"converged", true}};
+}
+
+void FakeSession::readPsd(ReadingDone done) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const bool fail = psd_fails;
+  readers_.emplace_back([done = std::move(done), fail] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    if (fail) return done(std::nullopt, "no USB-1408FS found");
+    service::LiveReading r;
+    r.reading.u_mm = 0.012;
+    r.reading.v_mm = -0.034;
+    r.reading.sum_v = 3.2;
+    r.reading.spot_present = true;
+    r.reading.in_valid_zone = true;
+    done(r, "");
+  });
+}
+
+void FakeSession::setEventSink(EventSink sink) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  sink_ = std::move(sink);
+}
+
+void FakeSession::setState(SessionState state, int pose, int pose_count) {
+  nlohmann::json event;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    status_.state = state;
+    status_.pose = pose;
+    if (pose_count) status_.pose_count = pose_count;
+    event = {{"event", "state"},
+             {"state", service::stateName(state)},
+             {"session", status_.session_id},
+             {"pose", pose},
+             {"pose_count", status_.pose_count}};
+  }
+  emit(event);
+}
+
+void FakeSession::emit(const nlohmann::json& event) {
+  EventSink sink;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    sink = sink_;
+  }
+  if (sink) sink(event);
+}
+
+service::StartRequest FakeSession::lastRequest() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return last_request_;
+}
+
+}  // namespace zerocal::control::testing

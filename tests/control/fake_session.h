@@ -1,0 +1,50 @@
+// A SessionControl without a cell, for the control port's tests and its load test: states change
+// when told, start/resume refuse like the real one, preview burns CPU for a set time, readPsd
+// answers from another thread, and events are emitted from the calling thread (as the real one
+// does from its worker).
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "zerocal/service/session_manager.h"
+
+namespace zerocal::control::testing {
+
+class FakeSession : public service::SessionControl {
+ public:
+  ~FakeSession() override;
+
+  service::SessionStatus status() const override;
+  Plan preview(const service::StartRequest& request) const override;
+  std::string start(const service::StartRequest& request) override;
+  std::string resume(const std::string& id) override;
+  bool abort() override;
+  std::vector<SessionInfo> sessions() const override;
+  nlohmann::json result(const std::string& id) const override;
+  void readPsd(ReadingDone done) override;
+  void setEventSink(EventSink sink) override;
+
+  // Test controls.
+  void setState(service::SessionState state, int pose = 0, int pose_count = 0);
+  void emit(const nlohmann::json& event);
+  int startCalls() const { return start_calls_; }
+  int abortCalls() const { return abort_calls_; }
+  service::StartRequest lastRequest() const;
+  std::chrono::milliseconds preview_time{0};  // preview() spins this long
+  bool psd_fails = false;
+
+ private:
+  mutable std::mutex mutex_;
+  service::SessionStatus status_;
+  service::StartRequest last_request_;
+  EventSink sink_;
+  std::vector<std::thread> readers_;
+  std::atomic<int> start_calls_{0};
+  std::atomic<int> abort_calls_{0};
+};
+
+}  // namespace zerocal::control::testing

@@ -1,0 +1,533 @@
+// The control port over real TCP on loopback against FakeSession: every command, authentication,
+// and each class of bad input, each followed by a check that another client is still served fast.
+#include "zerocal/control/server.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <spdlog/sinks/ringbuffer_sink.h>
+#include <sys/stat.h>
+
+#include <boost/asio/executor_work_guard.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/post.hpp>
+#include <boost/asio/write.hpp>
+#include <filesystem>
+#include <fstream>
+#include <future>
+#include <random>
+#include <thread>
+
+#include "fake_session.h"
+#include "server_fixture.h"
+#include "zerocal/control/client.h"
+#include "zerocal/control/protocol.h"
+#include "zerocal/control/token.h"
+#include "zerocal/daemon/logging.h"
+
+namespace zerocal::control {
+namespace {
+
+using namespace std::chrono_literals;
+using nlohmann::json;
+using service::SessionState;
+using ::testing::HasSubstr;
+
+// -- token file --------------------------------------------------------------------------------
+
+class TokenFileTest : public ::testing::Test {
+ protected:
+  std::string write(const std::string& content, mode_t mode) {
+    const auto path =
+        (std::filesystem::temp_directory_path() /
+         ("zerocal-token-" + std::to_string(::getpid()) + "-" + std::to_string(counter_++)))
+            .string();
+    std::ofstream(path) << content;
+    ::chmod(path.c_str(), mode);
+    files_.push_back(path);
+    return path;
+  }
+  void TearDown() override {
+    for (const auto& f : files_) std::filesystem::remove(f);
+  }
+  std::vector<std::string> files_;
+  int counter_ = 0;
+};
+
+TEST_F(TokenFileTest, ReadsAnOwnerOnlyFileWithoutSurroundingWhitespace) {
+  EXPECT_EQ(loadToken(write("  s3cret\n", 0600)), "s3cret");
+  EXPECT_EQ(loadToken(write("s3cret", 0400)), "s3cret");
+}
+
+TEST_F(TokenFileTest, RefusesAMissingFile) {
+  EXPECT_THAT([] { loadToken("/nonexistent/zerocal-token"); },
+              ::testing::ThrowsMessage<Error>(HasSubstr("No such file")));
+  EXPECT_THAT([] { loadToken(""); },
+              ::testing::ThrowsMessage<Error>(HasSubstr("control.token_file is not set")));
+}
+
+TEST_F(TokenFileTest, RefusesAnEmptyFile) {
+  const auto path = write(" \n", 0600);
+  EXPECT_THAT([&] { loadToken(path); }, ::testing::ThrowsMessage<Error>(HasSubstr("is empty")));
+}
+
+TEST_F(TokenFileTest, RefusesAFileGroupOrOthersMayAccess) {
+  for (mode_t mode : {0644, 0640, 0604, 0660, 0602, 0610}) {
+    const auto path = write("s3cret", mode);
+    EXPECT_THAT([&] { loadToken(path); }, ::testing::ThrowsMessage<Error>(HasSubstr("chmod 600")))
+        << std::oct << mode;
+  }
+}
+
+TEST_F(TokenFileTest, RefusesADirectory) {
+  EXPECT_THAT([] { loadToken("/"); },
+              ::testing::ThrowsMessage<Error>(HasSubstr("not a regular file")));
+}
+
+TEST(TokensEqual, ComparesWholeStrings) {
+  EXPECT_TRUE(tokensEqual("abc", "abc"));
+  EXPECT_FALSE(tokensEqual("abd", "abc"));
+  EXPECT_FALSE(tokensEqual("ab", "abc"));
+  EXPECT_FALSE(tokensEqual("abcd", "abc"));
+  EXPECT_FALSE(tokensEqual("", "abc"));
+  EXPECT_FALSE(tokensEqual("", ""));  // an empty expected token never matches
+}
+
+TEST(ControlServerSetup, RefusesToStartWithoutAToken) {
+  boost::asio::io_context io;
+  testing::FakeSession session;
+  EXPECT_THROW(ControlServer(io, session, ServerOptions{}), Error);
+}
+
+TEST(ControlServerSetup, OptionsFromTheConfiguration) {
+  ControlConfig config;
+  config.idle_timeout_s = 1.5;
+  config.max_queued_kib = 64;
+  const auto o = serverOptions(config, "t", "1.0");
+  EXPECT_EQ(o.bind_address, "127.0.0.1");
+  EXPECT_EQ(o.port, 7450);
+  EXPECT_EQ(o.max_line_bytes, 65536u);
+  EXPECT_EQ(o.idle_timeout, 1500ms);
+  EXPECT_EQ(o.max_queued_bytes, 65536u);
+  EXPECT_EQ(o.max_auth_failures, 3);
+}
+
+TEST(ControlServerSetup, ReportsAPortInUse) {
+  boost::asio::io_context io;
+  testing::FakeSession session;
+  ServerOptions options;
+  options.token = kToken;
+  options.port = 0;
+  ControlServer first(io, session, options);
+  first.start();
+  options.port = first.port();
+  ControlServer second(io, session, options);
+  EXPECT_THAT([&] { second.start(); },
+              ::testing::ThrowsMessage<Error>(HasSubstr("cannot listen on 127.0.0.1")));
+}
+
+// -- open commands and authentication ----------------------------------------------------------
+
+TEST_F(ControlServerTest, HelloAndVersionNeedNoToken) {
+  auto c = connect(false);
+  const auto hello = c->call("hello");
+  EXPECT_EQ(hello["protocol"], kProtocolVersion);
+  EXPECT_EQ(hello["daemon"], "9.9.9");
+  EXPECT_EQ(hello["authenticated"], false);
+  EXPECT_THAT(hello["commands"].dump(), HasSubstr("\"subscribe\""));
+  const auto version = c->call("version");
+  EXPECT_EQ(version["protocol"], kProtocolVersion);
+}
+
+TEST_F(ControlServerTest, ResponsesEchoAnyId) {
+  auto c = connect(false);
+  c->sendRaw("{\"id\": {\"mine\": [1, \"x\"]}, \"cmd\": \"version\"}\n");
+  const auto r = json::parse(*c->readLine(1s));
+  EXPECT_EQ(r["id"], json::parse("{\"mine\": [1, \"x\"]}"));
+  EXPECT_EQ(r["ok"], true);
+}
+
+TEST_F(ControlServerTest, EveryOtherCommandNeedsAuthentication) {
+  auto c = connect(false);
+  for (const char* cmd : {"status", "start"}) {
+    const auto r = c->request({{"cmd", cmd}});
+    EXPECT_EQ(r["ok"], false);
+    EXPECT_EQ(r["error"]["code"], "unauthenticated") << cmd;
+  }
+  EXPECT_EQ(session_.startCalls(), 0);
+}
+
+TEST_F(ControlServerTest, NoRobotCommandIsAcceptedWithoutTheToken) {
+  session_.setState(SessionState::kMoving, 1, 8);
+  for (const char* cmd : {"start", "abort", "resume", "psd", "plan"}) {
+    auto c = connect(false);
+    const auto r = c->request({{"cmd", cmd}, {"token", "guess"}});
+    EXPECT_EQ(r["error"]["code"], "unauthenticated") << cmd;
+  }
+  EXPECT_EQ(session_.startCalls(), 0);
+  EXPECT_EQ(session_.abortCalls(), 0);
+  EXPECT_EQ(session_.status().state, SessionState::kMoving);
+}
+
+TEST_F(ControlServerTest, WrongTokenIsRefusedLoggedAndTheConnectionClosedAfterThree) {
+  auto ring = std::make_shared<spdlog::sinks::ringbuffer_sink_mt>(20);
+  makeLogger("control")->sinks().push_back(ring);
+  auto c = connect(false);
+  for (int i = 0; i < 3; ++i) {
+    const auto r = c->request({{"cmd", "auth"}, {"token", i == 1 ? json(42) : json("wrong")}});
+    EXPECT_EQ(r["error"]["code"], "auth_failed");
+    if (i == 2) {
+      EXPECT_THAT(r["error"]["message"].get<std::string>(), HasSubstr("closing"));
+    }
+  }
+  expectClosed(*c);
+  makeLogger("control")->sinks().pop_back();
+  std::string logged;
+  for (const auto& line : ring->last_formatted()) logged += line;
+  EXPECT_THAT(logged, HasSubstr("127.0.0.1:"));
+  EXPECT_THAT(logged, HasSubstr("authentication failed (auth_failed, 3 of 3); closing"));
+  expectOthersServedFast();
+}
+
+TEST_F(ControlServerTest, CommandsBeforeAuthCountAsFailures) {
+  auto c = connect(false);
+  for (int i = 0; i < 3; ++i) c->request({{"cmd", "status"}});
+  expectClosed(*c);
+}
+
+TEST_F(ControlServerTest, AuthenticationHoldsForTheConnection) {
+  auto c = connect(false);
+  EXPECT_EQ(c->call("auth", {{"token", kToken}})["ok"], true);
+  EXPECT_EQ(c->call("hello")["authenticated"], true);
+  EXPECT_EQ(c->call("status")["ok"], true);
+  auto other = connect(false);
+  EXPECT_EQ(other->request({{"cmd", "status"}})["error"]["code"], "unauthenticated");
+}
+
+// -- commands ----------------------------------------------------------------------------------
+
+TEST_F(ControlServerTest, Status) {
+  session_.setState(SessionState::kServoing, 3, 8);
+  const auto s = connect()->call("status")["status"];
+  EXPECT_EQ(s["state"], "servoing");
+  EXPECT_EQ(s["active"], true);
+  EXPECT_EQ(s["pose"], 3);
+  EXPECT_EQ(s["pose_count"], 8);
+}
+
+TEST_F(ControlServerTest, StartPassesThePlanChoice) {
+  auto c = connect();
+  const auto r = c->call(
+      "start",
+      {{"plan", "II"}, {"poses", 10}, {"target_mm", {900, -50, 400.5}}, {"noise_mm", 0.02}});
+  EXPECT_EQ(r["session"], "20261122-0001");
+  const auto req = session_.lastRequest();
+  EXPECT_EQ(req.plan, PlanKind::kII);
+  EXPECT_EQ(req.poses, 10);
+  ASSERT_TRUE(req.target_mm);
+  EXPECT_DOUBLE_EQ(req.target_mm->z(), 400.5);
+  EXPECT_DOUBLE_EQ(req.noise_mm.value_or(0), 0.02);
+  // NaN (not identifiable) travels as null.
+  EXPECT_TRUE(c->call("status")["status"]["predicted_sigma_deg"][2].is_null());
+}
+
+TEST_F(ControlServerTest, ASecondStartIsRefusedWithTheReason) {
+  auto a = connect();
+  auto b = connect();
+  a->call("start");
+  const auto r = b->request({{"cmd", "start"}});
+  EXPECT_EQ(r["ok"], false);
+  EXPECT_EQ(r["error"]["code"], "busy");
+  EXPECT_THAT(r["error"]["message"].get<std::string>(), HasSubstr("one session at a time"));
+}
+
+TEST_F(ControlServerTest, StartRefusedWhenNotIdentifiable) {
+  const auto r = connect()->request({{"cmd", "start"}, {"poses", 7}});
+  EXPECT_EQ(r["error"]["code"], "not_identifiable");
+}
+
+TEST_F(ControlServerTest, Abort) {
+  auto c = connect();
+  EXPECT_EQ(c->call("abort")["aborted"], false);
+  c->call("start");
+  EXPECT_EQ(c->call("abort")["aborted"], true);
+  EXPECT_EQ(c->call("status")["status"]["state"], "aborted");
+}
+
+TEST_F(ControlServerTest, Resume) {
+  auto c = connect();
+  EXPECT_EQ(c->call("resume")["session"], "20261122-0001");
+  EXPECT_EQ(c->request({{"cmd", "resume"}})["error"]["code"], "busy");
+  session_.setState(SessionState::kAborted);
+  EXPECT_EQ(c->request({{"cmd", "resume"}, {"session", "nope"}})["error"]["code"], "not_found");
+  EXPECT_EQ(c->call("resume", {{"session", "20261122-0001"}})["session"], "20261122-0001");
+}
+
+TEST_F(ControlServerTest, Sessions) {
+  const auto list = connect()->call("sessions")["sessions"];
+  ASSERT_EQ(list.size(), 2u);
+  EXPECT_EQ(list[1]["id"], "20261122-0001");
+  EXPECT_EQ(list[1]["recorded_poses"], 3);
+  EXPECT_EQ(list[0]["finished"], true);
+}
+
+TEST_F(ControlServerTest, Result) {
+  auto c = connect();
+  EXPECT_EQ(c->call("result")["result"]["converged"], true);
+  EXPECT_EQ(c->request({{"cmd", "result"}, {"session", "x"}})["error"]["code"], "not_found");
+}
+
+TEST_F(ControlServerTest, SubscribeForwardsSessionEventsAndPollsStatusWhileActive) {
+  auto watcher = connect();
+  EXPECT_EQ(watcher->call("subscribe")["status"]["state"], "idle");
+  auto other = connect();
+  other->call("start");
+  session_.setState(SessionState::kServoing, 2, 8);
+  session_.emit({{"event", "pose"}, {"pose", 2}, {"servo_error_um", 1.5}});
+  bool saw_state = false, saw_pose = false, saw_status = false;
+  const auto deadline = std::chrono::steady_clock::now() + 2s;
+  while (!(saw_state && saw_pose && saw_status) && std::chrono::steady_clock::now() < deadline) {
+    auto e = watcher->nextEvent(500ms);
+    if (!e) continue;
+    if ((*e)["event"] == "state" && (*e)["state"] == "servoing") saw_state = true;
+    if ((*e)["event"] == "pose") saw_pose = (*e)["servo_error_um"] == 1.5;
+    if ((*e)["event"] == "status") saw_status = (*e)["status"]["pose"] == 2;
+  }
+  EXPECT_TRUE(saw_state);
+  EXPECT_TRUE(saw_pose);
+  EXPECT_TRUE(saw_status);
+  // Not subscribed: no events.
+  EXPECT_EQ(other->nextEvent(200ms), std::nullopt);
+  watcher->call("unsubscribe");
+  while (watcher->nextEvent(100ms)) {
+  }
+  session_.emit({{"event", "pose"}, {"pose", 3}});
+  EXPECT_EQ(watcher->nextEvent(200ms), std::nullopt);
+}
+
+TEST_F(ControlServerTest, PsdAnswersWhenTheReadingArrives) {
+  auto c = connect();
+  const auto r = c->call("psd");
+  EXPECT_DOUBLE_EQ(r["reading"]["u_mm"].get<double>(), 0.012);
+  EXPECT_EQ(r["reading"]["spot_present"], true);
+  session_.psd_fails = true;
+  const auto e = c->request({{"cmd", "psd"}});
+  EXPECT_EQ(e["error"]["code"], "unavailable");
+  EXPECT_THAT(e["error"]["message"].get<std::string>(), HasSubstr("USB-1408FS"));
+}
+
+TEST_F(ControlServerTest, PlanPreviewsWithoutStarting) {
+  auto c = connect();
+  const auto r = c->call("plan", {{"poses", 9}, {"plan", "mixed"}});
+  EXPECT_EQ(r["plan"]["poses"].size(), 9u);
+  EXPECT_EQ(r["plan"]["rank"], 11);
+  EXPECT_EQ(session_.startCalls(), 0);
+  EXPECT_EQ(c->request({{"cmd", "plan"}, {"poses", 3}})["error"]["code"], "bad_request");
+}
+
+TEST_F(ControlServerTest, StatusStaysFastWhileAPlanIsComputed) {
+  session_.preview_time = 600ms;
+  auto planner = connect();
+  planner->sendRaw(toLine({{"id", 1}, {"cmd", "plan"}}));
+  std::this_thread::sleep_for(50ms);  // the preview is running now
+  auto c = connect();
+  for (int i = 0; i < 20; ++i) {
+    const auto t0 = std::chrono::steady_clock::now();
+    c->call("status");
+    EXPECT_LT(std::chrono::steady_clock::now() - t0, 50ms);
+  }
+  const auto r = json::parse(*planner->readLine(3s));
+  EXPECT_EQ(r["ok"], true);
+}
+
+// -- bad input ---------------------------------------------------------------------------------
+
+TEST_F(ControlServerTest, MalformedJsonIsAnsweredAndTheConnectionGoesOn) {
+  auto c = connect();
+  c->sendRaw("{\"cmd\": \"status\",,}\n");
+  const auto r = json::parse(*c->readLine(1s));
+  EXPECT_EQ(r["error"]["code"], "bad_json");
+  EXPECT_TRUE(r["id"].is_null());
+  c->sendRaw("[1,2,3]\n");
+  EXPECT_EQ(json::parse(*c->readLine(1s))["error"]["code"], "bad_request");
+  EXPECT_EQ(c->call("status")["ok"], true);
+  expectOthersServedFast();
+}
+
+TEST_F(ControlServerTest, UnknownCommand) {
+  auto c = connect();
+  const auto r = c->request({{"cmd", "self_destruct"}});
+  EXPECT_EQ(r["error"]["code"], "unknown_command");
+  EXPECT_THAT(r["error"]["message"].get<std::string>(), HasSubstr("self_destruct"));
+  expectOthersServedFast();
+}
+
+TEST_F(ControlServerTest, WrongTypesAreBadRequestsNamingTheMember) {
+  auto c = connect();
+  const std::vector<std::pair<json, std::string>> cases{
+      {{{"cmd", 5}}, "cmd"},
+      {{{"cmd", "start"}, {"poses", "8"}}, "poses"},
+      {{{"cmd", "start"}, {"poses", 8.5}}, "poses"},
+      {{{"cmd", "start"}, {"poses", -1}}, "poses"},
+      {{{"cmd", "start"}, {"plan", 2}}, "plan"},
+      {{{"cmd", "start"}, {"plan", "III"}}, "plan"},
+      {{{"cmd", "start"}, {"target_mm", {1, 2}}}, "target_mm"},
+      {{{"cmd", "start"}, {"target_mm", "900 0 400"}}, "target_mm"},
+      {{{"cmd", "start"}, {"noise_mm", -1}}, "noise_mm"},
+      {{{"cmd", "start"}, {"pose", 8}}, "pose"},
+      {{{"cmd", "plan"}, {"poses", json::object()}}, "poses"},
+      {{{"cmd", "result"}, {"session", 12}}, "session"},
+      {{{"cmd", "resume"}, {"session", {1}}}, "session"},
+      {{{"cmd", "auth"}, {"token", kToken}, {"id", 1}}, ""},
+  };
+  for (const auto& [request, member] : cases) {
+    const auto r = c->request(request);
+    if (member.empty()) continue;
+    EXPECT_EQ(r["error"]["code"], "bad_request") << request.dump();
+    EXPECT_THAT(r["error"]["message"].get<std::string>(), HasSubstr(member)) << request.dump();
+  }
+  EXPECT_EQ(session_.startCalls(), 0);
+  expectOthersServedFast();
+}
+
+TEST_F(ControlServerTest, AnOverLongLineIsRefusedAndClosed) {
+  ServerOptions options;
+  options.max_line_bytes = 1024;
+  startServer(options);
+  auto c = connect();
+  c->sendRaw("{\"cmd\":\"status\",\"pad\":\"" + std::string(4096, 'x') + "\"}\n");
+  const auto r = json::parse(*c->readLine(1s));
+  EXPECT_EQ(r["error"]["code"], "line_too_long");
+  expectClosed(*c);
+  expectOthersServedFast();
+}
+
+TEST_F(ControlServerTest, TheDefaultLineLimitIs64KiB) {
+  auto c = connect();
+  // Just under: a (bad) request, answered; just over: refused and closed.
+  c->sendRaw("{\"cmd\":\"status\",\"pad\":\"" + std::string(60000, 'x') + "\"}\n");
+  EXPECT_EQ(json::parse(*c->readLine(1s))["ok"], true);
+  c->sendRaw(std::string(70000, 'x'));
+  EXPECT_EQ(json::parse(*c->readLine(1s))["error"]["code"], "line_too_long");
+  expectClosed(*c);
+}
+
+TEST_F(ControlServerTest, BinaryGarbage) {
+  std::mt19937 random(7);
+  std::string garbage(8192, '\0');
+  for (auto& ch : garbage) ch = static_cast<char>(random());
+  auto c = connect(false);
+  c->sendRaw(garbage + "\n");
+  // Every newline in the garbage ends a line, each answered with an error; then it goes on.
+  int answers = 0;
+  while (auto line = c->readLine(300ms)) {
+    const auto r = json::parse(*line);  // our answers are valid JSON whatever came in
+    EXPECT_EQ(r["ok"], false);
+    ++answers;
+  }
+  EXPECT_GT(answers, 0);
+  EXPECT_EQ(c->call("version")["ok"], true);
+  // Invalid UTF-8 inside a string is refused too, not echoed into the answer.
+  c->sendRaw("{\"cmd\":\"\xff\xfe\"}\n");
+  EXPECT_EQ(json::parse(*c->readLine(1s))["error"]["code"], "bad_json");
+  expectOthersServedFast();
+}
+
+TEST_F(ControlServerTest, HalfOpenAndTricklingConnectionsAreClosedWhenIdle) {
+  ServerOptions options;
+  options.idle_timeout = 300ms;
+  startServer(options);
+  auto silent = connect(false);
+  auto trickling = connect(false);
+  auto watcher = connect();
+  watcher->call("subscribe");
+  try {
+    for (int i = 0; i < 6; ++i) {  // a line that never ends, a byte at a time
+      trickling->sendRaw("{");
+      std::this_thread::sleep_for(100ms);
+    }
+  } catch (const ConnectionError&) {  // closed while trickling: what is expected
+  }
+  const auto bye = json::parse(*silent->readLine(1s));
+  EXPECT_EQ(bye["event"], "closing");
+  expectClosed(*silent);
+  expectClosed(*trickling);
+  // A subscriber is quiet by design and stays.
+  EXPECT_EQ(watcher->call("status")["ok"], true);
+  expectOthersServedFast();
+}
+
+TEST_F(ControlServerTest, ASubscriberThatDoesNotReadIsDropped) {
+  ServerOptions options;
+  options.max_queued_bytes = 256 * 1024;
+  startServer(options);
+  // A client with a small receive window that subscribes and then never reads.
+  boost::asio::ip::tcp::socket slow(io_);
+  slow.open(boost::asio::ip::tcp::v4());
+  slow.set_option(boost::asio::socket_base::receive_buffer_size(4096));
+  slow.connect({boost::asio::ip::make_address("127.0.0.1"), server_->port()});
+  const std::string hello =
+      toLine({{"cmd", "auth"}, {"token", kToken}}) + toLine({{"cmd", "subscribe"}});
+  boost::asio::write(slow, boost::asio::buffer(hello));
+  auto watcher = connect();
+  watcher->call("subscribe");
+  std::this_thread::sleep_for(50ms);  // the slow one's subscribe is handled
+  session_.setState(SessionState::kServoing, 1, 8);
+  const std::string filler(10000, 'x');
+  int seen = -1;
+  for (int i = 0; i < 1000; ++i) {
+    session_.emit({{"event", "pose"}, {"pose", i}, {"filler", filler}});
+    // The reading watcher keeps up (so only the slow one's queue grows).
+    while (i % 20 == 19 && seen < i) {
+      auto e = watcher->nextEvent(1s);
+      ASSERT_TRUE(e);
+      if ((*e)["event"] == "pose") seen = (*e)["pose"];
+    }
+  }
+  EXPECT_EQ(seen, 999);
+  EXPECT_EQ(connections(), 1u);  // only the watcher is left
+  EXPECT_EQ(watcher->call("status")["status"]["state"], "servoing");
+  expectOthersServedFast();
+}
+
+TEST_F(ControlServerTest, ClientsBeyondTheLimitArePolitelyRefused) {
+  ServerOptions options;
+  options.max_clients = 4;
+  startServer(options);
+  std::vector<std::unique_ptr<ControlClient>> clients;
+  for (int i = 0; i < 4; ++i) clients.push_back(connect());
+  ControlClient extra;
+  extra.connect("127.0.0.1", server_->port());
+  const auto r = json::parse(*extra.readLine(1s));
+  EXPECT_EQ(r["error"]["code"], "too_many_clients");
+  expectClosed(extra);
+  for (auto& c : clients) EXPECT_EQ(c->call("status")["ok"], true);
+  clients.pop_back();  // one leaves: room for another
+  const auto t0 = std::chrono::steady_clock::now();
+  while (connections() > 3 && std::chrono::steady_clock::now() - t0 < 1s)
+    std::this_thread::sleep_for(5ms);
+  expectOthersServedFast();
+}
+
+TEST_F(ControlServerTest, ManyConnectionsAtOnceLeaveTheSessionRunning) {
+  session_.setState(SessionState::kMoving, 1, 8);
+  std::vector<std::unique_ptr<ControlClient>> clients;
+  for (int i = 0; i < 40; ++i) {
+    clients.push_back(std::make_unique<ControlClient>());
+    clients.back()->connect("127.0.0.1", server_->port());
+  }
+  for (auto& c : clients) c->sendRaw("garbage\n");
+  clients.clear();  // all gone at once, some with answers unread
+  expectOthersServedFast();
+  EXPECT_EQ(session_.status().state, SessionState::kMoving);
+  EXPECT_EQ(session_.abortCalls(), 0);
+}
+
+TEST_F(ControlServerTest, StopClosesEveryConnection) {
+  auto c = connect();
+  c->call("subscribe");
+  stopServer();
+  expectClosed(*c);
+}
+
+}  // namespace
+}  // namespace zerocal::control

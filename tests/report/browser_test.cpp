@@ -96,6 +96,7 @@ class Browser : public ::testing::Test {
                             "' --window-size=1200,5000 'file://" + page.string() + "' > '" +
                             (fs::path(dir_) / (name + ".log")).string() + "' 2>&1";
     const int rc = std::system(cmd.c_str());
+    fs::remove_all(profile);  // tens of MB each; the screenshot and its log are kept
     EXPECT_EQ(rc, 0) << cmd << "\n" << readFile(fs::path(dir_) / (name + ".log"));
     if (!fs::exists(png)) {
       ADD_FAILURE() << "no screenshot from: " << cmd;

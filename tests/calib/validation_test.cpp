@@ -53,31 +53,44 @@ TEST(AimingError, ObliqueBeamLandsFartherThanItsPerpendicularMiss) {
 
 TEST(Holdout, CalibratedModelPredictsHeldOutPosesToTheNoiseLevel) {
   // 12 optimal poses, true offsets of about half a degree, uniform +-0.05 mm localisation error
-  // (sigma 0.029 mm per axis); hold out three. The nominal model misses by millimetres, the
-  // calibrated one by about the noise.
+  // (sigma 0.029 mm per axis); hold out three, over ten recordings. The nominal model misses by
+  // millimetres; the calibrated one by a few noise sigmas: the noise itself, the uncertainty of
+  // parameters fitted to nine poses, and the beam's obliquity on the PSD plane (up to 2x at 60
+  // deg). Measured over 20 recordings with the CLI: before 16.0 mm, after 0.06..0.26 mm, mean 0.13.
   const Table2Scenario sc = table2Scenario();
-  const auto poses = recording(sc, 12, sc.half_width_mm, 3);
+  PlanOptions po;
+  po.poses = 12;
+  const auto planned = planPoses(sc.cell, sc.truth.target_mm, po).poses;
   SolveOptions options;
   options.noise_mm = sc.half_width_mm / std::sqrt(3.0);
-  const HoldoutReport r = validateHoldout(sc.cell, poses, {11, 2, 6}, options);
-  ASSERT_TRUE(r.fit.converged) << r.fit.message;
-  EXPECT_EQ(r.fit.pose_count, 9);
-  EXPECT_EQ(r.total_poses, 12);
-  EXPECT_EQ(r.held_out, (std::vector<int>{2, 6, 11}));
-  ASSERT_EQ(r.poses.size(), 3u);
-  for (const HeldOutPose& p : r.poses) {
-    EXPECT_GT(p.before.on_psd_norm_mm, 1.0) << "pose " << p.pose;
-    EXPECT_LT(p.after.on_psd_norm_mm, 0.15) << "pose " << p.pose;
-    EXPECT_LT(p.after.miss_mm, p.after.on_psd_norm_mm + 1e-12);
+  const double sigma = *options.noise_mm;
+  double sum_after = 0;
+  const int recordings = 10;
+  for (int seed = 1; seed <= recordings; ++seed) {
+    std::mt19937_64 rng(seed);
+    const auto poses = simulateRecording(sc.cell, sc.truth, planned, sc.half_width_mm, rng);
+    const HoldoutReport r = validateHoldout(sc.cell, poses, {11, 2, 6}, options);
+    ASSERT_TRUE(r.fit.converged) << r.fit.message;
+    EXPECT_EQ(r.fit.pose_count, 9);
+    EXPECT_EQ(r.total_poses, 12);
+    EXPECT_EQ(r.held_out, (std::vector<int>{2, 6, 11}));
+    ASSERT_EQ(r.poses.size(), 3u);
+    for (const HeldOutPose& p : r.poses) {
+      EXPECT_GT(p.before.on_psd_norm_mm, 1.0) << "seed " << seed << " pose " << p.pose;
+      EXPECT_LT(p.after.miss_mm, p.after.on_psd_norm_mm + 1e-12);
+    }
+    EXPECT_GT(r.rms_before_mm, 30 * r.rms_after_mm) << "seed " << seed;
+    EXPECT_LT(r.rms_after_mm, 12 * sigma) << "seed " << seed;
+    sum_after += r.rms_after_mm;
+    // The identified offsets came from the nine training poses only, and are near the truth.
+    for (int k = 0; k < kOffsetCount; ++k)
+      EXPECT_NEAR(r.fit.parameters[k].value, sc.truth.delta_rad[k] * kRadToDeg,
+                  4 * r.fit.parameters[k].sigma);
   }
-  EXPECT_GT(r.rms_before_mm, 30 * r.rms_after_mm);
-  // Noise level order: not zero (the noise is real), not far above sigma.
-  EXPECT_GT(r.rms_after_mm, 0.005);
-  EXPECT_LT(r.rms_after_mm, 5 * *options.noise_mm);
-  // The identified offsets came from the nine training poses only, and are close to the truth.
-  for (int k = 0; k < kOffsetCount; ++k)
-    EXPECT_NEAR(r.fit.parameters[k].value, sc.truth.delta_rad[k] * kRadToDeg,
-                4 * r.fit.parameters[k].sigma);
+  // Noise level order: not zero (the noise is real), a few sigma on average.
+  const double mean_after = sum_after / recordings;
+  EXPECT_GT(mean_after, sigma);
+  EXPECT_LT(mean_after, 6 * sigma);
 }
 
 TEST(Holdout, NoiseFreeRecordingIsPredictedExactly) {

@@ -1,8 +1,8 @@
 // The report opens in a real browser and its plots render: Debian's Chromium, headless, takes a
-// screenshot of report.html and of copies in which one plot's drawing is removed (its <svg>
-// element kept with its size, so the layout does not move). Each plot must change many pixels;
-// a copy with nothing removed must change none. Chromium missing is a failure, not a skip:
-// scripts/install-deps.sh installs it, and CI always runs that (configure with
+// screenshot of report.html and of copies in which one plot's drawing, or only its data marks, is
+// removed (the <svg> element kept with its size, so the layout does not move). Each plot and its
+// data must change many pixels; a copy with nothing removed must change none. Chromium missing is a
+// failure, not a skip: scripts/install-deps.sh installs it, and CI always runs that (configure with
 // -DZEROCAL_BROWSER_TESTS=OFF where it cannot be installed).
 #include <gtest/gtest.h>
 
@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <regex>
 #include <sstream>
 
 #include "png.h"
@@ -48,6 +49,20 @@ std::string withoutPlot(const std::string& html, const std::string& id) {
   return html.substr(0, open_end) + html.substr(close);
 }
 
+// The page with only the data marks of plot `id` removed (bars, which carry a <title>, the spot
+// paths and their end points), axes and labels kept: what is left to see if the data drew.
+std::string withoutMarks(const std::string& html, const std::string& id) {
+  const auto start = html.find("<svg class=\"plot\" id=\"" + id + "\"");
+  if (start == std::string::npos) return {};
+  const auto close = html.find("</svg>", start);
+  static const std::regex marks(
+      R"(<rect [^>]*><title>[^<]*</title></rect>|<polyline class="path"[^>]*/>|<circle [^>]*/>)");
+  const std::string svg = html.substr(start, close - start);
+  const std::string stripped = std::regex_replace(svg, marks, "");
+  if (stripped == svg) return {};
+  return html.substr(0, start) + stripped + html.substr(close);
+}
+
 class Browser : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -81,6 +96,7 @@ class Browser : public ::testing::Test {
                             "' --window-size=1200,5000 'file://" + page.string() + "' > '" +
                             (fs::path(dir_) / (name + ".log")).string() + "' 2>&1";
     const int rc = std::system(cmd.c_str());
+    fs::remove_all(profile);  // tens of MB each; the screenshot and its log are kept
     EXPECT_EQ(rc, 0) << cmd << "\n" << readFile(fs::path(dir_) / (name + ".log"));
     if (!fs::exists(png)) {
       ADD_FAILURE() << "no screenshot from: " << cmd;
@@ -118,6 +134,12 @@ TEST_F(Browser, EveryPlotOfTheReportRenders) {
     std::cout << "plot '" << id << "': " << changed << " pixels drawn\n";
     // A plot is axes, ticks, labels and its marks: thousands of pixels at 1200 px wide.
     EXPECT_GT(changed, 2000) << "plot '" << id << "' draws (almost) nothing in Chromium";
+    // And its data, not only its frame: bars and paths with coordinates a browser accepts.
+    const std::string unmarked = withoutMarks(html, id);
+    ASSERT_FALSE(unmarked.empty()) << "plot '" << id << "' has no data marks";
+    const long marks = changedPixels(full, render(std::string("unmarked-") + id, unmarked));
+    std::cout << "plot '" << id << "': " << marks << " pixels of data marks\n";
+    EXPECT_GT(marks, 500) << "the data of plot '" << id << "' does not draw in Chromium";
   }
 }
 

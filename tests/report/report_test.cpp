@@ -189,6 +189,28 @@ TEST(Summary, ValidationWhenPosesWereHeldOutAndSaysSoWhenNot) {
   EXPECT_TRUE(contains(s, rms)) << s;
 }
 
+TEST(Summary, AnUnidentifiableOffsetHasNoNumberAndNoCorrection) {
+  SessionFiles files = test::sessionFiles();
+  auto& d2 = files.result["parameters"]["delta2_deg"];
+  d2 = {{"identifiable", false},
+        {"value", nullptr},
+        {"sigma", nullptr},
+        {"ci95", nullptr},
+        {"reason", "joint 1 spans 0.0 deg over the poses"}};
+  files.result["not_identifiable"].push_back(
+      {{"name", "delta2_deg"}, {"reason", "joint 1 spans 0.0 deg over the poses"}});
+  files.result["converged"] = false;
+  const SessionReport r = parseSession(files);
+  const std::string s = summaryText(r);
+  EXPECT_TRUE(contains(s, "THE SOLVE DID NOT CONVERGE")) << s;
+  EXPECT_TRUE(contains(s, "delta2  NOT IDENTIFIABLE")) << s;
+  EXPECT_TRUE(contains(s, "Joint 2: not identifiable from these poses; do not change it")) << s;
+  EXPECT_FALSE(contains(s, "Joint 2: delta2 ="));
+  const std::string h = reportHtml(r);
+  EXPECT_EQ(unbalancedTag(h), "");
+  EXPECT_TRUE(contains(h, "verdict fail"));
+}
+
 TEST(Html, IsSelfContainedAndBalanced) {
   const std::string h = reportHtml(heldOutSession());
   EXPECT_EQ(h.rfind("<!DOCTYPE html>", 0), 0u);

@@ -544,7 +544,6 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
                                          c.control.bind_address +
                                          ") is reachable from other machines");
   }
-  if (c.control.port == 0) check.fail("control.port", "must be 1..65535");
   check.range("control.max_clients", c.control.max_clients, 1, 10000);
   check.range("control.max_line_bytes", c.control.max_line_bytes, 1024, 16 << 20);
   check.positive("control.idle_timeout_s", c.control.idle_timeout_s, 86400.0);

@@ -15,9 +15,12 @@
 #include <iostream>
 
 #include "report_format.h"
+#include "zerocal/control/server.h"
+#include "zerocal/control/token.h"
 #include "zerocal/daemon/config.h"
 #include "zerocal/daemon/logging.h"
 #include "zerocal/error.h"
+#include "zerocal/report/session_report.h"
 #include "zerocal/service/hardware_backend.h"
 #include "zerocal/service/session_manager.h"
 #include "zerocal/sim/sim_backend.h"
@@ -80,6 +83,7 @@ service::ManagerSettings managerSettingsOf(const DaemonConfig& cfg) {
     s.target_mm = Eigen::Vector3d(t[0], t[1], t[2]);
   }
   s.config_snapshot = configToJson(cfg);
+  s.write_reports = [](const std::string& dir) { report::writeSessionReport(dir); };
   return s;
 }
 
@@ -160,9 +164,11 @@ int runOnce(SessionManager& manager, asio::io_context& io, bool json) {
 int main(int argc, char** argv) {
   using namespace zerocal;
   CLI::App app{
-      "zerocald: the zerocal cell daemon. Serves the control port (docs/protocol.md) and runs "
-      "calibration sessions on the configured cell; with --once, runs one calibration and "
-      "exits."};
+      "zerocald: the zerocal cell daemon. Serves the control port (control.bind_address:port, "
+      "token in control.token_file; docs/protocol.md) and runs the calibration sessions that "
+      "`zerocal start` asks for on the configured cell, until SIGINT or SIGTERM. With --once, runs "
+      "one calibration as configured and exits. docs/daemon.md explains it."};
+  app.set_version_flag("--version", std::string(PROJECT_VERSION));
   ConfigSources sources;
   bool sim = false, once = false, json = false;
   std::optional<std::uint64_t> seed;
@@ -198,15 +204,35 @@ int main(int argc, char** argv) {
 
     asio::io_context io;
     asio::signal_set signals(io, SIGINT, SIGTERM);
+    if (once) {
+      signals.async_wait([&](const boost::system::error_code& ec, int signal) {
+        if (ec) return;
+        log->warn("signal {}: aborting the session, stopping the robot", signal);
+        manager.abort();  // the aborted session's end stops the io_context
+      });
+      return runOnce(manager, io, json);
+    }
+
+    std::string token;
+    try {
+      token = control::loadToken(cfg.control.token_file);
+    } catch (const Error& e) {
+      throw ConfigError("zerocald", {std::string("control.token_file: ") + e.what()});
+    }
+    control::ControlServer server(io, manager,
+                                  control::serverOptions(cfg.control, token, PROJECT_VERSION));
+    server.start();
     signals.async_wait([&](const boost::system::error_code& ec, int signal) {
       if (ec) return;
-      log->warn("signal {}: aborting any session, stopping the robot", signal);
+      log->warn("signal {}: aborting any session, stopping the robot, closing the port", signal);
       manager.abort();
-      if (!once) io.stop();  // --once stops when the aborted session reports its end
+      server.stop();
+      io.stop();
     });
-    if (once) return runOnce(manager, io, json);
-    std::cerr << "zerocald: the control port is not built into this version yet; use --once\n";
-    return kBadInput;
+    io.run();
+    const service::SessionStatus last = manager.waitIdle();  // the robot stopped, journal closed
+    log->info("stopped; the last session {} is {}", last.session_id, stateName(last.state));
+    return kOk;
   } catch (const ConfigError& e) {
     std::cerr << "zerocald: " << e.what() << "\n";
     return 2;

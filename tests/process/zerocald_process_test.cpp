@@ -1,0 +1,201 @@
+// zerocald as a process, driven through its control port like a technician's terminal: kill -9
+// in the middle of a session, restart, resume (no pose lost or repeated, the result as good as an
+// uninterrupted one); and SIGTERM during a session (the robot stopped, the journal complete, exit
+// 0). The simulated cell is paced at 1/20 of real time so that a session lasts a few seconds.
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <thread>
+
+#include "zerocal/control/client.h"
+
+extern char** environ;
+
+namespace zerocal {
+namespace {
+
+using namespace std::chrono_literals;
+using control::ControlClient;
+
+struct TempDir {
+  TempDir() {
+    char pattern[] = "/tmp/zerocal-process-XXXXXX";
+    if (!::mkdtemp(pattern)) throw std::runtime_error("mkdtemp failed");
+    path = pattern;
+  }
+  ~TempDir() { std::filesystem::remove_all(path); }
+  std::string path;
+};
+
+std::string readFile(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+std::vector<int> journalIndices(const std::string& path) {
+  std::vector<int> indices;
+  std::ifstream in(path);
+  for (std::string line; std::getline(in, line);)
+    indices.push_back(nlohmann::json::parse(line)["index"].get<int>());
+  return indices;
+}
+
+// One zerocald process on the simulated cell, its output in a log file, its control port read
+// from the log ("control port listening on 127.0.0.1:PORT").
+class Daemon {
+ public:
+  Daemon(const std::string& dir, const std::string& name) : log_(dir + "/" + name + ".log") {
+    const std::vector<std::string> args = {ZEROCALD,     "--sim",
+                                           "--seed",     "4",
+                                           "--config",   "/dev/null",
+                                           "--data-dir", dir + "/sessions",
+                                           "--set",      "control.token_file=" + dir + "/token",
+                                           "--set",      "control.port=0",
+                                           "--set",      "backend.sim_pace=0.05"};
+    std::vector<char*> argv;
+    for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, 1, log_.c_str(), O_WRONLY | O_CREAT | O_APPEND,
+                                     0600);
+    posix_spawn_file_actions_adddup2(&actions, 1, 2);
+    if (posix_spawn(&pid_, ZEROCALD, &actions, nullptr, argv.data(), environ) != 0)
+      throw std::runtime_error("cannot start zerocald");
+    posix_spawn_file_actions_destroy(&actions);
+    static const std::regex kListening("control port listening on 127\\.0\\.0\\.1:([0-9]+)");
+    for (int i = 0; i < 1000 && port_ == 0; ++i) {
+      std::smatch m;
+      const std::string text = readFile(log_);
+      if (std::regex_search(text, m, kListening)) port_ = std::stoi(m[1]);
+      if (port_ != 0) break;
+      int status = 0;
+      if (::waitpid(pid_, &status, WNOHANG) == pid_) {
+        pid_ = -1;
+        throw std::runtime_error("zerocald exited at start: " + readFile(log_));
+      }
+      std::this_thread::sleep_for(10ms);
+    }
+    if (port_ == 0) throw std::runtime_error("zerocald did not listen: " + readFile(log_));
+  }
+  ~Daemon() {
+    if (pid_ > 0) {
+      ::kill(pid_, SIGKILL);
+      ::waitpid(pid_, nullptr, 0);
+    }
+  }
+  // Sends the signal and returns the exit status (or 128 + the signal that ended it).
+  int signalAndWait(int signal) {
+    ::kill(pid_, signal);
+    int status = 0;
+    ::waitpid(pid_, &status, 0);
+    pid_ = -1;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  }
+  std::uint16_t port() const { return port_; }
+  std::string log() const { return readFile(log_); }
+
+ private:
+  std::string log_;
+  pid_t pid_ = -1;
+  std::uint16_t port_ = 0;
+};
+
+class ZerocaldProcess : public ::testing::Test {
+ protected:
+  ZerocaldProcess() {
+    std::ofstream(dir_.path + "/token") << "k3rn3l-t0ken-for-the-test\n";
+    ::chmod((dir_.path + "/token").c_str(), 0600);
+  }
+  static void connect(ControlClient& c, const Daemon& d) {
+    c.connect("127.0.0.1", d.port());
+    c.authenticate("k3rn3l-t0ken-for-the-test");
+  }
+  std::string journalOf(const std::string& id) {
+    return dir_.path + "/sessions/" + id + "/journal.jsonl";
+  }
+  // Polls status until the session is no longer active; returns the last status.
+  nlohmann::json waitEnd(ControlClient& c, std::chrono::seconds limit) {
+    const auto deadline = std::chrono::steady_clock::now() + limit;
+    for (;;) {
+      const nlohmann::json s = c.call("status")["status"];
+      const std::string state = s["state"];
+      if (state == "done" || state == "aborted" || state == "faulted" || state == "idle") return s;
+      if (std::chrono::steady_clock::now() > deadline) return s;
+      std::this_thread::sleep_for(20ms);
+    }
+  }
+  TempDir dir_;
+};
+
+TEST_F(ZerocaldProcess, Kill9MidSessionThenRestartAndResumeLosesAndRepeatsNothing) {
+  std::string id;
+  std::size_t recorded = 0;
+  {
+    Daemon first(dir_.path, "first");
+    ControlClient c;
+    connect(c, first);
+    id = c.call("start")["session"];
+    // Three poses on disk, then kill -9: no chance to tidy up.
+    for (int i = 0; i < 3000 && journalIndices(journalOf(id)).size() < 3; ++i)
+      std::this_thread::sleep_for(5ms);
+    EXPECT_EQ(first.signalAndWait(SIGKILL), 128 + SIGKILL);
+    recorded = journalIndices(journalOf(id)).size();
+    ASSERT_GE(recorded, 3u);
+    ASSERT_LT(recorded, 8u) << "the session finished before the kill";
+  }
+  Daemon second(dir_.path, "second");
+  EXPECT_NE(second.log().find("unfinished"), std::string::npos) << second.log();
+  ControlClient c;
+  connect(c, second);
+  EXPECT_EQ(c.call("resume")["session"], id);  // the latest unfinished one
+  const nlohmann::json end = waitEnd(c, 120s);
+  ASSERT_EQ(end["state"], "done") << end.dump();
+
+  std::vector<int> expected(8);
+  for (int i = 0; i < 8; ++i) expected[i] = i;
+  EXPECT_EQ(journalIndices(journalOf(id)), expected);
+  const nlohmann::json result = c.call("result", {{"session", id}})["result"];
+  EXPECT_EQ(result["resumed_from"].get<std::size_t>(), recorded);
+  for (const char* name : {"delta2_deg", "delta3_deg", "delta4_deg", "delta5_deg"}) {
+    const double error =
+        result["parameters"][name]["value"].get<double>() - result["truth"][name].get<double>();
+    EXPECT_LT(std::abs(error), 3 * result["parameters"][name]["sigma"].get<double>()) << name;
+  }
+  EXPECT_EQ(second.signalAndWait(SIGTERM), 0);
+}
+
+TEST_F(ZerocaldProcess, SigtermDuringASessionStopsTheRobotKeepsTheJournalAndExitsCleanly) {
+  Daemon daemon(dir_.path, "daemon");
+  ControlClient c;
+  connect(c, daemon);
+  const std::string id = c.call("start")["session"];
+  for (int i = 0; i < 3000 && journalIndices(journalOf(id)).empty(); ++i)
+    std::this_thread::sleep_for(5ms);
+  const auto signalled = std::chrono::steady_clock::now();
+  EXPECT_EQ(daemon.signalAndWait(SIGTERM), 0);
+  EXPECT_LT(std::chrono::steady_clock::now() - signalled, 10s);
+  const std::string log = daemon.log();
+  EXPECT_NE(log.find("signal 15"), std::string::npos) << log;
+  EXPECT_NE(log.find("aborted"), std::string::npos) << log;
+  const std::vector<int> indices = journalIndices(journalOf(id));
+  ASSERT_FALSE(indices.empty());
+  EXPECT_LT(indices.size(), 8u);
+  for (std::size_t i = 0; i < indices.size(); ++i) EXPECT_EQ(indices[i], static_cast<int>(i));
+  EXPECT_FALSE(std::filesystem::exists(dir_.path + "/sessions/" + id + "/result.json"));
+}
+
+}  // namespace
+}  // namespace zerocal

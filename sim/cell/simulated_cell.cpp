@@ -75,7 +75,11 @@ Irc5Options SimulatedCell::clientOptions() const {
 }
 
 double SimulatedCell::nowS() noexcept {
-  return controller_->simTimeS() + std::chrono::duration<double>(board_.now()).count();
+  return controller_->simTimeS() + std::chrono::duration<double>(board_.now()).count() + waited_s_;
+}
+
+void SimulatedCell::waitS(double seconds) noexcept {
+  if (seconds > 0) waited_s_ += seconds;
 }
 
 }  // namespace zerocal::sim

@@ -105,6 +105,9 @@ bool allFinite(const PoseRecord& r) {
   for (double x : {r.u_mm, r.v_mm, r.u_se_mm, r.v_se_mm, s.move_s, s.acquisition_s, s.servo_s,
                    s.settle_s, s.final_error_um})
     if (!std::isfinite(x)) return false;
+  for (const auto& point : r.servo_path)
+    for (double x : point)
+      if (!std::isfinite(x)) return false;
   return true;
 }
 
@@ -128,22 +131,26 @@ std::string newSessionId(const fs::path& data_dir) {
 
 Json toJson(const PoseRecord& r) {
   // nlohmann writes doubles in the shortest form that reads back to the same bits.
-  return Json{{"index", r.index},
-              {"joints_deg", r.joints_deg},
-              {"u_mm", r.u_mm},
-              {"v_mm", r.v_mm},
-              {"u_se_mm", r.u_se_mm},
-              {"v_se_mm", r.v_se_mm},
-              {"move_started_ns", r.move_started_ns},
-              {"recorded_ns", r.recorded_ns},
-              {"servo",
-               {{"moves", r.servo.moves},
-                {"iterations", r.servo.iterations},
-                {"move_s", r.servo.move_s},
-                {"acquisition_s", r.servo.acquisition_s},
-                {"servo_s", r.servo.servo_s},
-                {"settle_s", r.servo.settle_s},
-                {"final_error_um", r.servo.final_error_um}}}};
+  Json line{{"index", r.index},
+            {"joints_deg", r.joints_deg},
+            {"u_mm", r.u_mm},
+            {"v_mm", r.v_mm},
+            {"u_se_mm", r.u_se_mm},
+            {"v_se_mm", r.v_se_mm},
+            {"move_started_ns", r.move_started_ns},
+            {"recorded_ns", r.recorded_ns},
+            {"servo",
+             {{"moves", r.servo.moves},
+              {"search_moves", r.servo.search_moves},
+              {"iterations", r.servo.iterations},
+              {"move_s", r.servo.move_s},
+              {"acquisition_s", r.servo.acquisition_s},
+              {"servo_s", r.servo.servo_s},
+              {"settle_s", r.servo.settle_s},
+              {"final_error_um", r.servo.final_error_um}}}};
+  // No path recorded (a record made without the servo) is no key, as in older journals.
+  if (!r.servo_path.empty()) line["servo_path"] = r.servo_path;
+  return line;
 }
 
 PoseRecord poseRecordFromJson(const Json& j) {
@@ -165,6 +172,9 @@ PoseRecord poseRecordFromJson(const Json& j) {
     s.at("servo_s").get_to(r.servo.servo_s);
     s.at("settle_s").get_to(r.servo.settle_s);
     s.at("final_error_um").get_to(r.servo.final_error_um);
+    // Added later: journals written before have neither.
+    if (s.contains("search_moves")) s.at("search_moves").get_to(r.servo.search_moves);
+    if (j.contains("servo_path")) j.at("servo_path").get_to(r.servo_path);
     return r;
   } catch (const Json::exception& e) {
     throw JournalError(std::string("pose record: ") + e.what());

@@ -495,6 +495,10 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
       log->warn("session {}: {} (the pose will be measured again)", id, journal.dropped());
     RunSettings run_settings = settings_.run;
     run_settings.solve.noise_mm = noise_mm;
+    // A dropped controller connection or an unplugged board is recovered by reopening it; the
+    // pose in progress (not journalled) is then measured again from its planned move.
+    run_settings.reconnect_link = [this] { cell_->reconnectRobot(); };
+    run_settings.reopen_sensor = [this] { cell_->reopenPsd(); };
     CalibrationRun run(knowledge_.cell, target, plan, run_settings, journal);
     run.on_phase = [this](int i, RunPhase phase) { setPhase(stateOf(phase), i + 1); };
     run.on_pose = [this, &id](const PoseRecord& r) {
@@ -536,6 +540,7 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
   result["session"] = id;
   result["cell_time_s"] = cell_time_s;
   result["resumed_from"] = outcome->resumed_from;
+  result["recoveries"] = {{"reconnects", outcome->reconnects}, {"reopens", outcome->reopens}};
   if (const auto truth = cell_->truthDeg()) {
     result["truth"] = nlohmann::json::object();
     for (int k = 0; k < kOffsetCount; ++k) result["truth"][unknownName(k)] = (*truth)[k];
@@ -548,6 +553,8 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
                          {"servo_s", r.servo.servo_s},
                          {"settle_s", r.servo.settle_s},
                          {"servo_moves", r.servo.moves},
+                         {"search_moves", r.servo.search_moves},
+                         {"iterations", r.servo.iterations},
                          {"final_error_um", r.servo.final_error_um}});
   result["pose_breakdown"] = breakdown;
   try {

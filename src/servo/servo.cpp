@@ -74,6 +74,7 @@ std::string ServoOptions::validate() const {
   if (!(search_radius_mm >= 0)) return "search_radius_mm must not be negative";
   if (max_search_points < 0) return "max_search_points must not be negative";
   if (!(max_search_time_s > 0)) return "max_search_time_s must be positive";
+  if (!(settle_s >= 0)) return "settle_s must not be negative";
   return {};
 }
 
@@ -95,6 +96,8 @@ const char* statusName(ServoStatus status) noexcept {
       return "sensor error";
     case ServoStatus::kBadStart:
       return "bad start";
+    case ServoStatus::kAborted:
+      return "aborted";
   }
   return "?";
 }
@@ -129,8 +132,15 @@ ServoResult& PsdServo::latch(ServoResult& result, ServoStatus status,
   return result;
 }
 
+bool PsdServo::aborted(ServoResult& result) noexcept {
+  if (options_.abort == nullptr || !options_.abort->load()) return false;
+  latch(result, ServoStatus::kAborted, "aborted; the robot at rest where the last move ended");
+  return true;
+}
+
 PsdServo::Step PsdServo::move(ControllerLink& robot, const Joints& target,
                               ServoResult& result) noexcept {
+  if (aborted(result)) return Step::kFailed;
   // Checked here, before anything is sent, whatever computed the target.
   for (int i = 0; i < kJointCount; ++i) {
     if (!(std::abs(target[i] - q_[i]) <= options_.max_step_deg * (1 + 1e-12))) {
@@ -166,6 +176,7 @@ PsdServo::Step PsdServo::walkTo(ControllerLink& robot, const Joints& target,
 }
 
 PsdServo::Step PsdServo::read(PsdReader& psd, ServoResult& result) noexcept {
+  if (aborted(result)) return Step::kFailed;
   try {
     result.reading = psd.read();
   } catch (...) {
@@ -175,7 +186,34 @@ PsdServo::Step PsdServo::read(PsdReader& psd, ServoResult& result) noexcept {
   ++result.readings;
   result.end_s = result.reading.time_s;
   record(result.reading);
+  if (result.reading.spot_present) keepPathPoint(result.reading, result);
   return Step::kOk;
+}
+
+PsdServo::Step PsdServo::settledRead(PsdReader& psd, ServoResult& result) noexcept {
+  if (options_.settle_s > 0 && clock_ != nullptr) {
+    clock_->waitS(options_.settle_s);
+    result.settle_s += options_.settle_s;
+  }
+  return read(psd, result);
+}
+
+void PsdServo::keepPathPoint(const PsdReading& reading, ServoResult& result) noexcept {
+  const PathPoint p{reading.time_s - result.start_s, reading.u_mm, reading.v_mm};
+  if (result.path_count < kPathCapacity) {
+    result.path[result.path_count++] = p;
+    return;
+  }
+  // Full: the tail is a ring over path[kPathHead, kPathCapacity), put in order by orderPath().
+  result.path[kPathHead + path_tail_next_] = p;
+  path_tail_next_ = (path_tail_next_ + 1) % (kPathCapacity - kPathHead);
+  ++result.path_skipped;
+}
+
+void PsdServo::orderPath(ServoResult& result) const noexcept {
+  if (result.path_skipped == 0) return;
+  auto tail = result.path.begin() + kPathHead;
+  std::rotate(tail, tail + static_cast<std::ptrdiff_t>(path_tail_next_), result.path.end());
 }
 
 bool PsdServo::acquire(ControllerLink& robot, PsdReader& psd, const Joints& planned,
@@ -203,7 +241,13 @@ bool PsdServo::acquire(ControllerLink& robot, PsdReader& psd, const Joints& plan
     if (walkTo(robot, target, result) != Step::kOk) return false;
     result.search_moves += result.moves - before;
     if (read(psd, result) != Step::kOk) return false;
-    if (result.reading.spot_present) return true;
+    if (result.reading.spot_present) {
+      // Taken on the fly: the fine servo starts from a settled reading.
+      if (options_.settle_s <= 0 || clock_ == nullptr) return true;
+      if (settledRead(psd, result) != Step::kOk) return false;
+      result.settle_acquisition_s = result.settle_s;
+      return true;
+    }
   }
   // Leave the robot where the caller put it, not somewhere on the spiral.
   const int before = result.moves;
@@ -253,7 +297,7 @@ void PsdServo::fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& res
           latch(result, ServoStatus::kNotConverged, "the reading did not settle in time");
           return;
         }
-        if (read(psd, result) != Step::kOk) return;
+        if (read(psd, result) != Step::kOk) return;  // no move since: nothing to settle
         ++result.iterations;
         continue;
       }
@@ -276,39 +320,68 @@ void PsdServo::fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& res
     previous_valid = r.in_valid_zone;
     if (move(robot, next, result) != Step::kOk) return;
     have_previous = true;
-    if (read(psd, result) != Step::kOk) return;
+    if (settledRead(psd, result) != Step::kOk) return;
     ++result.iterations;
   }
   result.status = ServoStatus::kConverged;
   result.q_deg = q_;
 }
 
+ServoResult PsdServo::run(ControllerLink& robot, PsdReader& psd, CellClock& clock,
+                          const Joints& planned_deg,
+                          const Eigen::Vector2d& expected_uv_mm) noexcept {
+  ServoResult result;
+  clock_ = &clock;
+  runCycle(robot, psd, planned_deg, expected_uv_mm, result);
+  clock_ = nullptr;
+  orderPath(result);
+  return result;
+}
+
 ServoResult PsdServo::run(ControllerLink& robot, PsdReader& psd, const Joints& planned_deg,
                           const Eigen::Vector2d& expected_uv_mm) noexcept {
   ServoResult result;
   ring_count_ = ring_next_ = 0;
+  if (options_.settle_s > 0)
+    return latch(result, ServoStatus::kBadStart, "settle_s needs the clock overload of run()");
+  runCycle(robot, psd, planned_deg, expected_uv_mm, result);
+  orderPath(result);
+  return result;
+}
+
+void PsdServo::runCycle(ControllerLink& robot, PsdReader& psd, const Joints& planned_deg,
+                        const Eigen::Vector2d& expected_uv_mm, ServoResult& result) noexcept {
+  ring_count_ = ring_next_ = 0;
+  path_tail_next_ = 0;
   faulted_ = false;
+  if (aborted(result)) return;
   try {
     q_ = robot.readJoints();
   } catch (...) {
-    return latch(result, ServoStatus::kLinkError, "the controller link failed reading joints");
+    latch(result, ServoStatus::kLinkError, "the controller link failed reading joints");
+    return;
   }
   // The controller stores float32 and speaks 5 decimals: a few 1e-5 deg from the request.
   for (int i = 0; i < kJointCount; ++i) {
-    if (!(std::abs(q_[i] - planned_deg[i]) <= 1e-3))
-      return latch(result, ServoStatus::kBadStart, "the robot is not at the planned pose");
+    if (!(std::abs(q_[i] - planned_deg[i]) <= 1e-3)) {
+      latch(result, ServoStatus::kBadStart, "the robot is not at the planned pose");
+      return;
+    }
   }
   // Continue from the pose requested, not its float32 echo, so the recorded joints are exact.
   q_ = planned_deg;
-  if (read(psd, result) != Step::kOk) return result;
-  result.start_s = result.reading.time_s;
+  // The start of the servo is the end of the planned move: its settling counts as acquisition.
+  const double t0 = clock_ != nullptr ? clock_->nowS() : 0.0;
+  if (settledRead(psd, result) != Step::kOk) return;
+  result.start_s = clock_ != nullptr ? t0 : result.reading.time_s;
+  result.settle_acquisition_s = result.settle_s;
+  if (result.path_count > 0) result.path[0].t_s = result.reading.time_s - result.start_s;
   if (!result.reading.spot_present && !acquire(robot, psd, planned_deg, expected_uv_mm, result)) {
     result.acquired_s = result.end_s;
-    return result;
+    return;
   }
   result.acquired_s = result.reading.time_s;
   fineServo(robot, psd, result);
-  return result;
 }
 
 }  // namespace zerocal::servo

@@ -1,14 +1,37 @@
 #include "zerocal/session/calibration_run.h"
 
 #include <chrono>
+#include <exception>
 
 #include "zerocal/error.h"
+#include "zerocal/irc5/errors.h"
 #include "zerocal/servo/spot_predictor.h"
 
 namespace zerocal {
 namespace {
 
 std::int64_t nanoseconds(double seconds) { return static_cast<std::int64_t>(seconds * 1e9); }
+
+enum class Failure { kNone, kLink, kSensor, kAborted, kOther };
+enum class Recovery { kDone, kFailed, kAborted };
+
+// Calls `hook` until it returns, at most `attempts` times, waiting `backoff_s` of cell time
+// between calls (a board being replugged takes seconds; the link client backs off on its own).
+Recovery recover(const std::function<void()>& hook, servo::CellClock& clock,
+                 const std::atomic<bool>& abort, int attempts, double backoff_s,
+                 std::string& problem) {
+  for (int attempt = 1; attempt <= attempts; ++attempt) {
+    if (abort.load()) return Recovery::kAborted;
+    try {
+      hook();
+      return Recovery::kDone;
+    } catch (const std::exception& e) {
+      problem = e.what();
+    }
+    if (attempt < attempts) clock.waitS(backoff_s);
+  }
+  return Recovery::kFailed;
+}
 
 }  // namespace
 
@@ -26,13 +49,14 @@ CalibrationRun::CalibrationRun(CellModel knowledge, Eigen::Vector3d taught_centr
       plan_(std::move(plan)),
       settings_(std::move(settings)),
       journal_(journal) {
+  if (settings_.recovery_attempts < 1 || settings_.recoveries_per_pose < 0 ||
+      !(settings_.recovery_backoff_s >= 0))
+    throw InputError(
+        "run settings: recovery_attempts must be at least 1, recoveries_per_pose and "
+        "recovery_backoff_s not negative");
   if (journal_.nextIndex() > static_cast<int>(plan_.size()))
     throw InputError("the journal holds " + std::to_string(journal_.nextIndex()) +
                      " poses but the plan only " + std::to_string(plan_.size()));
-}
-
-void CalibrationRun::phase(int pose_index, RunPhase phase) const {
-  if (on_phase) on_phase(pose_index, phase);
 }
 
 RunOutcome CalibrationRun::run(ControllerLink& robot, servo::PsdReader& psd,
@@ -40,58 +64,129 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, servo::PsdReader& psd,
   RunOutcome out;
   out.records = journal_.recovered();
   out.resumed_from = journal_.nextIndex();
-  servo::PsdServo servo(knowledge_, taught_centre_, settings_.servo);
+  servo::ServoOptions servo_options = settings_.servo;
+  servo_options.abort = &abort;
+  servo::PsdServo servo(knowledge_, taught_centre_, servo_options);
   servo::SpotPredictor predictor(knowledge_, taught_centre_);
   // Resumed poses teach the predictor where the spot falls, as if they had just been servoed.
   for (const PoseRecord& r : out.records)
     predictor.addPose(r.joints_deg, Eigen::Vector2d(r.u_mm, r.v_mm));
+  const int n = static_cast<int>(plan_.size());
+  const auto phase = [&](int i, RunPhase p) {
+    if (on_phase) on_phase(i, p);
+  };
 
-  for (int i = journal_.nextIndex(); i < static_cast<int>(plan_.size()); ++i) {
-    if (abort.load()) {
-      out.state = RunState::kAborted;
-      out.message = "aborted before pose " + std::to_string(i + 1);
-      return out;
+  for (int i = journal_.nextIndex(); i < n; ++i) {
+    const std::string pose_name = "pose " + std::to_string(i + 1) + " of " + std::to_string(n);
+    int recoveries = 0;
+    for (;;) {
+      if (abort.load()) {
+        out.state = RunState::kAborted;
+        out.message = "aborted before " + pose_name;
+        return out;
+      }
+      // One attempt at the pose: the planned move, then the servo. Nothing is journalled until
+      // it succeeds, so a failed attempt is simply done again after a recovery.
+      Failure failure = Failure::kOther;
+      std::string why;
+      const Joints& target = plan_[i].q_deg;
+      phase(i, RunPhase::kMoving);
+      const double move_start = clock.nowS();
+      try {
+        robot.moveJoints(target);
+        failure = Failure::kNone;
+      } catch (const ConnectionError& e) {
+        failure = Failure::kLink;
+        why = std::string("move failed: ") + e.what();
+      } catch (const TimeoutError& e) {
+        failure = Failure::kLink;
+        why = std::string("move failed: ") + e.what();
+      } catch (const ProtocolError& e) {
+        failure = Failure::kLink;
+        why = std::string("move failed: ") + e.what();
+      } catch (const Error& e) {
+        why = std::string("move failed: ") + e.what();
+      }
+      servo::ServoResult r;
+      double moved = move_start;
+      if (failure == Failure::kNone) {
+        moved = clock.nowS();
+        phase(i, RunPhase::kServoing);
+        r = servo.run(robot, psd, clock, target, predictor.searchCentre(target));
+        if (!r.ok()) {
+          why = std::string("servo ") + servo::statusName(r.status) + ": " + servo.fault().message;
+          failure = r.status == servo::ServoStatus::kLinkError     ? Failure::kLink
+                    : r.status == servo::ServoStatus::kSensorError ? Failure::kSensor
+                    : r.status == servo::ServoStatus::kAborted     ? Failure::kAborted
+                                                                   : Failure::kOther;
+        }
+      }
+      if (failure == Failure::kAborted) {
+        out.state = RunState::kAborted;
+        out.message = pose_name + ": " + why;
+        return out;
+      }
+      if (failure != Failure::kNone) {
+        const std::function<void()>& hook =
+            failure == Failure::kLink ? settings_.reconnect_link : settings_.reopen_sensor;
+        if (failure == Failure::kOther || !hook) {
+          out.message = pose_name + ": " + why;
+          return out;
+        }
+        if (recoveries == settings_.recoveries_per_pose) {
+          out.message = pose_name + ": " + why + " (" + std::to_string(recoveries) +
+                        " recoveries already on this pose)";
+          return out;
+        }
+        ++recoveries;
+        std::string recovery_problem;
+        const Recovery rec = recover(hook, clock, abort, settings_.recovery_attempts,
+                                     settings_.recovery_backoff_s, recovery_problem);
+        if (rec == Recovery::kAborted) {
+          out.state = RunState::kAborted;
+          out.message = "aborted while recovering " + pose_name + " from: " + why;
+          return out;
+        }
+        if (rec == Recovery::kFailed) {
+          out.message = pose_name + ": " + why + "; " +
+                        (failure == Failure::kLink ? "reconnecting" : "reopening the board") +
+                        " failed " + std::to_string(settings_.recovery_attempts) +
+                        " times: " + recovery_problem;
+          return out;
+        }
+        ++(failure == Failure::kLink ? out.reconnects : out.reopens);
+        continue;  // the pose again, from its planned move
+      }
+
+      phase(i, RunPhase::kRecording);
+      PoseRecord record;
+      record.index = i;
+      record.joints_deg = r.q_deg;
+      record.u_mm = r.reading.u_mm;
+      record.v_mm = r.reading.v_mm;
+      record.u_se_mm = r.reading.u_se_mm;
+      record.v_se_mm = r.reading.v_se_mm;
+      record.move_started_ns = nanoseconds(move_start);
+      record.recorded_ns = nanoseconds(r.end_s);
+      record.servo.moves = r.moves;
+      record.servo.search_moves = r.search_moves;
+      record.servo.iterations = r.iterations;
+      record.servo.move_s = moved - move_start;
+      record.servo.acquisition_s = r.acquisitionS();
+      record.servo.servo_s = r.servoS();
+      record.servo.settle_s = r.settle_s;
+      record.servo.final_error_um = r.final_error_um;
+      for (std::size_t k = 0; k < r.path_count; ++k)
+        record.servo_path.push_back({r.path[k].t_s, r.path[k].u_mm, r.path[k].v_mm});
+      journal_.append(record);  // on disk before the robot moves again
+      out.records.push_back(record);
+      predictor.addPose(record.joints_deg, Eigen::Vector2d(record.u_mm, record.v_mm));
+      if (on_pose) on_pose(record);
+      break;
     }
-    const Joints& target = plan_[i].q_deg;
-    phase(i, RunPhase::kMoving);
-    const double move_start = clock.nowS();
-    try {
-      robot.moveJoints(target);
-    } catch (const Error& e) {
-      out.message = "pose " + std::to_string(i + 1) + ": move failed: " + e.what();
-      return out;
-    }
-    const double moved = clock.nowS();
-    phase(i, RunPhase::kServoing);
-    const servo::ServoResult r = servo.run(robot, psd, target, predictor.searchCentre(target));
-    if (!r.ok()) {
-      out.message = "pose " + std::to_string(i + 1) + ": servo " + servo::statusName(r.status) +
-                    ": " + servo.fault().message;
-      return out;
-    }
-    phase(i, RunPhase::kRecording);
-    PoseRecord rec;
-    rec.index = i;
-    rec.joints_deg = r.q_deg;
-    rec.u_mm = r.reading.u_mm;
-    rec.v_mm = r.reading.v_mm;
-    rec.u_se_mm = r.reading.u_se_mm;
-    rec.v_se_mm = r.reading.v_se_mm;
-    rec.move_started_ns = nanoseconds(move_start);
-    rec.recorded_ns = nanoseconds(r.end_s);
-    rec.servo.moves = r.moves;
-    rec.servo.iterations = r.iterations;
-    rec.servo.move_s = moved - move_start;
-    rec.servo.acquisition_s = r.acquisitionS();
-    rec.servo.servo_s = r.servoS();
-    rec.servo.final_error_um = r.final_error_um;
-    journal_.append(rec);  // on disk before the robot moves again
-    out.records.push_back(rec);
-    predictor.addPose(rec.joints_deg, Eigen::Vector2d(rec.u_mm, rec.v_mm));
-    if (on_pose) on_pose(rec);
   }
 
-  phase(static_cast<int>(plan_.size()), RunPhase::kSolving);
+  phase(n, RunPhase::kSolving);
   SolveOptions solve_options = settings_.solve;
   solve_options.cancelled = [&abort] { return abort.load(); };
   out.report = solve(knowledge_, posesOf(out.records), solve_options);

@@ -20,10 +20,7 @@
 #include "zerocal/daemon/config.h"
 #include "zerocal/daemon/logging.h"
 #include "zerocal/error.h"
-#include "zerocal/report/session_report.h"
-#include "zerocal/service/hardware_backend.h"
-#include "zerocal/service/session_manager.h"
-#include "zerocal/sim/sim_backend.h"
+#include "zerocal/service/daemon_setup.h"
 
 namespace zerocal {
 namespace {
@@ -33,59 +30,6 @@ using service::SessionManager;
 using service::SessionState;
 
 enum ExitCode { kOk = 0, kFailure = 1, kBadInput = 2, kStopped = 3, kNotIdentifiable = 4 };
-
-servo::ServoOptions servoOptionsOf(const ServoConfig& c, double limit_margin_deg) {
-  servo::ServoOptions o;
-  o.mode = c.stop == ServoStop::kZone ? servo::ServoMode::kHitPoint : servo::ServoMode::kCentre;
-  o.tolerance_mm = c.tolerance_um * 1e-3;
-  o.max_step_deg = c.max_step_deg;
-  o.max_iterations = c.max_iterations;
-  o.max_time_s = c.timeout_s;
-  o.search_radius_mm = c.search_radius_mm;
-  o.search_step_mm = c.search_step_mm;
-  o.max_search_time_s = c.search_time_s;
-  o.limit_margin_deg = limit_margin_deg;
-  return o;
-}
-
-std::unique_ptr<service::CellBackend> makeBackend(const DaemonConfig& cfg) {
-  if (cfg.backend.kind == BackendKind::kHardware)
-    return std::make_unique<service::HardwareBackend>(cfg);
-  if (!cfg.backend.sim_host.empty())
-    throw ConfigError("zerocald", {"backend.sim_host: an external zerocal-sim simulates the "
-                                   "controller only, not the PSD board; leave it empty for the "
-                                   "in-process simulated cell"});
-  sim::SimulatedCellOptions o;
-  const std::uint64_t seed = cfg.backend.sim_seed.value_or(1);
-  o.world = cfg.backend.sim_world.empty() ? randomWorld(seed) : loadWorld(cfg.backend.sim_world);
-  o.controller_seed = seed;
-  o.pace = cfg.backend.sim_pace;
-  o.psd.seed = static_cast<std::uint32_t>(seed) + 100;
-  // The controller section applies to the simulated controller as to a real one.
-  return std::make_unique<sim::SimBackend>(std::move(o),
-                                           [controller = cfg.controller](Irc5Options& client) {
-                                             client = service::irc5OptionsOf(controller, client);
-                                           });
-}
-
-service::ManagerSettings managerSettingsOf(const DaemonConfig& cfg) {
-  service::ManagerSettings s;
-  s.data_dir = cfg.session.data_dir;
-  s.run.servo = servoOptionsOf(cfg.servo, cfg.controller.limit_margin_deg);
-  s.noise_mm = cfg.session.noise_mm;
-  s.plan = cfg.session.plan;
-  s.poses = cfg.session.poses;
-  s.plan_file = cfg.session.plan_file;
-  // On the simulated cell the nominal target is the one "taught" on its world; on a real cell
-  // it is the configured one.
-  if (cfg.backend.kind == BackendKind::kHardware) {
-    const auto& t = cfg.session.target_mm;
-    s.target_mm = Eigen::Vector3d(t[0], t[1], t[2]);
-  }
-  s.config_snapshot = configToJson(cfg);
-  s.write_reports = [](const std::string& dir) { report::writeSessionReport(dir); };
-  return s;
-}
 
 void logUnfinished(SessionManager& manager) {
   auto log = makeLogger("session");
@@ -197,12 +141,14 @@ int main(int argc, char** argv) {
     const DaemonConfig cfg = loadDaemonConfig(sources);
     initLogging(cfg.logging);
     auto log = makeLogger("zerocald");
-    std::unique_ptr<service::CellBackend> backend = makeBackend(cfg);
-    service::SessionManager manager(*backend, managerSettingsOf(cfg));
+    // The io_context outlives the manager: the manager's worker posts events into it until the
+    // manager's destructor has joined the worker.
+    asio::io_context io;
+    std::unique_ptr<service::CellBackend> backend = service::makeBackend(cfg);
+    service::SessionManager manager(*backend, service::managerSettingsOf(cfg));
     log->info("backend {}; sessions in {}", backend->name(), cfg.session.data_dir);
     logUnfinished(manager);
 
-    asio::io_context io;
     asio::signal_set signals(io, SIGINT, SIGTERM);
     if (once) {
       signals.async_wait([&](const boost::system::error_code& ec, int signal) {
@@ -219,9 +165,15 @@ int main(int argc, char** argv) {
     } catch (const Error& e) {
       throw ConfigError("zerocald", {std::string("control.token_file: ") + e.what()});
     }
-    control::ControlServer server(io, manager,
-                                  control::serverOptions(cfg.control, token, PROJECT_VERSION));
-    server.start();
+    control::ServerOptions options = control::serverOptions(cfg.control, token, PROJECT_VERSION);
+    options.default_request = manager.defaultRequest();  // what `start` leaves out: session.*
+    control::ControlServer server(io, manager, std::move(options));
+    try {
+      server.start();
+    } catch (const boost::system::system_error& e) {
+      throw ConfigError("zerocald", {"control port " + cfg.control.bind_address + ":" +
+                                     std::to_string(cfg.control.port) + ": " + e.what()});
+    }
     signals.async_wait([&](const boost::system::error_code& ec, int signal) {
       if (ec) return;
       log->warn("signal {}: aborting any session, stopping the robot, closing the port", signal);

@@ -38,7 +38,8 @@ PoseRecord sample(int index) {
   r.v_se_mm = 5e-300;
   r.move_started_ns = 1795000000123456789 + index;
   r.recorded_ns = 1795000001987654321 + index;
-  r.servo = {7, 5, 2.25, 0.5, 1.0 / 3.0, 0.2, 1.2345678901234567};
+  r.servo = {7, 5, 2.25, 0.5, 1.0 / 3.0, 0.2, 1.2345678901234567, 3};
+  r.servo_path = {{0.0125, 1.0 / 3.0, -0.25}, {0.4, 1e-3 / 7.0, 2e-4}};
   return r;
 }
 
@@ -58,6 +59,8 @@ void expectSame(const PoseRecord& a, const PoseRecord& b) {
   EXPECT_EQ(a.servo.servo_s, b.servo.servo_s);
   EXPECT_EQ(a.servo.settle_s, b.servo.settle_s);
   EXPECT_EQ(a.servo.final_error_um, b.servo.final_error_um);
+  EXPECT_EQ(a.servo.search_moves, b.servo.search_moves);
+  EXPECT_EQ(a.servo_path, b.servo_path);
 }
 
 void appendRaw(const fs::path& path, const std::string& bytes) {
@@ -89,6 +92,27 @@ TEST_F(JournalTest, OneJsonObjectPerLine) {
   EXPECT_EQ(j["index"], 0);
   EXPECT_EQ(j["joints_deg"].size(), 6u);
   EXPECT_FALSE(std::getline(in, line));
+}
+
+// The report reads the spot path under exactly this key, as [t_s, u_mm, v_mm] triples.
+TEST_F(JournalTest, ServoPathIsWrittenAsTriplesUnderItsKey) {
+  const nlohmann::json j = toJson(sample(0));
+  ASSERT_TRUE(j.contains("servo_path"));
+  ASSERT_EQ(j["servo_path"].size(), 2u);
+  EXPECT_EQ(j["servo_path"][1].size(), 3u);
+  EXPECT_EQ(j["servo_path"][0][1].get<double>(), 1.0 / 3.0);
+  EXPECT_EQ(j["servo"]["search_moves"].get<int>(), 3);
+}
+
+// Journals written before the path and the search moves were recorded still read back.
+TEST_F(JournalTest, OlderRecordsWithoutPathOrSearchMovesReadBack) {
+  nlohmann::json j = toJson(sample(0));
+  j.erase("servo_path");
+  j["servo"].erase("search_moves");
+  const PoseRecord r = poseRecordFromJson(j);
+  EXPECT_TRUE(r.servo_path.empty());
+  EXPECT_EQ(r.servo.search_moves, 0);
+  EXPECT_EQ(r.servo.moves, 7);
 }
 
 TEST_F(JournalTest, RefusesOutOfOrderDuplicateAndNonFiniteRecords) {

@@ -3,7 +3,10 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <cmath>
+#include <cstdio>
 
+#include "zerocal/calib/planner.h"
 #include "zerocal/error.h"
 #include "zerocal/model/builtin.h"
 #include "zerocal/model/kinematics.h"
@@ -110,6 +113,41 @@ noise: {repeatability_deg: -1}
     EXPECT_GE(e.problems().size(), 6u) << e.what();  // robot, offsets, point, direction, psd, noise
   }
   EXPECT_THROW(loadWorld("/nonexistent/world.yaml"), ConfigError);
+}
+
+// The default repeatability is issue 5's "0.02 mm sigma": the per-axis standard deviation of the
+// flange (TCP) position, sqrt(trace(J S J^T) / 3) with S = sigma^2 I per joint, averaged over the
+// optimal plans of several random worlds.
+TEST(World, DefaultRepeatabilityIsTwoHundredthsOfAMillimetreAtTheTcp) {
+  const double sigma_deg = WorldNoise{}.repeatability_deg;
+  double sum = 0;
+  int poses = 0;
+  for (std::uint64_t seed = 1; seed <= 3; ++seed) {
+    const World w = randomWorld(seed);
+    CellModel cell;
+    cell.robot = w.robot;
+    cell.psd_rotation = w.psd_rotation;
+    PlanOptions po;
+    po.psd_normal = w.psd_rotation.col(2);
+    for (const Pose& pose : planPoses(cell, w.psd_position_mm, po).poses) {
+      constexpr double kH = 1e-4;  // deg
+      double trace = 0;
+      for (int j = 0; j < kJointCount; ++j) {
+        Joints plus = pose.q_deg, minus = pose.q_deg;
+        plus[j] += kH;
+        minus[j] -= kH;
+        const Eigen::Vector3d column =
+            (flangePoseDeg(w.robot, plus).p - flangePoseDeg(w.robot, minus).p) / (2 * kH);
+        trace += column.squaredNorm() * sigma_deg * sigma_deg;
+      }
+      sum += std::sqrt(trace / 3);
+      ++poses;
+    }
+  }
+  const double tcp_sigma_mm = sum / poses;
+  std::printf("repeatability %.2e deg per joint: %.4f mm per axis at the TCP (%d poses)\n",
+              sigma_deg, tcp_sigma_mm, poses);
+  EXPECT_NEAR(tcp_sigma_mm, 0.020, 0.002);
 }
 
 }  // namespace

@@ -16,6 +16,7 @@
 
 #include "umockdev_board.h"
 #include "zerocal/psd/psd_config.h"
+#include "zerocal/service/daemon_setup.h"
 #include "zerocal/service/session_manager.h"
 #include "zerocal/sim/psd_model.h"
 #include "zerocal/sim/simulated_cell.h"
@@ -111,12 +112,8 @@ TEST_F(HardwareBackendOnSimulatedCell, ConnectsReadsAndCalibratesThroughLibusbAn
   HardwareBackend absent(wrong_serial);
   EXPECT_THROW(absent.connect(), Error);
 
-  ManagerSettings settings;
-  settings.data_dir = config_.session.data_dir;
-  settings.run.servo.mode = servo::ServoMode::kHitPoint;
-  const auto& t = config_.session.target_mm;
-  settings.target_mm = Eigen::Vector3d(t[0], t[1], t[2]);
-  SessionManager manager(backend, settings);
+  // Settled as zerocald settles it from the configuration.
+  SessionManager manager(backend, managerSettingsOf(config_));
   const std::string id = manager.start(manager.defaultRequest());
   const SessionStatus end = manager.waitIdle();
   ASSERT_EQ(end.state, SessionState::kDone) << end.message;

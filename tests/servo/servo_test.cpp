@@ -178,6 +178,119 @@ TEST(PsdServo, RunAllocatesNothing) {
   EXPECT_EQ(g_allocations.load(), 0);
 }
 
+// Waits advance the fake robot's clock, as settling would on a cell.
+class LinkClock final : public CellClock {
+ public:
+  explicit LinkClock(RecordingLink& link) : link_(link) {}
+  double nowS() noexcept override { return link_.time_s; }
+  void waitS(double seconds) noexcept override {
+    link_.time_s += seconds;
+    ++waits;
+  }
+  int waits = 0;
+
+ private:
+  RecordingLink& link_;
+};
+
+// Counts readings and sets the abort flag before the n-th.
+class AbortingPsd final : public PsdReader {
+ public:
+  AbortingPsd(PsdReader& inner, std::atomic<bool>& abort, int abort_at)
+      : inner_(inner), abort_(abort), abort_at_(abort_at) {}
+  PsdReading read() override {
+    if (++reads == abort_at_) abort_ = true;
+    return inner_.read();
+  }
+  int reads = 0;
+
+ private:
+  PsdReader& inner_;
+  std::atomic<bool>& abort_;
+  int abort_at_;
+};
+
+TEST(PsdServo, SettlesBeforeEveryReadingThatCountsWithoutAllocating) {
+  Scenario s = scenario(2);
+  RecordingLink link(s.planned, 10000);
+  ExactPsd psd(s.world, link);
+  LinkClock clock(link);
+  std::atomic<bool> abort{false};
+  ServoOptions o = centreOptions();
+  o.settle_s = 0.2;
+  o.abort = &abort;
+  PsdServo servo(s.cell, s.world.psd_position_mm, o);
+  g_allocations = 0;
+  g_counting = true;
+  const ServoResult r = servo.run(link, psd, clock, s.planned);
+  g_counting = false;
+  ASSERT_TRUE(r.ok()) << statusName(r.status);
+  EXPECT_EQ(g_allocations.load(), 0);
+  ASSERT_GT(r.search_moves, 0);
+  // At the start, once the search has found the spot, after every fine-servo move.
+  const int fine_moves = r.moves - r.search_moves;
+  EXPECT_EQ(clock.waits, 2 + fine_moves);
+  EXPECT_NEAR(r.settle_s, 0.2 * clock.waits, 1e-9);
+  EXPECT_GE(r.settle_acquisition_s, 0.4 - 1e-9);
+  EXPECT_GE(r.acquisitionS(), 0);
+  EXPECT_GE(r.servoS(), 0);
+  // The path: readings with the spot present, first and last kept, in time order.
+  ASSERT_GT(r.path_count, 0u);
+  EXPECT_LE(r.path_count, kPathCapacity);
+  for (std::size_t k = 1; k < r.path_count; ++k) EXPECT_GT(r.path[k].t_s, r.path[k - 1].t_s) << k;
+  EXPECT_DOUBLE_EQ(r.path[r.path_count - 1].u_mm, r.reading.u_mm);
+  EXPECT_DOUBLE_EQ(r.path[r.path_count - 1].t_s, r.reading.time_s - r.start_s);
+}
+
+TEST(PsdServo, KeepsTheFirstAndLastReadingsOfALongPath) {
+  Scenario s = scenario(2);
+  RecordingLink link(s.planned);
+  ExactPsd psd(s.world, link);
+  ServoOptions o = centreOptions();
+  o.max_step_deg = 0.002;  // a slow approach: far more readings than the path holds
+  o.max_iterations = 2000;
+  o.max_search_points = 20000;
+  o.max_time_s = o.max_search_time_s = 1e5;
+  PsdServo servo(s.cell, s.world.psd_position_mm, o);
+  const ServoResult r = servo.run(link, psd, s.planned);
+  ASSERT_TRUE(r.ok()) << statusName(r.status);
+  ASSERT_GT(r.path_skipped, 0);
+  EXPECT_EQ(r.path_count, kPathCapacity);
+  for (std::size_t k = 1; k < r.path_count; ++k) EXPECT_GT(r.path[k].t_s, r.path[k - 1].t_s) << k;
+  EXPECT_DOUBLE_EQ(r.path[kPathCapacity - 1].t_s, r.reading.time_s - r.start_s);
+}
+
+TEST(PsdServo, SettlingWithoutAClockIsABadStart) {
+  Scenario s = scenario(2);
+  RecordingLink link(s.planned);
+  ExactPsd psd(s.world, link);
+  ServoOptions o = centreOptions();
+  o.settle_s = 0.2;
+  PsdServo servo(s.cell, s.world.psd_position_mm, o);
+  EXPECT_EQ(servo.run(link, psd, s.planned).status, ServoStatus::kBadStart);
+  EXPECT_TRUE(link.moves.empty());
+}
+
+TEST(PsdServo, AbortDuringTheSearchStopsBeforeTheNextMove) {
+  Scenario s = scenario(1);
+  s.world.psd_position_mm += Eigen::Vector3d(0, 0, -300);  // never found
+  s.world.psd_position_mm += s.world.psd_rotation.col(0) * 200;
+  RecordingLink link(s.planned);
+  ExactPsd exact(s.world, link);
+  std::atomic<bool> abort{false};
+  AbortingPsd psd(exact, abort, 25);
+  ServoOptions o = centreOptions();
+  o.abort = &abort;
+  PsdServo servo(s.cell, s.world.psd_position_mm, o);
+  const ServoResult r = servo.run(link, psd, s.planned);
+  EXPECT_EQ(r.status, ServoStatus::kAborted);
+  EXPECT_EQ(servo.fault().status, ServoStatus::kAborted);
+  EXPECT_EQ(psd.reads, 25);
+  // The 25th reading follows the 24th search move; the abort came before the reading's answer.
+  EXPECT_EQ(link.moves.size(), 24u);
+  EXPECT_EQ(r.q_deg, link.q);
+}
+
 TEST(PsdServo, NeverExceedsASmallStepLimit) {
   Scenario s = scenario(2);
   RecordingLink link(s.planned);

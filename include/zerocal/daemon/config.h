@@ -89,7 +89,7 @@ struct SessionConfig {
   std::array<double, 3> target_mm{900.0, -50.0, 400.0};  // nominal PSD centre, robot base frame
   // The PSD's orientation in the base frame: roll, pitch, yaw (fixed x, y, z); 0 0 0 faces up.
   std::array<double, 3> psd_rpy_deg{0.0, 0.0, 0.0};
-  double noise_mm = 0.010;  // measurement sigma: the robot's repeatability seen at the PSD
+  double noise_mm = 0.020;  // measurement sigma: the robot's repeatability seen at the PSD
   std::string data_dir = "/var/lib/zerocal/sessions";  // one folder per session (journal.h)
 };
 

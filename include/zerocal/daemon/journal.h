@@ -10,6 +10,7 @@
 // timestamps in nanoseconds since the Unix epoch (system clock), durations in seconds.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <nlohmann/json.hpp>
@@ -29,14 +30,17 @@ class JournalError : public Error {
 };
 
 // What the servo did for one pose; durations in seconds of cell time.
+// The four durations add up to the pose's cell time, from the start of the planned move to the
+// recorded reading.
 struct ServoStats {
-  int moves = 0;             // servo and search moves, the planned move not counted
-  int iterations = 0;        // fine-servo iterations
-  double move_s = 0;         // the planned move
-  double acquisition_s = 0;  // spot search
-  double servo_s = 0;
-  double settle_s = 0;
+  int moves = 0;              // servo and search moves, the planned move not counted
+  int iterations = 0;         // fine-servo iterations
+  double move_s = 0;          // the planned move
+  double acquisition_s = 0;   // spot search, its settling excluded
+  double servo_s = 0;         // fine servo, its settling excluded
+  double settle_s = 0;        // waits after moves before readings that count (servo.settle_s each)
   double final_error_um = 0;  // distance of the spot from the centre at the recorded reading
+  int search_moves = 0;       // of `moves`, searching for the spot (absent from older journals: 0)
 };
 
 struct PoseRecord {
@@ -47,6 +51,12 @@ struct PoseRecord {
   std::int64_t move_started_ns = 0;
   std::int64_t recorded_ns = 0;
   ServoStats servo;
+  // The spot's path on the detector during the servo, JSON "servo_path": [[t_s, u_mm, v_mm], ...]
+  // with t_s the cell time since the servo's start. Only readings with the spot on the detector,
+  // in time order: the first 16 and the last 48 of them when there were more (servo.h,
+  // kPathCapacity); outside the map's zone u and v are the chain's coarse estimate. Absent from
+  // older journals: empty.
+  std::vector<std::array<double, 3>> servo_path;
 };
 
 nlohmann::json toJson(const PoseRecord& record);

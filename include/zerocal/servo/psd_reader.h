@@ -17,6 +17,9 @@ class CellClock {
  public:
   virtual ~CellClock() = default;
   virtual double nowS() noexcept = 0;
+  // Lets `seconds` of cell time pass with the robot at rest (settling, back-off). The default
+  // sleeps on the calling thread (no allocation, no lock); a simulated cell advances its clock.
+  virtual void waitS(double seconds) noexcept;
 };
 
 class SteadyCellClock final : public CellClock {

@@ -20,6 +20,15 @@
 // Every move is checked before it is sent: no joint moves more than max_step_deg (longer walks
 // are split), and no target lies outside the limits less limit_margin_deg.
 //
+// Settling: a reading that steers the fine servo or may be recorded is taken at least settle_s
+// of cell time after the last move (the clock's waitS()): at the start, after the spot is
+// found, after every fine-servo move. Search readings only ask whether the spot is on the detector
+// and are taken at once: a settling arm still lights it.
+//
+// Abort: `abort` (when set) is polled before every move and every reading; once it is true no
+// further move is sent, the robot stays at rest where the last move ended (a pose checked against
+// the limits) and kAborted is returned. An atomic load neither allocates nor locks.
+//
 // Real-time discipline: run() allocates, locks, logs and throws nothing of its own; time comes
 // from the readings' cell clock, never the wall clock. Errors thrown by the seams (link, DAQ) are
 // caught at the cycle's edge and latched as a fault with the last kFaultHistory samples. The
@@ -28,6 +37,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <atomic>
 #include <cstddef>
 #include <string>
 
@@ -73,6 +83,12 @@ struct ServoOptions {
   int max_search_points = 3000;
   double max_search_time_s = 300;
 
+  // Cell time waited after a move before a reading that counts (see above); needs the clock
+  // given to run().
+  double settle_s = 0;
+  // Polled each cycle; may be null. Must outlive every run().
+  const std::atomic<bool>* abort = nullptr;
+
   // Empty when usable, else the first problem.
   std::string validate() const;
 };
@@ -86,6 +102,7 @@ enum class ServoStatus {
   kLinkError,     // the controller link threw
   kSensorError,   // the PSD reader threw
   kBadStart,      // options invalid or the robot not where planned
+  kAborted,       // the abort flag was set; the robot at rest where the last move ended
 };
 const char* statusName(ServoStatus status) noexcept;
 
@@ -105,6 +122,17 @@ struct ServoFault {
   std::size_t sample_count = 0;
 };
 
+// One reading of the spot's path on the detector, for the report.
+struct PathPoint {
+  double t_s = 0;  // cell time since the servo's start
+  double u_mm = 0, v_mm = 0;
+};
+
+// Readings kept per run: the first kPathHead and the last kPathCapacity - kPathHead with the spot
+// on the detector (outside the map's zone u, v are the chain's coarse estimate).
+constexpr std::size_t kPathCapacity = 64;
+constexpr std::size_t kPathHead = 16;
+
 struct ServoResult {
   ServoStatus status = ServoStatus::kBadStart;
   Joints q_deg{};      // commanded joints at the end
@@ -115,8 +143,16 @@ struct ServoResult {
   int readings = 0;
   double final_error_um = 0;                      // |(u, v) - target| of the last reading
   double start_s = 0, acquired_s = 0, end_s = 0;  // cell clock
-  double acquisitionS() const { return acquired_s - start_s; }
-  double servoS() const { return end_s - acquired_s; }
+  // Cell time waited for settling, in all and before acquired_s.
+  double settle_s = 0, settle_acquisition_s = 0;
+  // Spot path: path[0, path_count) in time order; path_skipped readings between the head and the
+  // tail were not kept.
+  std::array<PathPoint, kPathCapacity> path{};
+  std::size_t path_count = 0;
+  int path_skipped = 0;
+  // Search and fine servo, settling excluded: move + acquisition + servo + settle is the whole.
+  double acquisitionS() const { return acquired_s - start_s - settle_acquisition_s; }
+  double servoS() const { return end_s - acquired_s - (settle_s - settle_acquisition_s); }
   bool ok() const { return status == ServoStatus::kConverged; }
 };
 
@@ -129,7 +165,11 @@ class PsdServo {
   // The robot must stand at `planned_deg` (what the caller last moved it to). `expected_uv_mm`:
   // where the spot is expected at the planned pose (PSD frame, e.g. from SpotPredictor); the
   // search is centred on it when the spot is not seen at once. Never throws. On anything but
-  // kConverged the fault is latched (fault()) until clearFault().
+  // kConverged the fault is latched (fault()) until clearFault(). `clock` waits settle_s; the
+  // overload without one returns kBadStart when settle_s is not 0.
+  ServoResult run(ControllerLink& robot, PsdReader& psd, CellClock& clock,
+                  const Joints& planned_deg,
+                  const Eigen::Vector2d& expected_uv_mm = Eigen::Vector2d::Zero()) noexcept;
   ServoResult run(ControllerLink& robot, PsdReader& psd, const Joints& planned_deg,
                   const Eigen::Vector2d& expected_uv_mm = Eigen::Vector2d::Zero()) noexcept;
 
@@ -143,6 +183,13 @@ class PsdServo {
   Step move(ControllerLink& robot, const Joints& target, ServoResult& result) noexcept;
   Step walkTo(ControllerLink& robot, const Joints& target, ServoResult& result) noexcept;
   Step read(PsdReader& psd, ServoResult& result) noexcept;
+  // Waits settle_s (when a clock was given), then reads.
+  Step settledRead(PsdReader& psd, ServoResult& result) noexcept;
+  bool aborted(ServoResult& result) noexcept;
+  void runCycle(ControllerLink& robot, PsdReader& psd, const Joints& planned,
+                const Eigen::Vector2d& expected_uv, ServoResult& result) noexcept;
+  void keepPathPoint(const PsdReading& reading, ServoResult& result) noexcept;
+  void orderPath(ServoResult& result) const noexcept;
   bool acquire(ControllerLink& robot, PsdReader& psd, const Joints& planned,
                const Eigen::Vector2d& expected_uv, ServoResult& result) noexcept;
   void fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& result) noexcept;
@@ -153,7 +200,9 @@ class PsdServo {
   CellModel cell_;
   Eigen::Vector3d psd_centre_;
   ServoOptions options_;
-  Joints q_{};  // commanded joints
+  CellClock* clock_ = nullptr;      // during run() only
+  std::size_t path_tail_next_ = 0;  // where the next tail point goes once the path is full
+  Joints q_{};                      // commanded joints
   std::array<ServoSample, kFaultHistory> ring_{};
   std::size_t ring_next_ = 0, ring_count_ = 0;
   bool faulted_ = false;

@@ -20,13 +20,28 @@
 namespace zerocal {
 
 struct RunSettings {
+  // settle_s is applied through the clock given to run(); `abort` is set by run() to its flag.
   servo::ServoOptions servo;
   SolveOptions solve;
+
+  // Recovery from a lost link or board. When the controller link fails (a move throws
+  // ConnectionError, TimeoutError or ProtocolError, or the servo latches kLinkError) and
+  // `reconnect_link` is set, it is called (the daemon wires Irc5Client::reconnect, which retries
+  // with back-off of its own) and the current pose, not yet journalled, is done again from its
+  // planned move. Likewise `reopen_sensor` (Usb1408fs::reopen) when the PSD reader fails. A hook
+  // that throws is called again after recovery_backoff_s of cell time, up to recovery_attempts
+  // calls per failure; at most recoveries_per_pose failures are recovered per pose. Unset hooks:
+  // the failure faults the run.
+  std::function<void()> reconnect_link;
+  std::function<void()> reopen_sensor;
+  int recovery_attempts = 3;
+  double recovery_backoff_s = 2.0;
+  int recoveries_per_pose = 2;
 };
 
 enum class RunState { kCompleted, kAborted, kFaulted };
 
-// What the run is about to do, for progress display.
+// Called before each phase; pose_index is 0-based (the plan's size for kSolving).
 enum class RunPhase { kMoving, kServoing, kRecording, kSolving };
 
 struct RunOutcome {
@@ -35,6 +50,8 @@ struct RunOutcome {
   std::vector<PoseRecord> records;    // every journalled pose, recovered ones included
   int resumed_from = 0;               // poses found in the journal at start
   std::optional<SolveReport> report;  // when completed
+  int reconnects = 0;                 // link failures recovered
+  int reopens = 0;                    // board failures recovered
 };
 
 class CalibrationRun {
@@ -47,17 +64,21 @@ class CalibrationRun {
 
   // Called after each journalled pose (index, record); for progress display.
   std::function<void(const PoseRecord&)> on_pose;
-  // Called before each phase with the 0-based pose index (the pose count for kSolving).
+  // Called before each phase of each pose, and before the solve.
   std::function<void(int pose_index, RunPhase phase)> on_phase;
 
-  // Runs the remaining poses and the solve. `abort` is polled between moves and during the solve
-  // (a servo in progress finishes its bounded cycle first). Link and sensor failures end the run
-  // as kFaulted with the reason; the journal keeps every pose recorded before.
+  // Runs the remaining poses and the solve. `abort` is polled before every move (the servo polls
+  // it each cycle: an abort during a long search stops within one servo move) and during the
+  // solve; on abort the robot is left at rest where its last move ended. Link and sensor failures
+  // are recovered through the settings' hooks when set, else (or when recovery fails) end the run
+  // as kFaulted with the pose and the reason; the journal keeps every pose recorded before, and
+  // the robot is at rest (every move is a blocking fine-point move, so none is under way). When
+  // the spot is not found the robot is back at the planned pose, a pose checked against the
+  // limits before the run started (the "safe pose").
   RunOutcome run(ControllerLink& robot, servo::PsdReader& psd, servo::CellClock& clock,
                  const std::atomic<bool>& abort);
 
  private:
-  void phase(int pose_index, RunPhase phase) const;
 
   CellModel knowledge_;
   Eigen::Vector3d taught_centre_;

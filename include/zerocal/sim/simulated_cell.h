@@ -3,8 +3,9 @@
 // the world's current beam hit. Clients connect to it with the real Irc5Client and the real
 // Usb1408fs protocol code (through FakeTransport), exactly as to a real cell.
 //
-// Time: nowS() is the controller's simulated time (moves) plus the board's (scans); nothing
-// sleeps. The board must be driven from one thread (the one that owns the Usb1408fs).
+// Time: nowS() is the controller's simulated time (moves) plus the board's (scans) plus the
+// waits asked through waitS() (settling, back-off); nothing sleeps. The board must be driven from
+// one thread (the one that owns the Usb1408fs).
 #pragma once
 
 #include <cstdint>
@@ -51,6 +52,8 @@ class SimulatedCell final : public servo::CellClock {
   const World& world() const { return controller_->world(); }
 
   double nowS() noexcept override;
+  // Advances the cell's clock; nothing sleeps.
+  void waitS(double seconds) noexcept override;
 
  private:
   SimulatedCellOptions options_;
@@ -58,6 +61,7 @@ class SimulatedCell final : public servo::CellClock {
   PsdModel psd_;
   Usb1408fsModel board_;
   psd::PsdMap map_;
+  double waited_s_ = 0;  // waitS() so far; one thread (the session's) drives the cell
 };
 
 }  // namespace zerocal::sim

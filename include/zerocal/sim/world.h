@@ -15,8 +15,11 @@ namespace zerocal {
 
 struct WorldNoise {
   // Standard deviation of the joint-space error added to the true pose on every move (deg).
-  // 5e-4 deg is about 0.01 mm at the IRB1600's reach (irb1600.md: 0.01..0.02 mm per move).
-  double repeatability_deg = 5e-4;
+  // 1.5e-3 deg per joint is 0.020 mm per axis at the TCP (flange), averaged over optimal plans
+  // (issue 5: "robot repeatability 0.02 mm sigma"; measured by world_test's
+  // DefaultRepeatability test). Seen at the PSD it is about 0.022 mm (chi2/dof 1.24 with a
+  // measurement sigma of 0.020 mm, `zerocal experiment cell --worlds 30 --seed0 11`).
+  double repeatability_deg = 1.5e-3;
   // Standard deviation of a PSD reading (mm); applied by the PSD simulator, not here.
   double psd_mm = 0.001;
 };
@@ -52,7 +55,7 @@ std::optional<BeamHit> beamHit(const World& world, const Joints& q_deg,
 //   true_offsets_deg: [6 numbers]
 //   laser: {point_mm: [x, y, z], direction: [x, y, z]}          # flange frame
 //   psd: {position_mm: [x, y, z], rpy_deg: [roll, pitch, yaw]}  # base frame, R = Rz Ry Rx
-//   noise: {repeatability_deg: 5e-4, psd_mm: 0.001}             # optional
+//   noise: {repeatability_deg: 1.5e-3, psd_mm: 0.001}           # optional
 // Throws ConfigError listing every problem found.
 World loadWorld(const std::string& path);
 World parseWorld(const std::string& yaml_text, const std::string& origin,

@@ -1,0 +1,225 @@
+#include "cell_experiment.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <nlohmann/json.hpp>
+
+#include "zerocal/error.h"
+#include "zerocal/service/daemon_setup.h"
+
+namespace zerocal::cli {
+namespace {
+
+using Json = nlohmann::json;
+
+// Journals go to a fresh folder, removed afterwards: the experiment keeps its figures, not the
+// sessions.
+struct TempDir {
+  TempDir() {
+    std::string pattern = (std::filesystem::temp_directory_path() / "zerocal-cell-XXXXXX").string();
+    if (!::mkdtemp(pattern.data())) throw Error("cannot create a folder for the journals");
+    path = pattern;
+  }
+  ~TempDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path, ec);
+  }
+  std::string path;
+};
+
+DaemonConfig configOf(const std::vector<std::string>& overrides) {
+  DaemonConfig config;
+  ConfigOrigins origins;
+  std::vector<std::string> problems;
+  for (const std::string& o : overrides) applyConfigOverride(config, o, origins, problems);
+  for (const std::string& p : validateDaemonConfig(config, origins)) problems.push_back(p);
+  if (!problems.empty()) throw ConfigError("zerocal experiment cell", problems);
+  return config;
+}
+
+}  // namespace
+
+CLI::App* addCellExperiment(CLI::App& experiment, CellExperimentArgs& args) {
+  CLI::App* cmd = experiment.add_subcommand(
+      "cell",
+      "whole calibrations on the simulated cell (real client and driver), one per seeded world, "
+      "with the daemon's default settings; exit 0 when every estimate of delta2..delta5 is within "
+      "3 sigma of the truth, their RMS error <= 0.005 deg and every calibration <= 90 s of cell "
+      "time, else 7");
+  cmd->add_option("--worlds", args.worlds, "number of seeded worlds")
+      ->default_val(args.worlds)
+      ->check(CLI::Range(1, 10000));
+  cmd->add_option("--seed0", args.seed0, "seed of the first world (then seed0+1, ...)")
+      ->default_val(args.seed0);
+  cmd->add_option("--set", args.overrides,
+                  "override one daemon configuration key: section.key=value (repeatable)");
+  cmd->add_flag("--json", args.json, "print one JSON object instead of text");
+  return cmd;
+}
+
+int runCellExperiment(const CellExperimentArgs& args) {
+  const DaemonConfig config = configOf(args.overrides);
+  const TempDir dir;
+  Json worlds = Json::array();
+  double sum_sq = 0, worst_sigmas = 0, max_cell_s = 0;
+  int estimates = 0, failed_runs = 0;
+  // Per pose over the worlds: sums for the mean breakdown, maxima of the moves.
+  struct PoseSums {
+    double move_s = 0, acquisition_s = 0, servo_s = 0, settle_s = 0;
+    int servo_moves_max = 0, search_moves_max = 0, count = 0;
+    long servo_moves = 0;
+  };
+  std::vector<PoseSums> per_pose;
+  if (!args.json)
+    std::printf("%6s %9s %7s %6s  %s\n", "seed", "state", "cell_s", "moves",
+                "error deg (sigmas) of delta2 .. delta5");
+
+  for (int w = 0; w < args.worlds; ++w) {
+    // The daemon's own parts, from the same configuration: the backend, the session manager with
+    // its run settings and recovery hooks, its plan, journal, solve and result.
+    const std::uint64_t seed = args.seed0 + static_cast<std::uint64_t>(w);
+    DaemonConfig world_config = config;
+    world_config.backend.kind = BackendKind::kSim;
+    world_config.backend.sim_seed = seed;
+    world_config.session.data_dir = dir.path + "/" + std::to_string(seed);
+    service::ManagerSettings settings = service::managerSettingsOf(world_config);
+    settings.write_reports = nullptr;  // figures only
+    const std::unique_ptr<service::CellBackend> backend = service::makeBackend(world_config);
+    service::SessionManager manager(*backend, settings);
+    std::string message;
+    try {
+      manager.start(manager.defaultRequest());
+    } catch (const service::Refused& e) {
+      message = e.what();
+    }
+    const service::SessionStatus end = manager.waitIdle();
+    const bool completed = message.empty() && end.state == service::SessionState::kDone;
+    if (message.empty()) message = end.message;
+    const Json result = completed ? manager.result(end.session_id) : Json::object();
+    const double cell_time_s = end.cell_time_s;
+
+    Json world{{"seed", seed}, {"cell_time_s", cell_time_s}};
+    world["state"] = completed ? "completed" : service::stateName(end.state);
+    if (!completed) {
+      ++failed_runs;
+      world["message"] = message;
+    }
+    max_cell_s = std::max(max_cell_s, cell_time_s);
+    int moves = 0;
+    if (completed) {
+      for (const Json& pose : result["pose_breakdown"]) {
+        const int i = pose["pose"].get<int>() - 1;
+        const int pose_moves = pose["servo_moves"].get<int>();
+        moves += pose_moves;
+        if (per_pose.size() <= static_cast<std::size_t>(i)) per_pose.resize(i + 1);
+        PoseSums& p = per_pose[i];
+        p.move_s += pose["move_s"].get<double>();
+        p.acquisition_s += pose["acquisition_s"].get<double>();
+        p.servo_s += pose["servo_s"].get<double>();
+        p.settle_s += pose["settle_s"].get<double>();
+        p.servo_moves += pose_moves;
+        p.servo_moves_max = std::max(p.servo_moves_max, pose_moves);
+        p.search_moves_max = std::max(p.search_moves_max, pose["search_moves"].get<int>());
+        ++p.count;
+      }
+      world["poses"] = result["pose_breakdown"];
+      world["recoveries"] = result["recoveries"];
+    }
+    world["servo_moves"] = moves;
+    std::string line;
+    if (completed) {
+      Json offsets = Json::array();
+      for (int k = 0; k < kOffsetCount; ++k) {
+        const std::string name = unknownName(k);
+        const Json& e = result["parameters"][name];
+        const double truth = result["truth"][name].get<double>();
+        const double value = e["value"].get<double>(), sigma = e["sigma"].get<double>();
+        const double error = value - truth;
+        const double sigmas = std::abs(error) / sigma;
+        sum_sq += error * error;
+        worst_sigmas = std::max(worst_sigmas, sigmas);
+        ++estimates;
+        offsets.push_back({{"name", name},
+                           {"value_deg", value},
+                           {"truth_deg", truth},
+                           {"error_deg", error},
+                           {"sigma_deg", sigma},
+                           {"error_sigmas", sigmas}});
+        char cell[48];
+        std::snprintf(cell, sizeof cell, " %+.5f (%.2f)", error, sigmas);
+        line += cell;
+      }
+      world["offsets"] = offsets;
+      world["chi2_per_dof"] = result["chi2_per_dof"];
+    } else {
+      line = " " + message;
+    }
+    if (!args.json)
+      std::printf("%6llu %9s %7.1f %6d %s\n", static_cast<unsigned long long>(seed),
+                  world["state"].get<std::string>().c_str(), cell_time_s, moves, line.c_str());
+    worlds.push_back(world);
+  }
+
+  const double rms = estimates > 0 ? std::sqrt(sum_sq / estimates) : 0.0;
+  const bool sigmas_ok = failed_runs == 0 && worst_sigmas <= args.max_sigmas;
+  const bool rms_ok = failed_runs == 0 && rms <= args.max_rms_deg;
+  const bool time_ok = failed_runs == 0 && max_cell_s <= args.max_cell_time_s;
+  const bool pass = sigmas_ok && rms_ok && time_ok;
+
+  Json breakdown = Json::array();
+  for (std::size_t i = 0; i < per_pose.size(); ++i) {
+    const PoseSums& p = per_pose[i];
+    const double n = std::max(1, p.count);
+    breakdown.push_back({{"pose", i + 1},
+                         {"mean_move_s", p.move_s / n},
+                         {"mean_acquisition_s", p.acquisition_s / n},
+                         {"mean_servo_s", p.servo_s / n},
+                         {"mean_settle_s", p.settle_s / n},
+                         {"mean_servo_moves", p.servo_moves / n},
+                         {"max_servo_moves", p.servo_moves_max},
+                         {"max_search_moves", p.search_moves_max}});
+  }
+  if (args.json) {
+    std::cout << Json{{"worlds", worlds},
+                      {"seed0", args.seed0},
+                      {"pose_breakdown", breakdown},
+                      {"failed_runs", failed_runs},
+                      {"rms_error_deg", rms},
+                      {"worst_error_sigmas", worst_sigmas},
+                      {"max_cell_time_s", max_cell_s},
+                      {"requirements",
+                       {{"max_error_sigmas", args.max_sigmas},
+                        {"max_rms_error_deg", args.max_rms_deg},
+                        {"max_cell_time_s", args.max_cell_time_s}}},
+                      {"pass", pass}}
+                     .dump(2)
+              << "\n";
+  } else {
+    std::printf("\nper pose, mean over the worlds (cell seconds) and servo moves\n");
+    std::printf("%5s %7s %13s %8s %9s %11s %10s %11s\n", "pose", "move_s", "acquisition_s",
+                "servo_s", "settle_s", "mean_moves", "max_moves", "max_search");
+    for (const Json& b : breakdown)
+      std::printf("%5d %7.2f %13.2f %8.2f %9.2f %11.1f %10d %11d\n", b["pose"].get<int>(),
+                  b["mean_move_s"].get<double>(), b["mean_acquisition_s"].get<double>(),
+                  b["mean_servo_s"].get<double>(), b["mean_settle_s"].get<double>(),
+                  b["mean_servo_moves"].get<double>(), b["max_servo_moves"].get<int>(),
+                  b["max_search_moves"].get<int>());
+    std::printf("\n%d worlds from seed %llu, %d did not complete\n", args.worlds,
+                static_cast<unsigned long long>(args.seed0), failed_runs);
+    std::printf("worst error    %.2f sigma   (<= %.1f)  %s\n", worst_sigmas, args.max_sigmas,
+                sigmas_ok ? "ok" : "FAIL");
+    std::printf("RMS error      %.5f deg (<= %.3f) %s\n", rms, args.max_rms_deg,
+                rms_ok ? "ok" : "FAIL");
+    std::printf("max cell time  %.1f s      (<= %.0f)   %s\n", max_cell_s, args.max_cell_time_s,
+                time_ok ? "ok" : "FAIL");
+  }
+  return pass ? 0 : kRequirementNotMet;
+}
+
+}  // namespace zerocal::cli

@@ -1,0 +1,32 @@
+// zerocal experiment cell: whole calibrations on the simulated cell, one per seeded world, with
+// the daemon's default settings, checked against issue 5's accuracy and speed requirements.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace zerocal::cli {
+
+// Exit code when every calibration ran but a requirement does not hold.
+constexpr int kRequirementNotMet = 7;  // 5 and 6 are the client commands' (cannot connect, token)
+
+struct CellExperimentArgs {
+  int worlds = 10;
+  std::uint64_t seed0 = 1;
+  bool json = false;
+  std::vector<std::string> overrides;  // daemon configuration keys, section.key=value
+  // The requirements (issue 5).
+  double max_sigmas = 3.0;
+  double max_rms_deg = 0.005;
+  double max_cell_time_s = 90.0;
+};
+
+CLI::App* addCellExperiment(CLI::App& experiment, CellExperimentArgs& args);
+
+// Returns 0 when every requirement holds, kRequirementNotMet when one does not; throws
+// ConfigError for a bad override.
+int runCellExperiment(const CellExperimentArgs& args);
+
+}  // namespace zerocal::cli

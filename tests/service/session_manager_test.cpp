@@ -296,7 +296,10 @@ TEST(SessionManager, DestroyedMidSessionItStopsCleanlyWithEveryRecordedPoseOnDis
     };
     manager.setEventSink(log.sink());
     id = manager.start(manager.defaultRequest());
-    two_recorded.get_future().wait();
+    // A session that ends before its second pose fails here instead of waiting forever.
+    ASSERT_EQ(two_recorded.get_future().wait_for(std::chrono::seconds(120)),
+              std::future_status::ready)
+        << "pose 2 never recorded: " << manager.status().message;
   }  // as on SIGTERM: the destructor aborts, stops the robot and joins the worker
   const std::vector<int> indices = journalIndices(dir.path + "/" + id + "/journal.jsonl");
   ASSERT_GE(indices.size(), 2u);

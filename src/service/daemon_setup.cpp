@@ -21,12 +21,6 @@ RunSettings runSettingsOf(const DaemonConfig& config) {
   o.max_search_time_s = c.search_time_s;
   o.limit_margin_deg = config.controller.limit_margin_deg;
   s.solve.noise_mm = config.session.noise_mm;
-  // No Broyden updates: with 0.02 mm of repeatability a move's own error at the PSD (~0.02 mm)
-  // is as large as the motions the updates learn from, and corrupts the Jacobian. Measured with
-  // `zerocal experiment cell --worlds 30 --seed0 11`: updates gated at 0.02 mm of predicted motion
-  // faulted 5 of the first 10 worlds (spot lost, not converged), at 0.3 mm 2 of 30, without
-  // updates 1 of 30 (a spot not found, unrelated); the nominal Jacobian suffices in hit-point mode.
-  o.broyden = false;
   return s;
 }
 

@@ -68,6 +68,7 @@ std::string ServoOptions::validate() const {
   if (!(limit_margin_deg >= 0)) return "limit_margin_deg must not be negative";
   if (!(gain > 0 && gain <= 1)) return "gain must be in (0, 1]";
   if (!(damping_mm >= 0)) return "damping_mm must not be negative";
+  if (!(jacobian_prior_mm > 0)) return "jacobian_prior_mm must be positive";
   if (max_iterations < 1) return "max_iterations must be at least 1";
   if (!(max_time_s > 0)) return "max_time_s must be positive";
   if (!(search_step_mm > 0)) return "search_step_mm must be positive";
@@ -266,7 +267,12 @@ Joints PsdServo::solveStep(const ImageJacobian& j, const Eigen::Vector2d& e) con
 }
 
 void PsdServo::fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& result) noexcept {
-  ImageJacobian j = imageJacobian(cell_, psd_centre_, q_);
+  const ImageJacobian j = imageJacobian(cell_, psd_centre_, q_);
+  // The online correction A of the header: A = observed_moments * motion_moments^-1.
+  const double prior = options_.jacobian_prior_mm * options_.jacobian_prior_mm;
+  Eigen::Matrix2d motion_moments = prior * Eigen::Matrix2d::Identity();
+  Eigen::Matrix2d observed_moments = motion_moments;
+  Eigen::Matrix2d correction = Eigen::Matrix2d::Identity();
   const Eigen::Vector2d target(options_.target_u_mm, options_.target_v_mm);
   bool have_previous = false;  // a move between the previous reading and this one
   Eigen::Vector2d e_previous = Eigen::Vector2d::Zero();
@@ -303,18 +309,18 @@ void PsdServo::fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& res
       }
     }
     settling = false;
-    // Broyden's correction, only from motion the noise cannot fake and readings the map trusts.
-    if (options_.broyden && have_previous && previous_valid && r.in_valid_zone) {
+    if (options_.correct_jacobian && have_previous && previous_valid && r.in_valid_zone) {
       const Eigen::Vector2d predicted = j * dq_previous;
-      if (predicted.norm() >= options_.broyden_min_motion_mm)
-        j += ((e - e_previous) - predicted) * dq_previous.transpose() / dq_previous.squaredNorm();
+      motion_moments += predicted * predicted.transpose();
+      observed_moments += (e - e_previous) * predicted.transpose();
+      correction = observed_moments * motion_moments.inverse();  // both start at w^2 I
     }
     if (result.iterations >= options_.max_iterations ||
         r.time_s - result.acquired_s > options_.max_time_s) {
       latch(result, ServoStatus::kNotConverged, "iterations or time exhausted");
       return;
     }
-    const Joints next = solveStep(j, e);
+    const Joints next = solveStep(correction * j, e);
     dq_previous = toVector(next) - toVector(q_);
     e_previous = e;
     previous_valid = r.in_valid_zone;

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <atomic>
 #include <cmath>
 #include <cstdlib>
@@ -161,6 +162,40 @@ TEST(PsdServo, AcquiresAndConvergesToTwoMicrometresWithOneDegreeOffsets) {
     std::printf("seed %d: %d moves (%d searching), %d iterations, %.2f um, %.2f s\n",
                 static_cast<int>(seed), r.moves, r.search_moves, r.iterations, r.final_error_um,
                 r.end_s - r.start_s);
+  }
+}
+
+// The PSD taught 60 deg off about its normal: the model's spot motion is rotated 60 deg from the
+// true one. The servo's fitted correction A recovers it; the model alone, at gain 0.9, shrinks
+// the error by only |1 - 0.9 e^(i 60 deg)| = 0.95 per move.
+TEST(PsdServo, CorrectsAJacobianRotatedBySixtyDegreesFromTheObservedMotion) {
+  for (std::uint64_t seed : {1u, 2u, 5u}) {
+    Scenario s = scenario(seed);
+    CellModel wrong = s.cell;
+    wrong.psd_rotation =
+        s.cell.psd_rotation * Eigen::AngleAxisd(60.0 * kPi / 180.0, Eigen::Vector3d::UnitZ());
+    int iterations[2] = {0, 0};
+    bool converged[2] = {false, false};
+    for (const bool correct : {false, true}) {
+      RecordingLink link(s.planned);
+      ExactPsd psd(s.world, link);
+      ServoOptions o = centreOptions();
+      o.correct_jacobian = correct;
+      PsdServo servo(wrong, s.world.psd_position_mm, o);
+      const ServoResult r = servo.run(link, psd, s.planned);
+      iterations[correct] = r.iterations;
+      converged[correct] = r.ok();
+      expectMovesWithinBounds(s.cell.robot, s.planned, link.moves, o);
+      if (correct) {
+        ASSERT_TRUE(r.ok()) << "seed " << seed << ": " << servo.fault().message;
+        const auto hit = beamHit(s.world, link.q);
+        EXPECT_LE(std::hypot(hit->u_mm, hit->v_mm), 0.002);
+      }
+    }
+    std::printf("seed %d, model rotated 60 deg: %d iterations corrected, %d uncorrected (%s)\n",
+                static_cast<int>(seed), iterations[1], iterations[0],
+                converged[0] ? "converged" : "not converged");
+    EXPECT_TRUE(!converged[0] || iterations[0] >= 2 * iterations[1]) << "seed " << seed;
   }
 }
 

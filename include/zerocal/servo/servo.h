@@ -11,11 +11,18 @@
 //
 // Fine servo: e = (u, v) - target; dq = -gain J^+ e, with J = d(u, v)/dq the image Jacobian
 // predicted by the nominal kinematics and laser through the PSD's known orientation, and J^+ its
-// minimum-norm pseudo-inverse (damped). After each move J is corrected from the observed motion
-// (Broyden):
+// minimum-norm pseudo-inverse (damped). The model is a little wrong (the PSD's orientation and
+// distance as taught, the laser's mounting, the offsets being calibrated), mostly as a rotation
+// and scale of the spot's motion; so the servo steers with A J, where the 2 x 2 A is fitted online
+// to every observed motion de of a move dq, p = J dq:
 //
-//   J <- J + (de - J dq) dq^T / (dq^T dq),      only when both readings are in the valid zone
-//                                               and the predicted motion clears the noise.
+//   A = (sum de p^T + w^2 I) (sum p p^T + w^2 I)^-1,  w = jacobian_prior_mm,
+//
+// only from moves between two readings in the valid zone. The prior term keeps A = I until the
+// predicted motions add up to more than w: a move's own error at the PSD (robot repeatability,
+// ~0.03 mm) is as large as a fine-servo step, and a rank-one Broyden update of J from such steps
+// was measured to lose the spot (docs/servo.md); two numbers per axis fitted to all the moves
+// average that error out.
 //
 // Every move is checked before it is sent: no joint moves more than max_step_deg (longer walks
 // are split), and no target lies outside the limits less limit_margin_deg.
@@ -74,8 +81,8 @@ struct ServoOptions {
   int max_iterations = 40;
   double max_time_s = 20;  // fine servo, from acquisition, cell clock
 
-  bool broyden = true;
-  double broyden_min_motion_mm = 0.02;
+  bool correct_jacobian = true;     // fit A (above); false: the model's J throughout
+  double jacobian_prior_mm = 0.3;  // w above: the motion that weighs as much as the model
 
   double search_step_mm = 2.0;
   // Offsets of 1 deg, the laser's mounting and the teaching error miss by up to ~55 mm.

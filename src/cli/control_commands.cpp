@@ -43,7 +43,10 @@ std::string progressLine(const json& s) {
     line += "  pose " + std::to_string(s.value("pose", 0)) + " of " +
             std::to_string(s.value("pose_count", 0)) + "  recorded " +
             std::to_string(s.value("recorded", 0));
-  if (s.value("recorded", 0) > 0)
+  const json live = s.value("live_servo_error_um", json(nullptr));
+  if (live.is_number())  // servoing now: where the spot is
+    line += "  servo error " + format("%.1f", live.get<double>()) + " um now";
+  else if (s.value("recorded", 0) > 0)
     line += "  servo error " + format("%.1f", s.value("last_servo_error_um", 0.0)) + " um";
   if (s.value("cell_time_s", 0.0) > 0)
     line += "  " + format("%.0f", s["cell_time_s"].get<double>()) + " s";
@@ -60,7 +63,10 @@ void printStatus(const json& s, std::ostream& out) {
   if (s.value("resumed_from", 0) > 0) out << " (resumed from " << s["resumed_from"] << ")";
   out << "\n";
   out << "servo:      " << format("%.2f", s.value("last_servo_error_um", 0.0))
-      << " um at the last recorded pose\n";
+      << " um at the last recorded pose";
+  const json live = s.value("live_servo_error_um", json(nullptr));
+  if (live.is_number()) out << ", " << format("%.2f", live.get<double>()) << " um now";
+  out << "\n";
   out << "predicted:  " << sigmaText(s.value("predicted_sigma_deg", json::array())) << "\n";
   out << "achieved:   " << sigmaText(s.value("achieved_sigma_deg", json::array())) << "\n";
   if (s.contains("message")) out << "message:    " << s["message"].get<std::string>() << "\n";

@@ -71,7 +71,7 @@ service::StartRequest parseStartRequest(const json& request,
     const auto& n = request["noise_mm"];
     if (!n.is_number()) throw BadRequest("noise_mm: expected a number");
     const double v = n.get<double>();
-    if (!(v > 0 && v < 10)) throw BadRequest("noise_mm: " + n.dump() + " is outside (0, 10)");
+    if (!(v > 0 && v <= 10)) throw BadRequest("noise_mm: " + n.dump() + " is outside (0, 10]");
     r.noise_mm = v;
   }
   return r;
@@ -102,6 +102,11 @@ json toJson(const service::SessionStatus& s) {
          {"recorded", s.recorded},
          {"resumed_from", s.resumed_from},
          {"last_servo_error_um", s.last_servo_error_um},
+         // While servoing, the latest reading's distance from the centre; null otherwise, or
+         // when the spot is off the detector.
+         {"live_servo_error_um", s.live_servo_error_um && std::isfinite(*s.live_servo_error_um)
+                                     ? json(*s.live_servo_error_um)
+                                     : json(nullptr)},
          {"predicted_sigma_deg", sigmas(s.predicted_sigma_deg)},
          {"achieved_sigma_deg", sigmas(s.achieved_sigma_deg)},
          {"cell_time_s", s.cell_time_s}};

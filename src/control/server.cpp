@@ -9,6 +9,7 @@
 #include <boost/asio/thread_pool.hpp>
 #include <boost/asio/write.hpp>
 #include <deque>
+#include <functional>
 #include <set>
 
 #include "report_format.h"
@@ -207,6 +208,11 @@ class Connection : public std::enable_shared_from_this<Connection> {
       send(errorResponse(id, e.code(), e.what()));
     } catch (const json::exception& e) {
       send(errorResponse(id, code::kBadRequest, e.what()));
+    } catch (const std::exception& e) {
+      // A result.json that does not parse, a session folder that cannot be written: the request
+      // fails, the connection and the daemon go on.
+      server_->log_->error("{}: {} failed: {}", peer_, cmd, e.what());
+      send(errorResponse(id, code::kInternal, e.what()));
     }
     return true;
   }
@@ -233,9 +239,11 @@ class Connection : public std::enable_shared_from_this<Connection> {
       r["status"] = toJson(session.status());
     } else if (cmd == "start") {
       const auto start = parseStartRequest(request, options.default_request);
-      const auto session_id = session.start(start);
-      server_->log_->info("{}: started session {}", peer_, session_id);
-      r["session"] = session_id;
+      return answerAside(id, [&session, start, log = server_->log_, peer = peer_] {
+        const auto session_id = session.start(start);
+        log->info("{}: started session {}", peer, session_id);
+        return json{{"session", session_id}};
+      });
     } else if (cmd == "resume") {
       const auto session_id = session.resume(optionalString(request, "session"));
       server_->log_->info("{}: resumed session {}", peer_, session_id);
@@ -258,7 +266,10 @@ class Connection : public std::enable_shared_from_this<Connection> {
       readPsd(id);
       return false;
     } else if (cmd == "plan") {
-      return preview(id, parseStartRequest(request, options.default_request));
+      const auto plan = parseStartRequest(request, options.default_request);
+      return answerAside(id, [&session, plan] {
+        return json{{"plan", toJson(session.preview(plan))}};
+      });
     } else {
       send(errorResponse(id, code::kUnknownCommand, "unknown command '" + cmd + "'"));
       return true;
@@ -305,26 +316,32 @@ class Connection : public std::enable_shared_from_this<Connection> {
     });
   }
 
-  bool preview(const json& id, const service::StartRequest& request) {
+  // Work that plans (a preview, a start) takes about a second: it runs on the planning thread so
+  // that every other connection goes on being answered, and this one reads its next line once
+  // the answer is sent. `work` returns the members of the ok response or throws.
+  bool answerAside(const json& id, std::function<json()> work) {
     auto& server = *server_;
     if (server.pending_previews_.fetch_add(1) >= server.options_.max_pending_previews) {
       server.pending_previews_.fetch_sub(1);
-      send(errorResponse(id, "busy", "too many plan previews queued; try again shortly"));
+      send(errorResponse(id, "busy", "too many plans queued; try again shortly"));
       return true;
     }
     auto executor = server.io_.get_executor();
     std::weak_ptr<Connection> weak = shared_from_this();
-    auto* session = &server.session_;
     auto* pending = &server.pending_previews_;  // the pool is joined before the core dies
-    asio::post(server.previews_, [executor, weak, id, request, session, pending] {
+    asio::post(server.previews_, [executor, weak, id, work = std::move(work), pending] {
       json response;
       try {
         response = okResponse(id);
-        response["plan"] = toJson(session->preview(request));
+        response.update(work());
       } catch (const service::Refused& e) {
         response = errorResponse(id, e.code(), e.what());
-      } catch (const std::exception& e) {
+      } catch (const BadRequest& e) {
         response = errorResponse(id, code::kBadRequest, e.what());
+      } catch (const InputError& e) {  // a plan file that is not there or does not parse
+        response = errorResponse(id, code::kBadRequest, e.what());
+      } catch (const std::exception& e) {
+        response = errorResponse(id, code::kInternal, e.what());
       }
       pending->fetch_sub(1);
       asio::post(executor, [weak, response = std::move(response)] {

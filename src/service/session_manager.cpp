@@ -1,5 +1,6 @@
 #include "zerocal/service/session_manager.h"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <limits>
@@ -445,7 +446,8 @@ void SessionManager::setPhase(SessionState state, int pose) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     status_.state = state;
-    status_.pose = pose;
+    // The run numbers the solve after the last pose; a terminal shows it as pose N of N.
+    status_.pose = std::min(pose, status_.pose_count);
     event = stateEvent();
   }
   changed_.notify_all();
@@ -500,7 +502,15 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
     run_settings.reconnect_link = [this] { cell_->reconnectRobot(); };
     run_settings.reopen_sensor = [this] { cell_->reopenPsd(); };
     CalibrationRun run(knowledge_.cell, target, plan, run_settings, journal);
-    run.on_phase = [this](int i, RunPhase phase) { setPhase(stateOf(phase), i + 1); };
+    const double start_s = cell_->clock().nowS();
+    run.on_phase = [this, start_s](int i, RunPhase phase) {
+      {
+        // The cell's clock is the worker's to read: the status gets its time at each phase.
+        std::lock_guard<std::mutex> lock(mutex_);
+        status_.cell_time_s = cell_->clock().nowS() - start_s;
+      }
+      setPhase(stateOf(phase), i + 1);
+    };
     run.on_pose = [this, &id](const PoseRecord& r) {
       nlohmann::json event{{"event", "pose"},
                            {"session", id},
@@ -516,7 +526,6 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
       emit(event);
     };
     ObservedReader<LiveSlot> reader(cell_->psd(), *live_);
-    const double start_s = cell_->clock().nowS();
     outcome = run.run(cell_->robot(), reader, cell_->clock(), abort_);
     cell_time_s = cell_->clock().nowS() - start_s;
   } catch (const std::exception& e) {

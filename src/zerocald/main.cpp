@@ -170,7 +170,7 @@ int main(int argc, char** argv) {
     control::ControlServer server(io, manager, std::move(options));
     try {
       server.start();
-    } catch (const boost::system::system_error& e) {
+    } catch (const std::exception& e) {  // address in use, not an address of this machine
       throw ConfigError("zerocald", {"control port " + cfg.control.bind_address + ":" +
                                      std::to_string(cfg.control.port) + ": " + e.what()});
     }

@@ -13,16 +13,27 @@ FakeSession::~FakeSession() {
 
 service::SessionStatus FakeSession::status() const {
   std::lock_guard<std::mutex> lock(mutex_);
-  return status_;
+  service::SessionStatus s = status_;
+  if (s.state == SessionState::kServoing) s.live_servo_error_um = 12.5;  // as the real one shows
+  return s;
 }
+
+namespace {
+
+// Burns CPU for `time`, as planning does.
+void spin(std::chrono::milliseconds time) {
+  const auto until = std::chrono::steady_clock::now() + time;
+  volatile double x = 0;
+  while (std::chrono::steady_clock::now() < until)
+    for (int i = 0; i < 1000; ++i) x = x + std::sqrt(static_cast<double>(i));
+}
+
+}  // namespace
 
 Plan FakeSession::preview(const service::StartRequest& request) const {
   if (request.poses < 6) throw Refused("bad_request", "at least 6 poses are needed");
   // Busy CPU like the planner, not a sleep: the io thread must not be the one doing it.
-  const auto until = std::chrono::steady_clock::now() + preview_time;
-  volatile double x = 0;
-  while (std::chrono::steady_clock::now() < until)
-    for (int i = 0; i < 1000; ++i) x = x + std::sqrt(static_cast<double>(i));
+  spin(preview_time);
   Plan plan;
   plan.description = "fake plan of " + std::to_string(request.poses) + " poses";
   plan.poses.resize(request.poses);
@@ -35,6 +46,7 @@ Plan FakeSession::preview(const service::StartRequest& request) const {
 
 std::string FakeSession::start(const service::StartRequest& request) {
   ++start_calls_;
+  spin(start_time);  // the real start plans before it answers
   std::lock_guard<std::mutex> lock(mutex_);
   if (service::isActive(status_.state))
     throw Refused("busy", "session " + status_.session_id + " is " +

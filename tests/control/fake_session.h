@@ -1,5 +1,5 @@
 // A SessionControl without a cell, for the control port's tests and its load test: states change
-// when told, start/resume refuse like the real one, preview burns CPU for a set time, readPsd
+// when told, start/resume refuse like the real one, preview and start burn CPU for a set time, readPsd
 // answers from another thread, and events are emitted from the calling thread (as the real one
 // does from its worker).
 #pragma once
@@ -35,6 +35,7 @@ class FakeSession : public service::SessionControl {
   int abortCalls() const { return abort_calls_; }
   service::StartRequest lastRequest() const;
   std::chrono::milliseconds preview_time{0};  // preview() spins this long
+  std::chrono::milliseconds start_time{0};    // start() spins this long before it answers
   bool psd_fails = false;
 
  private:

@@ -212,6 +212,9 @@ TEST_F(ControlServerTest, Status) {
   EXPECT_EQ(s["active"], true);
   EXPECT_EQ(s["pose"], 3);
   EXPECT_EQ(s["pose_count"], 8);
+  EXPECT_EQ(s["live_servo_error_um"], 12.5);
+  session_.setState(SessionState::kMoving, 4, 8);
+  EXPECT_TRUE(connect()->call("status")["status"]["live_servo_error_um"].is_null());
 }
 
 TEST_F(ControlServerTest, StartPassesThePlanChoice) {
@@ -337,6 +340,24 @@ TEST_F(ControlServerTest, StatusStaysFastWhileAPlanIsComputed) {
   }
   const auto r = json::parse(*planner->readLine(3s));
   EXPECT_EQ(r["ok"], true);
+}
+
+// A start plans for about a second before it answers: the others are answered meanwhile.
+TEST_F(ControlServerTest, StatusStaysFastWhileAStartPlans) {
+  session_.start_time = 600ms;
+  auto starter = connect();
+  starter->sendRaw(toLine({{"id", 1}, {"cmd", "start"}}));
+  std::this_thread::sleep_for(50ms);  // the start is planning now
+  auto c = connect();
+  for (int i = 0; i < 20; ++i) {
+    const auto t0 = std::chrono::steady_clock::now();
+    c->call("status");
+    EXPECT_LT(std::chrono::steady_clock::now() - t0, 50ms);
+  }
+  const auto r = json::parse(*starter->readLine(3s));
+  EXPECT_EQ(r["ok"], true);
+  EXPECT_EQ(r["id"], 1);
+  EXPECT_EQ(r["session"], "20261122-0001");
 }
 
 // -- bad input ---------------------------------------------------------------------------------

@@ -56,14 +56,17 @@ std::vector<int> journalIndices(const std::string& path) {
 // from the log ("control port listening on 127.0.0.1:PORT").
 class Daemon {
  public:
-  Daemon(const std::string& dir, const std::string& name) : log_(dir + "/" + name + ".log") {
-    const std::vector<std::string> args = {ZEROCALD,     "--sim",
+  Daemon(const std::string& dir, const std::string& name,
+         const std::vector<std::string>& extra_args = {})
+      : log_(dir + "/" + name + ".log") {
+    std::vector<std::string> args = {ZEROCALD,     "--sim",
                                            "--seed",     "4",
                                            "--config",   "/dev/null",
                                            "--data-dir", dir + "/sessions",
                                            "--set",      "control.token_file=" + dir + "/token",
                                            "--set",      "control.port=0",
                                            "--set",      "backend.sim_pace=0.05"};
+    args.insert(args.end(), extra_args.begin(), extra_args.end());
     std::vector<char*> argv;
     for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
     argv.push_back(nullptr);
@@ -84,7 +87,9 @@ class Daemon {
       int status = 0;
       if (::waitpid(pid_, &status, WNOHANG) == pid_) {
         pid_ = -1;
-        throw std::runtime_error("zerocald exited at start: " + readFile(log_));
+        throw std::runtime_error("zerocald exited at start (exit " +
+                                 std::to_string(WIFEXITED(status) ? WEXITSTATUS(status) : -1) +
+                                 "): " + readFile(log_));
       }
       std::this_thread::sleep_for(10ms);
     }
@@ -195,6 +200,21 @@ TEST_F(ZerocaldProcess, SigtermDuringASessionStopsTheRobotKeepsTheJournalAndExit
   EXPECT_LT(indices.size(), 8u);
   for (std::size_t i = 0; i < indices.size(); ++i) EXPECT_EQ(indices[i], static_cast<int>(i));
   EXPECT_FALSE(std::filesystem::exists(dir_.path + "/sessions/" + id + "/result.json"));
+}
+
+// A second daemon on a port already served: a configuration error (exit 2) naming the port, not
+// a daemon without its port.
+TEST_F(ZerocaldProcess, AControlPortInUseIsAConfigurationError) {
+  Daemon first(dir_.path, "first");
+  const std::string port = std::to_string(first.port());
+  try {
+    Daemon second(dir_.path, "second", {"--set", "control.port=" + port});
+    ADD_FAILURE() << "a second daemon listens on port " << port;
+  } catch (const std::runtime_error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("(exit 2)"), std::string::npos) << what;
+    EXPECT_NE(what.find("control port 127.0.0.1:" + port), std::string::npos) << what;
+  }
 }
 
 }  // namespace

@@ -87,9 +87,13 @@ TEST(SessionManager, RunsASessionToDoneThroughEveryStateWithAResultNearTheTruth)
   const std::string id = manager.start(manager.defaultRequest());
   // Polled as a terminal would: the live servo error shows while servoing, and only then.
   int live_seen = 0, polls = 0, servoing = 0, any = 0;
+  double cell_time_s = 0;
   for (SessionStatus s = manager.status(); isActive(s.state); s = manager.status()) {
     std::this_thread::sleep_for(std::chrono::microseconds(200));
     ++polls;
+    EXPECT_LE(s.pose, s.pose_count) << stateName(s.state);  // solving is not "pose 9 of 8"
+    EXPECT_GE(s.cell_time_s, cell_time_s);  // the cell time runs during the session
+    cell_time_s = s.cell_time_s;
     if (s.state == SessionState::kServoing) ++servoing;
     if (s.live_servo_error_um) {
       EXPECT_EQ(s.state, SessionState::kServoing);
@@ -101,6 +105,7 @@ TEST(SessionManager, RunsASessionToDoneThroughEveryStateWithAResultNearTheTruth)
     }
   }
   EXPECT_GT(live_seen, 0) << polls << " polls, " << servoing << " servoing, " << any << " any";
+  EXPECT_GT(cell_time_s, 10.0);  // seen before the end: 8 poses take tens of cell seconds
   const SessionStatus end = manager.waitIdle();
   ASSERT_EQ(end.state, SessionState::kDone) << end.message;
   EXPECT_EQ(end.session_id, id);

@@ -1,21 +1,57 @@
 #!/usr/bin/env bash
 # Installs the dependencies, builds zerocal, and runs the main jobs on the embedded defaults:
-# the paper's Table II experiment (a simulated IRB1600: patterns I, II and the optimal plan),
-# then one complete calibration on the simulated cell (zerocald --sim --once: the simulated
-# controller over TCP and the simulated USB-1408FS, the PSD servo at every pose, the journal,
-# the solve), printing the identified offsets next to the simulated truth; then the session's
-# summary.txt and report.html (zerocal report).
+# 1. the paper's Table II experiment (a simulated IRB1600: patterns I, II and the optimal plan);
+# 2. the cell daemon on the simulated cell (zerocald --sim: the simulated controller over TCP and
+#    the simulated USB-1408FS, in-process), a calibration started and watched from the shop-floor
+#    client (zerocal start --watch) over the authenticated control port, its result printed next
+#    to the simulated truth, and the session's summary.txt and report.html (zerocal report).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/install-deps.sh
 cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release
 cmake --build build --parallel "$(nproc)"
 build/bin/zerocal experiment table2
+
 echo
-echo "=== zerocald --sim --once: a full calibration on the simulated cell ==="
-build/bin/zerocald --sim --once --seed "${ZEROCAL_SEED:-1}" --config /dev/null \
-  --data-dir build/sessions
-session=$(ls -d build/sessions/*/ | sort | tail -n 1)
+echo "=== zerocald --sim: the cell daemon on the simulated cell ==="
+demo=build/demo
+mkdir -p "${demo}"
+# The control port's token: owner-only, or zerocald refuses it.
+(umask 077 && head -c 24 /dev/urandom | base64 > "${demo}/token")
+export ZEROCAL_TOKEN_FILE="${demo}/token"
+log="${demo}/zerocald.log"
+# sim_pace 0.1: the simulated cell runs ten times faster than a real one (a minute of cell time
+# in a few seconds); control.port 0: any free port, read back from the log.
+build/bin/zerocald --sim --seed "${ZEROCAL_SEED:-1}" --config /dev/null \
+  --data-dir "${demo}/sessions" --set control.token_file="${ZEROCAL_TOKEN_FILE}" \
+  --set control.port=0 --set backend.sim_pace=0.1 > "${log}" 2>&1 &
+daemon=$!
+trap 'kill "${daemon}" 2>/dev/null || true' EXIT
+port=""
+for _ in $(seq 100); do
+  port=$(sed -n 's/.*control port listening on 127\.0\.0\.1:\([0-9]*\).*/\1/p' "${log}")
+  [ -n "${port}" ] && break
+  kill -0 "${daemon}" 2>/dev/null || { cat "${log}"; exit 1; }
+  sleep 0.1
+done
+[ -n "${port}" ] || { echo "zerocald did not open its port"; cat "${log}"; exit 1; }
+echo "zerocald (pid ${daemon}) serves 127.0.0.1:${port}; its log: ${log}"
+
+echo
+echo "=== zerocal start --watch: a calibration from the shop-floor client ==="
+build/bin/zerocal plan --port "${port}"
+build/bin/zerocal start --port "${port}" --watch
+echo
+build/bin/zerocal status --port "${port}"
+
+echo
+echo "=== zerocal result: identified offsets next to the simulated truth ==="
+build/bin/zerocal result --port "${port}"
+
+kill -TERM "${daemon}"
+wait "${daemon}" || true
+trap - EXIT
+session=$(ls -d "${demo}"/sessions/*/ | sort | tail -n 1)
 echo
 echo "=== zerocal report ${session}: summary.txt and report.html (open it in a browser) ==="
 build/bin/zerocal report "${session}"

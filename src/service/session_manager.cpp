@@ -300,6 +300,8 @@ class SessionManager::Claim {
                                 stateName(m_.status_.state) +
                                 ": one session at a time (abort it first)");
     m_.starting_ = true;
+    // From here an abort is for the session being started: it ends before it connects.
+    m_.abort_ = false;
   }
   ~Claim() {
     {
@@ -346,7 +348,6 @@ std::string SessionManager::start(const StartRequest& request) {
     s.predicted_sigma_deg.assign(plan.prediction.sigma.begin(),
                                  plan.prediction.sigma.begin() + kOffsetCount);
     status_ = s;
-    abort_ = false;
     state_event = stateEvent();
   }
   live_->clear();
@@ -412,7 +413,6 @@ std::string SessionManager::resume(const std::string& requested) {
         s.predicted_sigma_deg.push_back(sigma.is_number() ? sigma.get<double>() : std::nan(""));
       }
     status_ = s;
-    abort_ = false;
     state_event = stateEvent();
   }
   live_->clear();
@@ -428,8 +428,11 @@ bool SessionManager::abort() {
   std::lock_guard<std::mutex> lock(mutex_);
   if (!isActive(status_.state) && !starting_) return false;
   abort_ = true;
-  makeLogger("session")->warn("abort requested for session {} ({})", status_.session_id,
-                              stateName(status_.state));
+  if (starting_)
+    makeLogger("session")->warn("abort requested while a session is being started");
+  else
+    makeLogger("session")->warn("abort requested for session {} ({})", status_.session_id,
+                                stateName(status_.state));
   return true;
 }
 

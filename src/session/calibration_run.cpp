@@ -10,7 +10,13 @@
 namespace zerocal {
 namespace {
 
-std::int64_t nanoseconds(double seconds) { return static_cast<std::int64_t>(seconds * 1e9); }
+// Wall time for the journal's timestamps (nanoseconds since the Unix epoch): when a pose was
+// measured, for the technician and the logs; durations come from the cell clock.
+std::int64_t unixNanoseconds() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
 
 enum class Failure { kNone, kLink, kSensor, kAborted, kOther };
 enum class Recovery { kDone, kFailed, kAborted };
@@ -92,6 +98,7 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, servo::PsdReader& psd,
       const Joints& target = plan_[i].q_deg;
       phase(i, RunPhase::kMoving);
       const double move_start = clock.nowS();
+      const std::int64_t move_started_ns = unixNanoseconds();
       try {
         robot.moveJoints(target);
         failure = Failure::kNone;
@@ -166,8 +173,8 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, servo::PsdReader& psd,
       record.v_mm = r.reading.v_mm;
       record.u_se_mm = r.reading.u_se_mm;
       record.v_se_mm = r.reading.v_se_mm;
-      record.move_started_ns = nanoseconds(move_start);
-      record.recorded_ns = nanoseconds(r.end_s);
+      record.move_started_ns = move_started_ns;
+      record.recorded_ns = unixNanoseconds();
       record.servo.moves = r.moves;
       record.servo.search_moves = r.search_moves;
       record.servo.iterations = r.iterations;

@@ -171,6 +171,27 @@ TEST(SessionManager, OneSessionAtATimeAndAbortStopsIt) {
   EXPECT_THROW(manager.result(id), Refused);
 }
 
+// An abort while `start` is still planning (about a second) is for the session being started:
+// it ends aborted before it connects, nothing moved; the previous session is not touched.
+TEST(SessionManager, AbortWhileStartIsPlanningAbortsTheNewSessionBeforeAnyMove) {
+  const TempDir dir;
+  sim::SimBackend backend(cellFor(7));
+  SessionManager manager(backend, settingsIn(dir.path));
+  auto started = std::async(std::launch::async,
+                            [&] { return manager.start(manager.defaultRequest()); });
+  bool aborted = false;
+  while (!aborted && started.wait_for(std::chrono::milliseconds(0)) != std::future_status::ready)
+    aborted = manager.abort();
+  ASSERT_TRUE(aborted) << "start answered before an abort landed";
+  const std::string id = started.get();
+  const SessionStatus end = manager.waitIdle();
+  EXPECT_EQ(end.session_id, id);
+  EXPECT_EQ(end.state, SessionState::kAborted) << end.message;
+  EXPECT_EQ(end.recorded, 0);
+  const std::string journal = dir.path + "/" + id + "/journal.jsonl";
+  EXPECT_TRUE(!std::filesystem::exists(journal) || std::filesystem::file_size(journal) == 0);
+}
+
 TEST(SessionManager, AnAbortedSessionResumesWithoutLosingOrRepeatingAPose) {
   const TempDir dir;
   sim::SimBackend backend(cellFor(7));

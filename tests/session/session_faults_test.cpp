@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <string>
@@ -308,6 +309,12 @@ TEST(SessionFaults, JournalKeepsTheServoPathAndTheBreakdownAddsUp) {
   Session s(27);
   double last_recorded_s = 0;
   std::vector<double> pose_cell_s;
+  const auto unix_ns = [] {
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(
+               std::chrono::system_clock::now().time_since_epoch())
+        .count();
+  };
+  const std::int64_t started_ns = unix_ns();
   const RunOutcome out = s.run(s.rig.client, s.rig.psd, [&](CalibrationRun& run) {
     run.on_phase = [&](int, RunPhase phase) {
       if (phase == RunPhase::kMoving) last_recorded_s = s.rig.cell.nowS();
@@ -317,10 +324,17 @@ TEST(SessionFaults, JournalKeepsTheServoPathAndTheBreakdownAddsUp) {
     };
   });
   ASSERT_EQ(out.state, RunState::kCompleted) << out.message;
+  const std::int64_t ended_ns = unix_ns();
   const std::vector<PoseRecord> records = s.journalled();
   ASSERT_EQ(records.size(), s.plan.size());
+  std::int64_t previous_ns = started_ns;
   for (std::size_t i = 0; i < records.size(); ++i) {
     const PoseRecord& r = records[i];
+    // Timestamps are wall time since the Unix epoch, in the order things happened.
+    EXPECT_LE(previous_ns, r.move_started_ns);
+    EXPECT_LE(r.move_started_ns, r.recorded_ns);
+    EXPECT_LE(r.recorded_ns, ended_ns);
+    previous_ns = r.recorded_ns;
     const ServoStats& st = r.servo;
     EXPECT_NEAR(st.move_s + st.acquisition_s + st.servo_s + st.settle_s, pose_cell_s[i], 1e-6);
     // Settling: at least once at the start and once for the settled pair, 0.2 s each.

@@ -79,7 +79,9 @@ int exitFor(const std::string& state) {
 // Follows the session until it ends. Events drive the display; a status poll every few seconds
 // also ends the watch if an event was missed.
 int watch(control::ControlClient& client, const ClientArgs& args, std::ostream& out, bool tty) {
-  json status = client.call("subscribe")["status"];
+  const auto timeout = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+      std::chrono::duration<double>(args.timeout_s));
+  json status = client.call("subscribe", json::object(), timeout)["status"];
   auto show = [&](const json& s, bool changed) {
     if (args.json) return;
     if (tty)
@@ -103,24 +105,28 @@ int watch(control::ControlClient& client, const ClientArgs& args, std::ostream& 
             status[item.key() == "servo_error_um" ? "last_servo_error_um" : item.key()] =
                 item.value();
         if (kind == "state") status["active"] = !isFinal(status.value("state", ""));
+        // The live error belongs to the servo; the next status event brings a fresh one.
+        if (kind == "pose" || status.value("state", "") != "servoing")
+          status.erase("live_servo_error_um");
         if (kind == "pose")
           status["recorded"] = std::max(status.value("recorded", 0), event->value("pose", 0));
       }
     }
     if (!event || std::chrono::steady_clock::now() - last_poll > std::chrono::seconds(5)) {
-      status = client.call("status")["status"];
+      status = client.call("status", json::object(), timeout)["status"];
       last_poll = std::chrono::steady_clock::now();
     }
     const auto line = progressLine(status);
     show(status, line != last_line);
     last_line = line;
   }
-  status = client.call("status")["status"];  // the final figures (achieved sigma, message)
+  status = client.call("status", json::object(), timeout)["status"];  // the final figures
   if (tty && !args.json) out << "\r\033[K";
   if (args.json) {
     out << json{{"status", status}}.dump() << "\n";
   } else {
-    out << progressLine(status) << "\n";
+    // Plain lines: the last one shown may already be the final one.
+    if (tty || progressLine(status) != last_line) out << progressLine(status) << "\n";
     if (status.contains("message")) out << status["message"].get<std::string>() << "\n";
     if (status.value("state", "") == "done")
       out << "achieved: " << sigmaText(status.value("achieved_sigma_deg", json::array())) << "\n";

@@ -152,6 +152,12 @@ TEST_F(ClientCommandsTest, WatchFollowsTheSessionToItsEnd) {
   EXPECT_THAT(out_.str(), HasSubstr("servoing  pose 2 of 8"));
   EXPECT_THAT(out_.str(), HasSubstr("servo error 1.2 um"));
   EXPECT_THAT(out_.str(), HasSubstr("done"));
+  // Plain lines: the final one once, with the recorded error, not the servo's live one.
+  const std::string text = out_.str();
+  const auto done = text.find("  done  ");
+  ASSERT_NE(done, std::string::npos) << text;
+  EXPECT_EQ(text.find("  done  ", done + 1), std::string::npos) << text;
+  EXPECT_EQ(text.substr(done).find(" um now"), std::string::npos) << text;
 }
 
 TEST_F(ClientCommandsTest, WatchOfAnAbortedSessionIsExitCode3) {

@@ -9,14 +9,19 @@
 //                           from request to result, and the CPU it costs.
 //   BM_StreamReading64      the same readings from a continuous scan (PsdStream): interval
 //                           between readings, no command round trips.
+//   BM_ChainPsdReading      one servo reading through ChainPsdReader (scan, average, spot
+//                           detector, degree-7 map) at the reader's defaults (64 at 16 kHz) and
+//                           the daemon's (100 at 1 kHz): CPU per reading and simulated latency.
 #include <benchmark/benchmark.h>
 
 #include <chrono>
 #include <ctime>
 
 #include "zerocal/psd/psd.h"
+#include "zerocal/servo/psd_reader.h"
 #include "zerocal/sim/fake_transport.h"
 #include "zerocal/sim/psd_model.h"
+#include "zerocal/sim/psd_rig.h"
 #include "zerocal/usb1408fs/usb1408fs.h"
 
 namespace {
@@ -165,6 +170,39 @@ void BM_StreamReading64(benchmark::State& state) {
       static_cast<double>(state.iterations());
 }
 BENCHMARK(BM_StreamReading64)->Unit(benchmark::kMicrosecond);
+
+// The board's clock, as the simulated cell's would be without a robot.
+class BoardClock final : public servo::CellClock {
+ public:
+  explicit BoardClock(sim::Usb1408fsModel& board) : board_(board) {}
+  double nowS() noexcept override { return std::chrono::duration<double>(board_.now()).count(); }
+
+ private:
+  sim::Usb1408fsModel& board_;
+};
+
+void BM_ChainPsdReading(benchmark::State& state) {
+  sim::SimulatedPsdRig rig;
+  sim::SweepOptions sweep;
+  sweep.step_mm = 0.1;
+  const psd::PsdMap map = psd::PsdMap::fit(sim::simulateSweep(rig, sweep), psd::MapFitOptions{});
+  rig.setSpot(sim::SpotPosition{0.1, -0.2});
+  BoardClock clock(rig.board());
+  servo::ChainPsdReaderOptions o;
+  o.samples = static_cast<std::size_t>(state.range(0));
+  o.rate_hz = static_cast<double>(state.range(1));
+  servo::ChainPsdReader reader(rig.daq(), map, clock, o);
+  double simulated = 0;
+  for (auto _ : state) {
+    const auto t0 = rig.board().now();
+    const servo::PsdReading r = reader.read();
+    simulated += std::chrono::duration<double>(rig.board().now() - t0).count();
+    benchmark::DoNotOptimize(r.u_mm);
+  }
+  state.counters["simulated_latency_ms"] =
+      1e3 * simulated / static_cast<double>(state.iterations());
+}
+BENCHMARK(BM_ChainPsdReading)->Args({64, 16000})->Args({100, 1000})->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 

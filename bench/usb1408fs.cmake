@@ -2,4 +2,5 @@
 # include(${CMAKE_CURRENT_LIST_DIR}/usb1408fs.cmake); run build/bench/bench_usb.
 add_executable(bench_usb ${CMAKE_CURRENT_LIST_DIR}/bench_usb.cpp)
 target_link_libraries(bench_usb PRIVATE zerocal::usb1408fs zerocal::sim_usb1408fs zerocal::sim_psd
-                      zerocal::psd benchmark::benchmark zerocal::warnings)
+                      zerocal::sim_psd_rig zerocal::psd zerocal::servo benchmark::benchmark
+                      zerocal::warnings)

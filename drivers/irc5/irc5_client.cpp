@@ -3,8 +3,13 @@
 #include <algorithm>
 #include <boost/asio.hpp>
 #include <cmath>
+#include <cstddef>
+#include <cstdlib>
 #include <exception>
+#include <string_view>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #include "zerocal/irc5/motion_time.h"
 #include "zerocal/irc5/protocol.h"
@@ -22,30 +27,118 @@ namespace {
 // Replies are at most 80 characters; anything much longer is not a reply of this protocol.
 constexpr std::size_t kMaxReplyBytes = 1024;
 
-double parseNumber(const std::string& field, int code) {
+double parseNumber(std::string_view field, int code) {
+  // The field is a view into a NUL-terminated line and ends at a space or the NUL, where strtod
+  // stops too.
   char* end = nullptr;
-  const double v = std::strtod(field.c_str(), &end);
-  if (end == field.c_str() || *end != '\0' || !std::isfinite(v)) {
-    throw ProtocolError("reply to " + std::to_string(code) + ": \"" + field + "\" is not a number");
+  const double v = std::strtod(field.data(), &end);
+  if (end != field.data() + field.size() || field.empty() || !std::isfinite(v)) {
+    throw ProtocolError("reply to " + std::to_string(code) + ": \"" + std::string(field) +
+                        "\" is not a number");
   }
   return v;
 }
 
-std::array<double, 6> sixNumbers(const irc5::Reply& r) {
+std::array<double, 6> sixNumbers(const irc5::ReplyView& r) {
   std::array<double, 6> out{};
   for (int i = 0; i < 6; ++i) out[i] = parseNumber(r.fields[i], r.code);
   return out;
 }
 
+// Memory for the one asynchronous operation in flight at a time, as in Asio's allocation example:
+// a request then allocates nothing. A larger or a second operation falls back to the heap.
+class HandlerMemory {
+ public:
+  void* allocate(std::size_t size) {
+    if (!in_use_ && size <= sizeof storage_) {
+      in_use_ = true;
+      return storage_;
+    }
+    return ::operator new(size);
+  }
+  void deallocate(void* p) noexcept {
+    if (p == storage_) {
+      in_use_ = false;
+    } else {
+      ::operator delete(p);
+    }
+  }
+
+ private:
+  alignas(std::max_align_t) unsigned char storage_[1024];
+  bool in_use_ = false;
+};
+
+template <typename T>
+class HandlerAllocator {
+ public:
+  using value_type = T;
+  explicit HandlerAllocator(HandlerMemory& memory) noexcept : memory_(&memory) {}
+  template <typename U>
+  HandlerAllocator(const HandlerAllocator<U>& other) noexcept : memory_(other.memory_) {}
+  T* allocate(std::size_t n) { return static_cast<T*>(memory_->allocate(sizeof(T) * n)); }
+  void deallocate(T* p, std::size_t) noexcept { memory_->deallocate(p); }
+  template <typename U>
+  bool operator==(const HandlerAllocator<U>& other) const noexcept {
+    return memory_ == other.memory_;
+  }
+  template <typename U>
+  bool operator!=(const HandlerAllocator<U>& other) const noexcept {
+    return memory_ != other.memory_;
+  }
+
+ private:
+  template <typename>
+  friend class HandlerAllocator;
+  HandlerMemory* memory_;
+};
+
+// A completion handler whose operation's memory comes from HandlerMemory (Asio asks
+// get_allocator(), and composed operations pass it on to the operations they start).
+template <typename Handler>
+class WithMemory {
+ public:
+  using allocator_type = HandlerAllocator<Handler>;
+  WithMemory(HandlerMemory& memory, Handler handler)
+      : memory_(memory), handler_(std::move(handler)) {}
+  allocator_type get_allocator() const noexcept { return allocator_type(memory_); }
+  template <typename... Args>
+  void operator()(Args&&... args) {
+    handler_(std::forward<Args>(args)...);
+  }
+
+ private:
+  HandlerMemory& memory_;
+  Handler handler_;
+};
+
 }  // namespace
 
 // The blocking-with-deadline pattern of Asio's blocking_tcp_client example: start an async
 // operation, run the io_context for at most the time left, cancel what is still pending.
+//
+// A request and its reply allocate nothing once connected: the request is formatted into
+// `request`, the reply read into `rx` and moved to `line` (both keep their reserved capacity),
+// parsed in place, and the operations' memory is `memory`.
 struct Irc5Client::Io {
+  Io() {
+    request.reserve(2 * irc5::kMaxMessageLength);
+    rx.reserve(kMaxReplyBytes);
+    line.reserve(kMaxReplyBytes);
+  }
+
   asio::io_context ctx;
   tcp::socket socket{ctx};
+  std::string request;
   std::string rx;
+  std::string line;  // the last reply, without its LF; the last ReplyView looks into it
+  HandlerMemory memory;
   bool open = false;
+
+  template <typename Handler>
+  WithMemory<Handler> handler(Handler h) {
+    return WithMemory<Handler>(memory, std::move(h));
+  }
 
   // Returns false when the deadline passed; pending operations are then cancelled and have
   // completed (with operation_aborted) before this returns.
@@ -125,19 +218,20 @@ void Irc5Client::connect() {
     ping();
     info_ = robotInfo();
     constexpr int q = irc5::kQuatDecimals, x = irc5::kXyzDecimals;
-    const std::vector<Param> identity = {{0, x}, {0, x}, {0, x}, {1, q}, {0, q}, {0, q}, {0, q}};
+    const std::array<Param, 7> identity = {
+        {{0, x}, {0, x}, {0, x}, {1, q}, {0, q}, {0, q}, {0, q}}};
     const auto rt = options_.request_timeout;
-    transact(irc5::formatRequest(irc5::kSetTool, identity), irc5::kSetTool, 0, rt);
-    transact(irc5::formatRequest(irc5::kSetWorkObject, identity), irc5::kSetWorkObject, 0, rt);
+    transact(request(irc5::kSetTool, identity.data(), identity.size()), irc5::kSetTool, 0, rt);
+    transact(request(irc5::kSetWorkObject, identity.data(), identity.size()), irc5::kSetWorkObject,
+             0, rt);
     constexpr int s = irc5::kSpeedDecimals;
-    transact(irc5::formatRequest(irc5::kSetSpeed, {{options_.speed_tcp_mm_s, s},
-                                                   {options_.speed_ori_deg_s, s},
-                                                   {options_.speed_leax_mm_s, s},
-                                                   {options_.speed_reax_deg_s, s}}),
+    transact(request(irc5::kSetSpeed, {{options_.speed_tcp_mm_s, s},
+                                       {options_.speed_ori_deg_s, s},
+                                       {options_.speed_leax_mm_s, s},
+                                       {options_.speed_reax_deg_s, s}}),
              irc5::kSetSpeed, 0, rt);
     // Fine point: a move reply then means the robot stopped at the target, not fly-by.
-    transact(irc5::formatRequest(irc5::kSetZone, {{1, 0}, {0, 0}, {0, 0}, {0, 0}}), irc5::kSetZone,
-             0, rt);
+    transact(request(irc5::kSetZone, {{1, 0}, {0, 0}, {0, 0}, {0, 0}}), irc5::kSetZone, 0, rt);
   } catch (...) {
     io_->shut();
     throw;
@@ -165,20 +259,31 @@ void Irc5Client::reconnect() {
 
 void Irc5Client::close() noexcept {
   if (io_->open) {
-    const std::string bye = irc5::formatRequest(irc5::kClose);
+    const std::string_view bye = request(irc5::kClose);
     io_->ctx.restart();
-    asio::async_write(io_->socket, asio::buffer(bye), [](const error_code&, std::size_t) {});
+    asio::async_write(io_->socket, asio::buffer(bye.data(), bye.size()),
+                      io_->handler([](const error_code&, std::size_t) {}));
     io_->runUntil(Clock::now() + milliseconds(200));
   }
   io_->shut();
   have_joints_ = false;
 }
 
-irc5::Reply Irc5Client::transact(const std::string& request, int code, int expected_fields,
-                                 milliseconds timeout) {
+std::string_view Irc5Client::request(int code, std::initializer_list<irc5::Param> params) {
+  return request(code, params.begin(), params.size());
+}
+
+std::string_view Irc5Client::request(int code, const irc5::Param* params, std::size_t count) {
+  irc5::formatRequest(io_->request, code, params, count);
+  return io_->request;
+}
+
+irc5::ReplyView Irc5Client::transact(std::string_view request, int code, int expected_fields,
+                                     milliseconds timeout) {
   irc5::checkRequest(request);
-  if (!io_->open)
-    throw ConnectionError("not connected to the controller (request " + request + ")");
+  if (!io_->open) {
+    throw ConnectionError("not connected to the controller (request " + std::string(request) + ")");
+  }
   const auto deadline = Clock::now() + timeout;
   const auto fail = [&](auto error) {
     io_->shut();
@@ -190,37 +295,43 @@ irc5::Reply Irc5Client::transact(const std::string& request, int code, int expec
   }
 
   error_code ec = asio::error::would_block;
-  asio::async_write(io_->socket, asio::buffer(request),
-                    [&](const error_code& e, std::size_t) { ec = e; });
-  if (!io_->runUntil(deadline)) fail(TimeoutError("timeout sending \"" + request + "\""));
-  if (ec) fail(ConnectionError("connection lost sending \"" + request + "\": " + ec.message()));
+  asio::async_write(io_->socket, asio::buffer(request.data(), request.size()),
+                    io_->handler([&](const error_code& e, std::size_t) { ec = e; }));
+  if (!io_->runUntil(deadline)) {
+    fail(TimeoutError("timeout sending \"" + std::string(request) + "\""));
+  }
+  if (ec) {
+    fail(ConnectionError("connection lost sending \"" + std::string(request) +
+                         "\": " + ec.message()));
+  }
 
   const auto timed_out = [&] {
-    return TimeoutError("no complete reply to \"" + request + "\" within " +
+    return TimeoutError("no complete reply to \"" + std::string(request) + "\" within " +
                         std::to_string(timeout.count()) + " ms (received \"" +
                         io_->rx.substr(0, 60) + "\")");
   };
   const auto dropped = [&](const error_code& e) {
-    return ConnectionError("connection lost waiting for the reply to \"" + request + "\": " +
-                           (e == asio::error::eof ? "closed by the controller" : e.message()));
+    return ConnectionError(
+        "connection lost waiting for the reply to \"" + std::string(request) +
+        "\": " + (e == asio::error::eof ? "closed by the controller" : e.message()));
   };
-  std::string line;
+  std::string& line = io_->line;
   if (options_.lf_terminated) {
     std::size_t n = 0;
     ec = asio::error::would_block;
     // Bounded, so that a stream that never sends LF cannot grow the buffer without limit.
     asio::async_read_until(io_->socket, asio::dynamic_buffer(io_->rx, kMaxReplyBytes), '\n',
-                           [&](const error_code& e, std::size_t bytes) {
+                           io_->handler([&](const error_code& e, std::size_t bytes) {
                              ec = e;
                              n = bytes;
-                           });
+                           }));
     if (!io_->runUntil(deadline)) fail(timed_out());
     if (ec == asio::error::not_found) {
       fail(ProtocolError("no LF in the first " + std::to_string(kMaxReplyBytes) +
-                         " bytes of the reply to \"" + request + "\""));
+                         " bytes of the reply to \"" + std::string(request) + "\""));
     }
     if (ec) fail(dropped(ec));
-    line = io_->rx.substr(0, n - 1);
+    line.assign(io_->rx, 0, n - 1);
     io_->rx.erase(0, n);
   } else {
     char chunk[256];
@@ -232,10 +343,11 @@ irc5::Reply Irc5Client::transact(const std::string& request, int code, int expec
           maybe ? std::min(deadline, Clock::now() + options_.reply_settle) : deadline;
       std::size_t n = 0;
       ec = asio::error::would_block;
-      io_->socket.async_read_some(asio::buffer(chunk), [&](const error_code& e, std::size_t b) {
-        ec = e;
-        n = b;
-      });
+      io_->socket.async_read_some(asio::buffer(chunk),
+                                  io_->handler([&](const error_code& e, std::size_t b) {
+                                    ec = e;
+                                    n = b;
+                                  }));
       const bool in_time = io_->runUntil(wait_until);
       io_->rx.append(chunk, n);
       if (!in_time) {
@@ -248,12 +360,13 @@ irc5::Reply Irc5Client::transact(const std::string& request, int code, int expec
         fail(dropped(ec));
       }
     }
-    line.swap(io_->rx);
+    line.assign(io_->rx);
+    io_->rx.clear();
   }
 
-  irc5::Reply reply;
+  irc5::ReplyView reply;
   try {
-    reply = irc5::parseReply(line);
+    reply = irc5::parseReplyView(line);
   } catch (const ProtocolError& e) {
     fail(e);
   }
@@ -261,9 +374,9 @@ irc5::Reply Irc5Client::transact(const std::string& request, int code, int expec
     fail(ProtocolError("reply \"" + line + "\" answers code " + std::to_string(reply.code) +
                        ", not " + std::to_string(code) + " (stream out of step)"));
   }
-  if (!reply.ok) throw BadMessageError(code, reply.data);
-  if (expected_fields >= 0 && reply.fields.size() != static_cast<std::size_t>(expected_fields)) {
-    fail(ProtocolError("reply \"" + line + "\" has " + std::to_string(reply.fields.size()) +
+  if (!reply.ok) throw BadMessageError(code, std::string(reply.data));
+  if (expected_fields >= 0 && reply.field_count != static_cast<std::size_t>(expected_fields)) {
+    fail(ProtocolError("reply \"" + line + "\" has " + std::to_string(reply.field_count) +
                        " data fields, expected " + std::to_string(expected_fields)));
   }
   return reply;
@@ -272,30 +385,29 @@ irc5::Reply Irc5Client::transact(const std::string& request, int code, int expec
 std::string Irc5Client::rawRequest(const std::string& request, int expected_fields,
                                    milliseconds timeout) {
   const irc5::ParsedRequest parsed = irc5::parseRequest(request);
-  return transact(request, parsed.code, expected_fields, timeout).data;
+  return std::string(transact(request, parsed.code, expected_fields, timeout).data);
 }
 
 void Irc5Client::ping() {
-  transact(irc5::formatRequest(irc5::kPing), irc5::kPing, 0, options_.request_timeout);
+  transact(request(irc5::kPing), irc5::kPing, 0, options_.request_timeout);
 }
 
 RobotInfo Irc5Client::robotInfo() {
-  const irc5::Reply r = transact(irc5::formatRequest(irc5::kRobotInfo), irc5::kRobotInfo, -1,
-                                 options_.request_timeout);
+  const std::string data(
+      transact(request(irc5::kRobotInfo), irc5::kRobotInfo, -1, options_.request_timeout).data);
   RobotInfo info;
-  const std::size_t a = r.data.find('*');
-  const std::size_t b = a == std::string::npos ? a : r.data.find('*', a + 1);
-  if (b == std::string::npos) throw ProtocolError("robot info \"" + r.data + "\" lacks two '*'");
-  info.serial = r.data.substr(0, a);
-  info.software_version = r.data.substr(a + 1, b - a - 1);
-  info.robot_type = r.data.substr(b + 1);
+  const std::size_t a = data.find('*');
+  const std::size_t b = a == std::string::npos ? a : data.find('*', a + 1);
+  if (b == std::string::npos) throw ProtocolError("robot info \"" + data + "\" lacks two '*'");
+  info.serial = data.substr(0, a);
+  info.software_version = data.substr(a + 1, b - a - 1);
+  info.robot_type = data.substr(b + 1);
   return info;
 }
 
 Joints Irc5Client::readJoints() {
-  const irc5::Reply r = transact(irc5::formatRequest(irc5::kReadJoints), irc5::kReadJoints, 6,
-                                 options_.request_timeout);
-  const auto v = sixNumbers(r);
+  const auto v = sixNumbers(
+      transact(request(irc5::kReadJoints), irc5::kReadJoints, 6, options_.request_timeout));
   Joints q;
   std::copy(v.begin(), v.end(), q.begin());
   last_joints_ = q;
@@ -333,16 +445,16 @@ void Irc5Client::moveJoints(const Joints& target_deg) {
       }
     }
   }
-  std::vector<irc5::Param> params;
-  for (double q : target_deg) params.push_back({q, irc5::kJointDecimals});
-  transact(irc5::formatRequest(irc5::kMoveJoints, params), irc5::kMoveJoints, 0,
+  std::array<irc5::Param, kJointCount> params;
+  for (int i = 0; i < kJointCount; ++i) params[i] = {target_deg[i], irc5::kJointDecimals};
+  transact(request(irc5::kMoveJoints, params.data(), params.size()), irc5::kMoveJoints, 0,
            jointMoveTimeout(from, target_deg));
   last_joints_ = target_deg;
 }
 
 TcpPose Irc5Client::readPose() {
-  const irc5::Reply r =
-      transact(irc5::formatRequest(irc5::kReadPose), irc5::kReadPose, 7, options_.request_timeout);
+  const irc5::ReplyView r =
+      transact(request(irc5::kReadPose), irc5::kReadPose, 7, options_.request_timeout);
   TcpPose p;
   for (int i = 0; i < 3; ++i) p.xyz_mm[i] = parseNumber(r.fields[i], r.code);
   for (int i = 0; i < 4; ++i) p.quat_wxyz[i] = parseNumber(r.fields[3 + i], r.code);
@@ -373,31 +485,36 @@ void Irc5Client::moveLinear(const TcpPose& target) {
       milliseconds(static_cast<long long>(seconds * options_.move_timeout_factor * 1000.0)) +
       options_.move_timeout_margin;
 
-  std::vector<irc5::Param> params;
-  for (double c : t.xyz_mm) params.push_back({c, irc5::kXyzDecimals});
-  for (double c : t.quat_wxyz) params.push_back({c, irc5::kQuatDecimals});
+  constexpr int x = irc5::kXyzDecimals, q = irc5::kQuatDecimals;
   have_joints_ = false;
-  transact(irc5::formatRequest(irc5::kMoveLinear, params), irc5::kMoveLinear, 0, timeout);
+  transact(request(irc5::kMoveLinear, {{t.xyz_mm[0], x},
+                                       {t.xyz_mm[1], x},
+                                       {t.xyz_mm[2], x},
+                                       {t.quat_wxyz[0], q},
+                                       {t.quat_wxyz[1], q},
+                                       {t.quat_wxyz[2], q},
+                                       {t.quat_wxyz[3], q}}),
+           irc5::kMoveLinear, 0, timeout);
 }
 
 void Irc5Client::stop() {
-  transact(irc5::formatRequest(irc5::kStop), irc5::kStop, 0, options_.request_timeout);
+  transact(request(irc5::kStop), irc5::kStop, 0, options_.request_timeout);
 }
 
 std::array<double, 6> Irc5Client::readExternalAxes() {
-  return sixNumbers(transact(irc5::formatRequest(irc5::kReadExternalAxes), irc5::kReadExternalAxes,
-                             6, options_.request_timeout));
-}
-
-std::array<double, 6> Irc5Client::readCalOffsets() {
-  return sixNumbers(transact(irc5::formatRequest(irc5::kReadCalOffset), irc5::kReadCalOffset, 6,
+  return sixNumbers(transact(request(irc5::kReadExternalAxes), irc5::kReadExternalAxes, 6,
                              options_.request_timeout));
 }
 
+std::array<double, 6> Irc5Client::readCalOffsets() {
+  return sixNumbers(
+      transact(request(irc5::kReadCalOffset), irc5::kReadCalOffset, 6, options_.request_timeout));
+}
+
 std::array<JointLimit, kJointCount> Irc5Client::readJointBounds() {
-  const auto lower = sixNumbers(transact(irc5::formatRequest(irc5::kReadJointBounds, {{0, 0}}),
+  const auto lower = sixNumbers(transact(request(irc5::kReadJointBounds, {{0, 0}}),
                                          irc5::kReadJointBounds, 6, options_.request_timeout));
-  const auto upper = sixNumbers(transact(irc5::formatRequest(irc5::kReadJointBounds, {{1, 0}}),
+  const auto upper = sixNumbers(transact(request(irc5::kReadJointBounds, {{1, 0}}),
                                          irc5::kReadJointBounds, 6, options_.request_timeout));
   std::array<JointLimit, kJointCount> out;
   for (int i = 0; i < kJointCount; ++i) out[i] = {lower[i], upper[i]};

@@ -15,45 +15,62 @@ namespace {
 
 bool isSpace(char c) { return c == ' ' || c == '\n' || c == '\r' || c == '\t'; }
 
-std::vector<std::string> splitFields(std::string_view text) {
-  std::vector<std::string> out;
+// Calls f(field) for each run of non-space characters, in order.
+template <typename F>
+void forEachField(std::string_view text, F&& f) {
   std::size_t i = 0;
   while (i < text.size()) {
     while (i < text.size() && isSpace(text[i])) ++i;
     std::size_t j = i;
     while (j < text.size() && !isSpace(text[j])) ++j;
-    if (j > i) out.emplace_back(text.substr(i, j - i));
+    if (j > i) f(text.substr(i, j - i));
     i = j;
   }
+}
+
+std::vector<std::string> splitFields(std::string_view text) {
+  std::vector<std::string> out;
+  forEachField(text, [&](std::string_view field) { out.emplace_back(field); });
   return out;
 }
 
-bool parseInt(const std::string& s, int* value) {
+bool parseInt(std::string_view s, int* value) {
   if (s.empty() || s.size() > 3) return false;
-  for (char c : s)
+  int v = 0;
+  for (char c : s) {
     if (!std::isdigit(static_cast<unsigned char>(c))) return false;
-  *value = std::atoi(s.c_str());
+    v = 10 * v + (c - '0');
+  }
+  *value = v;
   return true;
 }
 
 }  // namespace
 
-std::string formatRequest(int code, const std::vector<Param>& params) {
+void formatRequest(std::string& out, int code, const Param* params, std::size_t count) {
   char buf[64];
   std::snprintf(buf, sizeof buf, "%02d ", code);
-  std::string out = buf;
-  for (const Param& p : params) {
+  out = buf;
+  for (std::size_t i = 0; i < count; ++i) {
+    const Param& p = params[i];
     // Values that round to zero would print "-0.00000"; RAPID reads it but logs read oddly.
     const double v = std::abs(p.value) < 0.5 * std::pow(10.0, -p.decimals) ? 0.0 : p.value;
     std::snprintf(buf, sizeof buf, "%+.*f ", p.decimals, v);
     out += buf;
   }
   out += '#';
+}
+
+std::string formatRequest(int code, const std::vector<Param>& params) {
+  std::string out;
+  formatRequest(out, code, params.data(), params.size());
   return out;
 }
 
 std::string formatRequest(int code, std::initializer_list<Param> params) {
-  return formatRequest(code, std::vector<Param>(params));
+  std::string out;
+  formatRequest(out, code, params.begin(), params.size());
+  return out;
 }
 
 void checkRequest(std::string_view request) {
@@ -104,21 +121,39 @@ ParsedRequest parseRequest(std::string_view request) {
   return out;
 }
 
-Reply parseReply(std::string_view text) {
-  const std::vector<std::string> f = splitFields(text);
-  Reply r;
+ReplyView parseReplyView(std::string_view text) {
+  ReplyView r;
+  std::string_view first, second;
+  std::size_t count = 0;
+  forEachField(text, [&](std::string_view field) {
+    if (count == 0) first = field;
+    if (count == 1) second = field;
+    if (count >= 2 && count - 2 < kMaxReplyFields) r.fields[count - 2] = field;
+    ++count;
+  });
   int ok = -1;
-  if (f.size() < 2 || !parseInt(f[0], &r.code) || !parseInt(f[1], &ok) || ok > 1) {
+  if (count < 2 || !parseInt(first, &r.code) || !parseInt(second, &ok) || ok > 1) {
     throw ProtocolError("unreadable reply \"" + std::string(text.substr(0, 100)) + "\"");
   }
   r.ok = ok == 1;
-  r.fields.assign(f.begin() + 2, f.end());
+  r.field_count = count - 2;
   // data: the text after the second field, trimmed (robot info may contain spaces).
-  std::size_t pos = text.find(f[1], text.find(f[0]) + f[0].size()) + f[1].size();
-  std::string_view rest = text.substr(pos);
+  std::string_view rest =
+      text.substr(static_cast<std::size_t>(second.data() + second.size() - text.data()));
   while (!rest.empty() && isSpace(rest.front())) rest.remove_prefix(1);
   while (!rest.empty() && isSpace(rest.back())) rest.remove_suffix(1);
-  r.data = std::string(rest);
+  r.data = rest;
+  return r;
+}
+
+Reply parseReply(std::string_view text) {
+  const ReplyView v = parseReplyView(text);
+  Reply r;
+  r.code = v.code;
+  r.ok = v.ok;
+  r.data = std::string(v.data);
+  // Every field, however many: the fields after the first two are those of the data.
+  r.fields = splitFields(v.data);
   return r;
 }
 
@@ -139,17 +174,23 @@ int expectedReplyFields(int code) {
 }
 
 Completeness replyCompleteness(std::string_view buffer, int expected_fields) {
-  const std::vector<std::string> f = splitFields(buffer);
+  std::string_view first, second;
+  std::size_t count = 0;
+  forEachField(buffer, [&](std::string_view field) {
+    if (count == 0) first = field;
+    if (count == 1) second = field;
+    ++count;
+  });
   const bool trailing_space = !buffer.empty() && isSpace(buffer.back());
   // Not the start of a reply at all: complete as far as waiting goes, parseReply will refuse it.
   int number = 0;
-  if (!f.empty() && (f.size() > 1 || trailing_space) && !parseInt(f[0], &number)) {
+  if (count > 0 && (count > 1 || trailing_space) && !parseInt(first, &number)) {
     return Completeness::kComplete;
   }
-  if (f.size() < 2 || (f.size() == 2 && !trailing_space)) return Completeness::kNeedMore;
+  if (count < 2 || (count == 2 && !trailing_space)) return Completeness::kNeedMore;
   // A refusal carries no fixed field count ("30 0 not supported" from us, "4 0 " upstream).
-  if (f[1] == "0") return Completeness::kMaybe;
-  const std::size_t data = f.size() - 2;
+  if (second == "0") return Completeness::kMaybe;
+  const std::size_t data = count - 2;
   if (expected_fields < 0) {
     // Robot info: "serial*version*type", the type may contain spaces.
     const std::size_t stars = std::count(buffer.begin(), buffer.end(), '*');

@@ -145,6 +145,7 @@ LibusbTransport::LibusbTransport(libusb_context* context, libusb_device_handle* 
 
 LibusbTransport::~LibusbTransport() {
   stopStream();
+  freeSlots();
   for (int i = claimed_ - 1; i >= 0; --i) libusb_release_interface(handle_, i);
   libusb_close(handle_);
   libusb_exit(context_);
@@ -196,24 +197,32 @@ void LibusbTransport::startStream(const std::uint8_t* endpoints, std::size_t end
                                   std::size_t transfers_per_endpoint, std::size_t packet_size,
                                   StreamSink& sink) {
   stopStream();
+  // A stream of the same shape as the last reuses its transfers and buffers: a scan per PSD
+  // reading then allocates nothing of ours after the first.
+  const std::size_t count = endpoint_count * transfers_per_endpoint;
+  bool reuse = slots_.size() == count;
+  for (const auto& slot : slots_) reuse = reuse && slot->buffer.size() == packet_size;
+  if (!reuse) freeSlots();
   sink_ = &sink;
   streaming_ = true;
   // Round-robin submission order matches the order in which the board fills the endpoints.
   for (std::size_t k = 0; k < transfers_per_endpoint; ++k) {
     for (std::size_t e = 0; e < endpoint_count; ++e) {
-      auto slot = std::make_unique<Slot>();
-      slot->owner = this;
-      slot->buffer.resize(packet_size);
-      slot->transfer = libusb_alloc_transfer(0);
-      if (slot->transfer == nullptr) {
-        stopStream();
-        throw UsbError("out of memory allocating USB transfers");
+      if (!reuse) {
+        auto slot = std::make_unique<Slot>();
+        slot->owner = this;
+        slot->buffer.resize(packet_size);
+        slot->transfer = libusb_alloc_transfer(0);
+        if (slot->transfer == nullptr) {
+          stopStream();
+          throw UsbError("out of memory allocating USB transfers");
+        }
+        slots_.push_back(std::move(slot));
       }
-      libusb_fill_interrupt_transfer(slot->transfer, handle_, endpoints[e], slot->buffer.data(),
+      Slot* raw = slots_[k * endpoint_count + e].get();
+      libusb_fill_interrupt_transfer(raw->transfer, handle_, endpoints[e], raw->buffer.data(),
                                      static_cast<int>(packet_size), &LibusbTransport::onTransfer,
-                                     slot.get(), 0);
-      Slot* raw = slot.get();
-      slots_.push_back(std::move(slot));
+                                     raw, 0);
       if (int r = libusb_submit_transfer(raw->transfer); r < 0) {
         stopStream();
         raise(r, "starting the scan stream");
@@ -259,7 +268,8 @@ void LibusbTransport::stopStream() noexcept {
     timeval tv{0, 10000};
     libusb_handle_events_timeout_completed(context_, &tv, nullptr);
   }
-  freeSlots();
+  // Kept for the next stream unless libusb still owns one; then start afresh.
+  if (busy()) freeSlots();
 }
 
 void LibusbTransport::freeSlots() noexcept {

@@ -87,14 +87,23 @@ bool BlockAverager::take(VoltageReading& reading) noexcept {
   return true;
 }
 
-VoltageReading readAveraged(usb1408fs::Usb1408fs& daq, const PsdChannels& channels,
-                            std::size_t samples, double rate_hz) {
-  BlockAverager averager(samples);
+usb1408fs::ScanConfig averagedScan(const PsdChannels& channels, std::size_t samples,
+                                   double rate_hz) {
   usb1408fs::ScanConfig config;
   config.channels = {channels.x, channels.y, channels.sum};
   config.rate_hz = rate_hz;
   config.scans = static_cast<std::uint32_t>(samples);
-  daq.startScan(config, averager);
+  return config;
+}
+
+VoltageReading readAveraged(usb1408fs::Usb1408fs& daq, const PsdChannels& channels,
+                            std::size_t samples, double rate_hz) {
+  return readAveraged(daq, averagedScan(channels, samples, rate_hz));
+}
+
+VoltageReading readAveraged(usb1408fs::Usb1408fs& daq, const usb1408fs::ScanConfig& scan) {
+  BlockAverager averager(scan.scans);
+  daq.startScan(scan, averager);
   try {
     while (!daq.scanComplete()) daq.pollScan(5ms);
   } catch (...) {

@@ -19,11 +19,15 @@ ChainPsdReader::ChainPsdReader(usb1408fs::Usb1408fs& daq, psd::PsdMap map, CellC
       map_(std::move(map)),
       clock_(clock),
       options_(options),
+      scan_(psd::averagedScan(options.channels, options.samples, options.rate_hz)),
       detector_(options.on_threshold_v, options.off_threshold_v) {}
 
 PsdReading ChainPsdReader::read() {
-  const psd::VoltageReading v =
-      psd::readAveraged(daq_, options_.channels, options_.samples, options_.rate_hz);
+  // A scan per reading rather than a continuous one (psd::PsdStream): samples queued while the
+  // robot moved carry no time, so a stream would have to be drained at every read to keep them
+  // out, and nothing polls it during a move of seconds, when the board's FIFO would overrun. The
+  // cost is three commands per reading (ALOAD_QUEUE, AIN_SCAN, AIN_STOP).
+  const psd::VoltageReading v = psd::readAveraged(daq_, scan_);
   const bool present = detector_.update(v);
   const psd::SpotPosition p = map_.apply(v);
   PsdReading r;

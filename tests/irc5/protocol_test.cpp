@@ -69,6 +69,32 @@ TEST(Protocol, ParsesReplies) {
   EXPECT_THROW(parseReply("4 7 1 2"), ProtocolError);
 }
 
+TEST(Protocol, InPlaceFormsAgreeWithTheAllocatingOnes) {
+  std::string out = "left over";
+  const Param joints[] = {{10, 5}, {-5.25, 5}, {0, 5}, {-1e-9, 5}, {90, 5}, {0, 5}};
+  formatRequest(out, kMoveJoints, joints, 6);
+  EXPECT_EQ(out, formatRequest(kMoveJoints,
+                               {joints[0], joints[1], joints[2], joints[3], joints[4], joints[5]}));
+  formatRequest(out, kReadJoints, nullptr, 0);
+  EXPECT_EQ(out, "04 #");
+
+  for (const char* text : {"2 1 ", "4 1 1.5 -2 3 4 5 6.25\n", "98 1 SN*6.15*IRB 1600-10/1.45\n",
+                           "4 0 ", "  30 0 not supported  "}) {
+    const Reply r = parseReply(text);
+    const ReplyView v = parseReplyView(text);
+    EXPECT_EQ(v.code, r.code) << text;
+    EXPECT_EQ(v.ok, r.ok) << text;
+    EXPECT_EQ(v.data, r.data) << text;
+    ASSERT_EQ(v.field_count, r.fields.size()) << text;
+    for (std::size_t i = 0; i < v.field_count; ++i) EXPECT_EQ(v.fields[i], r.fields[i]) << text;
+  }
+  EXPECT_THROW(parseReplyView("4 7 1 2"), ProtocolError);
+  // More fields than a reply can hold are counted, so the count check still refuses them.
+  std::string many = "4 1";
+  for (std::size_t i = 0; i < kMaxReplyFields + 5; ++i) many += " 1";
+  EXPECT_EQ(parseReplyView(many).field_count, kMaxReplyFields + 5);
+}
+
 TEST(Protocol, CompletenessWithoutLf) {
   EXPECT_EQ(replyCompleteness("2 1", 0), Completeness::kNeedMore);
   EXPECT_EQ(replyCompleteness("2 1 ", 0), Completeness::kComplete);

@@ -17,7 +17,9 @@
 #include <cstdlib>
 #include <cstring>
 
+#include "allocation_counter.h"
 #include "umockdev_board.h"
+#include "zerocal/psd/psd.h"
 #include "zerocal/usb1408fs/libusb_transport.h"
 #include "zerocal/usb1408fs/usb1408fs.h"
 
@@ -244,6 +246,23 @@ TEST_F(UmockdevTest, SingleExecutionScanCompletes) {
   dev.stopScan();
   EXPECT_EQ(sink.values[0].size(), 500u);
   EXPECT_EQ(sink.values[1].size(), 500u);
+}
+
+// A scan per PSD reading, as ChainPsdReader runs them: after the first, LibusbTransport reuses
+// its transfers and the driver its buffers.
+TEST_F(UmockdevTest, RepeatedReadingsAllocateNothingOfOursAfterTheFirst) {
+  Usb1408fs dev(realOpener(), shortTimeouts());
+  const ScanConfig scan = psd::averagedScan(psd::PsdChannels{}, 64, 16000.0);
+  psd::readAveraged(dev, scan);
+  long allocations = 0;
+  {
+    // Counts this thread only: umockdev's handler thread plays the board. libusb and umockdev
+    // allocate with malloc, which is not counted; this measures the driver and the transport.
+    const test::CountAllocations count;
+    for (int i = 0; i < 5; ++i) psd::readAveraged(dev, scan);
+    allocations = count.count();
+  }
+  EXPECT_EQ(allocations, 0);
 }
 
 TEST_F(UmockdevTest, UnpluggedMidScanThenReopenedWhenBack) {

@@ -1,13 +1,17 @@
 // The blocking TCP client for zerocal's RAPID server (and upstream open_abb servers) on an IRC5.
 // One request at a time, each in one write, each with a deadline; Boost.Asio stays inside the
-// .cpp. Not thread-safe: one owner thread calls it.
+// .cpp. Not thread-safe: one owner thread calls it. Once connected, the requests a servo cycle
+// makes (moveJoints, readJoints, readPose, ping, ...) allocate nothing unless they throw.
 #pragma once
 
+#include <array>
 #include <chrono>
+#include <cstddef>
 #include <cstdint>
+#include <initializer_list>
 #include <memory>
 #include <string>
-#include <vector>
+#include <string_view>
 
 #include "zerocal/irc5/controller_link.h"
 #include "zerocal/irc5/errors.h"
@@ -98,8 +102,12 @@ class Irc5Client final : public ControllerLink {
 
  private:
   struct Io;
-  irc5::Reply transact(const std::string& request, int code, int expected_fields,
-                       std::chrono::milliseconds timeout);
+  // Formats into the client's own buffer; the view is valid until the next request.
+  std::string_view request(int code, std::initializer_list<irc5::Param> params = {});
+  std::string_view request(int code, const irc5::Param* params, std::size_t count);
+  // The reply looks into the client's own buffer: valid until the next transact().
+  irc5::ReplyView transact(std::string_view request, int code, int expected_fields,
+                           std::chrono::milliseconds timeout);
   std::chrono::milliseconds jointMoveTimeout(const Joints& from, const Joints& to) const;
 
   Irc5Options options_;

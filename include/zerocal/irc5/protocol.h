@@ -3,6 +3,8 @@
 // that both sides agree on one grammar; no I/O here.
 #pragma once
 
+#include <array>
+#include <cstddef>
 #include <initializer_list>
 #include <string>
 #include <string_view>
@@ -49,6 +51,8 @@ struct Param {
 // given decimals, one space after every field. Does not check the length (see checkRequest).
 std::string formatRequest(int code, std::initializer_list<Param> params = {});
 std::string formatRequest(int code, const std::vector<Param>& params);
+// The same text into `out` (replacing what it held): no allocation while out's capacity holds it.
+void formatRequest(std::string& out, int code, const Param* params, std::size_t count);
 
 // Throws RequestRefusedError when the text is not one well-formed request: longer than 80
 // characters, no '#', anything after '#', a code that is not 1..2 digits.
@@ -72,6 +76,21 @@ struct Reply {
 };
 // Throws ProtocolError when the text does not start with two integers "rcode ok".
 Reply parseReply(std::string_view text);
+
+// Room for every field of an 80-character reply (a field and its space take 2 at least).
+constexpr std::size_t kMaxReplyFields = kMaxMessageLength / 2;
+
+// The same reply parsed in place, without allocating: views into the text, valid while it is.
+// Fields past kMaxReplyFields are counted, not kept.
+struct ReplyView {
+  int code = -1;
+  bool ok = false;
+  std::string_view data;
+  std::array<std::string_view, kMaxReplyFields> fields{};
+  std::size_t field_count = 0;
+};
+// Throws ProtocolError as parseReply (building that error's message allocates).
+ReplyView parseReplyView(std::string_view text);
 
 // Number of data fields (after rcode and ok) the reply to a request code carries when ok = 1.
 // -1: variable (robot info, "serial*version*type", may contain spaces).

@@ -58,6 +58,14 @@ class BlockAverager : public usb1408fs::ScanConsumer {
 VoltageReading readAveraged(usb1408fs::Usb1408fs& daq, const PsdChannels& channels,
                             std::size_t samples, double rate_hz);
 
+// The scan readAveraged() runs: {x, y, sum}, `samples` scans, single execution.
+usb1408fs::ScanConfig averagedScan(const PsdChannels& channels, std::size_t samples,
+                                   double rate_hz);
+// The same reading over a scan built once by averagedScan(): allocates nothing once the driver
+// has run one scan of that shape (errors excepted). Throws as Usb1408fs does, and
+// std::invalid_argument for a scan of 0 scans.
+VoltageReading readAveraged(usb1408fs::Usb1408fs& daq, const usb1408fs::ScanConfig& scan);
+
 // Continuous readings: a hardware-paced scan of the three channels that never stops, averaged in
 // blocks, so a reading is ready every `samples / rate_hz` seconds without the command round trips
 // of readAveraged(). Owns the scan while it lives; the Usb1408fs must outlive it.

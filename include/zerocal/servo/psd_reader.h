@@ -58,7 +58,10 @@ struct ChainPsdReaderOptions {
   double coarse_v_per_mm = 5.0;  // centre slope, for the coarse estimate outside the zone
 };
 
-// The real chain. `daq` and `clock` must outlive the reader.
+// The real chain. `daq` and `clock` must outlive the reader. Each read() runs one
+// single-execution scan (psd::readAveraged), so a reading holds only samples converted after
+// read() was called, never light from before the last move ended. The scan is built once here;
+// read() allocates nothing once the first reading has sized the driver's buffers.
 class ChainPsdReader final : public PsdReader {
  public:
   ChainPsdReader(usb1408fs::Usb1408fs& daq, psd::PsdMap map, CellClock& clock,
@@ -70,6 +73,7 @@ class ChainPsdReader final : public PsdReader {
   psd::PsdMap map_;
   CellClock& clock_;
   ChainPsdReaderOptions options_;
+  usb1408fs::ScanConfig scan_;
   psd::SpotDetector detector_;
 };
 

@@ -46,7 +46,8 @@ class UsbTransport {
 
   // Starts streaming: transfers_per_endpoint asynchronous interrupt-IN transfers of packet_size
   // bytes in flight on each endpoint, each resubmitted as soon as the sink has seen it. All
-  // buffers are allocated here, none afterwards. The sink must outlive stopStream().
+  // buffers are allocated here, none afterwards; a stream of the same shape as the previous one
+  // may reuse its buffers and allocate none. The sink must outlive stopStream().
   virtual void startStream(const std::uint8_t* endpoints, std::size_t endpoint_count,
                            std::size_t transfers_per_endpoint, std::size_t packet_size,
                            StreamSink& sink) = 0;

@@ -166,6 +166,10 @@ int expectedReplyFields(int code) {
     case kReadCalOffset:
     case kReadJointBounds:
       return 6;
+    case kSimBeamSpot:
+      return 3;
+    case kSimWorldId:
+      return 2;
     case kRobotInfo:
       return -1;
     default:

@@ -1,7 +1,9 @@
 #include "zerocal/sim/sim_backend.h"
 
+#include "zerocal/error.h"
 #include "zerocal/service/linked_cell.h"
 #include "zerocal/sim/simulated_rig.h"
+#include "zerocal/sim/world.h"
 
 namespace zerocal::sim {
 namespace {
@@ -33,6 +35,73 @@ std::unique_ptr<service::ConnectedCell> SimBackend::connect() {
   Irc5Options o = cell_.clientOptions();
   if (adjust_) adjust_(o);
   return std::make_unique<SimulatedLinkedCell>(cell_, std::move(o));
+}
+
+class ExternalSimBackend::Cell final : public service::LinkedCell {
+ public:
+  Cell(ExternalSimBackend& backend, std::unique_ptr<Irc5Client> spot_link)
+      : LinkedCell(backend.options_.client, FakeTransport::opener(backend.board_), backend.map_,
+                   backend.clock_),
+        backend_(backend),
+        spot_link_(std::move(spot_link)) {
+    backend_.spot_link_ = spot_link_.get();
+  }
+  ~Cell() override { backend_.spot_link_ = nullptr; }
+
+  void reconnectRobot() override {
+    LinkedCell::reconnectRobot();
+    spot_link_->reconnect();
+  }
+  std::optional<std::array<double, 4>> truthDeg() const override {
+    const auto& t = backend_.options_.world.true_offsets_deg;
+    return std::array<double, 4>{t[1], t[2], t[3], t[4]};
+  }
+
+ private:
+  ExternalSimBackend& backend_;
+  std::unique_ptr<Irc5Client> spot_link_;
+};
+
+ExternalSimBackend::ExternalSimBackend(ExternalSimOptions options)
+    : options_(std::move(options)),
+      psd_(options_.psd),
+      board_(options_.board_seed),
+      map_(simulatedPsdMap(options_.psd, options_.sweep_half_width_mm, options_.sweep_step_mm)) {
+  board_.setAnalogSource(psdAnalogSource(psd_, [this](double) -> std::optional<SpotPosition> {
+    // Called on the session's thread, between the servo's requests on the other link. A lost
+    // spot link reads as no light; the session then fails or reconnects both links.
+    if (spot_link_ == nullptr) return std::nullopt;
+    try {
+      const auto spot = spot_link_->readSimBeamSpot();
+      if (!spot) return std::nullopt;
+      return SpotPosition{(*spot)[0], (*spot)[1]};
+    } catch (const std::exception&) {
+      return std::nullopt;
+    }
+  }));
+}
+
+ExternalSimBackend::~ExternalSimBackend() = default;
+
+service::CellKnowledge ExternalSimBackend::knowledge() const {
+  const SessionKnowledge k = knowledgeOf(options_.world);
+  return {k.cell, k.taught_centre};
+}
+
+std::unique_ptr<service::ConnectedCell> ExternalSimBackend::connect() {
+  auto spot_link = std::make_unique<Irc5Client>(options_.client);
+  spot_link->connect();
+  const SimWorldId theirs = spot_link->readSimWorldId();
+  const std::string ours = worldHash(options_.world);
+  if (theirs.hash != ours) {
+    const std::string where = options_.client.host + ":" + std::to_string(options_.client.port);
+    throw ConfigError(
+        "backend.sim_host",
+        {"the zerocal-sim at " + where + " simulates world " + theirs.hash + " (its --seed " +
+         std::to_string(theirs.seed) + "), this daemon's is " + ours + " (" +
+         options_.world_source + "): start zerocal-sim with the same --seed or --world"});
+  }
+  return std::make_unique<Cell>(*this, std::move(spot_link));
 }
 
 }  // namespace zerocal::sim

@@ -29,6 +29,18 @@ std::vector<psd::SweepPoint> stageSweep(PsdModel& psd, double half_width, double
   return sweep;
 }
 
+}  // namespace
+
+psd::PsdMap simulatedPsdMap(PsdModelOptions psd, double half_width_mm, double step_mm) {
+  // The sweep uses its own copy of the detector (another noise stream), as the mapping happened
+  // on the bench long before this session.
+  psd.seed += 1;
+  PsdModel bench_psd(psd);
+  return psd::PsdMap::fit(stageSweep(bench_psd, half_width_mm, step_mm), psd::MapFitOptions{});
+}
+
+namespace {
+
 SimControllerOptions controllerOptions(const SimulatedCellOptions& o) {
   SimControllerOptions c;
   c.world = o.world;
@@ -44,15 +56,8 @@ SimulatedCell::SimulatedCell(SimulatedCellOptions options)
     : options_(std::move(options)),
       controller_(std::make_unique<SimController>(controllerOptions(options_))),
       psd_(options_.psd),
-      board_(options_.board_seed) {
-  // The sweep uses its own copy of the detector (another noise stream), as the mapping happened
-  // on the bench long before this session.
-  PsdModelOptions bench = options_.psd;
-  bench.seed += 1;
-  PsdModel bench_psd(bench);
-  map_ =
-      psd::PsdMap::fit(stageSweep(bench_psd, options_.sweep_half_width_mm, options_.sweep_step_mm),
-                       psd::MapFitOptions{});
+      board_(options_.board_seed),
+      map_(simulatedPsdMap(options_.psd, options_.sweep_half_width_mm, options_.sweep_step_mm)) {
   SimController* controller = controller_.get();
   board_.setAnalogSource(psdAnalogSource(psd_, [controller](double) -> std::optional<SpotPosition> {
     const std::optional<BeamHit> hit = controller->beamHitNow();

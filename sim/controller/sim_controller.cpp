@@ -446,6 +446,18 @@ std::optional<std::string> SimController::Impl::respond(const irc5::ParsedReques
       }
       return six(b, 3);
     }
+    case irc5::kSimBeamSpot: {
+      // Simulator only: what a PSD placed in the world would see now (an external daemon's
+      // simulated board asks this over its own connection).
+      if (n != 0) return bad;
+      const std::optional<BeamHit> hit = beamHit(options.world, commanded, move_error);
+      if (!hit || !std::isfinite(hit->u_mm) || !std::isfinite(hit->v_mm) ||
+          std::abs(hit->u_mm) > 1e6 || std::abs(hit->v_mm) > 1e6)
+        return done + "0 0 0";
+      return done + "1 " + fmt(hit->u_mm, 5) + " " + fmt(hit->v_mm, 5);
+    }
+    case irc5::kSimWorldId:
+      return n == 0 ? done + worldHash(options.world) + " " + std::to_string(options.seed) : bad;
     case irc5::kRobotInfo:
       return n == 0
                  ? done + options.serial + "*" + options.software_version + "*" + options.robot_type

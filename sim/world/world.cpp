@@ -4,6 +4,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <random>
 #include <sstream>
@@ -29,6 +30,37 @@ std::optional<BeamHit> beamHit(const World& world, const Joints& q_deg, const Jo
   const Eigen::Vector3d local =
       world.psd_rotation.transpose() * (p + t * d - world.psd_position_mm);
   return BeamHit{local.x(), local.y(), t};
+}
+
+std::string worldHash(const World& w) {
+  // FNV-1a over the values' bytes: both sides build the world with the same code, so equal
+  // worlds are bit-equal.
+  std::uint64_t h = 1469598103934665603ull;
+  const auto mix = [&h](const void* data, std::size_t n) {
+    const auto* b = static_cast<const unsigned char*>(data);
+    for (std::size_t i = 0; i < n; ++i) h = (h ^ b[i]) * 1099511628211ull;
+  };
+  const auto value = [&mix](double v) { mix(&v, sizeof v); };
+  mix(w.robot.name.data(), w.robot.name.size());
+  for (int i = 0; i < kJointCount; ++i) {
+    const DhRow& r = w.robot.dh[i];
+    mix(&r, sizeof r);
+    value(w.robot.limits[i].lower_deg);
+    value(w.robot.limits[i].upper_deg);
+    value(w.robot.max_speed_deg_s[i]);
+    value(w.true_offsets_deg[i]);
+  }
+  for (int i = 0; i < 3; ++i) {
+    value(w.laser_point_mm[i]);
+    value(w.laser_direction[i]);
+    value(w.psd_position_mm[i]);
+    for (int j = 0; j < 3; ++j) value(w.psd_rotation(i, j));
+  }
+  value(w.noise.repeatability_deg);
+  value(w.noise.psd_mm);
+  char buf[17];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
+  return buf;
 }
 
 namespace {

@@ -26,16 +26,27 @@ RunSettings runSettingsOf(const DaemonConfig& config) {
 
 std::unique_ptr<CellBackend> makeBackend(const DaemonConfig& cfg) {
   if (cfg.backend.kind == BackendKind::kHardware) return std::make_unique<HardwareBackend>(cfg);
-  if (!cfg.backend.sim_host.empty())
-    throw ConfigError("zerocald", {"backend.sim_host: an external zerocal-sim simulates the "
-                                   "controller only, not the PSD board; leave it empty for the "
-                                   "in-process simulated cell"});
-  sim::SimulatedCellOptions o;
   const std::uint64_t seed = cfg.backend.sim_seed.value_or(1);
-  o.world = cfg.backend.sim_world.empty() ? randomWorld(seed) : loadWorld(cfg.backend.sim_world);
+  World world =
+      cfg.backend.sim_world.empty() ? randomWorld(seed) : loadWorld(cfg.backend.sim_world);
+  const auto psd_seed = static_cast<std::uint32_t>(seed) + 100;
+  if (!cfg.backend.sim_host.empty()) {
+    // The controller in an external zerocal-sim, the board in-process (sim::ExternalSimBackend).
+    sim::ExternalSimOptions e;
+    e.world_source = cfg.backend.sim_world.empty() ? "backend.sim_seed " + std::to_string(seed)
+                                                   : "backend.sim_world " + cfg.backend.sim_world;
+    e.client = irc5OptionsOf(cfg.controller);
+    e.client.host = cfg.backend.sim_host;
+    e.client.port = cfg.backend.sim_port;
+    e.world = std::move(world);
+    e.psd.seed = psd_seed;
+    return std::make_unique<sim::ExternalSimBackend>(std::move(e));
+  }
+  sim::SimulatedCellOptions o;
+  o.world = std::move(world);
   o.controller_seed = seed;
   o.pace = cfg.backend.sim_pace;
-  o.psd.seed = static_cast<std::uint32_t>(seed) + 100;
+  o.psd.seed = psd_seed;
   // The controller section applies to the simulated controller as to a real one.
   return std::make_unique<sim::SimBackend>(std::move(o),
                                            [controller = cfg.controller](Irc5Options& client) {

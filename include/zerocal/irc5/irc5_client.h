@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <initializer_list>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -56,6 +57,12 @@ struct Irc5Options {
   std::chrono::milliseconds backoff_max{2000};
 };
 
+// What zerocal-sim says it simulates (simulator-only request 44).
+struct SimWorldId {
+  std::string hash;        // worldHash() of its world, 16 hex digits
+  std::uint64_t seed = 0;  // its --seed (the world's, unless it was given --world)
+};
+
 class Irc5Client final : public ControllerLink {
  public:
   // Does not connect. Throws ConfigError when the options are inconsistent.
@@ -94,6 +101,11 @@ class Irc5Client final : public ControllerLink {
   std::array<double, 6> readCalOffsets();
   // The controller's own joint bounds, degrees.
   std::array<JointLimit, kJointCount> readJointBounds();
+  // Simulator only (zerocal-sim; the RAPID module replies ok = 0, thrown as BadMessageError):
+  // where the true beam meets the PSD plane now, {u, v} in mm in the PSD frame; nullopt when
+  // it does not meet it.
+  std::optional<std::array<double, 2>> readSimBeamSpot();
+  SimWorldId readSimWorldId();
 
   // Sends one raw request (checked by checkRequest) and returns the reply, verified to answer
   // the same code with ok = 1. For diagnostics and tests.

@@ -14,7 +14,8 @@ namespace zerocal {
 namespace irc5 {
 
 // Request codes. 0..9 and 98/99 are upstream's; 30..36 are upstream's buffered and circular moves
-// (not supported by us); 40..49 are zerocal's extensions.
+// (not supported by us); 40..49 are zerocal's extensions (43 and 44 answered by zerocal-sim only,
+// not by the RAPID module).
 enum Code : int {
   kPing = 0,
   kMoveLinear = 1,
@@ -29,6 +30,8 @@ enum Code : int {
   kStop = 40,             // extension: StopMove, reply at once
   kReadCalOffset = 41,    // extension: MOC MOTOR_CALIB cal_offset of the six motors, radians
   kReadJointBounds = 42,  // extension: 1 param, 0 = lower, 1 = upper bounds, degrees
+  kSimBeamSpot = 43,      // simulator only: present flag, u, v (mm) of the beam on the PSD plane
+  kSimWorldId = 44,       // simulator only: hash of the simulated world (16 hex digits), seed
   kRobotInfo = 98,
   kClose = 99,
 };

@@ -18,7 +18,10 @@ namespace zerocal::service {
 RunSettings runSettingsOf(const DaemonConfig& config);
 
 // The backend of the backend section: the hardware cell (HardwareBackend), or the simulated cell
-// of backend.sim_world or backend.sim_seed (seed 1 when neither). Throws ConfigError.
+// of backend.sim_world or backend.sim_seed (seed 1 when neither): in-process (SimBackend), or with
+// the controller in the external zerocal-sim at backend.sim_host:sim_port
+// (ExternalSimBackend, which checks at connect that it simulates the same world). Throws
+// ConfigError.
 std::unique_ptr<CellBackend> makeBackend(const DaemonConfig& config);
 
 // The session manager's settings: data folder, run settings, plan defaults, the nominal target on a

@@ -6,6 +6,7 @@
 
 #include <functional>
 #include <memory>
+#include <string>
 
 #include "zerocal/service/cell.h"
 #include "zerocal/sim/simulated_cell.h"
@@ -26,6 +27,46 @@ class SimBackend final : public service::CellBackend {
  private:
   SimulatedCell cell_;
   std::function<void(Irc5Options&)> adjust_;
+};
+
+struct ExternalSimOptions {
+  World world;               // the world zerocal-sim must be simulating
+  std::string world_source;  // how it was chosen ("backend.sim_seed 3", a file), for messages
+  // Host and port of zerocal-sim, and the controller section's options (robot, speeds, timeouts).
+  Irc5Options client;
+  PsdModelOptions psd;
+  std::uint32_t board_seed = 1408;
+  double sweep_half_width_mm = 0.8, sweep_step_mm = 0.04;
+};
+
+// The simulated cell with the controller in an external zerocal-sim process: the production
+// Irc5Client drives it over TCP; the PSD is the in-process simulated USB-1408FS (the same board
+// model, transport and PSD chain as SimBackend) lit where zerocal-sim says the beam meets the
+// detector, asked over a second connection (request 43, simulator only) so that the servo's link
+// carries only its own requests. The clock is the steady clock: zerocal-sim's moves take wall time
+// (its --pace). Sessions run on one thread at a time, which also drives the board.
+class ExternalSimBackend final : public service::CellBackend {
+ public:
+  // Fits the PSD map (a simulated bench sweep); connects nothing.
+  explicit ExternalSimBackend(ExternalSimOptions options);
+  ~ExternalSimBackend() override;
+  ExternalSimBackend(const ExternalSimBackend&) = delete;
+  ExternalSimBackend& operator=(const ExternalSimBackend&) = delete;
+  const char* name() const override { return "sim"; }
+  service::CellKnowledge knowledge() const override;
+  // Connects the spot link, checks that zerocal-sim simulates options.world (ConfigError naming
+  // both worlds otherwise, before anything moves), then the robot link. Throws as
+  // Irc5Client::connect.
+  std::unique_ptr<service::ConnectedCell> connect() override;
+
+ private:
+  class Cell;
+  ExternalSimOptions options_;
+  PsdModel psd_;
+  Usb1408fsModel board_;
+  psd::PsdMap map_;
+  servo::SteadyCellClock clock_;
+  Irc5Client* spot_link_ = nullptr;  // the connected cell's, while there is one
 };
 
 }  // namespace zerocal::sim

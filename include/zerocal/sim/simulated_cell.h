@@ -34,6 +34,10 @@ struct SimulatedCellOptions {
   double sweep_half_width_mm = 0.8, sweep_step_mm = 0.04;
 };
 
+// The PSD map fitted from a simulated stage sweep of the detector `psd` describes (with the next
+// seed: the bench's noise, not the session's).
+psd::PsdMap simulatedPsdMap(PsdModelOptions psd, double half_width_mm, double step_mm);
+
 class SimulatedCell final : public servo::CellClock {
  public:
   // Starts the controller on its own I/O thread. Throws as SimController.

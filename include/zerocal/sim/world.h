@@ -50,6 +50,11 @@ struct BeamHit {
 std::optional<BeamHit> beamHit(const World& world, const Joints& q_deg,
                                const Joints& extra_deg = Joints{});
 
+// A fingerprint of everything that makes a world (robot, offsets, laser, PSD pose, noise), as 16
+// hex digits: equal for the same seed or the same world file on every build of this code, so two
+// processes can check that they simulate the same cell.
+std::string worldHash(const World& world);
+
 // Reads a world file (config/worlds/example.yaml):
 //   robot: builtin                      # or a robot file, relative to the world file's folder
 //   true_offsets_deg: [6 numbers]

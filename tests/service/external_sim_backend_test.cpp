@@ -1,0 +1,122 @@
+// The sim backend with an external zerocal-sim: a SimController on loopback port 0 stands in for
+// the other process; the daemon's backend, built from the configuration as zerocald builds it,
+// drives it through the production Irc5Client and reads the in-process simulated board lit where
+// the external simulator says the beam is.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+
+#include "zerocal/irc5/irc5_client.h"
+#include "zerocal/service/daemon_setup.h"
+#include "zerocal/service/session_manager.h"
+#include "zerocal/sim/sim_controller.h"
+
+namespace zerocal::service {
+namespace {
+
+struct TempDir {
+  TempDir() {
+    char pattern[] = "/tmp/zerocal-extsim-XXXXXX";
+    if (!::mkdtemp(pattern)) throw std::runtime_error("mkdtemp failed");
+    path = pattern;
+  }
+  ~TempDir() { std::filesystem::remove_all(path); }
+  std::string path;
+};
+
+SimControllerOptions externalSim(std::uint64_t seed) {
+  SimControllerOptions o;
+  o.world = randomWorld(seed);
+  o.seed = seed;
+  return o;
+}
+
+DaemonConfig configFor(const SimController& sim, std::uint64_t seed, const std::string& dir) {
+  DaemonConfig c;
+  c.backend.kind = BackendKind::kSim;
+  c.backend.sim_seed = seed;
+  c.backend.sim_host = "127.0.0.1";
+  c.backend.sim_port = sim.port();
+  c.servo.settle_s = 0.0;  // the cell clock is the steady clock: waits are real
+  c.session.data_dir = dir + "/sessions";
+  return c;
+}
+
+TEST(ExternalSim, ProtocolExtensionsAnswerTheSpotAndTheWorld) {
+  SimController sim(externalSim(4));
+  sim.start();
+  Irc5Options o;
+  o.host = "127.0.0.1";
+  o.port = sim.port();
+  o.robot = sim.world().robot;
+  Irc5Client client(o);
+  client.connect();
+  const SimWorldId id = client.readSimWorldId();
+  EXPECT_EQ(id.hash, worldHash(randomWorld(4)));
+  EXPECT_NE(id.hash, worldHash(randomWorld(5)));
+  EXPECT_EQ(id.seed, 4u);
+  const auto spot = client.readSimBeamSpot();
+  const std::optional<BeamHit> hit = sim.beamHitNow();
+  ASSERT_EQ(spot.has_value(), hit.has_value());
+  if (hit) {
+    EXPECT_NEAR((*spot)[0], hit->u_mm, 1e-5);
+    EXPECT_NEAR((*spot)[1], hit->v_mm, 1e-5);
+  }
+}
+
+TEST(ExternalSim, SessionRunsToTheWorldsTruth) {
+  constexpr std::uint64_t kSeed = 7;
+  TempDir dir;
+  SimController sim(externalSim(kSeed));
+  sim.start();
+  const DaemonConfig config = configFor(sim, kSeed, dir.path);
+  const std::unique_ptr<CellBackend> backend = makeBackend(config);
+  EXPECT_STREQ(backend->name(), "sim");
+
+  SessionManager manager(*backend, managerSettingsOf(config));
+  const std::string id = manager.start(manager.defaultRequest());
+  const SessionStatus end = manager.waitIdle();
+  ASSERT_EQ(end.state, SessionState::kDone) << end.message;
+  // The servo's link and the board's spot link, both to the external simulator.
+  EXPECT_GE(sim.connectionCount(), 2);
+  const nlohmann::json result = manager.result(id);
+  const World truth = randomWorld(kSeed);
+  for (int k = 0; k < kOffsetCount; ++k) {
+    const std::string name = unknownName(k);
+    const double error =
+        result["parameters"][name]["value"].get<double>() - truth.true_offsets_deg[k + 1];
+    EXPECT_LT(std::abs(error), 3 * result["parameters"][name]["sigma"].get<double>()) << name;
+    EXPECT_NEAR(result["truth"][name].get<double>(), truth.true_offsets_deg[k + 1], 1e-12);
+  }
+}
+
+TEST(ExternalSim, AMismatchedWorldIsRefusedBeforeAnythingMoves) {
+  TempDir dir;
+  SimController sim(externalSim(5));
+  sim.start();
+  const DaemonConfig config = configFor(sim, 6, dir.path);
+  const std::unique_ptr<CellBackend> backend = makeBackend(config);
+  try {
+    backend->connect();
+    FAIL() << "a zerocal-sim of another world was accepted";
+  } catch (const ConfigError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find(worldHash(randomWorld(5))), std::string::npos) << what;
+    EXPECT_NE(what.find(worldHash(randomWorld(6))), std::string::npos) << what;
+    EXPECT_NE(what.find("--seed 5"), std::string::npos) << what;
+    EXPECT_NE(what.find("backend.sim_seed 6"), std::string::npos) << what;
+  }
+
+  const Joints before = sim.commandedJoints();
+  SessionManager manager(*backend, managerSettingsOf(config));
+  manager.start(manager.defaultRequest());
+  const SessionStatus end = manager.waitIdle();
+  EXPECT_EQ(end.state, SessionState::kFaulted);
+  EXPECT_NE(end.message.find("simulates world"), std::string::npos) << end.message;
+  EXPECT_EQ(sim.commandedJoints(), before);
+}
+
+}  // namespace
+}  // namespace zerocal::service

@@ -31,6 +31,14 @@ std::vector<psd::SweepPoint> stageSweep(PsdModel& psd, double half_width, double
 
 }  // namespace
 
+SimulatedCellOptions seededCellOptions(std::uint64_t seed) {
+  SimulatedCellOptions o;
+  o.world = randomWorld(seed);
+  o.controller_seed = seed;
+  o.psd.seed = static_cast<std::uint32_t>(seed) + 100;
+  return o;
+}
+
 psd::PsdMap simulatedPsdMap(PsdModelOptions psd, double half_width_mm, double step_mm) {
   // The sweep uses its own copy of the detector (another noise stream), as the mapping happened
   // on the bench long before this session.

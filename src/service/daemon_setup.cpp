@@ -27,9 +27,8 @@ RunSettings runSettingsOf(const DaemonConfig& config) {
 std::unique_ptr<CellBackend> makeBackend(const DaemonConfig& cfg) {
   if (cfg.backend.kind == BackendKind::kHardware) return std::make_unique<HardwareBackend>(cfg);
   const std::uint64_t seed = cfg.backend.sim_seed.value_or(1);
-  World world =
-      cfg.backend.sim_world.empty() ? randomWorld(seed) : loadWorld(cfg.backend.sim_world);
-  const auto psd_seed = static_cast<std::uint32_t>(seed) + 100;
+  sim::SimulatedCellOptions o = sim::seededCellOptions(seed);
+  if (!cfg.backend.sim_world.empty()) o.world = loadWorld(cfg.backend.sim_world);
   if (!cfg.backend.sim_host.empty()) {
     // The controller in an external zerocal-sim, the board in-process (sim::ExternalSimBackend).
     sim::ExternalSimOptions e;
@@ -38,15 +37,11 @@ std::unique_ptr<CellBackend> makeBackend(const DaemonConfig& cfg) {
     e.client = irc5OptionsOf(cfg.controller);
     e.client.host = cfg.backend.sim_host;
     e.client.port = cfg.backend.sim_port;
-    e.world = std::move(world);
-    e.psd.seed = psd_seed;
+    e.world = std::move(o.world);
+    e.psd.seed = o.psd.seed;
     return std::make_unique<sim::ExternalSimBackend>(std::move(e));
   }
-  sim::SimulatedCellOptions o;
-  o.world = std::move(world);
-  o.controller_seed = seed;
   o.pace = cfg.backend.sim_pace;
-  o.psd.seed = psd_seed;
   // The controller section applies to the simulated controller as to a real one.
   return std::make_unique<sim::SimBackend>(std::move(o),
                                            [controller = cfg.controller](Irc5Options& client) {

@@ -29,13 +29,7 @@ struct TempDir {
   std::string path;
 };
 
-sim::SimulatedCellOptions cellFor(std::uint64_t seed) {
-  sim::SimulatedCellOptions o;
-  o.world = randomWorld(seed);
-  o.controller_seed = seed;
-  o.psd.seed = static_cast<std::uint32_t>(seed) + 100;
-  return o;
-}
+sim::SimulatedCellOptions cellFor(std::uint64_t seed) { return sim::seededCellOptions(seed); }
 
 ManagerSettings settingsIn(const std::string& dir) {
   ManagerSettings s;

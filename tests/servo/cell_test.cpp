@@ -23,11 +23,8 @@ using sim::knowledgeOf;
 using Rig = sim::SimulatedRig;
 
 sim::SimulatedCellOptions cellOptions(std::uint64_t seed, double repeatability_deg) {
-  sim::SimulatedCellOptions o;
-  o.world = randomWorld(seed);
+  sim::SimulatedCellOptions o = sim::seededCellOptions(seed);
   o.world.noise.repeatability_deg = repeatability_deg;
-  o.controller_seed = seed;
-  o.psd.seed = static_cast<std::uint32_t>(seed) + 100;
   return o;
 }
 

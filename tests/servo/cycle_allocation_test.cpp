@@ -96,11 +96,8 @@ class SimulatedClock final : public CellClock {
 };
 
 sim::SimulatedCellOptions cellOptions(std::uint64_t seed) {
-  sim::SimulatedCellOptions o;
-  o.world = randomWorld(seed);
+  sim::SimulatedCellOptions o = sim::seededCellOptions(seed);
   o.world.noise.repeatability_deg = 5e-4;
-  o.controller_seed = seed;
-  o.psd.seed = static_cast<std::uint32_t>(seed) + 100;
   return o;
 }
 

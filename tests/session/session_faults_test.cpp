@@ -18,13 +18,7 @@
 namespace zerocal {
 namespace {
 
-sim::SimulatedCellOptions cellOptions(std::uint64_t seed) {
-  sim::SimulatedCellOptions o;
-  o.world = randomWorld(seed);
-  o.controller_seed = seed;
-  o.psd.seed = static_cast<std::uint32_t>(seed) + 100;
-  return o;
-}
+sim::SimulatedCellOptions cellOptions(std::uint64_t seed) { return sim::seededCellOptions(seed); }
 
 struct TempDir {
   TempDir() {

@@ -522,15 +522,15 @@ std::array<JointLimit, kJointCount> Irc5Client::readJointBounds() {
 }
 
 std::optional<std::array<double, 2>> Irc5Client::readSimBeamSpot() {
-  const irc5::ReplyView r = transact(request(irc5::kSimBeamSpot), irc5::kSimBeamSpot, 3,
-                                     options_.request_timeout);
+  const irc5::ReplyView r =
+      transact(request(irc5::kSimBeamSpot), irc5::kSimBeamSpot, 3, options_.request_timeout);
   if (parseNumber(r.fields[0], r.code) == 0) return std::nullopt;
   return std::array<double, 2>{parseNumber(r.fields[1], r.code), parseNumber(r.fields[2], r.code)};
 }
 
 SimWorldId Irc5Client::readSimWorldId() {
-  const irc5::ReplyView r = transact(request(irc5::kSimWorldId), irc5::kSimWorldId, 2,
-                                     options_.request_timeout);
+  const irc5::ReplyView r =
+      transact(request(irc5::kSimWorldId), irc5::kSimWorldId, 2, options_.request_timeout);
   SimWorldId id;
   id.hash = std::string(r.fields[0]);
   const std::string seed(r.fields[1]);

@@ -217,7 +217,9 @@ int run(const ClientArgs& args, std::ostream& out, std::ostream& err, bool tty) 
     if (args.json)
       out << json{{"aborted", aborted}}.dump() << "\n";
     else
-      out << (aborted ? "abort requested; no further move is sent, the robot stops" : "no session was running") << "\n";
+      out << (aborted ? "abort requested; no further move is sent, the robot stops"
+                      : "no session was running")
+          << "\n";
     return kClientOk;
   }
   if (cmd == "sessions") {

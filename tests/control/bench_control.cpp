@@ -12,6 +12,8 @@
 // over TCP, real USB-1408FS protocol, the servo, the journal, the solve) paced at --pace wall
 // seconds per cell second, run once alone and once under load on the same seeded world: the two
 // results must be the same, to the last digit, and take about the same wall time.
+#include <unistd.h>
+
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <atomic>
@@ -21,7 +23,6 @@
 #include <filesystem>
 #include <memory>
 #include <thread>
-#include <unistd.h>
 
 #include "fake_session.h"
 #include "zerocal/control/client.h"
@@ -247,8 +248,8 @@ int main(int argc, char** argv) {
         "calibration (simulated cell, seed %llu, pace %.2f): %s in %.2f s wall under load, %s in "
         "%.2f s alone; cell time %.1f s; result %s\n",
         static_cast<unsigned long long>(seed), pace, loaded_sim.state.c_str(), loaded_sim.wall_s,
-        quiet_sim.state.c_str(), quiet_sim.wall_s,
-        loaded_sim.result.value("cell_time_s", 0.0), same ? "identical" : "DIFFERENT");
+        quiet_sim.state.c_str(), quiet_sim.wall_s, loaded_sim.result.value("cell_time_s", 0.0),
+        same ? "identical" : "DIFFERENT");
     cell_ok = same && loaded_sim.wall_s < quiet_sim.wall_s * 1.10 + 0.5;
     std::filesystem::remove_all(data_dir);
   } else {

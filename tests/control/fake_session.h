@@ -1,7 +1,7 @@
 // A SessionControl without a cell, for the control port's tests and its load test: states change
-// when told, start/resume refuse like the real one, preview and start burn CPU for a set time, readPsd
-// answers from another thread, and events are emitted from the calling thread (as the real one
-// does from its worker).
+// when told, start/resume refuse like the real one, preview and start burn CPU for a set time,
+// readPsd answers from another thread, and events are emitted from the calling thread (as the real
+// one does from its worker).
 #pragma once
 
 #include <atomic>

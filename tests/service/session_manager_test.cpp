@@ -86,7 +86,7 @@ TEST(SessionManager, RunsASessionToDoneThroughEveryStateWithAResultNearTheTruth)
     std::this_thread::sleep_for(std::chrono::microseconds(200));
     ++polls;
     EXPECT_LE(s.pose, s.pose_count) << stateName(s.state);  // solving is not "pose 9 of 8"
-    EXPECT_GE(s.cell_time_s, cell_time_s);  // the cell time runs during the session
+    EXPECT_GE(s.cell_time_s, cell_time_s);                  // the cell time runs during the session
     cell_time_s = s.cell_time_s;
     if (s.state == SessionState::kServoing) ++servoing;
     if (s.live_servo_error_um) {
@@ -171,8 +171,8 @@ TEST(SessionManager, AbortWhileStartIsPlanningAbortsTheNewSessionBeforeAnyMove) 
   const TempDir dir;
   sim::SimBackend backend(cellFor(7));
   SessionManager manager(backend, settingsIn(dir.path));
-  auto started = std::async(std::launch::async,
-                            [&] { return manager.start(manager.defaultRequest()); });
+  auto started =
+      std::async(std::launch::async, [&] { return manager.start(manager.defaultRequest()); });
   bool aborted = false;
   while (!aborted && started.wait_for(std::chrono::milliseconds(0)) != std::future_status::ready)
     aborted = manager.abort();

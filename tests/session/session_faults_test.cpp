@@ -11,8 +11,8 @@
 #include <vector>
 
 #include "zerocal/calib/planner.h"
-#include "zerocal/session/calibration_run.h"
 #include "zerocal/service/daemon_setup.h"
+#include "zerocal/session/calibration_run.h"
 #include "zerocal/sim/simulated_rig.h"
 
 namespace zerocal {

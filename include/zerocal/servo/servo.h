@@ -81,7 +81,7 @@ struct ServoOptions {
   int max_iterations = 40;
   double max_time_s = 20;  // fine servo, from acquisition, cell clock
 
-  bool correct_jacobian = true;     // fit A (above); false: the model's J throughout
+  bool correct_jacobian = true;    // fit A (above); false: the model's J throughout
   double jacobian_prior_mm = 0.3;  // w above: the motion that weighs as much as the model
 
   double search_step_mm = 2.0;

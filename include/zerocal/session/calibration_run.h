@@ -79,7 +79,6 @@ class CalibrationRun {
                  const std::atomic<bool>& abort);
 
  private:
-
   CellModel knowledge_;
   Eigen::Vector3d taught_centre_;
   std::vector<Pose> plan_;

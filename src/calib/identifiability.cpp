@@ -91,6 +91,20 @@ Identifiability analyseIdentifiability(const Eigen::MatrixXd& jacobian, const Ce
   Identifiability out;
   out.identifiable.assign(n, true);
   out.reason.assign(n, "");
+  if (static_cast<int>(poses.size()) < kMinimumPoses) {
+    // 2N readings cannot determine 11 unknowns: say so plainly instead of naming a trade that
+    // depends on which of the many null directions the SVD happens to return.
+    const int count = static_cast<int>(poses.size());
+    out.identifiable.assign(n, false);
+    out.reason.assign(n, std::to_string(count) + " pose" + (count == 1 ? "" : "s") + " give " +
+                             std::to_string(2 * count) + " readings for " +
+                             std::to_string(kUnknownCount) + " unknowns: at least " +
+                             std::to_string(kMinimumPoses) + " poses are needed");
+    out.singular_values = Eigen::VectorXd::Zero(n);
+    out.condition_number = std::numeric_limits<double>::infinity();
+    out.unit_covariance = Eigen::MatrixXd::Constant(n, n, std::numeric_limits<double>::quiet_NaN());
+    return out;
+  }
 
   // Column scaling makes the SVD speak of parameter directions, not units.
   Eigen::VectorXd scale(n);
@@ -99,11 +113,14 @@ Identifiability analyseIdentifiability(const Eigen::MatrixXd& jacobian, const Ce
     if (!(scale[k] > 0)) scale[k] = 1;  // an all-zero column: null by itself
   }
   const Eigen::MatrixXd scaled = jacobian * scale.cwiseInverse().asDiagonal();
-  Eigen::JacobiSVD<Eigen::MatrixXd> svd(scaled, Eigen::ComputeThinV);
-  const Eigen::VectorXd s = svd.singularValues();
+  // The full V and zero-padded singular values keep the loops below within bounds whatever the
+  // Jacobian's shape (a thin V of a short Jacobian lacks the null directions).
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd(scaled, Eigen::ComputeFullV);
+  Eigen::VectorXd s = Eigen::VectorXd::Zero(n);
+  s.head(svd.singularValues().size()) = svd.singularValues();
   const Eigen::MatrixXd v = svd.matrixV();
   out.singular_values = s;
-  const double tol = kNullTolerance * std::max(s[0], 1e-300);
+  const double tol = kNullTolerance * std::max(s.size() ? s[0] : 0.0, 1e-300);
   out.rank = 0;
   for (int i = 0; i < s.size(); ++i) out.rank += s[i] > tol ? 1 : 0;
   out.condition_number = out.rank == n ? s[0] / s[n - 1] : std::numeric_limits<double>::infinity();
@@ -122,8 +139,8 @@ Identifiability analyseIdentifiability(const Eigen::MatrixXd& jacobian, const Ce
     q5_abs_max = std::max(q5_abs_max, std::abs(p.q_deg[4]));
   }
   const auto stand = standoffs(cell, poses, params);
-  const double s_min = *std::min_element(stand.begin(), stand.end());
-  const double s_max = *std::max_element(stand.begin(), stand.end());
+  const double s_min = stand.empty() ? 0.0 : *std::min_element(stand.begin(), stand.end());
+  const double s_max = stand.empty() ? 0.0 : *std::max_element(stand.begin(), stand.end());
 
   for (int k = 0; k < n; ++k) {
     // The null (or, failing that, the weakest) direction in which k takes part the most.

@@ -166,7 +166,8 @@ std::string PlanOptions::validate() const {
   std::ostringstream s;
   if (poses < kMinimumPoses)
     s << "at least " << kMinimumPoses << " poses are needed (8 or more recommended); ";
-  if (poses > 200) s << "more than 200 poses is not a calibration plan; ";
+  if (poses > kMaxPlanPoses)
+    s << "more than " << kMaxPlanPoses << " poses is not a calibration plan; ";
   if (!(noise_mm > 0)) s << "the noise level must be positive; ";
   if (!(standoff_min_mm > 0 && standoff_max_mm > standoff_min_mm))
     s << "the stand-off range must be positive and increasing; ";

@@ -23,10 +23,9 @@ class CancelCallback : public ceres::IterationCallback {
   const std::function<bool()>& cancelled_;
 };
 
-void checkInput(const CellModel& cell, const std::vector<Pose>& poses,
-                const SolveOptions& options) {
-  if (const std::string problem = options.validate(); !problem.empty())
-    throw InputError("solve options: " + problem);
+}  // namespace
+
+void checkPoses(const CellModel& cell, const std::vector<Pose>& poses) {
   if (poses.size() < static_cast<std::size_t>(kMinimumPoses))
     throw InputError(std::to_string(poses.size()) + " poses given; identifying " +
                      std::to_string(kIdentifiedCount) +
@@ -41,6 +40,15 @@ void checkInput(const CellModel& cell, const std::vector<Pose>& poses,
                             : std::string()) +
                        ": " + v + " of " + cell.robot.name);
   }
+}
+
+namespace {
+
+void checkInput(const CellModel& cell, const std::vector<Pose>& poses,
+                const SolveOptions& options) {
+  if (const std::string problem = options.validate(); !problem.empty())
+    throw InputError("solve options: " + problem);
+  checkPoses(cell, poses);
 }
 
 // Where the lines cross best: the start for the target, and the pairwise cost's target.

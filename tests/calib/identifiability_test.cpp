@@ -79,6 +79,31 @@ TEST(Identifiability, OptimalPlanIsWellConditioned) {
   EXPECT_LE(plan.prediction.rms_offset_sigma_deg, 0.006);
 }
 
+// Fewer poses than unknowns used to read past the end of a thin V (and an empty set, s[0] of an
+// empty vector): the verdict must be "not identifiable", the same every time, for any count.
+TEST(Identifiability, FewerPosesThanNeededAreNotIdentifiableTheSameEveryTime) {
+  const Table2Scenario sc = table2Scenario();
+  PlanOptions o;
+  const Plan plan = planPoses(sc.cell, sc.truth.target_mm, o);
+  for (int count = 0; count < kMinimumPoses; ++count) {
+    const std::vector<Pose> few(plan.poses.begin(), plan.poses.begin() + count);
+    const Prediction first = predictUncertainty(sc.cell, few, sc.truth, 0.01);
+    for (int repeat = 0; repeat < 5; ++repeat) {
+      const Prediction again = predictUncertainty(sc.cell, few, sc.truth, 0.01);
+      EXPECT_EQ(again.identifiable, first.identifiable);
+      EXPECT_EQ(again.reason, first.reason);
+    }
+    for (int k = 0; k < kIdentifiedCount; ++k) {
+      EXPECT_FALSE(first.identifiable[k]) << count << " poses, unknown " << k;
+      EXPECT_TRUE(contains(first.reason[k], "at least 6 poses")) << first.reason[k];
+    }
+  }
+  // Six poses are enough to be judged on their merits.
+  const std::vector<Pose> six(plan.poses.begin(), plan.poses.begin() + kMinimumPoses);
+  const Prediction judged = predictUncertainty(sc.cell, six, sc.truth, 0.01);
+  EXPECT_FALSE(contains(judged.reason[0], "at least 6 poses")) << judged.reason[0];
+}
+
 TEST(Identifiability, ReasonsForDelta1And6AreAlwaysGiven) {
   EXPECT_TRUE(contains(delta1Reason(), "target position"));
   EXPECT_TRUE(contains(delta6Reason(), "laser-line parameters"));

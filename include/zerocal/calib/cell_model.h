@@ -21,6 +21,9 @@ constexpr int kIdentifiedCount = kOffsetCount + kLaserParamCount;  // the paper'
 constexpr int kTargetCount = 3;
 constexpr int kUnknownCount = kIdentifiedCount + kTargetCount;  // with the target: 11
 constexpr int kMinimumPoses = 6;  // 2N residuals must exceed 11 unknowns
+// The most poses one plan may have, wherever a pose count is given (the configuration, the
+// control port, the planner): a larger count is a typing error, not a calibration plan.
+constexpr int kMaxPlanPoses = 200;
 
 struct CellModel {
   Robot robot;

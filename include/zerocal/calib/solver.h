@@ -82,6 +82,11 @@ struct SolveReport {
   double solve_time_ms = 0;
 };
 
+// Throws InputError for fewer than kMinimumPoses poses or a pose outside the robot's joint limits
+// (naming the pose and its source line): what every pose set must pass before a solve, and
+// before the robot moves for a plan.
+void checkPoses(const CellModel& cell, const std::vector<Pose>& poses);
+
 // Throws InputError for fewer than kMinimumPoses poses, joints outside the robot's limits, or
 // invalid options. Everything else (non-convergence, unidentifiable parameters) is in the report.
 SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,

@@ -231,9 +231,12 @@ int run(const ClientArgs& args, std::ostream& out, std::ostream& err, bool tty) 
         char line[200];
         std::snprintf(
             line, sizeof line, "%-24s %-10s %3d of %3d poses  %s\n", s.value("id", "").c_str(),
-            s.value("finished", false) ? "finished" : "unfinished", s.value("recorded_poses", 0),
-            s.value("planned_poses", 0), s.value("dir", "").c_str());
+            s.contains("damaged")        ? "DAMAGED"
+            : s.value("finished", false) ? "finished"
+                                         : "unfinished",
+            s.value("recorded_poses", 0), s.value("planned_poses", 0), s.value("dir", "").c_str());
         out << line;
+        if (s.contains("damaged")) out << "    " << s.value("damaged", "") << "\n";
       }
       if (list.empty()) out << "no sessions\n";
     }

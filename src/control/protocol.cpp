@@ -53,9 +53,9 @@ service::StartRequest parseStartRequest(const json& request,
   if (request.contains("poses")) {
     const auto& p = request["poses"];
     if (!p.is_number_integer()) throw BadRequest("poses: expected an integer");
-    // Bounds only against absurd values here; the planner knows the real minimum.
-    if (p.get<long long>() < 1 || p.get<long long>() > 1000)
-      throw BadRequest("poses: " + p.dump() + " is outside 1..1000");
+    if (p.get<long long>() < kMinimumPoses || p.get<long long>() > kMaxPlanPoses)
+      throw BadRequest("poses: " + p.dump() + " is outside " + std::to_string(kMinimumPoses) +
+                       ".." + std::to_string(kMaxPlanPoses));
     r.poses = p.get<int>();
   }
   r.plan_file = optionalString(request, "plan_file", r.plan_file);
@@ -129,12 +129,14 @@ json toJson(const service::LiveReading& live) {
 
 json toJson(const std::vector<SessionInfo>& sessions) {
   json a = json::array();
-  for (const auto& s : sessions)
+  for (const auto& s : sessions) {
     a.push_back({{"id", s.id},
                  {"dir", s.dir},
                  {"finished", s.finished},
                  {"planned_poses", s.planned_poses},
                  {"recorded_poses", s.recorded_poses}});
+    if (!s.damaged.empty()) a.back()["damaged"] = s.damaged;
+  }
   return a;
 }
 

@@ -13,6 +13,8 @@
 #include <ctime>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <mutex>
 #include <sstream>
 
 #include "zerocal/daemon/logging.h"
@@ -283,7 +285,21 @@ void Journal::append(const PoseRecord& record) {
   ++next_index_;
 }
 
-SessionStore::SessionStore(std::string data_dir) : data_dir_(std::move(data_dir)) {}
+// What list() learnt of each session, and the journal's size and time it learnt it from.
+struct SessionStore::Cache {
+  struct Entry {
+    std::uintmax_t journal_size = 0;
+    fs::file_time_type journal_time{};
+    SessionInfo info;  // finished is not cached: result.json is checked at every listing
+  };
+  std::mutex mutex;
+  std::map<std::string, Entry> entries;
+};
+
+SessionStore::SessionStore(std::string data_dir)
+    : data_dir_(std::move(data_dir)), cache_(std::make_unique<Cache>()) {}
+
+SessionStore::~SessionStore() = default;
 
 std::string SessionStore::sessionDir(const std::string& id) const {
   return (fs::path(data_dir_) / id).string();
@@ -321,27 +337,49 @@ std::vector<SessionInfo> SessionStore::list() const {
   std::vector<SessionInfo> sessions;
   std::error_code ec;
   if (!fs::is_directory(data_dir_, ec)) return sessions;
+  std::lock_guard<std::mutex> lock(cache_->mutex);
   for (const auto& entry : fs::directory_iterator(data_dir_, ec)) {
     std::error_code entry_ec;
     if (!entry.is_directory(entry_ec) ||
         !fs::is_regular_file(entry.path() / kSessionFile, entry_ec))
       continue;
-    SessionInfo info;
-    info.id = entry.path().filename().string();
-    info.dir = entry.path().string();
-    info.finished = fs::exists(entry.path() / kResultFile);
-    try {
-      const Json session = readSession(info.id);
-      const Json plan = session.value("plan", Json());
-      if (plan.is_object() && plan.contains("poses") && plan["poses"].is_array())
-        info.planned_poses = static_cast<int>(plan["poses"].size());
-    } catch (const JournalError& e) {
-      // A session.json cut short by a crash during create(): no pose was recorded there.
-      makeLogger("journal")->warn("skipping session {}: {}", info.id, e.what());
-      continue;
+    const std::string id = entry.path().filename().string();
+    const fs::path journal = journalPath(id);
+    std::error_code stat_ec;
+    const std::uintmax_t size = fs::exists(journal, stat_ec) ? fs::file_size(journal, stat_ec) : 0;
+    const fs::file_time_type time =
+        size > 0 ? fs::last_write_time(journal, stat_ec) : fs::file_time_type{};
+    const auto cached = cache_->entries.find(id);
+    if (stat_ec || cached == cache_->entries.end() || cached->second.journal_size != size ||
+        cached->second.journal_time != time) {
+      Cache::Entry fresh{size, time, {}};
+      SessionInfo& info = fresh.info;
+      info.id = id;
+      info.dir = entry.path().string();
+      try {
+        const Json session = readSession(info.id);
+        const Json plan = session.value("plan", Json());
+        if (plan.is_object() && plan.contains("poses") && plan["poses"].is_array())
+          info.planned_poses = static_cast<int>(plan["poses"].size());
+      } catch (const JournalError& e) {
+        // A session.json cut short by a crash during create(): no pose was recorded there.
+        makeLogger("journal")->warn("skipping session {}: {}", info.id, e.what());
+        continue;
+      }
+      try {
+        info.recorded_poses = readJournal(journal.string()).nextIndex();
+      } catch (const JournalError& e) {
+        // One damaged session must not hide the others (nor stop the daemon): it is listed,
+        // named and never resumed; its files are left exactly as they are.
+        info.damaged = e.what();
+        makeLogger("journal")->error("session {} is damaged and will not be resumed: {}", id,
+                                     info.damaged);
+      }
+      cache_->entries[id] = std::move(fresh);
     }
-    info.recorded_poses = readJournal(journalPath(info.id)).nextIndex();
-    sessions.push_back(info);
+    SessionInfo info = cache_->entries[id].info;
+    info.finished = fs::exists(entry.path() / kResultFile, entry_ec);
+    sessions.push_back(std::move(info));
   }
   if (ec) throw JournalError("cannot list " + data_dir_ + ": " + ec.message());
   std::sort(sessions.begin(), sessions.end(),
@@ -351,9 +389,10 @@ std::vector<SessionInfo> SessionStore::list() const {
 
 std::vector<SessionInfo> SessionStore::unfinished() const {
   auto sessions = list();
-  sessions.erase(std::remove_if(sessions.begin(), sessions.end(),
-                                [](const SessionInfo& s) { return s.finished; }),
-                 sessions.end());
+  sessions.erase(
+      std::remove_if(sessions.begin(), sessions.end(),
+                     [](const SessionInfo& s) { return s.finished || !s.damaged.empty(); }),
+      sessions.end());
   return sessions;
 }
 

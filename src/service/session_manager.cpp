@@ -7,6 +7,7 @@
 #include <regex>
 
 #include "report_format.h"
+#include "zerocal/calib/solver.h"
 #include "zerocal/daemon/logging.h"
 #include "zerocal/io/joint_set.h"
 
@@ -145,6 +146,29 @@ void checkId(const std::string& id) {
     throw Refused("bad_request", "'" + id + "' is not a session id (like 20261122T050102Z)");
 }
 
+// Throws InputError.
+void checkPlanInput(const Eigen::Vector3d& target, double noise_mm) {
+  if (!(noise_mm > 0) || !std::isfinite(noise_mm))
+    throw InputError("noise_mm must be a positive number of millimetres");
+  // No robot cell is larger than this: a target beyond it is a typing error (or 1e308).
+  constexpr double kFarthestTargetMm = 1e4;
+  if (!target.allFinite() || target.norm() > kFarthestTargetMm)
+    throw InputError("target_mm must be three finite numbers within 10 m of the robot's base");
+}
+
+// The rule that holds for every plan, whatever its source: nothing moves unless the plan
+// identifies delta2..delta5.
+void refuseUnlessIdentifiable(const Prediction& prediction) {
+  std::string refusal;
+  for (int k = 0; k < kOffsetCount; ++k)
+    if (!prediction.identifiable[k])
+      refusal +=
+          std::string(refusal.empty() ? "" : "; ") + unknownName(k) + ": " + prediction.reason[k];
+  if (!refusal.empty())
+    throw Refused("not_identifiable",
+                  "the plan cannot identify every offset, nothing moved: " + refusal);
+}
+
 std::vector<Pose> posesOfPlanJson(const nlohmann::json& plan) {
   std::vector<Pose> poses;
   for (const auto& q : plan.at("poses")) {
@@ -256,15 +280,14 @@ Plan SessionManager::makePlan(const StartRequest& request, Eigen::Vector3d& targ
                               double& noise_mm) const {
   target = request.target_mm.value_or(settings_.target_mm.value_or(knowledge_.taught_centre_mm));
   noise_mm = request.noise_mm.value_or(settings_.noise_mm);
-  if (!(noise_mm > 0) || !std::isfinite(noise_mm))
-    throw Refused("bad_request", "noise_mm must be a positive number of millimetres");
-  if (!target.allFinite()) throw Refused("bad_request", "target_mm must be three finite numbers");
   try {
+    checkPlanInput(target, noise_mm);
     if (request.plan == PlanKind::kFile) {
       if (request.plan_file.empty())
         throw Refused("bad_request", "plan 'file' needs a plan_file (a joint-set file)");
       Plan plan;
       plan.poses = readJointSet(request.plan_file);
+      checkPoses(knowledge_.cell, plan.poses);  // the same minimum and limits as a solve
       plan.description = "plan file " + request.plan_file;
       CalibrationParameters nominal;
       nominal.target_mm = target;
@@ -321,14 +344,7 @@ std::string SessionManager::start(const StartRequest& request) {
   Eigen::Vector3d target;
   double noise_mm = 0;
   const Plan plan = makePlan(request, target, noise_mm);
-  std::string refusal;
-  for (int k = 0; k < kOffsetCount; ++k)
-    if (!plan.prediction.identifiable[k])
-      refusal += std::string(refusal.empty() ? "" : "; ") + unknownName(k) + ": " +
-                 plan.prediction.reason[k];
-  if (!refusal.empty())
-    throw Refused("not_identifiable",
-                  "the plan cannot identify every offset, nothing moved: " + refusal);
+  refuseUnlessIdentifiable(plan.prediction);
 
   nlohmann::json plan_json = toJson(plan);
   plan_json["target_mm"] = {target.x(), target.y(), target.z()};
@@ -379,6 +395,9 @@ std::string SessionManager::resume(const std::string& requested) {
     if (s.id == id) info = s;
   if (!info) throw Refused("not_found", "no session " + id + " in " + settings_.data_dir);
   if (info->finished) throw Refused("finished", "session " + id + " is finished: see its result");
+  if (!info->damaged.empty())
+    throw Refused("damaged", "session " + id + " cannot be resumed, its journal is damaged: " +
+                                 info->damaged + " (the files are left as they are)");
 
   const nlohmann::json session = store_.readSession(id);
   std::vector<Pose> poses;
@@ -395,6 +414,17 @@ std::string SessionManager::resume(const std::string& requested) {
                                      "lacks the plan's poses, target_mm or noise_mm (" + e.what() +
                                      ")");
   }
+  // session.json is a file anyone with access may have edited: what it asks of the robot is
+  // checked exactly as a new plan is.
+  try {
+    checkPlanInput(target, noise_mm);
+    checkPoses(knowledge_.cell, poses);
+    CalibrationParameters nominal;
+    nominal.target_mm = target;
+    refuseUnlessIdentifiable(predictUncertainty(knowledge_.cell, poses, nominal, noise_mm));
+  } catch (const InputError& e) {
+    throw Refused("bad_session", "session " + id + " cannot be resumed: " + e.what());
+  }
   makeLogger("session")->info("resuming session {}: {} of {} poses recorded", id,
                               info->recorded_poses, poses.size());
   nlohmann::json state_event;
@@ -407,11 +437,15 @@ std::string SessionManager::resume(const std::string& requested) {
     s.pose_count = static_cast<int>(poses.size());
     s.recorded = info->recorded_poses;
     s.resumed_from = info->recorded_poses;
-    if (session["plan"].contains("predicted"))
-      for (int k = 0; k < kOffsetCount; ++k) {
-        const auto& sigma = session["plan"]["predicted"][unknownName(k)]["sigma"];
-        s.predicted_sigma_deg.push_back(sigma.is_number() ? sigma.get<double>() : std::nan(""));
-      }
+    // A hand-edited or older session.json may lack any of these: at() throws, operator[] on a
+    // const json would be undefined behaviour.
+    const nlohmann::json predicted = session.at("plan").value("predicted", nlohmann::json());
+    for (int k = 0; k < kOffsetCount && predicted.is_object(); ++k) {
+      const nlohmann::json entry = predicted.value(unknownName(k), nlohmann::json());
+      const nlohmann::json sigma =
+          entry.is_object() ? entry.value("sigma", nlohmann::json()) : nlohmann::json();
+      s.predicted_sigma_deg.push_back(sigma.is_number() ? sigma.get<double>() : std::nan(""));
+    }
     status_ = s;
     state_event = stateEvent();
   }

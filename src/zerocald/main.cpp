@@ -34,7 +34,7 @@ enum ExitCode { kOk = 0, kFailure = 1, kBadInput = 2, kStopped = 3, kNotIdentifi
 void logUnfinished(SessionManager& manager) {
   auto log = makeLogger("session");
   for (const SessionInfo& s : manager.sessions())
-    if (!s.finished)
+    if (!s.finished && s.damaged.empty())
       log->warn(
           "session {} is unfinished ({} of {} poses recorded): `zerocal resume {}` "
           "continues it",

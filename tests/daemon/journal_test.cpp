@@ -274,5 +274,50 @@ TEST_F(JournalTest, SessionStoreLayoutListAndUnfinished) {
   EXPECT_FALSE(fs::exists(fs::path(second.dir) / "result.json.tmp"));
 }
 
+TEST_F(JournalTest, SessionStoreListsADamagedJournalAndSeesEveryChangeToAJournal) {
+  SessionStore store((dir_ / "sessions").string());
+  const nlohmann::json plan = {{"poses", {{1, 2}, {3, 4}}}};
+  const SessionInfo good = store.create(plan, {});
+  const SessionInfo bad = store.create(plan, {});
+  {
+    Journal journal(store.journalPath(good.id));
+    journal.append(sample(0));
+  }
+  {
+    Journal journal(store.journalPath(bad.id));
+    journal.append(sample(0));
+    journal.append(sample(1));
+  }
+  EXPECT_EQ(store.list()[0].recorded_poses, 1);
+  EXPECT_EQ(store.unfinished().size(), 2u);
+
+  // A garbled line before the last one.
+  std::string text;
+  {
+    std::ifstream in(store.journalPath(bad.id));
+    text.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  text[3] = '#';
+  std::ofstream(store.journalPath(bad.id), std::ios::trunc) << text;
+  const auto all = store.list();
+  ASSERT_EQ(all.size(), 2u);
+  EXPECT_TRUE(all[0].damaged.empty());
+  EXPECT_NE(all[1].damaged.find("journal.jsonl:1"), std::string::npos) << all[1].damaged;
+  const auto open = store.unfinished();
+  ASSERT_EQ(open.size(), 1u);
+  EXPECT_EQ(open[0].id, good.id);
+
+  // A listing after the good journal grows sees the new pose (nothing stale is served).
+  {
+    Journal journal(store.journalPath(good.id));
+    journal.append(sample(1));
+  }
+  EXPECT_EQ(store.list()[0].recorded_poses, 2);
+  // And a repaired journal is no longer damaged.
+  std::ofstream(store.journalPath(bad.id), std::ios::trunc);
+  EXPECT_TRUE(store.list()[1].damaged.empty());
+  EXPECT_EQ(store.list()[1].recorded_poses, 0);
+}
+
 }  // namespace
 }  // namespace zerocal

@@ -253,6 +253,94 @@ TEST(SessionManager, APlanThatCannotIdentifyEveryOffsetIsRefusedBeforeAnything) 
   EXPECT_THROW(manager.preview(request), Refused);
 }
 
+// A plan file of 0 to 5 poses (a header alone crashed the daemon) is refused before anything,
+// every time, by start and by the preview alike: the same minimum as a solve.
+TEST(SessionManager, APlanFileWithTooFewPosesIsRefusedEveryTimeAndNothingMoves) {
+  const TempDir dir;
+  sim::SimBackend backend(cellFor(8));
+  SessionManager manager(backend, settingsIn(dir.path));
+  PlanOptions options;
+  options.psd_normal = backend.knowledge().cell.psd_rotation.col(2);
+  const Plan good =
+      planPoses(backend.knowledge().cell, backend.knowledge().taught_centre_mm, options);
+  StartRequest request = manager.defaultRequest();
+  request.plan = PlanKind::kFile;
+  request.plan_file = dir.path + "/few.csv";
+  for (int count = 0; count < kMinimumPoses; ++count) {
+    std::ofstream(request.plan_file)
+        << formatJointSet({good.poses.begin(), good.poses.begin() + count});
+    for (int repeat = 0; repeat < 3; ++repeat) {
+      try {
+        manager.start(request);
+        FAIL() << count << " poses were accepted";
+      } catch (const Refused& e) {
+        EXPECT_EQ(e.code(), "bad_request") << count << " poses: " << e.what();
+        EXPECT_NE(std::string(e.what()).find("at least 6"), std::string::npos) << e.what();
+      }
+      EXPECT_THROW(manager.preview(request), Refused);
+    }
+  }
+  EXPECT_EQ(manager.status().state, SessionState::kIdle);
+  EXPECT_TRUE(manager.sessions().empty());
+}
+
+// A garbled line in one old session's journal must neither fail the listing nor stop another
+// session from being resumed; the damaged one is named and refused.
+TEST(SessionManager, ADamagedJournalIsReportedAndSkippedNeverFatalToTheOthers) {
+  const TempDir dir;
+  sim::SimBackend backend(cellFor(12));
+  std::string healthy, damaged;
+  {
+    SessionManager manager(backend, settingsIn(dir.path));
+    // Two sessions aborted after their first recorded pose.
+    for (std::string* id : {&healthy, &damaged}) {  // the damaged one is the newest
+      EventLog log;
+      std::promise<void> recorded;
+      bool once = false;
+      log.also = [&](const nlohmann::json& e) {
+        if (e["event"] == "pose" && !once) {
+          once = true;
+          manager.abort();
+          recorded.set_value();
+        }
+      };
+      manager.setEventSink(log.sink());
+      *id = manager.start(manager.defaultRequest());
+      ASSERT_EQ(recorded.get_future().wait_for(std::chrono::seconds(120)),
+                std::future_status::ready);
+      manager.waitIdle();
+    }
+    manager.setEventSink(nullptr);
+  }
+  // Duplicate the first line and add a good-looking last one: a bad line before the last.
+  const std::string journal = dir.path + "/" + damaged + "/journal.jsonl";
+  std::string first;
+  std::getline(std::ifstream(journal), first);
+  std::ofstream(journal, std::ios::app) << first << "\n" << first << "\n";
+
+  SessionManager manager(backend, settingsIn(dir.path));
+  const std::vector<SessionInfo> listed = manager.sessions();
+  ASSERT_EQ(listed.size(), 2u);
+  for (const SessionInfo& s : listed) {
+    if (s.id == damaged)
+      EXPECT_NE(s.damaged.find("journal.jsonl:2"), std::string::npos) << s.damaged;
+    else
+      EXPECT_TRUE(s.damaged.empty()) << s.damaged;
+  }
+  try {
+    manager.resume(damaged);
+    FAIL() << "a damaged session was resumed";
+  } catch (const Refused& e) {
+    EXPECT_EQ(e.code(), "damaged");
+  }
+  // The latest resumable session is the healthy one, whichever is newer.
+  EXPECT_EQ(manager.resume(""), healthy);
+  const SessionStatus done = manager.waitIdle();
+  EXPECT_EQ(done.state, SessionState::kDone) << done.message;
+  EXPECT_TRUE(manager.result(healthy).contains("parameters"));
+  EXPECT_TRUE(manager.result("").contains("parameters"));
+}
+
 TEST(SessionManager, IdsThatAreNotSessionIdsAndUnknownSessionsAreRefused) {
   const TempDir dir;
   sim::SimBackend backend(cellFor(9));

@@ -13,6 +13,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
@@ -110,19 +111,27 @@ struct SessionInfo {
   bool finished = false;   // result.json present
   int planned_poses = 0;   // from session.json's plan.poses when present, else 0
   int recorded_poses = 0;  // committed journal lines
+  // Why the journal cannot be read back (a bad line before the last, indices out of order);
+  // empty when it can. A damaged session is listed but never resumed.
+  std::string damaged;
 };
 
 class SessionStore {
  public:
   // Does not touch the disk.
   explicit SessionStore(std::string data_dir);
+  ~SessionStore();
 
   // Creates <data_dir>/<id>/ (and data_dir if needed) and session.json with the plan and config
   // snapshot given, durably. Throws JournalError when the folder or file cannot be written.
   SessionInfo create(const nlohmann::json& plan, const nlohmann::json& config_snapshot);
   // Every folder of data_dir with a readable session.json, oldest first; others are skipped. A
-  // missing data_dir has none. Throws JournalError when a journal is inconsistent.
+  // missing data_dir has none. A journal that cannot be read back marks its session `damaged`
+  // (warned about once) and never fails the listing. Thread-safe. A session's journal is parsed
+  // again only when its size or time changed, so listing a large archive costs a few stat()s a
+  // session. Throws JournalError only when data_dir itself cannot be listed.
   std::vector<SessionInfo> list() const;
+  // The sessions that may be resumed: not finished, not damaged.
   std::vector<SessionInfo> unfinished() const;
   // session.json of that session. Throws JournalError.
   nlohmann::json readSession(const std::string& id) const;
@@ -132,7 +141,9 @@ class SessionStore {
   std::string sessionDir(const std::string& id) const;
 
  private:
+  struct Cache;
   std::string data_dir_;
+  std::unique_ptr<Cache> cache_;
 };
 
 }  // namespace zerocal

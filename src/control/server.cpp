@@ -36,6 +36,44 @@ bool isOpenCommand(const std::string& cmd) {
   return cmd == "hello" || cmd == "version" || cmd == "auth";
 }
 
+// Deeper nesting than any request has is refused while parsing, before anything recurses over
+// it (copying, serialising and destroying a json are recursive).
+constexpr int kMaxRequestDepth = 16;
+
+struct TooDeep : std::runtime_error {
+  TooDeep()
+      : std::runtime_error("nested deeper than " + std::to_string(kMaxRequestDepth) + " levels") {}
+};
+
+json parseRequest(const std::string& line) {
+  return json::parse(line, [](int depth, json::parse_event_t, json&) {
+    if (depth > kMaxRequestDepth) throw TooDeep();
+    return true;
+  });
+}
+
+// A plan file named in the request must be a plain file name in plan_dir: the port never reads
+// any other path (the token file, /proc, a FIFO). The configuration's own plan_file is kept.
+service::StartRequest planFileInPlanDir(service::StartRequest start, const json& request,
+                                        const std::string& plan_dir) {
+  const auto named = request.find("plan_file");
+  if (named == request.end() || named->is_null()) return start;
+  const std::string name = start.plan_file;
+  if (plan_dir.empty())
+    throw BadRequest(
+        "plan_file: this daemon takes no plan files over the port "
+        "(session.plan_dir is not set)");
+  const bool plain = !name.empty() && name.size() <= 255 &&
+                     name.find_first_of("/\\") == std::string::npos && name != "." &&
+                     name != ".." && name[0] != '.';
+  if (!plain)
+    throw BadRequest(
+        "plan_file: a file name in the daemon's plan folder (session.plan_dir), "
+        "without a path");
+  start.plan_file = plan_dir + "/" + name;
+  return start;
+}
+
 const std::vector<std::string> kCommands{
     "hello",    "version", "auth",      "status",      "start", "abort", "resume",
     "sessions", "result",  "subscribe", "unsubscribe", "psd",   "plan"};
@@ -76,7 +114,8 @@ class ServerCore : public std::enable_shared_from_this<ServerCore> {
 
  private:
   void accept();
-  void refuse(tcp::socket socket);
+  void admit(tcp::socket socket);
+  void refuse(tcp::socket socket, const std::string& why);
 };
 
 class Connection : public std::enable_shared_from_this<Connection> {
@@ -89,7 +128,9 @@ class Connection : public std::enable_shared_from_this<Connection> {
         delay_(server_->io_) {
     boost::system::error_code ec;
     const auto peer = socket_.remote_endpoint(ec);
-    peer_ = ec ? std::string("?") : peer.address().to_string() + ":" + std::to_string(peer.port());
+    peer_address_ = ec ? std::string("?") : peer.address().to_string();
+    peer_ = ec ? peer_address_ : peer_address_ + ":" + std::to_string(peer.port());
+    connected_at_ = Clock::now();
     socket_.set_option(tcp::no_delay(true), ec);
     socket_.set_option(asio::socket_base::keep_alive(true), ec);
   }
@@ -132,8 +173,20 @@ class Connection : public std::enable_shared_from_this<Connection> {
     server_->remove(this);
   }
 
+  // The socket of a connection that was never started, to refuse it.
+  tcp::socket release() {
+    closed_ = true;
+    watchdog_.cancel();
+    delay_.cancel();
+    return std::move(socket_);
+  }
+
   bool subscribed() const { return subscribed_; }
+  bool authenticated() const { return authenticated_; }
   const std::string& peer() const { return peer_; }
+  // The peer's address without the port: what the per-peer limit counts.
+  const std::string& peerAddress() const { return peer_address_; }
+  Clock::time_point connectedAt() const { return connected_at_; }
 
  private:
   void read() {
@@ -180,7 +233,10 @@ class Connection : public std::enable_shared_from_this<Connection> {
   bool handle(const std::string& line) {
     json request;
     try {
-      request = json::parse(line);
+      request = parseRequest(line);
+    } catch (const TooDeep& e) {
+      send(errorResponse(nullptr, code::kBadJson, std::string("not a request: ") + e.what()));
+      return true;
     } catch (const json::exception& e) {
       send(errorResponse(nullptr, code::kBadJson, std::string("not a JSON object: ") + e.what()));
       return true;
@@ -235,10 +291,12 @@ class Connection : public std::enable_shared_from_this<Connection> {
         return authFailure(id, code::kAuthFailed, "wrong token");
       if (!authenticated_) server_->log_->info("{}: authenticated", peer_);
       authenticated_ = true;
+      auth_failures_ = 0;
     } else if (cmd == "status") {
       r["status"] = toJson(session.status());
     } else if (cmd == "start") {
-      const auto start = parseStartRequest(request, options.default_request);
+      const auto start = planFileInPlanDir(parseStartRequest(request, options.default_request),
+                                           request, options.plan_dir);
       return answerAside(id, [&session, start, log = server_->log_, peer = peer_] {
         const auto session_id = session.start(start);
         log->info("{}: started session {}", peer, session_id);
@@ -266,7 +324,8 @@ class Connection : public std::enable_shared_from_this<Connection> {
       readPsd(id);
       return false;
     } else if (cmd == "plan") {
-      const auto plan = parseStartRequest(request, options.default_request);
+      const auto plan = planFileInPlanDir(parseStartRequest(request, options.default_request),
+                                          request, options.plan_dir);
       return answerAside(id, [&session, plan] {
         return json{{"plan", toJson(session.preview(plan))}};
       });
@@ -375,8 +434,8 @@ class Connection : public std::enable_shared_from_this<Connection> {
 
   void armWatchdog() {
     const auto& o = server_->options_;
-    const auto tick =
-        std::min({std::chrono::milliseconds(1000), o.idle_timeout / 4, o.write_timeout / 4});
+    const auto tick = std::min({std::chrono::milliseconds(1000), o.idle_timeout / 4,
+                                o.write_timeout / 4, o.auth_timeout / 4});
     watchdog_.expires_after(std::max(tick, std::chrono::milliseconds(1)));
     watchdog_.async_wait([self = shared_from_this()](boost::system::error_code ec) {
       if (ec || self->closed_) return;
@@ -387,6 +446,14 @@ class Connection : public std::enable_shared_from_this<Connection> {
   void checkTimeouts() {
     const auto& o = server_->options_;
     const auto now = Clock::now();
+    if (!authenticated_ && !closing_ && now - connected_at_ > o.auth_timeout) {
+      server_->log_->info("{}: not authenticated within {} ms; closing", peer_,
+                          o.auth_timeout.count());
+      sendAndClose(errorResponse(nullptr, code::kUnauthenticated,
+                                 "authenticate within " + std::to_string(o.auth_timeout.count()) +
+                                     " ms of connecting; closing"));
+      if (closed_) return;
+    }
     if (writing_ && now - write_started_ > o.write_timeout) {
       server_->log_->warn("{}: dropped, a write was stuck for over {} ms", peer_,
                           o.write_timeout.count());
@@ -408,6 +475,8 @@ class Connection : public std::enable_shared_from_this<Connection> {
   asio::steady_timer watchdog_;
   asio::steady_timer delay_;
   std::string peer_;
+  std::string peer_address_;
+  Clock::time_point connected_at_;
   std::deque<Line> queue_;
   std::size_t queued_bytes_ = 0;
   bool writing_ = false;
@@ -450,26 +519,47 @@ void ServerCore::accept() {
           });
           return;
         }
-        if (self->connections_.size() >= self->options_.max_clients) {
-          self->refuse(std::move(socket));
-        } else {
-          auto connection = std::make_shared<Connection>(self, std::move(socket));
-          self->connections_.insert(connection);
-          connection->start();
-        }
+        self->admit(std::move(socket));
         self->accept();
       });
 }
 
-void ServerCore::refuse(tcp::socket socket) {
+void ServerCore::admit(tcp::socket socket) {
+  auto connection = std::make_shared<Connection>(shared_from_this(), std::move(socket));
+  const std::string& peer = connection->peerAddress();
+  // When a limit is reached, the oldest connection within it that has not authenticated makes
+  // room: an authenticated client (an abort) always gets in unless every slot is authenticated.
+  const auto makeRoom = [this](bool same_peer_only, const std::string& address) {
+    std::shared_ptr<Connection> oldest;
+    for (const auto& c : connections_)
+      if (!c->authenticated() && (!same_peer_only || c->peerAddress() == address) &&
+          (!oldest || c->connectedAt() < oldest->connectedAt()))
+        oldest = c;
+    if (!oldest) return false;
+    log_->warn("{}: closed to make room, it had not authenticated", oldest->peer());
+    oldest->close();
+    return true;
+  };
+  std::size_t from_peer = 0;
+  for (const auto& c : connections_) from_peer += c->peerAddress() == peer;
+  if (from_peer >= options_.max_clients_per_peer && !makeRoom(true, peer))
+    return refuse(connection->release(), std::to_string(from_peer) +
+                                             " authenticated connections from " + peer +
+                                             " are open already");
+  if (connections_.size() >= options_.max_clients && !makeRoom(false, peer))
+    return refuse(connection->release(), "the daemon serves " +
+                                             std::to_string(options_.max_clients) +
+                                             " authenticated clients already");
+  connections_.insert(connection);
+  connection->start();
+}
+
+void ServerCore::refuse(tcp::socket socket, const std::string& why) {
   auto s = std::make_shared<tcp::socket>(std::move(socket));
   boost::system::error_code ec;
   const auto peer = s->remote_endpoint(ec);
-  log_->warn("{}: refused, {} clients connected already",
-             ec ? std::string("?") : peer.address().to_string(), connections_.size());
-  auto line = makeLine(errorResponse(
-      nullptr, code::kTooManyClients,
-      "the daemon serves " + std::to_string(options_.max_clients) + " clients at most; try later"));
+  log_->warn("{}: refused, {}", ec ? std::string("?") : peer.address().to_string(), why);
+  auto line = makeLine(errorResponse(nullptr, code::kTooManyClients, why + "; try later"));
   // The socket's own buffer takes a line this short; if not, the peer loses the explanation only.
   s->non_blocking(true, ec);
   asio::write(*s, asio::buffer(*line), ec);
@@ -541,13 +631,17 @@ ServerOptions serverOptions(const ControlConfig& config, std::string token,
   o.write_timeout = duration_cast<milliseconds>(duration<double>(config.write_timeout_s));
   o.max_queued_bytes = static_cast<std::size_t>(config.max_queued_kib) * 1024;
   o.max_auth_failures = config.max_auth_failures;
+  o.max_clients_per_peer = static_cast<std::size_t>(config.max_clients_per_peer);
+  o.auth_timeout = duration_cast<milliseconds>(duration<double>(config.auth_timeout_s));
+  o.plan_dir = config.plan_dir;
   return o;
 }
 
 ControlServer::ControlServer(asio::io_context& io, service::SessionControl& session,
                              ServerOptions options) {
   if (options.token.empty()) throw Error("the control port needs a token (control.token_file)");
-  if (options.max_clients < 1 || options.max_line_bytes < 64 || options.max_auth_failures < 1)
+  if (options.max_clients < 1 || options.max_line_bytes < 64 || options.max_auth_failures < 1 ||
+      options.max_clients_per_peer < 1 || options.auth_timeout.count() < 1)
     throw Error("control options out of range");
   impl_ = std::make_shared<ServerCore>(io, session, std::move(options));
   auto executor = io.get_executor();

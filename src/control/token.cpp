@@ -22,6 +22,10 @@ std::string loadToken(const std::string& path) {
     throw Error("the token file " + path + " has mode " + mode +
                 ": group or others may access it; chmod 600 " + path);
   }
+  // A token is a line of random characters: a large file is a wrong path, not a token.
+  if (st.st_size > kMaxTokenFileBytes)
+    throw Error("the token file " + path + " is larger than " + std::to_string(kMaxTokenFileBytes) +
+                " bytes: not a token");
   std::ifstream in(path);
   if (!in) throw Error("cannot read the token file " + path);
   std::stringstream text;
@@ -30,6 +34,10 @@ std::string loadToken(const std::string& path) {
   const auto first = token.find_first_not_of(" \t\r\n");
   if (first == std::string::npos) throw Error("the token file " + path + " is empty");
   token = token.substr(first, token.find_last_not_of(" \t\r\n") - first + 1);
+  if (token.size() < kMinTokenLength)
+    throw Error("the token in " + path + " has " + std::to_string(token.size()) +
+                " characters; use at least " + std::to_string(kMinTokenLength) +
+                " random ones (head -c 24 /dev/urandom | base64)");
   return token;
 }
 

@@ -14,6 +14,7 @@
 #include <sstream>
 #include <utility>
 
+#include "zerocal/calib/cell_model.h"
 #include "zerocal/error.h"
 
 namespace zerocal {
@@ -284,6 +285,9 @@ std::vector<Field> schema(DaemonConfig& c) {
   f.push_back(realField("control.write_timeout_s", c.control.write_timeout_s));
   f.push_back(integerField("control.max_queued_kib", c.control.max_queued_kib));
   f.push_back(integerField("control.max_auth_failures", c.control.max_auth_failures));
+  f.push_back(integerField("control.max_clients_per_peer", c.control.max_clients_per_peer));
+  f.push_back(realField("control.auth_timeout_s", c.control.auth_timeout_s));
+  f.push_back(pathField("control.plan_dir", c.control.plan_dir));
 
   f.push_back(choiceField("logging.level", c.logging.level, kLevels));
   f.push_back(pathField("logging.directory", c.logging.directory));
@@ -473,7 +477,8 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
   check.positive("controller.speed_tcp_mm_s", k.speed_tcp_mm_s, 7000.0);
   check.positive("controller.speed_ori_deg_s", k.speed_ori_deg_s, 1000.0);
   check.range("controller.limit_margin_deg", k.limit_margin_deg, 0.0, 30.0);
-  check.positive("controller.max_step_deg", k.max_step_deg, 180.0);
+  // A calibration never needs one move larger than this; a larger step is a typing error.
+  check.positive("controller.max_step_deg", k.max_step_deg, 45.0);
   check.range("controller.reconnect_attempts", k.reconnect_attempts, 0, 1000);
 
   const auto& d = c.daq;
@@ -485,18 +490,7 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
   }
   for (std::size_t i = 0; i < 3; ++i)
     for (std::size_t j = i + 1; j < 3; ++j) {
-      const auto& a = *channels[i].second;
-      const auto& o = *channels[j].second;
-      // A differential pair n occupies single-ended inputs n and n + 4.
-      auto inputs = [](const usb1408fs::Channel& ch) {
-        return ch.mode == usb1408fs::InputMode::kDifferential
-                   ? std::vector<int>{ch.number, ch.number + 4}
-                   : std::vector<int>{ch.number};
-      };
-      bool shared = false;
-      for (int p : inputs(a))
-        for (int q : inputs(o)) shared = shared || p == q;
-      if (shared)
+      if (usb1408fs::sharesTerminal(*channels[i].second, *channels[j].second))
         check.fail(std::string("daq.channels.") + channels[j].first,
                    std::string("uses the same input as daq.channels.") + channels[i].first);
     }
@@ -507,7 +501,8 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
 
   const auto& s = c.servo;
   check.positive("servo.tolerance_um", s.tolerance_um, 1000.0);
-  check.positive("servo.max_step_deg", s.max_step_deg, 180.0);
+  // A servo step moves the spot a few mm; 5 deg moves it by tens of mm at 1 m.
+  check.positive("servo.max_step_deg", s.max_step_deg, 5.0);
   if (s.max_step_deg > k.max_step_deg)
     check.fail("servo.max_step_deg", str(s.max_step_deg) + " exceeds controller.max_step_deg (" +
                                          str(k.max_step_deg) + ")");
@@ -530,8 +525,7 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
   } else if (!n.plan_file.empty()) {
     check.fail("session.plan_file", "only used with session.plan: file");
   }
-  // Fewer than 4 poses cannot identify delta2..delta5 with the target unknown.
-  check.range("session.poses", n.poses, 4, 1000);
+  check.range("session.poses", n.poses, kMinimumPoses, kMaxPlanPoses);
   check.positive("session.noise_mm", n.noise_mm, 10.0);
   if (n.data_dir.empty()) check.fail("session.data_dir", "must not be empty");
 
@@ -546,10 +540,14 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
   }
   check.range("control.max_clients", c.control.max_clients, 1, 10000);
   check.range("control.max_line_bytes", c.control.max_line_bytes, 1024, 16 << 20);
-  check.positive("control.idle_timeout_s", c.control.idle_timeout_s, 86400.0);
+  // Below a second a terminal could not send its next line in time.
+  check.range("control.idle_timeout_s", c.control.idle_timeout_s, 1.0, 86400.0);
   check.positive("control.write_timeout_s", c.control.write_timeout_s, 3600.0);
   check.range("control.max_queued_kib", c.control.max_queued_kib, 64, 1 << 20);
   check.range("control.max_auth_failures", c.control.max_auth_failures, 1, 100);
+  check.range("control.max_clients_per_peer", c.control.max_clients_per_peer, 1,
+              c.control.max_clients);
+  check.range("control.auth_timeout_s", c.control.auth_timeout_s, 0.5, 600.0);
   if (!c.control.token_file.empty()) check.fileExists("control.token_file", c.control.token_file);
 
   // The diagnostic log and the measured data are kept apart (house style).

@@ -157,6 +157,7 @@ int main(int argc, char** argv) {
   options.port = 0;
   options.token = kToken;
   options.max_clients = static_cast<std::size_t>(clients + watchers + 8);
+  options.max_clients_per_peer = options.max_clients;  // every client is on 127.0.0.1
   ControlServer server(io, session, options);
   server.start();
   std::thread io_thread([&] {

@@ -96,7 +96,7 @@ TEST_F(ClientCommandsTest, NoDaemonIsExitCode5) {
 
 TEST_F(ClientCommandsTest, WrongOrUnusableTokenIsExitCode6) {
   auto a = args("start");
-  a.token_file = writeToken("not-the-token", 0600);
+  a.token_file = writeToken("not-the-token-of-this-daemon", 0600);
   EXPECT_EQ(run(a), 6);
   EXPECT_THAT(err_.str(), HasSubstr("auth_failed"));
   a.token_file = writeToken(kToken, 0644);

@@ -31,6 +31,9 @@ class ControlServerTest : public ::testing::Test {
     options.daemon_version = "9.9.9";
     options.auth_failure_delay = 10ms;
     if (options.status_period == ServerOptions{}.status_period) options.status_period = 50ms;
+    // Every test client comes from 127.0.0.1: the per-peer limit is tested on its own.
+    if (options.max_clients_per_peer == ServerOptions{}.max_clients_per_peer)
+      options.max_clients_per_peer = options.max_clients;
     server_ = std::make_unique<ControlServer>(io_, session_, options);
     server_->start();
     io_.restart();

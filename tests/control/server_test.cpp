@@ -54,8 +54,15 @@ class TokenFileTest : public ::testing::Test {
 };
 
 TEST_F(TokenFileTest, ReadsAnOwnerOnlyFileWithoutSurroundingWhitespace) {
-  EXPECT_EQ(loadToken(write("  s3cret\n", 0600)), "s3cret");
-  EXPECT_EQ(loadToken(write("s3cret", 0400)), "s3cret");
+  EXPECT_EQ(loadToken(write("  s3cret-s3cret-s3cret\n", 0600)), "s3cret-s3cret-s3cret");
+  EXPECT_EQ(loadToken(write("s3cret-s3cret-s3cret", 0400)), "s3cret-s3cret-s3cret");
+}
+
+TEST_F(TokenFileTest, RefusesATokenTooShortToGuardAnythingAndAFileTooLargeToBeOne) {
+  EXPECT_THAT([&] { loadToken(write("x\n", 0600)); },
+              ::testing::ThrowsMessage<Error>(HasSubstr("use at least 16")));
+  EXPECT_THAT([&] { loadToken(write(std::string(5000, 'k'), 0600)); },
+              ::testing::ThrowsMessage<Error>(HasSubstr("not a token")));
 }
 
 TEST_F(TokenFileTest, RefusesAMissingFile) {
@@ -541,6 +548,119 @@ TEST_F(ControlServerTest, ManyConnectionsAtOnceLeaveTheSessionRunning) {
   expectOthersServedFast();
   EXPECT_EQ(session_.status().state, SessionState::kMoving);
   EXPECT_EQ(session_.abortCalls(), 0);
+}
+
+// -- hostile clients ---------------------------------------------------------------------------
+
+TEST_F(ControlServerTest, ConnectionsThatNeverAuthenticateCannotLockOutAnAbort) {
+  ServerOptions options;
+  options.max_clients = 8;
+  startServer(options);
+  session_.setState(SessionState::kServoing, 2, 8);
+  std::vector<std::unique_ptr<ControlClient>> strangers;
+  for (int i = 0; i < 8; ++i) {
+    strangers.push_back(connect(false));
+    strangers.back()->sendRaw("\n");  // keeps it from looking idle
+  }
+  for (int attempt = 0; attempt < 5; ++attempt) {
+    auto technician = connect();  // displaces the oldest stranger
+    // The first abort stops the session; the later ones find nothing running, but get through.
+    EXPECT_EQ(technician->call("abort")["aborted"], attempt == 0);
+  }
+  EXPECT_EQ(session_.abortCalls(), 5);
+  EXPECT_LE(connections(), 8u);
+}
+
+TEST_F(ControlServerTest, EveryAuthenticatedSlotTakenRefusesTheNextClient) {
+  ServerOptions options;
+  options.max_clients = 3;
+  startServer(options);
+  std::vector<std::unique_ptr<ControlClient>> clients;
+  for (int i = 0; i < 3; ++i) clients.push_back(connect());
+  ControlClient extra;
+  extra.connect("127.0.0.1", server_->port());
+  EXPECT_EQ(json::parse(*extra.readLine(1s))["error"]["code"], "too_many_clients");
+  for (auto& c : clients) EXPECT_EQ(c->call("status")["ok"], true);
+}
+
+TEST_F(ControlServerTest, AConnectionMustAuthenticateSoon) {
+  ServerOptions options;
+  options.auth_timeout = 200ms;
+  startServer(options);
+  auto stranger = connect(false);
+  EXPECT_EQ(stranger->call("hello")["authenticated"], false);
+  const auto line = stranger->readLine(2s);
+  ASSERT_TRUE(line.has_value());
+  EXPECT_EQ(json::parse(*line)["error"]["code"], "unauthenticated");
+  expectClosed(*stranger);
+  auto technician = connect();
+  std::this_thread::sleep_for(400ms);
+  EXPECT_EQ(technician->call("status")["ok"], true);  // authenticated: no deadline
+}
+
+TEST_F(ControlServerTest, ConnectionsPerPeerAreLimited) {
+  ServerOptions options;
+  options.max_clients = 8;
+  options.max_clients_per_peer = 2;
+  startServer(options);
+  auto first = connect();
+  auto second = connect();
+  ControlClient third;
+  third.connect("127.0.0.1", server_->port());
+  const auto r = json::parse(*third.readLine(1s));
+  EXPECT_EQ(r["error"]["code"], "too_many_clients");
+  EXPECT_THAT(r["error"]["message"].get<std::string>(), HasSubstr("from 127.0.0.1"));
+  EXPECT_EQ(first->call("status")["ok"], true);
+  // An unauthenticated connection of that peer makes room for it, as for the overall limit.
+  first.reset();
+  const auto t0 = std::chrono::steady_clock::now();
+  while (connections() > 1 && std::chrono::steady_clock::now() - t0 < 1s)
+    std::this_thread::sleep_for(5ms);
+  auto stranger = connect(false);
+  stranger->call("hello");  // the server has taken it in
+  auto technician = connect();
+  EXPECT_EQ(technician->call("status")["ok"], true);
+  expectClosed(*stranger);
+}
+
+TEST_F(ControlServerTest, DeepNestingIsRefusedWhileParsingBeforeAnythingRecursesOverIt) {
+  ServerOptions options;
+  options.max_line_bytes = 4 << 20;
+  startServer(options);
+  auto c = connect(false);
+  c->sendRaw(R"({"id":[[1]],"cmd":"hello"})"
+             "\n");
+  auto r = json::parse(*c->readLine(2s));
+  EXPECT_EQ(r["id"], json::parse("[[1]]"));  // a shallow structured id is still echoed
+  // Half a million levels: far beyond what a recursive copy or dump survives on a thread stack.
+  const std::size_t depth = 500000;
+  c->sendRaw(R"({"cmd":"hello","id":)" + std::string(depth, '[') + std::string(depth, ']') + "}\n");
+  r = json::parse(*c->readLine(5s));
+  EXPECT_EQ(r["error"]["code"], "bad_json");
+  EXPECT_THAT(r["error"]["message"].get<std::string>(), HasSubstr("nested deeper"));
+  EXPECT_EQ(c->call("hello", {{"id", "a string id"}})["ok"], true);
+  expectOthersServedFast();
+}
+
+TEST_F(ControlServerTest, PlanFilesComeOnlyFromThePlanFolder) {
+  ServerOptions options;
+  options.plan_dir = "/var/lib/zerocal/plans";
+  startServer(options);
+  auto c = connect();
+  for (const char* name : {"/etc/shadow", "../token", "plans/../../x", ".hidden", "..", ""}) {
+    const auto r = c->request({{"cmd", "plan"}, {"plan", "file"}, {"plan_file", name}});
+    EXPECT_EQ(r["error"]["code"], "bad_request") << name;
+    EXPECT_THAT(r["error"]["message"].get<std::string>(), HasSubstr("plan folder")) << name;
+  }
+  EXPECT_EQ(session_.startCalls(), 0);
+  c->call("start", {{"plan", "file"}, {"plan_file", "cell7.csv"}});
+  EXPECT_EQ(session_.lastRequest().plan_file, "/var/lib/zerocal/plans/cell7.csv");
+
+  options.plan_dir = "";
+  startServer(options);
+  auto d = connect();
+  const auto r = d->request({{"cmd", "plan"}, {"plan", "file"}, {"plan_file", "cell7.csv"}});
+  EXPECT_EQ(r["error"]["code"], "bad_request");
 }
 
 TEST_F(ControlServerTest, StopClosesEveryConnection) {

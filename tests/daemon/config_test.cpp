@@ -189,7 +189,7 @@ TEST_F(ConfigTest, OutOfRangeValuesNameWhereTheyWereSet) {
   const auto p = problems(sources({"controller.speed_tcp_mm_s=1e6", "daq.channels.x.number=4"}));
   EXPECT_EQ(p.size(), 4u) << joined(p);
   EXPECT_TRUE(reported(p, {"main.yaml:2", "servo.tolerance_um", "greater than 0"})) << joined(p);
-  EXPECT_TRUE(reported(p, {"10.yaml:2", "session.poses", "at least 4"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"10.yaml:2", "session.poses", "at least 6"})) << joined(p);
   EXPECT_TRUE(reported(p, {"command line", "controller.speed_tcp_mm_s", "at most 7000"}));
   EXPECT_TRUE(reported(p, {"command line", "daq.channels.x.number", "at most 3"})) << joined(p);
 }
@@ -198,7 +198,8 @@ TEST_F(ConfigTest, InconsistentCombinations) {
   write("main.yaml",
         "backend:\n  kind: sim\n  sim_world: /nonexistent/world.yaml\n  sim_seed: 3\n"
         "  sim_host: localhost\n"
-        "servo:\n  max_step_deg: 20\n  search_step_mm: 70\n"
+        "servo:\n  max_step_deg: 4\n  search_step_mm: 70\n"
+        "controller:\n  max_step_deg: 3\n"
         "session:\n  plan: file\n"
         "control:\n  bind_address: 0.0.0.0\n"
         "daq:\n  channels:\n    y:\n      number: 0\n"
@@ -235,7 +236,7 @@ TEST_F(ConfigTest, SeveralErrorsInSeveralSourcesAllReportedAtOnce) {
   EXPECT_TRUE(reported(p, {"10-broken.yaml", "not valid YAML"})) << joined(p);
   EXPECT_TRUE(reported(p, {"20.yaml:2", "control.bind_address", "not an IP address"}));
   EXPECT_TRUE(reported(p, {"command line 'nonsense'", "section.key=value"}));
-  EXPECT_TRUE(reported(p, {"command line 'session.poses=2'", "at least 4"}));
+  EXPECT_TRUE(reported(p, {"command line 'session.poses=2'", "at least 6"}));
 }
 
 TEST_F(ConfigTest, ErrorMessageListsEveryProblem) {

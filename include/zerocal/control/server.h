@@ -29,7 +29,17 @@ struct ServerOptions {
   // What `start` and `plan` use for the members a request leaves out (SessionManager's
   // defaultRequest(): the configuration's session section).
   service::StartRequest default_request;
-  std::size_t max_clients = 64;  // more connections get a too_many_clients error and are closed
+  // Connections at once. When all are taken, a new connection displaces the oldest one that has
+  // not authenticated (so that idle strangers can never lock out an abort); when every one has
+  // authenticated, the new one gets a too_many_clients error and is closed.
+  std::size_t max_clients = 64;
+  // Connections from one peer address at once; more are refused (too_many_clients).
+  std::size_t max_clients_per_peer = 16;
+  // A connection that has not authenticated this long after it connected is closed.
+  std::chrono::milliseconds auth_timeout{std::chrono::seconds(10)};
+  // Plan files named in `start` and `plan` requests are file names in this folder (no path
+  // components); nothing else is read. Empty: no plan file may be named on the port.
+  std::string plan_dir;
   std::size_t max_line_bytes = 65536;  // a longer request line: line_too_long, then closed
   // A connection that completes no request line for this long is closed, unless it subscribed
   // (a watcher is quiet by design; a dead watcher is found by the write limits below).

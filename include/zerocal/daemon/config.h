@@ -103,6 +103,10 @@ struct ControlConfig {
   double write_timeout_s = 30;  // a client whose write is stuck this long is dropped
   int max_queued_kib = 1024;    // output queued for one client before it is dropped
   int max_auth_failures = 3;    // failed auth attempts before a connection is closed
+  int max_clients_per_peer = 16;  // connections from one address at once
+  double auth_timeout_s = 10;     // a connection not authenticated this long is closed
+  // Plan files named in `start`/`plan` requests are file names in this folder; empty: none.
+  std::string plan_dir = "/var/lib/zerocal/plans";
 };
 
 enum class LogLevel { kTrace, kDebug, kInfo, kWarn, kError, kCritical, kOff };

@@ -1,14 +1,22 @@
 #include "zerocal/io/joint_set.h"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <cmath>
 #include <cstdlib>
-#include <fstream>
+#include <cstring>
+#include <regex>
 #include <sstream>
 
 #include "zerocal/error.h"
 
 namespace zerocal {
 namespace {
+
+constexpr const char* kUtf8Bom = "\xEF\xBB\xBF";
 
 std::string trim(const std::string& s) {
   const auto b = s.find_first_not_of(" \t\r");
@@ -40,7 +48,9 @@ std::vector<Pose> parseJointSet(const std::string& text, const std::string& orig
   };
   while (std::getline(in, line)) {
     ++line_no;
-    const std::string t = trim(line);
+    std::string t = trim(line);
+    // A spreadsheet's byte-order mark would make "q1" a different, invisible name.
+    if (line_no == 1 && t.rfind(kUtf8Bom, 0) == 0) t = trim(t.substr(3));
     if (t.empty() || t[0] == '#') continue;
     const auto fields = splitFields(t);
     if (!have_header) {
@@ -55,7 +65,8 @@ std::vector<Pose> parseJointSet(const std::string& text, const std::string& orig
       for (int k = 0; k < 6; ++k)
         if (column[k] < 0) missing += std::string(missing.empty() ? "" : ", ") + names[k];
       if (!missing.empty())
-        fail("the header must name the columns q1..q6 (missing: " + missing + "); got '" + t + "'");
+        fail("the header must name the columns q1..q6 (missing: " + missing + "); it has " +
+             std::to_string(fields.size()) + " columns");
       if ((column[6] < 0) != (column[7] < 0)) fail("the header has only one of u and v");
       have_header = true;
       header_fields = fields.size();
@@ -66,10 +77,12 @@ std::vector<Pose> parseJointSet(const std::string& text, const std::string& orig
            std::to_string(fields.size()));
     auto value = [&](int k) {
       const std::string& f = fields[column[k]];
-      char* end = nullptr;
-      const double v = std::strtod(f.c_str(), &end);
-      if (f.empty() || *end != '\0')
-        fail("column " + std::to_string(column[k] + 1) + " ('" + f + "') is not a number");
+      // Decimal notation only: strtod would also take hex ("0x1p3"), "inf" and "nan". The field
+      // itself is not echoed: an error message never shows a file's content.
+      static const std::regex kDecimal(R"([+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?)");
+      if (!std::regex_match(f, kDecimal))
+        fail("column " + std::to_string(column[k] + 1) + " is not a decimal number");
+      const double v = std::strtod(f.c_str(), nullptr);
       if (!std::isfinite(v)) fail("column " + std::to_string(column[k] + 1) + " is not finite");
       return v;
     };
@@ -77,6 +90,8 @@ std::vector<Pose> parseJointSet(const std::string& text, const std::string& orig
     pose.source_line = line_no;
     for (int k = 0; k < 6; ++k) pose.q_deg[k] = value(k);
     if (column[6] >= 0) pose.psd_uv_mm = Eigen::Vector2d(value(6), value(7));
+    if (poses.size() >= kMaxJointSetPoses)
+      fail("more than " + std::to_string(kMaxJointSetPoses) + " poses: not a joint set");
     poses.push_back(pose);
   }
   if (!have_header) throw InputError(origin + ": empty file: expected a header naming q1..q6");
@@ -84,11 +99,29 @@ std::vector<Pose> parseJointSet(const std::string& text, const std::string& orig
 }
 
 std::vector<Pose> readJointSet(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot open the joint-set file");
-  std::stringstream text;
-  text << in.rdbuf();
-  return parseJointSet(text.str(), path);
+  // O_NONBLOCK: opening a FIFO must not wait for a writer; only a regular file is read at all.
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) throw InputError(path + ": cannot open the joint-set file: " + std::strerror(errno));
+  struct stat st {};
+  std::string text;
+  std::string problem;
+  if (::fstat(fd, &st) != 0)
+    problem = std::strerror(errno);
+  else if (!S_ISREG(st.st_mode))
+    problem = "not a regular file";
+  else if (st.st_size > static_cast<off_t>(kMaxJointSetBytes))
+    problem = "larger than " + std::to_string(kMaxJointSetBytes >> 20) + " MiB: not a joint set";
+  for (char buffer[65536]; problem.empty() && text.size() <= kMaxJointSetBytes;) {
+    const ssize_t n = ::read(fd, buffer, sizeof buffer);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) problem = std::strerror(errno);
+    if (n <= 0) break;
+    text.append(buffer, static_cast<std::size_t>(n));
+  }
+  ::close(fd);
+  if (problem.empty() && text.size() > kMaxJointSetBytes) problem = "grew while it was read";
+  if (!problem.empty()) throw InputError(path + ": cannot use it as a joint-set file: " + problem);
+  return parseJointSet(text, path);
 }
 
 std::string formatJointSet(const std::vector<Pose>& poses, const std::string& comment) {

@@ -1,6 +1,10 @@
 #include "zerocal/io/joint_set.h"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <fstream>
 
 #include "zerocal/error.h"
 
@@ -42,16 +46,62 @@ TEST(JointSetCsv, BadInputNamesTheLine) {
   EXPECT_NE(errorOf("q1,q2,q3,q4,q5\n").find("missing: q6"), std::string::npos);
   EXPECT_NE(errorOf("q1,q2,q3,q4,q5,q6,u\n").find("only one of u and v"), std::string::npos);
   EXPECT_NE(errorOf("q1,q2,q3,q4,q5,q6\n1,2,3,4,5,x\n")
-                .find("poses.csv:2: column 6 ('x') is not a number"),
+                .find("poses.csv:2: column 6 is not a decimal number"),
+            std::string::npos);
+  EXPECT_NE(errorOf("q1,q2,q3,q4,q5,q6\n1,2,3,4,5,0x1p3\n").find("column 6 is not a decimal"),
+            std::string::npos);
+  EXPECT_NE(errorOf("q1,q2,q3,q4,q5,q6\n1,2,3,4,5,inf\n").find("column 6 is not a decimal"),
+            std::string::npos);
+  EXPECT_NE(errorOf("q1,q2,q3,q4,q5,q6\n1,2,3,4,5,1e999\n").find("column 6 is not finite"),
             std::string::npos);
   EXPECT_NE(
-      errorOf("q1,q2,q3,q4,q5,q6\n1,2,3,4,5,nan\n").find("poses.csv:2: column 6 is not finite"),
+      errorOf("q1,q2,q3,q4,q5,q6\n1,2,3,4,5,nan\n").find("poses.csv:2: column 6 is not a decimal"),
       std::string::npos);
   EXPECT_NE(errorOf("q1,q2,q3,q4,q5,q6\n1,2,3\n").find("poses.csv:2: expected 6 fields"),
             std::string::npos);
-  EXPECT_NE(errorOf("q1,q2,q3,q4,q5,q6\n1,2,3,4,5,\n").find("is not a number"), std::string::npos);
+  EXPECT_NE(errorOf("q1,q2,q3,q4,q5,q6\n1,2,3,4,5,\n").find("is not a decimal number"),
+            std::string::npos);
   EXPECT_NE(errorOf("q1,q1,q2,q3,q4,q5,q6\n").find("appears twice"), std::string::npos);
   EXPECT_THROW(readJointSet("/nonexistent/poses.csv"), InputError);
+}
+
+TEST(JointSetCsv, ErrorsNeverQuoteTheFileAndAByteOrderMarkIsSkipped) {
+  const std::string secret = "s3cr3t-token-value";
+  EXPECT_EQ(errorOf(secret + "\n").find(secret), std::string::npos) << errorOf(secret + "\n");
+  EXPECT_EQ(errorOf("q1,q2,q3,q4,q5,q6\n1,2,3,4,5," + secret + "\n").find(secret),
+            std::string::npos);
+  const auto poses = parseJointSet("\xEF\xBB\xBFq1,q2,q3,q4,q5,q6\n1,2,3,4,5,6\n", "bom.csv");
+  ASSERT_EQ(poses.size(), 1u);
+  EXPECT_EQ(poses[0].q_deg[5], 6);
+}
+
+TEST(JointSetCsv, OnlyABoundedRegularFileIsRead) {
+  // A device that never ends, a directory and a FIFO with no writer are refused at once.
+  for (const char* path : {"/dev/zero", "/tmp"}) {
+    try {
+      readJointSet(path);
+      FAIL() << path << " was read";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("not a regular file"), std::string::npos) << e.what();
+    }
+  }
+  const std::string fifo = "/tmp/zerocal-joint-set-fifo-" + std::to_string(::getpid());
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  EXPECT_THROW(readJointSet(fifo), InputError);
+  ::unlink(fifo.c_str());
+  const std::string big = "/tmp/zerocal-joint-set-big-" + std::to_string(::getpid());
+  {
+    std::ofstream out(big);
+    out << "q1,q2,q3,q4,q5,q6\n";
+    for (std::size_t n = 0; n < kMaxJointSetBytes / 12 + 1; ++n) out << "1,2,3,4,5,6\n";
+  }
+  try {
+    readJointSet(big);
+    FAIL() << "a file over the limit was read";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("larger than 1 MiB"), std::string::npos) << e.what();
+  }
+  ::unlink(big.c_str());
 }
 
 TEST(JointSetCsv, FormatRoundTripsWithFiveDecimals) {

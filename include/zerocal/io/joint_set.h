@@ -23,8 +23,14 @@ struct Pose {
   int source_line = 0;                       // 1-based line in the file, 0 when not from a file
 };
 
-// Throws InputError naming the line for: unreadable file, missing header or columns, non-numeric
-// or non-finite values, rows with too few fields, u without v.
+// A joint set is a plan or a recording: far below these. Larger input is refused, not read.
+inline constexpr std::size_t kMaxJointSetBytes = 1 << 20;
+inline constexpr std::size_t kMaxJointSetPoses = 10000;
+
+// Throws InputError naming the line for: a file that cannot be opened, is not a regular file or
+// is larger than kMaxJointSetBytes, a missing header or columns, values that are not decimal
+// numbers or not finite, rows with too few fields, u without v, more than kMaxJointSetPoses rows.
+// A leading UTF-8 byte-order mark is skipped. Messages never quote the file's content.
 std::vector<Pose> readJointSet(const std::string& path);
 std::vector<Pose> parseJointSet(const std::string& text, const std::string& origin);
 

@@ -4,6 +4,7 @@
 #include <boost/asio.hpp>
 #include <cmath>
 #include <cstddef>
+#include <cstdio>
 #include <cstdlib>
 #include <exception>
 #include <string_view>
@@ -232,10 +233,34 @@ void Irc5Client::connect() {
              irc5::kSetSpeed, 0, rt);
     // Fine point: a move reply then means the robot stopped at the target, not fly-by.
     transact(request(irc5::kSetZone, {{1, 0}, {0, 0}, {0, 0}, {0, 0}}), irc5::kSetZone, 0, rt);
+    checkRobotFileAgainst(readJointBounds());
   } catch (...) {
     io_->shut();
     throw;
   }
+}
+
+void Irc5Client::checkRobotFileAgainst(const std::array<JointLimit, kJointCount>& bounds) const {
+  // Every move is checked against the robot file before it is sent; that check is worth only as
+  // much as the file. A file wider than the controller's own bounds is refused outright.
+  constexpr double kTolerance = 1e-3;  // the bounds travel with 3 decimals
+  std::vector<std::string> problems;
+  for (int i = 0; i < kJointCount; ++i) {
+    const JointLimit& file = options_.robot.limits[i];
+    if (file.lower_deg < bounds[i].lower_deg - kTolerance ||
+        file.upper_deg > bounds[i].upper_deg + kTolerance) {
+      char text[200];
+      std::snprintf(text, sizeof text,
+                    "joint %d: the robot file allows %.3f..%.3f deg, the controller only "
+                    "%.3f..%.3f deg",
+                    i + 1, file.lower_deg, file.upper_deg, bounds[i].lower_deg,
+                    bounds[i].upper_deg);
+      problems.push_back(text);
+    }
+  }
+  if (!problems.empty())
+    throw ConfigError("the robot file " + options_.robot.name + " is wider than the controller",
+                      problems);
 }
 
 void Irc5Client::reconnect() {

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <fstream>
 #include <sstream>
+#include <tuple>
 
 #include "zerocal/error.h"
 #include "zerocal/model/kinematics.h"
@@ -58,6 +59,16 @@ double number(const YAML::Node& map, const std::string& key, const std::string& 
   }
 }
 
+constexpr double kMaxJointTravelDeg = 720;  // two turns either way
+constexpr double kMaxLinkMm = 10000;
+constexpr double kMinJointSpeedDegS = 0.1, kMaxJointSpeedDegS = 2000;
+
+std::string fmt(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
 }  // namespace
 
 Robot parseRobot(const std::string& yaml_text, const std::string& origin) {
@@ -99,9 +110,20 @@ Robot parseRobot(const std::string& yaml_text, const std::string& origin) {
       lim.upper_deg = number(j, "upper_deg", where, problems);
       if (j["lower_deg"] && j["upper_deg"] && !(lim.lower_deg < lim.upper_deg))
         problems.push_back(where + ": lower_deg must be below upper_deg");
+      // Beyond these no industrial arm goes: such a value is a typing error that would make
+      // every limit check (and every move deadline) meaningless.
+      for (const auto& [key, value, bound] :
+           {std::tuple<const char*, double, double>{"lower_deg", lim.lower_deg, kMaxJointTravelDeg},
+            {"upper_deg", lim.upper_deg, kMaxJointTravelDeg},
+            {"a_mm", row.a_mm, kMaxLinkMm},
+            {"d_mm", row.d_mm, kMaxLinkMm}})
+        if (j[key] && std::isfinite(value) && !(std::abs(value) <= bound))
+          problems.push_back(where + ": " + key + " must lie within +-" + fmt(bound));
       robot.max_speed_deg_s[i] = number(j, "max_speed_deg_s", where, problems);
-      if (j["max_speed_deg_s"] && !(robot.max_speed_deg_s[i] > 0))
-        problems.push_back(where + ": max_speed_deg_s must be positive");
+      if (j["max_speed_deg_s"] && !(robot.max_speed_deg_s[i] >= kMinJointSpeedDegS &&
+                                    robot.max_speed_deg_s[i] <= kMaxJointSpeedDegS))
+        problems.push_back(where + ": max_speed_deg_s must lie within " + fmt(kMinJointSpeedDegS) +
+                           ".." + fmt(kMaxJointSpeedDegS));
       for (const auto& kv : j) {
         static const char* known[] = {
             "a_mm",      "alpha_deg", "d_mm",           "theta_offset_deg",

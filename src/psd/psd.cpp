@@ -293,14 +293,20 @@ PsdMap PsdMap::fromParts(int degree, std::vector<double> u_coeff, std::vector<do
     throw std::invalid_argument("a degree-" + std::to_string(degree) + " PSD map needs " +
                                 std::to_string(m) + " coefficients for u and for v");
   }
-  for (double c : u_coeff) {
-    if (!std::isfinite(c)) throw std::invalid_argument("PSD map coefficient is not finite");
-  }
-  for (double c : v_coeff) {
-    if (!std::isfinite(c)) throw std::invalid_argument("PSD map coefficient is not finite");
-  }
+  // A fitted map's coefficients are millimetres per (volts / 5)^k: a few mm (under 2 for the
+  // shipped map). Far beyond that the file is damaged or hand-typed, and the map would turn any
+  // reading into nonsense that still looks like a number.
+  constexpr double kLargestCoefficient = 1e6;
+  for (const auto* coefficients : {&u_coeff, &v_coeff})
+    for (double c : *coefficients)
+      if (!(std::abs(c) <= kLargestCoefficient))
+        throw std::invalid_argument("PSD map coefficient " + std::to_string(c) +
+                                    " is not a finite number within +-1e6");
+  // A PSD is at most tens of millimetres across.
+  constexpr double kLargestZoneMm = 1000;
   for (double z : zone_mm) {
-    if (!std::isfinite(z)) throw std::invalid_argument("PSD map zone is not finite");
+    if (!(std::abs(z) <= kLargestZoneMm))
+      throw std::invalid_argument("PSD map zone is not finite, or beyond +-1000 mm");
   }
   if (!(zone_mm[0] < zone_mm[1]) || !(zone_mm[2] < zone_mm[3])) {
     throw std::invalid_argument("PSD map zone is empty (each minimum must be below its maximum)");

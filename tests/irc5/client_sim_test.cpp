@@ -98,7 +98,33 @@ TEST_F(ClientSim, ConnectRunsTheSetupSequence) {
   EXPECT_EQ(client.info().serial, "SIM-1600-0001");
   EXPECT_EQ(client.info().software_version, "6.15.01.00");
   EXPECT_EQ(client.info().robot_type, "IRB 1600-10/1.45");
-  EXPECT_EQ(sim_->requestCount(), 6);  // ping, 98, tool, wobj, speed, zone
+  EXPECT_EQ(sim_->requestCount(), 8);  // ping, 98, tool, wobj, speed, zone, 42 lower, 42 upper
+}
+
+TEST_F(ClientSim, ARobotFileWiderThanTheControllersBoundsIsRefusedAtConnect) {
+  startSim();
+  Irc5Options options = clientOptions();
+  options.robot.limits[0] = {-360, 360};
+  options.robot.limits[3].upper_deg += 1;
+  const Joints home = sim_->commandedJoints();
+  Irc5Client client(options);
+  try {
+    client.connect();
+    FAIL() << "a robot file wider than the controller was accepted";
+  } catch (const ConfigError& e) {
+    ASSERT_EQ(e.problems().size(), 2u);
+    EXPECT_NE(e.problems()[0].find("joint 1: the robot file allows -360.000..360.000 deg"),
+              std::string::npos)
+        << e.problems()[0];
+    EXPECT_NE(e.problems()[1].find("joint 4"), std::string::npos) << e.problems()[1];
+  }
+  EXPECT_FALSE(client.connected());
+  EXPECT_EQ(sim_->commandedJoints(), home);
+  // A narrower file is the technician's choice and is kept.
+  options = clientOptions();
+  options.robot.limits[0] = {-90, 90};
+  Irc5Client narrower(options);
+  EXPECT_NO_THROW(narrower.connect());
 }
 
 TEST_F(ClientSim, PingAndReadJoints) {
@@ -357,14 +383,12 @@ TEST_F(ClientSim, LimitsAreRefusedOnBothSides) {
   EXPECT_THROW(client.moveJoints({0, 0, 70, 0, 30, 0}), RequestRefusedError);  // J3 <= 65
   EXPECT_EQ(sim_->requestCount(), before);
 
-  // A robot file wider than the controller's bounds: the controller refuses, nothing moves.
+  // A robot file wider than the controller's bounds is refused at connect; nothing moves.
   Irc5Options wide = clientOptions();
   wide.robot.limits[4] = {-150, 150};
   Irc5Client loose(wide);
-  loose.connect();
-  EXPECT_THROW(loose.moveJoints({0, 0, 0, 0, 120, 0}), BadMessageError);
+  EXPECT_THROW(loose.connect(), ConfigError);
   EXPECT_EQ(sim_->commandedJoints()[4], 30.0);
-  EXPECT_NO_THROW(loose.readJoints());
 }
 
 TEST_F(ClientSim, LimitMarginAndStepLimitRefuseBeforeSending) {
@@ -385,7 +409,7 @@ TEST_F(ClientSim, DroppedConnectionThenReconnect) {
   Irc5Client client(clientOptions());
   client.connect();
   SimFaults f;
-  f.drop_after_requests = 8;  // the 6 setup requests and two reads
+  f.drop_after_requests = 10;  // the 8 setup requests and two reads
   sim_->setFaults(f);
   EXPECT_NO_THROW(client.readJoints());
   EXPECT_NO_THROW(client.readJoints());

@@ -38,10 +38,30 @@ joints:
     EXPECT_TRUE(has("missing 'name'"));
     EXPECT_TRUE(has("joint 1: 'd_mm' is not a number"));
     EXPECT_TRUE(has("joint 1: lower_deg must be below upper_deg"));
-    EXPECT_TRUE(has("joint 2: max_speed_deg_s must be positive"));
+    EXPECT_TRUE(has("joint 2: max_speed_deg_s must lie within 0.1..2000"));
     EXPECT_TRUE(has("joint 5: missing 'max_speed_deg_s'"));
     EXPECT_TRUE(has("joint 6: unknown key 'colour'"));
     EXPECT_EQ(p.size(), 6u);
+  }
+}
+
+TEST(RobotFile, AbsurdLimitsSpeedsAndLinksAreRefused) {
+  std::string yaml = "name: wide\njoints:\n";
+  for (int i = 0; i < kJointCount; ++i)
+    yaml += i == 0 ? "  - {a_mm: 0, alpha_deg: 0, d_mm: 1e9, theta_offset_deg: 0, lower_deg: "
+                     "-1e308, upper_deg: 1e308, max_speed_deg_s: 1e-300}\n"
+                   : "  - {a_mm: 0, alpha_deg: 0, d_mm: 0, theta_offset_deg: 0, lower_deg: -10, "
+                     "upper_deg: 10, max_speed_deg_s: 100}\n";
+  try {
+    parseRobot(yaml, "wide.yaml");
+    FAIL() << "expected ConfigError";
+  } catch (const ConfigError& e) {
+    const std::string all = e.what();
+    EXPECT_NE(all.find("joint 1: lower_deg must lie within +-720"), std::string::npos) << all;
+    EXPECT_NE(all.find("joint 1: upper_deg must lie within +-720"), std::string::npos) << all;
+    EXPECT_NE(all.find("joint 1: d_mm must lie within +-10000"), std::string::npos) << all;
+    EXPECT_NE(all.find("joint 1: max_speed_deg_s must lie within"), std::string::npos) << all;
+    EXPECT_EQ(e.problems().size(), 4u);
   }
 }
 

@@ -77,8 +77,8 @@ TEST(PsdConfig, ReadsEveryKey) {
   const PsdConfig config = parsePsdConfig(YAML::Load(R"(
 serial: "01A2B3C4"
 channels:
-  x: {mode: single_ended, input: 4}
-  y: {mode: single_ended, input: 5}
+  x: {mode: single_ended, input: 5}
+  y: {mode: single_ended, input: 6}
   sum: {mode: differential, input: 0, range_v: 2.5}
 samples: 128
 rate_hz: 8000
@@ -87,7 +87,7 @@ sum_threshold_v: 1.0
                                           "test.yaml", ".");
   EXPECT_EQ(config.serial, "01A2B3C4");
   EXPECT_EQ(config.channels.x.mode, InputMode::kSingleEnded);
-  EXPECT_EQ(config.channels.y.number, 5);
+  EXPECT_EQ(config.channels.y.number, 6);
   EXPECT_EQ(config.channels.sum.range, Range::kBip2_5V);
   EXPECT_EQ(config.samples, 128u);
   EXPECT_DOUBLE_EQ(config.rate_hz, 8000);
@@ -118,11 +118,11 @@ smaples: 64
 }
 
 TEST(PsdConfig, ChannelsSharingTerminalsAreRejected) {
-  // Differential pair 1 uses the terminals of single-ended 2 and 3.
+  // Differential pair 1 uses the terminals of single-ended 1 and 5.
   const auto problems = problemsOf(R"(
 channels:
   x: {mode: differential, input: 1}
-  y: {mode: single_ended, input: 3}
+  y: {mode: single_ended, input: 5}
   sum: {mode: differential, input: 1}
 )");
   EXPECT_TRUE(mentions(problems, "channels.x and channels.y use the same input terminals"));
@@ -133,7 +133,7 @@ channels:
 channels:
   x: {mode: single_ended, input: 0}
   y: {mode: single_ended, input: 1}
-  sum: {mode: differential, input: 1}
+  sum: {mode: differential, input: 2}
 )")
                   .empty());
 }
@@ -166,6 +166,9 @@ TEST(PsdMapYaml, FromPartsRefusesWhatIsNotAMap) {
   EXPECT_THROW(PsdMap::fromParts(0, three, three, {-1, 1, -1, 1}, 0.5), std::invalid_argument);
   EXPECT_THROW(PsdMap::fromParts(1, three, {0, 0}, {-1, 1, -1, 1}, 0.5), std::invalid_argument);
   EXPECT_THROW(PsdMap::fromParts(1, three, three, {1, -1, -1, 1}, 0.5), std::invalid_argument);
+  EXPECT_THROW(PsdMap::fromParts(1, {0, 1e308, 0}, three, {-1, 1, -1, 1}, 0.5),
+               std::invalid_argument);
+  EXPECT_THROW(PsdMap::fromParts(1, three, three, {-1e308, 1, -1, 1}, 0.5), std::invalid_argument);
   const PsdMap map = PsdMap::fromParts(1, {0, 1, 0}, {0, 0, 1}, {-1, 1, -1, 1}, 0.5);
   VoltageReading r;
   r.x = 2.5;  // scaled by 5 V: u = 0.5

@@ -72,8 +72,10 @@ class Irc5Client final : public ControllerLink {
   Irc5Client& operator=(const Irc5Client&) = delete;
 
   // Connects within connect_timeout and runs the setup sequence: ping, robot info, tool0, wobj0,
-  // speed, zone fine (09 1 0 0 0). Throws ConnectionError, TimeoutError, ProtocolError,
-  // BadMessageError; on any failure the connection is closed.
+  // speed, zone fine (09 1 0 0 0), the joint bounds (42). Throws ConnectionError, TimeoutError,
+  // ProtocolError, BadMessageError; ConfigError when the robot file's joint limits are wider than
+  // the controller's bounds (a server without request 42 cannot be used). On any failure the
+  // connection is closed.
   void connect();
   // Closes and connects again, up to reconnect_attempts times with exponential back-off. Throws
   // the last attempt's LinkError when all fail.
@@ -114,6 +116,8 @@ class Irc5Client final : public ControllerLink {
 
  private:
   struct Io;
+  // Throws ConfigError naming every joint whose robot-file limits exceed `bounds`.
+  void checkRobotFileAgainst(const std::array<JointLimit, kJointCount>& bounds) const;
   // Formats into the client's own buffer; the view is valid until the next request.
   std::string_view request(int code, std::initializer_list<irc5::Param> params = {});
   std::string_view request(int code, const irc5::Param* params, std::size_t count);

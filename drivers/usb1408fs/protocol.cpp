@@ -80,4 +80,15 @@ Pacer computePacer(double rate_hz) {
                       " Hz is below the slowest pacer setting (about 0.6 Hz)");
 }
 
+bool sharesTerminal(const Channel& a, const Channel& b) {
+  const auto inputs = [](const Channel& c) {
+    return c.mode == InputMode::kSingleEnded ? std::array<int, 2>{c.number, c.number}
+                                             : std::array<int, 2>{c.number, c.number + 4};
+  };
+  for (int p : inputs(a))
+    for (int q : inputs(b))
+      if (p == q) return true;
+  return false;
+}
+
 }  // namespace zerocal::usb1408fs

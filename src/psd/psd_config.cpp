@@ -125,13 +125,6 @@ void parseChannel(const YAML::Node& node, const std::string& where, Channel& cha
   }
 }
 
-// Screw terminals a channel uses: single-ended input k is terminal k; differential pair k is
-// terminals 2k and 2k+1 (the 1208FS/1408FS pinout: CHk IN HI/LO share those with SE 2k/2k+1).
-std::vector<int> terminals(const Channel& c) {
-  if (c.mode == InputMode::kSingleEnded) return {c.number};
-  return {2 * c.number, 2 * c.number + 1};
-}
-
 std::string channelProblem(const Channel& c, const std::string& name) {
   const bool se = c.mode == InputMode::kSingleEnded;
   const int max = se ? 7 : 3;
@@ -184,11 +177,7 @@ std::vector<std::string> PsdConfig::problems() const {
   if (numbers_ok) {
     for (int a = 0; a < 3; ++a) {
       for (int b = a + 1; b < 3; ++b) {
-        bool shared = false;
-        for (int ta : terminals(*named[a].first)) {
-          for (int tb : terminals(*named[b].first)) shared = shared || ta == tb;
-        }
-        if (shared) {
+        if (usb1408fs::sharesTerminal(*named[a].first, *named[b].first)) {
           out.push_back(std::string("channels.") + named[a].second + " and channels." +
                         named[b].second + " use the same input terminals");
         }

@@ -85,6 +85,10 @@ double fullScaleVolts(const Channel& channel);
 std::uint8_t wireChannel(const Channel& channel);
 std::uint8_t wireRange(const Channel& channel);
 
+// Whether two channels use a common screw terminal. Differential pair n is wired to the terminals
+// of single-ended inputs n (CHn IN HI) and n + 4 (CHn IN LO): the USB-1208FS/1408FS pinout.
+bool sharesTerminal(const Channel& a, const Channel& b);
+
 // Raw 16-bit word -> signed ADC code, exactly as the firmware notes: differential 14-bit
 // (-8192..8191), single-ended 13-bit effective with the firmware's end-of-range quirks.
 int differentialCode(std::uint16_t word);

@@ -172,7 +172,7 @@ void BM_StreamReading64(benchmark::State& state) {
 BENCHMARK(BM_StreamReading64)->Unit(benchmark::kMicrosecond);
 
 // The board's clock, as the simulated cell's would be without a robot.
-class BoardClock final : public servo::CellClock {
+class BoardClock final : public CellClock {
  public:
   explicit BoardClock(sim::Usb1408fsModel& board) : board_(board) {}
   double nowS() noexcept override { return std::chrono::duration<double>(board_.now()).count(); }
@@ -195,7 +195,7 @@ void BM_ChainPsdReading(benchmark::State& state) {
   double simulated = 0;
   for (auto _ : state) {
     const auto t0 = rig.board().now();
-    const servo::PsdReading r = reader.read();
+    const PsdReading r = reader.read();
     simulated += std::chrono::duration<double>(rig.board().now() - t0).count();
     benchmark::DoNotOptimize(r.u_mm);
   }

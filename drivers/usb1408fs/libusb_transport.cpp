@@ -69,7 +69,7 @@ std::unique_ptr<LibusbTransport> LibusbTransport::open(const std::string& serial
     // Typically no usbfs at all: a container without /dev/bus/usb passed through.
     throw UsbError(std::string("libusb cannot start (") + libusb_error_name(r) +
                        "): is /dev/bus/usb present? A container needs it passed through",
-                   r);
+                   r, LinkError::Kind::kFatal);
   }
 
   libusb_device** list = nullptr;

@@ -26,12 +26,12 @@ class SimulatedLinkedCell final : public service::LinkedCell {
 SimBackend::SimBackend(SimulatedCellOptions options, std::function<void(Irc5Options&)> adjust)
     : cell_(std::move(options)), adjust_(std::move(adjust)) {}
 
-service::CellKnowledge SimBackend::knowledge() const {
+CellKnowledge SimBackend::knowledge() const {
   const SessionKnowledge k = knowledgeOf(cell_.world());
   return {k.cell, k.taught_centre};
 }
 
-std::unique_ptr<service::ConnectedCell> SimBackend::connect() {
+std::unique_ptr<ConnectedCell> SimBackend::connect() {
   Irc5Options o = cell_.clientOptions();
   if (adjust_) adjust_(o);
   return std::make_unique<SimulatedLinkedCell>(cell_, std::move(o));
@@ -83,12 +83,12 @@ ExternalSimBackend::ExternalSimBackend(ExternalSimOptions options)
 
 ExternalSimBackend::~ExternalSimBackend() = default;
 
-service::CellKnowledge ExternalSimBackend::knowledge() const {
+CellKnowledge ExternalSimBackend::knowledge() const {
   const SessionKnowledge k = knowledgeOf(options_.world);
   return {k.cell, k.taught_centre};
 }
 
-std::unique_ptr<service::ConnectedCell> ExternalSimBackend::connect() {
+std::unique_ptr<ConnectedCell> ExternalSimBackend::connect() {
   auto spot_link = std::make_unique<Irc5Client>(options_.client);
   spot_link->connect();
   const SimWorldId theirs = spot_link->readSimWorldId();

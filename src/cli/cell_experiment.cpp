@@ -90,7 +90,7 @@ int runCellExperiment(const CellExperimentArgs& args) {
     world_config.session.data_dir = dir.path + "/" + std::to_string(seed);
     service::ManagerSettings settings = service::managerSettingsOf(world_config);
     settings.write_reports = nullptr;  // figures only
-    const std::unique_ptr<service::CellBackend> backend = service::makeBackend(world_config);
+    const std::unique_ptr<CellBackend> backend = service::makeBackend(world_config);
     service::SessionManager manager(*backend, settings);
     std::string message;
     try {

@@ -18,7 +18,7 @@
 #include "cell_experiment.h"
 #include "control_commands.h"
 #include "psd_commands.h"
-#include "report_format.h"
+#include "zerocal/calib/format.h"
 #include "zerocal/calib/experiment.h"
 #include "zerocal/calib/planner.h"
 #include "zerocal/calib/sensitivity.h"

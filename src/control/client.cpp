@@ -4,8 +4,7 @@
 #include <boost/asio/read_until.hpp>
 #include <boost/asio/write.hpp>
 
-#include "zerocal/control/protocol.h"
-#include "zerocal/control/token.h"
+#include "zerocal/control/messages.h"
 
 namespace zerocal::control {
 
@@ -132,7 +131,5 @@ std::optional<json> ControlClient::nextEvent(Duration timeout) {
     if (message.is_object() && message.contains("event")) return message;
   }
 }
-
-std::string readClientToken(const std::string& path) { return loadToken(path); }
 
 }  // namespace zerocal::control

@@ -37,13 +37,6 @@ PlanKind parsePlanKind(const std::string& name) {
   throw BadRequest("plan: '" + name + "' is not one of optimal, I, II, mixed, file");
 }
 
-std::string optionalString(const json& request, const char* key, const std::string& fallback) {
-  const auto it = request.find(key);
-  if (it == request.end() || it->is_null()) return fallback;
-  if (!it->is_string()) throw BadRequest(std::string(key) + ": expected a string");
-  return it->get<std::string>();
-}
-
 service::StartRequest parseStartRequest(const json& request,
                                         const service::StartRequest& defaults) {
   for (const auto& item : request.items())
@@ -75,15 +68,6 @@ service::StartRequest parseStartRequest(const json& request,
     r.noise_mm = v;
   }
   return r;
-}
-
-json toJson(const service::StartRequest& request) {
-  json j{{"plan", planKindName(request.plan)}, {"poses", request.poses}};
-  if (!request.plan_file.empty()) j["plan_file"] = request.plan_file;
-  if (request.target_mm)
-    j["target_mm"] = {request.target_mm->x(), request.target_mm->y(), request.target_mm->z()};
-  if (request.noise_mm) j["noise_mm"] = *request.noise_mm;
-  return j;
 }
 
 json toJson(const service::SessionStatus& s) {
@@ -138,14 +122,6 @@ json toJson(const std::vector<SessionInfo>& sessions) {
     if (!s.damaged.empty()) a.back()["damaged"] = s.damaged;
   }
   return a;
-}
-
-std::string toLine(const json& message) {
-  return message.dump(-1, ' ', false, json::error_handler_t::replace) + "\n";
-}
-
-json errorResponse(const json& id, const std::string& code, const std::string& message) {
-  return {{"id", id}, {"ok", false}, {"error", {{"code", code}, {"message", message}}}};
 }
 
 }  // namespace zerocal::control

@@ -12,7 +12,7 @@
 #include <functional>
 #include <set>
 
-#include "report_format.h"
+#include "zerocal/calib/format.h"
 #include "zerocal/control/protocol.h"
 #include "zerocal/control/token.h"
 #include "zerocal/daemon/logging.h"

@@ -23,7 +23,7 @@ servo::ChainPsdReaderOptions readerOptionsOf(const DaqConfig& daq) {
 
 // Base-from-member: the steady clock is constructed before the LinkedCell that refers to it.
 struct SteadyClockHolder {
-  servo::SteadyCellClock steady_clock;
+  SteadyCellClock steady_clock;
 };
 
 class HardwareCell final : private SteadyClockHolder, public LinkedCell {

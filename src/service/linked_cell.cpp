@@ -3,7 +3,7 @@
 namespace zerocal::service {
 
 LinkedCell::LinkedCell(Irc5Options controller, usb1408fs::Usb1408fs::Opener board,
-                       const psd::PsdMap& map, servo::CellClock& clock,
+                       const psd::PsdMap& map, CellClock& clock,
                        servo::ChainPsdReaderOptions reader)
     : clock_(clock),
       client_(std::move(controller)),

@@ -6,7 +6,7 @@
 #include <limits>
 #include <regex>
 
-#include "report_format.h"
+#include "zerocal/calib/format.h"
 #include "zerocal/calib/solver.h"
 #include "zerocal/daemon/logging.h"
 #include "zerocal/io/joint_set.h"
@@ -47,7 +47,7 @@ bool isActive(SessionState state) {
 // blocks, allocates or locks.
 class SessionManager::LiveSlot {
  public:
-  void store(const servo::PsdReading& r) noexcept {
+  void store(const PsdReading& r) noexcept {
     seq_.fetch_add(1, std::memory_order_acq_rel);  // odd: writing
     u_.store(r.u_mm, std::memory_order_relaxed);
     v_.store(r.v_mm, std::memory_order_relaxed);
@@ -58,12 +58,12 @@ class SessionManager::LiveSlot {
     flags_.store((r.spot_present ? 1 : 0) | (r.in_valid_zone ? 2 : 0), std::memory_order_relaxed);
     seq_.fetch_add(1, std::memory_order_release);
   }
-  std::optional<servo::PsdReading> load() const noexcept {
+  std::optional<PsdReading> load() const noexcept {
     for (;;) {
       const unsigned before = seq_.load(std::memory_order_acquire);
       if (before == 0) return std::nullopt;
       if (before & 1u) continue;
-      servo::PsdReading r;
+      PsdReading r;
       r.u_mm = u_.load(std::memory_order_relaxed);
       r.v_mm = v_.load(std::memory_order_relaxed);
       r.u_se_mm = u_se_.load(std::memory_order_relaxed);
@@ -89,17 +89,17 @@ namespace {
 
 // The run's PSD reader, passing each reading on to the live slot.
 template <class Slot>
-class ObservedReader final : public servo::PsdReader {
+class ObservedReader final : public PsdReader {
  public:
-  ObservedReader(servo::PsdReader& inner, Slot& slot) : inner_(inner), slot_(slot) {}
-  servo::PsdReading read() override {
-    const servo::PsdReading r = inner_.read();
+  ObservedReader(PsdReader& inner, Slot& slot) : inner_(inner), slot_(slot) {}
+  PsdReading read() override {
+    const PsdReading r = inner_.read();
     slot_.store(r);
     return r;
   }
 
  private:
-  servo::PsdReader& inner_;
+  PsdReader& inner_;
   Slot& slot_;
 };
 
@@ -254,7 +254,7 @@ SessionStatus SessionManager::status() const {
     s = status_;
   }
   if (s.state == SessionState::kServoing)
-    if (const std::optional<servo::PsdReading> r = live_->load())
+    if (const std::optional<PsdReading> r = live_->load())
       s.live_servo_error_um = r->spot_present ? 1e3 * std::hypot(r->u_mm, r->v_mm) : std::nan("");
   return s;
 }
@@ -657,7 +657,7 @@ void SessionManager::readPsd(ReadingDone done) {
     session_running = isActive(status_.state) || starting_;
   }
   if (session_running) {  // the board belongs to the session: report what it last read
-    if (const std::optional<servo::PsdReading> r = live_->load())
+    if (const std::optional<PsdReading> r = live_->load())
       done(LiveReading{*r, true}, "");
     else
       done(std::nullopt, "the session has not read the PSD yet");
@@ -667,7 +667,7 @@ void SessionManager::readPsd(ReadingDone done) {
     if (cancelled) return done(std::nullopt, "the daemon is stopping");
     try {
       if (!cell_) cell_ = backend_.connect();
-      const servo::PsdReading r = cell_->psd().read();
+      const PsdReading r = cell_->psd().read();
       done(LiveReading{r, false}, "");
     } catch (const std::exception& e) {
       cell_.reset();

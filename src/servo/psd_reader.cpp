@@ -3,7 +3,7 @@
 #include <thread>
 #include <utility>
 
-namespace zerocal::servo {
+namespace zerocal {
 
 void CellClock::waitS(double seconds) noexcept {
   if (seconds > 0) std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
@@ -12,6 +12,10 @@ void CellClock::waitS(double seconds) noexcept {
 double SteadyCellClock::nowS() noexcept {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
 }
+
+}  // namespace zerocal
+
+namespace zerocal::servo {
 
 ChainPsdReader::ChainPsdReader(usb1408fs::Usb1408fs& daq, psd::PsdMap map, CellClock& clock,
                                ChainPsdReaderOptions options)

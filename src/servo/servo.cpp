@@ -133,6 +133,21 @@ ServoResult& PsdServo::latch(ServoResult& result, ServoStatus status,
   return result;
 }
 
+void PsdServo::latchLinkError(ServoResult& result, ServoStatus status,
+                              const char* message) noexcept {
+  // Called inside a catch handler: the kind is read from the exception in flight, which copies
+  // nothing (the servo cycle does not allocate, even on a fault).
+  LinkError::Kind kind = LinkError::Kind::kFatal;
+  try {
+    throw;
+  } catch (const LinkError& e) {
+    kind = e.kind();
+  } catch (...) {
+  }
+  latch(result, status, message);
+  fault_.link_kind = kind;
+}
+
 bool PsdServo::aborted(ServoResult& result) noexcept {
   if (options_.abort == nullptr || !options_.abort->load()) return false;
   latch(result, ServoStatus::kAborted, "aborted; the robot at rest where the last move ended");
@@ -156,7 +171,7 @@ PsdServo::Step PsdServo::move(ControllerLink& robot, const Joints& target,
   try {
     robot.moveJoints(target);
   } catch (...) {
-    latch(result, ServoStatus::kLinkError, "the controller link failed during a move");
+    latchLinkError(result, ServoStatus::kLinkError, "the controller link failed during a move");
     return Step::kFailed;
   }
   q_ = target;
@@ -181,7 +196,7 @@ PsdServo::Step PsdServo::read(PsdReader& psd, ServoResult& result) noexcept {
   try {
     result.reading = psd.read();
   } catch (...) {
-    latch(result, ServoStatus::kSensorError, "the PSD reader failed");
+    latchLinkError(result, ServoStatus::kSensorError, "the PSD reader failed");
     return Step::kFailed;
   }
   ++result.readings;
@@ -364,7 +379,7 @@ void PsdServo::runCycle(ControllerLink& robot, PsdReader& psd, const Joints& pla
   try {
     q_ = robot.readJoints();
   } catch (...) {
-    latch(result, ServoStatus::kLinkError, "the controller link failed reading joints");
+    latchLinkError(result, ServoStatus::kLinkError, "the controller link failed reading joints");
     return;
   }
   // The controller stores float32 and speaks 5 decimals: a few 1e-5 deg from the request.

@@ -4,7 +4,7 @@
 #include <exception>
 
 #include "zerocal/error.h"
-#include "zerocal/irc5/errors.h"
+#include "zerocal/cell/link_error.h"
 #include "zerocal/servo/spot_predictor.h"
 
 namespace zerocal {
@@ -23,7 +23,7 @@ enum class Recovery { kDone, kFailed, kAborted };
 
 // Calls `hook` until it returns, at most `attempts` times, waiting `backoff_s` of cell time
 // between calls (a board being replugged takes seconds; the link client backs off on its own).
-Recovery recover(const std::function<void()>& hook, servo::CellClock& clock,
+Recovery recover(const std::function<void()>& hook, CellClock& clock,
                  const std::atomic<bool>& abort, int attempts, double backoff_s,
                  std::string& problem) {
   for (int attempt = 1; attempt <= attempts; ++attempt) {
@@ -65,8 +65,8 @@ CalibrationRun::CalibrationRun(CellModel knowledge, Eigen::Vector3d taught_centr
                      " poses but the plan only " + std::to_string(plan_.size()));
 }
 
-RunOutcome CalibrationRun::run(ControllerLink& robot, servo::PsdReader& psd,
-                               servo::CellClock& clock, const std::atomic<bool>& abort) {
+RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd,
+                               CellClock& clock, const std::atomic<bool>& abort) {
   RunOutcome out;
   out.records = journal_.recovered();
   out.resumed_from = journal_.nextIndex();
@@ -102,14 +102,9 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, servo::PsdReader& psd,
       try {
         robot.moveJoints(target);
         failure = Failure::kNone;
-      } catch (const ConnectionError& e) {
-        failure = Failure::kLink;
-        why = std::string("move failed: ") + e.what();
-      } catch (const TimeoutError& e) {
-        failure = Failure::kLink;
-        why = std::string("move failed: ") + e.what();
-      } catch (const ProtocolError& e) {
-        failure = Failure::kLink;
+      } catch (const LinkError& e) {
+        // Only a transient failure is worth a reconnect; a refused target is never sent again.
+        failure = e.kind() == LinkError::Kind::kTransient ? Failure::kLink : Failure::kOther;
         why = std::string("move failed: ") + e.what();
       } catch (const Error& e) {
         why = std::string("move failed: ") + e.what();
@@ -122,9 +117,11 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, servo::PsdReader& psd,
         r = servo.run(robot, psd, clock, target, predictor.searchCentre(target));
         if (!r.ok()) {
           why = std::string("servo ") + servo::statusName(r.status) + ": " + servo.fault().message;
-          failure = r.status == servo::ServoStatus::kLinkError     ? Failure::kLink
+          const bool transient = servo.fault().link_kind == LinkError::Kind::kTransient;
+          failure = r.status == servo::ServoStatus::kAborted                  ? Failure::kAborted
+                    : !transient                                              ? Failure::kOther
+                    : r.status == servo::ServoStatus::kLinkError   ? Failure::kLink
                     : r.status == servo::ServoStatus::kSensorError ? Failure::kSensor
-                    : r.status == servo::ServoStatus::kAborted     ? Failure::kAborted
                                                                    : Failure::kOther;
         }
       }

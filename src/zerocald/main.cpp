@@ -14,7 +14,7 @@
 #include <cstdio>
 #include <iostream>
 
-#include "report_format.h"
+#include "zerocal/calib/format.h"
 #include "zerocal/control/server.h"
 #include "zerocal/control/token.h"
 #include "zerocal/daemon/config.h"
@@ -144,7 +144,7 @@ int main(int argc, char** argv) {
     // The io_context outlives the manager: the manager's worker posts events into it until the
     // manager's destructor has joined the worker.
     asio::io_context io;
-    std::unique_ptr<service::CellBackend> backend = service::makeBackend(cfg);
+    std::unique_ptr<CellBackend> backend = service::makeBackend(cfg);
     service::SessionManager manager(*backend, service::managerSettingsOf(cfg));
     log->info("backend {}; sessions in {}", backend->name(), cfg.session.data_dir);
     logUnfinished(manager);

@@ -136,7 +136,7 @@ int main(int argc, char** argv) {
   const std::string data_dir =
       (std::filesystem::temp_directory_path() / ("zerocal-bench-" + std::to_string(::getpid())))
           .string();
-  std::unique_ptr<service::CellBackend> quiet_backend, loaded_backend;
+  std::unique_ptr<CellBackend> quiet_backend, loaded_backend;
   std::unique_ptr<service::SessionManager> quiet_manager, loaded_manager;
   if (sim) {
     const DaemonConfig quiet_cfg = simConfig(seed, pace, data_dir + "/quiet");

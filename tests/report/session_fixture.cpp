@@ -5,7 +5,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "report_format.h"
+#include "zerocal/calib/format.h"
 #include "zerocal/calib/experiment.h"
 #include "zerocal/calib/validation.h"
 #include "zerocal/daemon/journal.h"

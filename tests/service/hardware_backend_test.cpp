@@ -104,7 +104,7 @@ TEST_F(HardwareBackendOnSimulatedCell, ConnectsReadsAndCalibratesThroughLibusbAn
     const std::unique_ptr<ConnectedCell> cell = backend.connect();
     const Joints q = cell->robot().readJoints();
     EXPECT_NEAR(q[4], 30.0, 1e-3);  // the simulated controller's start pose
-    const servo::PsdReading r = cell->psd().read();
+    const PsdReading r = cell->psd().read();
     EXPECT_TRUE(std::isfinite(r.sum_v));
   }
   DaemonConfig wrong_serial = config_;

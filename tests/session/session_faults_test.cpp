@@ -50,10 +50,10 @@ class RecordingLink final : public ControllerLink {
 };
 
 // Forwards to the real chain; runs `before_read` (with the number of the read, from 1) first.
-class HookedPsd final : public servo::PsdReader {
+class HookedPsd final : public PsdReader {
  public:
-  explicit HookedPsd(servo::PsdReader& inner) : inner_(inner) {}
-  servo::PsdReading read() override {
+  explicit HookedPsd(PsdReader& inner) : inner_(inner) {}
+  PsdReading read() override {
     ++reads;
     if (before_read) before_read(reads);
     return inner_.read();
@@ -62,7 +62,7 @@ class HookedPsd final : public servo::PsdReader {
   int reads = 0;
 
  private:
-  servo::PsdReader& inner_;
+  PsdReader& inner_;
 };
 
 // One session on a rig with the simulated cell's default noise: the knowledge a technician gives,
@@ -77,7 +77,7 @@ struct Session {
     plan = planPoses(given.cell, given.taught_centre, po).poses;
     settings = service::runSettingsOf(DaemonConfig{});
   }
-  RunOutcome run(ControllerLink& link, servo::PsdReader& psd,
+  RunOutcome run(ControllerLink& link, PsdReader& psd,
                  const std::function<void(CalibrationRun&)>& setup = {}) {
     Journal journal(dir.path + "/journal.jsonl");
     CalibrationRun r(given.cell, given.taught_centre, plan, settings, journal);

@@ -76,8 +76,4 @@ class ControlClient {
   long long next_id_ = 1;
 };
 
-// Reads the token the way the client does: from `path`, which must not be accessible to others
-// either (the same rule as the daemon's). Throws Error.
-std::string readClientToken(const std::string& path);
-
 }  // namespace zerocal::control

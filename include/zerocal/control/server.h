@@ -15,7 +15,7 @@
 #include <string>
 
 #include "zerocal/daemon/config.h"
-#include "zerocal/service/session_manager.h"
+#include "zerocal/service/session_control.h"
 
 namespace zerocal::control {
 

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "zerocal/psd/psd.h"
+#include "zerocal/service/session_control.h"  // PlanKind
 
 namespace zerocal {
 
@@ -79,8 +80,6 @@ struct ServoConfig {
   double search_step_mm = 2.0;     // spacing of the spiral (smaller than the spot)
   double search_time_s = 300.0;
 };
-
-enum class PlanKind { kOptimal, kI, kII, kMixed, kFile };
 
 struct SessionConfig {
   PlanKind plan = PlanKind::kOptimal;

@@ -1,26 +1,20 @@
-// Failures of the link to the robot controller. Each kind is its own type so that the daemon can
-// react differently: a bad-message reply is a bug in the request, a timeout or a dropped
-// connection calls for a reconnect, a refused target must never be retried.
+// Failures of the IRC5 link. Each is a LinkError of its kind (zerocal/cell/link_error.h): a
+// bad-message reply or a target the client refuses is kRefused (never retried), a timeout, a
+// stream out of step or a dropped connection kTransient (reconnect).
 #pragma once
 
 #include <string>
 
-#include "zerocal/error.h"
+#include "zerocal/cell/link_error.h"
 
 namespace zerocal {
-
-// Base of every controller-link failure.
-class LinkError : public Error {
- public:
-  using Error::Error;
-};
 
 // The controller answered ok = 0: unknown code, wrong parameter count, target outside its joint
 // bounds, or an unsupported command. The connection stays usable.
 class BadMessageError : public LinkError {
  public:
   BadMessageError(int code, const std::string& detail)
-      : LinkError("controller refused request " + std::to_string(code) +
+      : LinkError(Kind::kRefused, "controller refused request " + std::to_string(code) +
                   (detail.empty() ? std::string(" (ok = 0)") : " (ok = 0): " + detail)),
         code_(code) {}
   int code() const noexcept { return code_; }
@@ -33,20 +27,20 @@ class BadMessageError : public LinkError {
 // The client closes the connection: the next request needs reconnect().
 class ProtocolError : public LinkError {
  public:
-  using LinkError::LinkError;
+  explicit ProtocolError(const std::string& message) : LinkError(Kind::kTransient, message) {}
 };
 
 // No complete reply before the request's deadline. The client closes the connection, since a
 // late reply would otherwise be taken as the answer to the next request.
 class TimeoutError : public LinkError {
  public:
-  using LinkError::LinkError;
+  explicit TimeoutError(const std::string& message) : LinkError(Kind::kTransient, message) {}
 };
 
 // The connection could not be made, was closed by the controller, or is not open.
 class ConnectionError : public LinkError {
  public:
-  using LinkError::LinkError;
+  explicit ConnectionError(const std::string& message) : LinkError(Kind::kTransient, message) {}
 };
 
 // The client refused to send a request: a target outside the robot file's joint limits, a step
@@ -54,7 +48,7 @@ class ConnectionError : public LinkError {
 // characters, missing '#'). Nothing was sent; the connection stays usable.
 class RequestRefusedError : public LinkError {
  public:
-  using LinkError::LinkError;
+  explicit RequestRefusedError(const std::string& message) : LinkError(Kind::kRefused, message) {}
 };
 
 }  // namespace zerocal

@@ -14,7 +14,7 @@
 #include <string>
 #include <string_view>
 
-#include "zerocal/irc5/controller_link.h"
+#include "zerocal/cell/controller_link.h"
 #include "zerocal/irc5/errors.h"
 #include "zerocal/irc5/protocol.h"
 #include "zerocal/model/robot.h"

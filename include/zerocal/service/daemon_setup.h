@@ -6,7 +6,7 @@
 #include <memory>
 
 #include "zerocal/daemon/config.h"
-#include "zerocal/service/cell.h"
+#include "zerocal/cell/cell.h"
 #include "zerocal/service/session_manager.h"
 #include "zerocal/session/calibration_run.h"
 

@@ -5,7 +5,7 @@
 
 #include "zerocal/daemon/config.h"
 #include "zerocal/irc5/irc5_client.h"
-#include "zerocal/service/cell.h"
+#include "zerocal/cell/cell.h"
 
 namespace zerocal::service {
 

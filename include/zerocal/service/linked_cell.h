@@ -5,7 +5,7 @@
 
 #include "zerocal/irc5/irc5_client.h"
 #include "zerocal/psd/psd.h"
-#include "zerocal/service/cell.h"
+#include "zerocal/cell/cell.h"
 #include "zerocal/usb1408fs/usb1408fs.h"
 
 namespace zerocal::service {
@@ -14,18 +14,18 @@ class LinkedCell : public ConnectedCell {
  public:
   // Opens the board, then connects the controller. Throws as Usb1408fs and Irc5Client::connect.
   LinkedCell(Irc5Options controller, usb1408fs::Usb1408fs::Opener board, const psd::PsdMap& map,
-             servo::CellClock& clock, servo::ChainPsdReaderOptions reader = {});
+             CellClock& clock, servo::ChainPsdReaderOptions reader = {});
   ~LinkedCell() override;
 
   ControllerLink& robot() override { return client_; }
-  servo::PsdReader& psd() override { return psd_; }
-  servo::CellClock& clock() override { return clock_; }
+  PsdReader& psd() override { return psd_; }
+  CellClock& clock() override { return clock_; }
   void reconnectRobot() override;
   void reopenPsd() override;
   void stopRobot() noexcept override;
 
  private:
-  servo::CellClock& clock_;
+  CellClock& clock_;
   Irc5Client client_;
   usb1408fs::Usb1408fs daq_;
   servo::ChainPsdReader psd_;

@@ -1,54 +1,15 @@
-// The seam between the servo and the PSD: one averaged, mapped reading per call, stamped with the
-// cell's clock. ChainPsdReader implements it over the real measurement chain (USB-1408FS ->
-// readAveraged -> PsdMap); tests may implement it directly.
+// The PSD reader of the USB-1408FS measurement chain (USB-1408FS -> readAveraged -> PsdMap),
+// behind the vendor-neutral PsdReader seam (zerocal/cell/psd_reader.h).
 #pragma once
 
 #include <chrono>
 #include <cstddef>
 
+#include "zerocal/cell/psd_reader.h"
 #include "zerocal/psd/psd.h"
 #include "zerocal/usb1408fs/usb1408fs.h"
 
 namespace zerocal::servo {
-
-// The cell's time in seconds. On a real cell a steady clock; on the simulated cell the simulated
-// time of the controller plus the board, so a servo run is deterministic and costs no wall time.
-class CellClock {
- public:
-  virtual ~CellClock() = default;
-  virtual double nowS() noexcept = 0;
-  // Lets `seconds` of cell time pass with the robot at rest (settling, back-off). The default
-  // sleeps on the calling thread (no allocation, no lock); a simulated cell advances its clock.
-  virtual void waitS(double seconds) noexcept;
-};
-
-class SteadyCellClock final : public CellClock {
- public:
-  double nowS() noexcept override;
-
- private:
-  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
-};
-
-// One PSD reading in the PSD frame (origin at the detector centre), millimetres.
-struct PsdReading {
-  double u_mm = 0, v_mm = 0;
-  double u_se_mm = 0, v_se_mm = 0;  // standard errors of the averaged reading
-  double sum_v = 0;
-  // SUM above the detector's threshold: some light is on the detector.
-  bool spot_present = false;
-  // Present and inside the zone the map was fitted on. When false but present, u and v are only
-  // a coarse estimate (saturating voltages over the centre slope): right in sign, too small.
-  bool in_valid_zone = false;
-  double time_s = 0;  // cell clock at the end of the reading
-};
-
-class PsdReader {
- public:
-  virtual ~PsdReader() = default;
-  // Blocks for one reading. May throw the DAQ's errors (zerocal/usb1408fs/errors.h).
-  virtual PsdReading read() = 0;
-};
 
 struct ChainPsdReaderOptions {
   psd::PsdChannels channels;

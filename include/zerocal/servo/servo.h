@@ -49,7 +49,8 @@
 #include <string>
 
 #include "zerocal/calib/cell_model.h"
-#include "zerocal/irc5/controller_link.h"
+#include "zerocal/cell/controller_link.h"
+#include "zerocal/cell/link_error.h"
 #include "zerocal/servo/psd_reader.h"
 
 namespace zerocal::servo {
@@ -125,6 +126,9 @@ constexpr std::size_t kFaultHistory = 32;
 struct ServoFault {
   ServoStatus status = ServoStatus::kConverged;
   const char* message = "";  // static text
+  // kLinkError and kSensorError: what the link's LinkError said may be done (kFatal when the
+  // device threw anything else).
+  LinkError::Kind link_kind = LinkError::Kind::kFatal;
   std::array<ServoSample, kFaultHistory> samples{};
   std::size_t sample_count = 0;
 };
@@ -172,7 +176,7 @@ class PsdServo {
   // The robot must stand at `planned_deg` (what the caller last moved it to). `expected_uv_mm`:
   // where the spot is expected at the planned pose (PSD frame, e.g. from SpotPredictor); the
   // search is centred on it when the spot is not seen at once. Never throws. On anything but
-  // kConverged the fault is latched (fault()) until clearFault(). `clock` waits settle_s; the
+  // kConverged the fault is latched (fault()) until the next run(). `clock` waits settle_s; the
   // overload without one returns kBadStart when settle_s is not 0.
   ServoResult run(ControllerLink& robot, PsdReader& psd, CellClock& clock,
                   const Joints& planned_deg,
@@ -182,7 +186,6 @@ class PsdServo {
 
   bool faulted() const noexcept { return faulted_; }
   const ServoFault& fault() const noexcept { return fault_; }
-  void clearFault() noexcept { faulted_ = false; }
   const ServoOptions& options() const noexcept { return options_; }
 
  private:
@@ -201,6 +204,8 @@ class PsdServo {
                const Eigen::Vector2d& expected_uv, ServoResult& result) noexcept;
   void fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& result) noexcept;
   ServoResult& latch(ServoResult& result, ServoStatus status, const char* message) noexcept;
+  // latch() from inside a catch handler, keeping the LinkError's kind of the exception in flight.
+  void latchLinkError(ServoResult& result, ServoStatus status, const char* message) noexcept;
   void record(const PsdReading& reading) noexcept;
   Joints solveStep(const ImageJacobian& j, const Eigen::Vector2d& e) const noexcept;
 

@@ -13,7 +13,7 @@
 
 #include "zerocal/calib/solver.h"
 #include "zerocal/daemon/journal.h"
-#include "zerocal/irc5/controller_link.h"
+#include "zerocal/cell/controller_link.h"
 #include "zerocal/servo/psd_reader.h"
 #include "zerocal/servo/servo.h"
 
@@ -75,7 +75,7 @@ class CalibrationRun {
   // the robot is at rest (every move is a blocking fine-point move, so none is under way). When
   // the spot is not found the robot is back at the planned pose, a pose checked against the
   // limits before the run started (the "safe pose").
-  RunOutcome run(ControllerLink& robot, servo::PsdReader& psd, servo::CellClock& clock,
+  RunOutcome run(ControllerLink& robot, PsdReader& psd, CellClock& clock,
                  const std::atomic<bool>& abort);
 
  private:

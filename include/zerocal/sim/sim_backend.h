@@ -8,19 +8,19 @@
 #include <memory>
 #include <string>
 
-#include "zerocal/service/cell.h"
+#include "zerocal/cell/cell.h"
 #include "zerocal/sim/simulated_cell.h"
 
 namespace zerocal::sim {
 
-class SimBackend final : public service::CellBackend {
+class SimBackend final : public CellBackend {
  public:
   // `adjust` may change the client's options (speeds, margins) before it connects, as the
   // controller section of the configuration does for a real controller.
   explicit SimBackend(SimulatedCellOptions options, std::function<void(Irc5Options&)> adjust = {});
   const char* name() const override { return "sim"; }
-  service::CellKnowledge knowledge() const override;
-  std::unique_ptr<service::ConnectedCell> connect() override;
+  CellKnowledge knowledge() const override;
+  std::unique_ptr<ConnectedCell> connect() override;
 
   SimulatedCell& cell() { return cell_; }
 
@@ -45,7 +45,7 @@ struct ExternalSimOptions {
 // detector, asked over a second connection (request 43, simulator only) so that the servo's link
 // carries only its own requests. The clock is the steady clock: zerocal-sim's moves take wall time
 // (its --pace). Sessions run on one thread at a time, which also drives the board.
-class ExternalSimBackend final : public service::CellBackend {
+class ExternalSimBackend final : public CellBackend {
  public:
   // Fits the PSD map (a simulated bench sweep); connects nothing.
   explicit ExternalSimBackend(ExternalSimOptions options);
@@ -53,11 +53,11 @@ class ExternalSimBackend final : public service::CellBackend {
   ExternalSimBackend(const ExternalSimBackend&) = delete;
   ExternalSimBackend& operator=(const ExternalSimBackend&) = delete;
   const char* name() const override { return "sim"; }
-  service::CellKnowledge knowledge() const override;
+  CellKnowledge knowledge() const override;
   // Connects the spot link, checks that zerocal-sim simulates options.world (ConfigError naming
   // both worlds otherwise, before anything moves), then the robot link. Throws as
   // Irc5Client::connect.
-  std::unique_ptr<service::ConnectedCell> connect() override;
+  std::unique_ptr<ConnectedCell> connect() override;
 
  private:
   class Cell;
@@ -65,7 +65,7 @@ class ExternalSimBackend final : public service::CellBackend {
   PsdModel psd_;
   Usb1408fsModel board_;
   psd::PsdMap map_;
-  servo::SteadyCellClock clock_;
+  SteadyCellClock clock_;
   Irc5Client* spot_link_ = nullptr;  // the connected cell's, while there is one
 };
 

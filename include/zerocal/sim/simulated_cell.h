@@ -42,7 +42,7 @@ SimulatedCellOptions seededCellOptions(std::uint64_t seed);
 // seed: the bench's noise, not the session's).
 psd::PsdMap simulatedPsdMap(PsdModelOptions psd, double half_width_mm, double step_mm);
 
-class SimulatedCell final : public servo::CellClock {
+class SimulatedCell final : public CellClock {
  public:
   // Starts the controller on its own I/O thread. Throws as SimController.
   explicit SimulatedCell(SimulatedCellOptions options);

@@ -1,4 +1,5 @@
-// The hardware seam of the service: what a calibration session runs on. The daemon's main picks a
+// The cell a calibration session runs on, whatever its devices: a robot controller behind
+// ControllerLink, a PSD behind PsdReader, and the cell's clock. The daemon's main picks a
 // CellBackend from the configuration (the simulated cell, or the IRC5 link plus the USB-1408FS)
 // and hands it to the SessionManager, which knows nothing else about where the robot is.
 #pragma once
@@ -9,10 +10,10 @@
 #include <optional>
 
 #include "zerocal/calib/cell_model.h"
-#include "zerocal/irc5/controller_link.h"
-#include "zerocal/servo/psd_reader.h"
+#include "zerocal/cell/controller_link.h"
+#include "zerocal/cell/psd_reader.h"
 
-namespace zerocal::service {
+namespace zerocal {
 
 // What is known about the cell before anything is connected: the nominal robot and laser, the
 // PSD's mounting orientation, and its centre as taught (a few mm off is fine).
@@ -26,8 +27,8 @@ class ConnectedCell {
  public:
   virtual ~ConnectedCell() = default;
   virtual ControllerLink& robot() = 0;
-  virtual servo::PsdReader& psd() = 0;
-  virtual servo::CellClock& clock() = 0;
+  virtual PsdReader& psd() = 0;
+  virtual CellClock& clock() = 0;
   // Closes and reopens the controller connection (bounded attempts); throws the last LinkError.
   virtual void reconnectRobot() = 0;
   // Closes and reopens the acquisition board (after an unplug); throws the DAQ's error.
@@ -48,4 +49,4 @@ class CellBackend {
   virtual std::unique_ptr<ConnectedCell> connect() = 0;
 };
 
-}  // namespace zerocal::service
+}  // namespace zerocal

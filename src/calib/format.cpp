@@ -1,4 +1,4 @@
-#include "report_format.h"
+#include "zerocal/calib/format.h"
 
 #include <cmath>
 #include <cstdarg>

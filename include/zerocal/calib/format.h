@@ -1,4 +1,6 @@
-// Text and JSON renderings of solver, planner and experiment results for the command line.
+// Text and JSON renderings of solver, planner and experiment results: the JSON is what
+// result.json, session.json and `--json` hold (docs/results.md); the text is what the commands
+// print.
 #pragma once
 
 #include <nlohmann/json.hpp>

@@ -1,0 +1,114 @@
+// The seam between the daemon's sessions and whoever drives them (the control port, `zerocald
+// --once`, tests): SessionControl and the types it speaks in. SessionManager implements it; the
+// control layer serialises these types and needs nothing else of the service.
+#pragma once
+
+#include <Eigen/Core>
+#include <functional>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "zerocal/calib/planner.h"
+#include "zerocal/daemon/journal.h"
+#include "zerocal/error.h"
+#include "zerocal/cell/psd_reader.h"
+
+namespace zerocal {
+
+// Where a session's plan comes from: one of the planner's patterns, or a joint-set file.
+enum class PlanKind { kOptimal, kI, kII, kMixed, kFile };
+
+}  // namespace zerocal
+
+namespace zerocal::service {
+
+enum class SessionState {
+  kIdle,        // no session has run since the daemon started
+  kConnecting,  // to the controller and the board
+  kMoving,      // to pose i of N
+  kServoing,    // the spot onto the PSD at pose i
+  kRecording,   // pose i to the journal
+  kSolving,
+  kDone,
+  kAborted,
+  kFaulted,
+};
+const char* stateName(SessionState state);
+// A session in this state has a worker running it.
+bool isActive(SessionState state);
+
+// A request refused without harm: busy, not identifiable, unknown session, bad parameters. `code`
+// is a short stable word for scripts (docs/protocol.md lists them).
+class Refused : public Error {
+ public:
+  Refused(std::string code, const std::string& message) : Error(message), code_(std::move(code)) {}
+  const std::string& code() const { return code_; }
+
+ private:
+  std::string code_;
+};
+
+struct StartRequest {
+  PlanKind plan = PlanKind::kOptimal;
+  int poses = 8;
+  std::string plan_file;                     // plan: file
+  std::optional<Eigen::Vector3d> target_mm;  // nominal PSD centre; default the cell's taught one
+  std::optional<double> noise_mm;            // measurement sigma; default session.noise_mm
+};
+
+struct SessionStatus {
+  SessionState state = SessionState::kIdle;
+  std::string backend;     // "sim" or "hardware"
+  std::string session_id;  // the current or last session; empty before the first
+  int pose = 0;            // 1-based pose being worked on (moving, servoing, recording)
+  int pose_count = 0;
+  int recorded = 0;                // poses on disk in this session's journal
+  int resumed_from = 0;            // poses found in the journal when the run (re)started
+  std::string message;             // why it stopped, when aborted or faulted
+  double last_servo_error_um = 0;  // at the last recorded pose
+  // While servoing: the spot's distance from the PSD centre at the latest reading, um (NaN when
+  // the spot is off the detector). Read without disturbing the servo; poll it for live display.
+  std::optional<double> live_servo_error_um;
+  std::vector<double> predicted_sigma_deg;  // delta2..delta5, from the plan (NaN: not identif.)
+  std::vector<double> achieved_sigma_deg;   // from the solve, when done
+  double cell_time_s = 0;                   // since the run (re)started
+};
+
+// The latest PSD reading seen, for the live `psd` command.
+struct LiveReading {
+  PsdReading reading;
+  bool during_session = false;  // taken by the running session's servo, not on request
+};
+
+// What the control port needs; SessionManager implements it, protocol tests may fake it.
+class SessionControl {
+ public:
+  virtual ~SessionControl() = default;
+  virtual SessionStatus status() const = 0;
+  // Plans without moving; throws Refused("bad_request", ...) for an invalid request.
+  virtual Plan preview(const StartRequest& request) const = 0;
+  // Starts a session and returns its id. Throws Refused: "busy" (one session at a time),
+  // "bad_request", "not_identifiable" (the plan cannot identify delta2..delta5; nothing moved).
+  virtual std::string start(const StartRequest& request) = 0;
+  // Resumes an unfinished session from its journal (the latest unfinished one when `id` is
+  // empty). Throws Refused: "busy", "not_found", "finished".
+  virtual std::string resume(const std::string& id) = 0;
+  // Asks the running session to stop; the robot is stopped. False when nothing runs.
+  virtual bool abort() = 0;
+  virtual std::vector<SessionInfo> sessions() const = 0;
+  // result.json of a finished session (the latest one when `id` is empty). Throws
+  // Refused("not_found").
+  virtual nlohmann::json result(const std::string& id) const = 0;
+  // One PSD reading: the running session's latest, or one taken now when no session runs (on the
+  // worker thread). `done` is called exactly once, from any thread, with the reading or an error.
+  using ReadingDone = std::function<void(std::optional<LiveReading>, const std::string& error)>;
+  virtual void readPsd(ReadingDone done) = 0;
+  // Events: {"event": "state" | "pose" | "plan" | "result", ...}; docs/protocol.md. The sink is
+  // called on the worker thread and must not block.
+  using EventSink = std::function<void(const nlohmann::json& event)>;
+  virtual void setEventSink(EventSink sink) = 0;
+};
+
+}  // namespace zerocal::service

@@ -29,7 +29,10 @@ struct TempDir {
   std::string path;
 };
 
-sim::SimulatedCellOptions cellFor(std::uint64_t seed) { return sim::seededCellOptions(seed); }
+// The ideal world: the manager's results are checked against the truth (docs/simulated-cell.md).
+sim::SimulatedCellOptions cellFor(std::uint64_t seed) {
+  return sim::seededCellOptions(seed, WorldKind::kIdeal);
+}
 
 ManagerSettings settingsIn(const std::string& dir) {
   ManagerSettings s;

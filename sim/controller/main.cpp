@@ -58,7 +58,8 @@ int main(int argc, char** argv) {
     if (world_file.empty()) {
       options.world = zerocal::randomWorld(
           options.seed, ideal ? zerocal::WorldKind::kIdeal : zerocal::WorldKind::kRealistic);
-      if (!ideal) options.world.gross.stray_light_rate = options.world.gross.unsettled_rate = gross_rate;
+      if (!ideal)
+        options.world.gross.stray_light_rate = options.world.gross.unsettled_rate = gross_rate;
     } else {
       options.world = zerocal::loadWorld(world_file);
     }

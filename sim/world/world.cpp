@@ -125,7 +125,8 @@ void updateGross(const GrossErrors& gross, const Joints& q_deg, std::mt19937_64&
   const double unsettled = unit(rng), which = unit(rng), sign = unit(rng);
   state->stray_light_mm = Eigen::Vector2d::Zero();
   if (stray < gross.stray_light_rate)
-    state->stray_light_mm = gross.stray_light_mm * Eigen::Vector2d(std::cos(angle), std::sin(angle));
+    state->stray_light_mm =
+        gross.stray_light_mm * Eigen::Vector2d(std::cos(angle), std::sin(angle));
   state->unsettled_deg = Joints{};
   if (unsettled < gross.unsettled_rate) {
     const int joint = std::min(kJointCount - 1, static_cast<int>(which * kJointCount));
@@ -352,7 +353,8 @@ World parseWorld(const std::string& yaml_text, const std::string& origin,
     read.number(t, "expansion_per_k", "thermal.", &w.thermal.expansion_per_k);
     read.number(t, "rise_k", "thermal.", &w.thermal.rise_k);
     read.number(t, "time_constant_s", "thermal.", &w.thermal.time_constant_s);
-    if (!(w.thermal.time_constant_s > 0)) problems.push_back("thermal.time_constant_s: must be > 0");
+    if (!(w.thermal.time_constant_s > 0))
+      problems.push_back("thermal.time_constant_s: must be > 0");
   }
   if (const YAML::Node g = root["gross_errors"]) {
     read.onlyKeys(g, "gross_errors",
@@ -361,7 +363,8 @@ World parseWorld(const std::string& yaml_text, const std::string& origin,
     read.number(g, "stray_light_mm", "gross_errors.", &w.gross.stray_light_mm);
     read.number(g, "unsettled_rate", "gross_errors.", &w.gross.unsettled_rate);
     read.number(g, "unsettled_deg", "gross_errors.", &w.gross.unsettled_deg);
-    if (w.gross.stray_light_rate > 1) problems.push_back("gross_errors.stray_light_rate: must be <= 1");
+    if (w.gross.stray_light_rate > 1)
+      problems.push_back("gross_errors.stray_light_rate: must be <= 1");
     if (w.gross.unsettled_rate > 1) problems.push_back("gross_errors.unsettled_rate: must be <= 1");
   }
   if (!problems.empty()) throw ConfigError(origin, problems);
@@ -428,8 +431,8 @@ namespace {
 
 Eigen::Vector3d rpyOf(const Eigen::Matrix3d& r) {
   // R = Rz(yaw) Ry(pitch) Rx(roll), pitch in [-90, 90] deg.
-  return Eigen::Vector3d(std::atan2(r(2, 1), r(2, 2)),
-                         std::asin(std::clamp(-r(2, 0), -1.0, 1.0)), std::atan2(r(1, 0), r(0, 0))) *
+  return Eigen::Vector3d(std::atan2(r(2, 1), r(2, 2)), std::asin(std::clamp(-r(2, 0), -1.0, 1.0)),
+                         std::atan2(r(1, 0), r(0, 0))) *
          kRadToDeg;
 }
 

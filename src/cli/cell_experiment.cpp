@@ -37,7 +37,8 @@ DaemonConfig configOf(const CellExperimentArgs& args) {
   DaemonConfig config;
   ConfigOrigins origins;
   std::vector<std::string> problems;
-  if (args.ideal_world) applyConfigOverride(config, "backend.sim_ideal_world=true", origins, problems);
+  if (args.ideal_world)
+    applyConfigOverride(config, "backend.sim_ideal_world=true", origins, problems);
   for (const std::string& o : args.overrides) applyConfigOverride(config, o, origins, problems);
   for (const std::string& p : validateDaemonConfig(config, origins)) problems.push_back(p);
   if (!problems.empty()) throw ConfigError("zerocal experiment cell", problems);
@@ -221,8 +222,8 @@ int runCellExperiment(const CellExperimentArgs& args) {
     std::printf("\n%d worlds from seed %llu, %d did not complete\n", args.worlds,
                 static_cast<unsigned long long>(args.seed0), failed_runs);
     std::printf("world          %s\n", args.ideal_world ? "ideal" : "realistic");
-    std::printf("95%% coverage   %.1f%% of %d offsets inside value +- 1.96 sigma\n",
-                100 * coverage, estimates);
+    std::printf("95%% coverage   %.1f%% of %d offsets inside value +- 1.96 sigma\n", 100 * coverage,
+                estimates);
     std::printf("worst error    %.2f sigma   (<= %.1f)  %s\n", worst_sigmas, args.max_sigmas,
                 sigmas_ok ? "ok" : "FAIL");
     std::printf("RMS error      %.5f deg (<= %.3f) %s\n", rms, args.max_rms_deg,

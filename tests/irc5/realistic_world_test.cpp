@@ -283,9 +283,9 @@ compliance_of_joints: {}
     FAIL();
   } catch (const ConfigError& e) {
     const std::string what = e.what();
-    for (const char* expected : {"psd.taught_centre", "dh_errors.a_mm", "thermal.time_constant_s",
-                                 "gross_errors.stray_light_rate", "gross_errors.unsettled_deg",
-                                 "compliance_of_joints"})
+    for (const char* expected :
+         {"psd.taught_centre", "dh_errors.a_mm", "thermal.time_constant_s",
+          "gross_errors.stray_light_rate", "gross_errors.unsettled_deg", "compliance_of_joints"})
       EXPECT_NE(what.find(expected), std::string::npos) << expected << " in " << what;
   }
 }

@@ -7,6 +7,7 @@
 #include <array>
 #include <memory>
 #include <optional>
+#include <string>
 
 #include "zerocal/calib/cell_model.h"
 #include "zerocal/irc5/controller_link.h"
@@ -36,6 +37,9 @@ class ConnectedCell {
   virtual void stopRobot() noexcept = 0;
   // The true offsets delta2..delta5 in degrees, on a simulated cell only (for its reports).
   virtual std::optional<std::array<double, 4>> truthDeg() const { return std::nullopt; }
+  // The whole simulated world as a world file (docs/simulated-cell.md), on a simulated cell only:
+  // written beside the session's result as its truth.
+  virtual std::optional<std::string> truthWorldYaml() const { return std::nullopt; }
 };
 
 class CellBackend {

@@ -70,9 +70,9 @@ struct GrossErrors {
 constexpr double kGrossPoseExtentDeg = 5.0;
 
 // The realistic world's draws (randomWorld); docs/simulated-cell.md gives the evidence.
-constexpr double kLinkLengthSigmaMm = 0.1;    // every a and d
-constexpr double kLinkTwistSigmaDeg = 0.01;   // every alpha
-constexpr double kDefaultGrossRate = 0.01;    // per pose, each kind
+constexpr double kLinkLengthSigmaMm = 0.1;   // every a and d
+constexpr double kLinkTwistSigmaDeg = 0.01;  // every alpha
+constexpr double kDefaultGrossRate = 0.01;   // per pose, each kind
 
 struct World {
   // The nominal robot: what the controller and the session believe.

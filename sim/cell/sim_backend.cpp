@@ -1,12 +1,20 @@
 #include "zerocal/sim/sim_backend.h"
 
 #include "zerocal/error.h"
+#include "zerocal/model/builtin.h"
 #include "zerocal/service/linked_cell.h"
 #include "zerocal/sim/simulated_rig.h"
 #include "zerocal/sim/world.h"
 
 namespace zerocal::sim {
 namespace {
+
+// The world as a world file, when its robot is the built-in one (a world file's own robot file is
+// not known here; that world is on disk already).
+std::optional<std::string> truthFile(const World& world) {
+  if (world.robot.name != builtinIrb1600().name) return std::nullopt;
+  return worldYaml(world);
+}
 
 class SimulatedLinkedCell final : public service::LinkedCell {
  public:
@@ -16,6 +24,7 @@ class SimulatedLinkedCell final : public service::LinkedCell {
     const auto& t = cell_.world().true_offsets_deg;
     return std::array<double, 4>{t[1], t[2], t[3], t[4]};
   }
+  std::optional<std::string> truthWorldYaml() const override { return truthFile(cell_.world()); }
 
  private:
   const SimulatedCell& cell_;
@@ -55,6 +64,9 @@ class ExternalSimBackend::Cell final : public service::LinkedCell {
   std::optional<std::array<double, 4>> truthDeg() const override {
     const auto& t = backend_.options_.world.true_offsets_deg;
     return std::array<double, 4>{t[1], t[2], t[3], t[4]};
+  }
+  std::optional<std::string> truthWorldYaml() const override {
+    return truthFile(backend_.options_.world);
   }
 
  private:

@@ -31,9 +31,9 @@ std::vector<psd::SweepPoint> stageSweep(PsdModel& psd, double half_width, double
 
 }  // namespace
 
-SimulatedCellOptions seededCellOptions(std::uint64_t seed) {
+SimulatedCellOptions seededCellOptions(std::uint64_t seed, WorldKind kind) {
   SimulatedCellOptions o;
-  o.world = randomWorld(seed);
+  o.world = randomWorld(seed, kind);
   o.controller_seed = seed;
   o.psd.seed = static_cast<std::uint32_t>(seed) + 100;
   return o;

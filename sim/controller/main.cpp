@@ -2,10 +2,12 @@
 // restart the controller from outside.
 #include <CLI/CLI.hpp>
 #include <cstdio>
+#include <fstream>
 #include <iostream>
 
 #include "zerocal/error.h"
 #include "zerocal/sim/sim_controller.h"
+#include "zerocal/sim/world.h"
 
 int main(int argc, char** argv) {
   CLI::App app("Simulated ABB IRC5 controller speaking zerocal's RAPID server protocol");
@@ -19,6 +21,19 @@ int main(int argc, char** argv) {
   app.add_option("--world", world_file, "world YAML file (default: a random world from --seed)");
   app.add_option("--seed", options.seed, "seed of the random world and of the noise")
       ->capture_default_str();
+  bool ideal = false;
+  double gross_rate = zerocal::kDefaultGrossRate;
+  std::string truth_file;
+  app.add_flag("--ideal-world", ideal,
+               "the seed's ideal world (exact arm, PSD orientation known, no gross errors) "
+               "instead of its realistic one; not with --world");
+  app.add_option("--gross-rate", gross_rate,
+                 "realistic seeded world: chance per pose of each kind of gross error")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--write-truth", truth_file,
+                 "write the seeded world (every error of the arm and the PSD, the noise) as a "
+                 "world file that --world reads");
   app.add_flag(
       "--no-lf", [&](std::int64_t) { options.lf_terminated = false; },
       "end replies with no LF, like upstream open_abb");
@@ -36,8 +51,23 @@ int main(int argc, char** argv) {
   options.faults.reply_delay = std::chrono::milliseconds(delay_ms);
 
   try {
-    options.world =
-        world_file.empty() ? zerocal::randomWorld(options.seed) : zerocal::loadWorld(world_file);
+    if (!world_file.empty() && (ideal || app.count("--gross-rate") > 0 || !truth_file.empty()))
+      throw zerocal::ConfigError(
+          "zerocal-sim", {"--ideal-world, --gross-rate and --write-truth are for seeded worlds; a "
+                          "--world file states its own errors and is its own truth"});
+    if (world_file.empty()) {
+      options.world = zerocal::randomWorld(
+          options.seed, ideal ? zerocal::WorldKind::kIdeal : zerocal::WorldKind::kRealistic);
+      if (!ideal)
+        options.world.gross.stray_light_rate = options.world.gross.unsettled_rate = gross_rate;
+    } else {
+      options.world = zerocal::loadWorld(world_file);
+    }
+    if (!truth_file.empty()) {
+      std::ofstream out(truth_file);
+      out << zerocal::worldYaml(options.world);
+      if (!out) throw zerocal::Error("cannot write " + truth_file);
+    }
     zerocal::SimController sim(options);
     std::cout << "zerocal-sim listening on " << options.address << ":" << sim.port() << std::endl;
     sim.run(/*stop_on_signals=*/true);

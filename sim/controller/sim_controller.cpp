@@ -58,7 +58,11 @@ struct SimController::Impl {
   class Session;
 
   explicit Impl(SimControllerOptions o)
-      : options(std::move(o)), acceptor(ctx), rng(options.seed), faults(options.faults) {
+      : options(std::move(o)),
+        acceptor(ctx),
+        rng(options.seed),
+        gross_rng(options.seed ^ 0x67726f7373ull),
+        faults(options.faults) {
     commanded = options.start_joints;
     for (double& q : commanded) q = f32(q);
     const std::string violation = options.world.robot.limitViolation(commanded);
@@ -96,10 +100,15 @@ struct SimController::Impl {
   std::set<std::shared_ptr<Session>> sessions;  // I/O thread only
 
   mutable std::mutex mutex;  // guards everything below
+  // Where the true beam meets the PSD now, as the detector sees it (stray light included).
+  std::optional<BeamHit> spotNow() const;
+
   std::mt19937_64 rng;
+  std::mt19937_64 gross_rng;  // its own stream: the repeatability draws stay those of the seed
   SimFaults faults;
   Joints commanded{};
-  Joints move_error{};
+  Joints move_error{};  // this move's repeatability error plus an unsettled reading's
+  GrossState gross;
   Frame<double> tool, wobj;
   double speed_tcp_mm_s = 100, speed_ori_deg_s = 50;
   bool fine = false;
@@ -354,7 +363,18 @@ std::string SimController::Impl::moveTo(const Joints& target, int code, millisec
   commanded = stored;
   std::normal_distribution<double> noise(0.0, options.world.noise.repeatability_deg);
   for (double& e : move_error) e = options.world.noise.repeatability_deg > 0 ? noise(rng) : 0.0;
+  updateGross(options.world.gross, commanded, gross_rng, &gross);
+  for (int i = 0; i < kJointCount; ++i) move_error[i] += gross.unsettled_deg[i];
   return std::to_string(code) + " 1 ";
+}
+
+std::optional<BeamHit> SimController::Impl::spotNow() const {
+  std::optional<BeamHit> hit = beamHit(options.world, commanded, move_error, sim_time_s);
+  if (hit) {
+    hit->u_mm += gross.stray_light_mm.x();
+    hit->v_mm += gross.stray_light_mm.y();
+  }
+  return hit;
 }
 
 std::optional<std::string> SimController::Impl::respond(const irc5::ParsedRequest& r,
@@ -450,7 +470,7 @@ std::optional<std::string> SimController::Impl::respond(const irc5::ParsedReques
       // Simulator only: what a PSD placed in the world would see now (an external daemon's
       // simulated board asks this over its own connection).
       if (n != 0) return bad;
-      const std::optional<BeamHit> hit = beamHit(options.world, commanded, move_error);
+      const std::optional<BeamHit> hit = spotNow();
       if (!hit || !std::isfinite(hit->u_mm) || !std::isfinite(hit->v_mm) ||
           std::abs(hit->u_mm) > 1e6 || std::abs(hit->v_mm) > 1e6)
         return done + "0 0 0";
@@ -526,7 +546,7 @@ Joints SimController::moveErrorDeg() const {
 
 std::optional<BeamHit> SimController::beamHitNow() const {
   std::lock_guard<std::mutex> lock(impl_->mutex);
-  return beamHit(impl_->options.world, impl_->commanded, impl_->move_error);
+  return impl_->spotNow();
 }
 
 double SimController::simTimeS() const {

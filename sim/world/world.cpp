@@ -3,6 +3,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -15,10 +16,85 @@
 
 namespace zerocal {
 
-std::optional<BeamHit> beamHit(const World& world, const Joints& q_deg, const Joints& extra_deg) {
+namespace {
+
+// The true arm's DH table at time_s: the nominal rows plus the link errors, every length grown
+// by the thermal state.
+std::array<DhRow, kJointCount> trueDh(const World& w, double time_s) {
+  const ThermalDrift& t = w.thermal;
+  double growth = 1.0;
+  if (t.rise_k != 0 && t.time_constant_s > 0 && time_s > 0)
+    growth += t.expansion_per_k * t.rise_k * (1.0 - std::exp(-time_s / t.time_constant_s));
+  std::array<DhRow, kJointCount> dh = w.robot.dh;
+  for (int i = 0; i < kJointCount; ++i) {
+    const DhError& e = w.dh_errors[i];
+    dh[i].a_mm = (dh[i].a_mm + e.a_mm) * growth;
+    dh[i].d_mm = (dh[i].d_mm + e.d_mm) * growth;
+    dh[i].alpha_rad += e.alpha_deg * kDegToRad;
+  }
+  return dh;
+}
+
+// The flange of the true arm at controller joints q_deg with `delta_deg` added to every joint.
+Frame<double> trueFlange(const World& w, const Joints& q_deg, const Joints& delta_deg,
+                         double time_s) {
+  const std::array<DhRow, kJointCount> dh = trueDh(w, time_s);
+  const Joints sag = gravitySagDeg(w, q_deg);
+  const auto rad = [&](int i) { return (q_deg[i] + (delta_deg[i] + sag[i])) * kDegToRad; };
+  Frame<double> f = dhLink(dh[0], rad(0));
+  for (int i = 1; i < kJointCount; ++i) f = f * dhLink(dh[i], rad(i));
+  return f;
+}
+
+}  // namespace
+
+Joints gravitySagDeg(const World& w, const Joints& q_deg) {
+  Joints sag{};
+  const Compliance& c = w.compliance;
+  if (c.joint2_sag_deg == 0 && c.joint3_sag_deg == 0) return sag;
+  // Frames 1, 2 (joint 2's and joint 3's axes: z of the frame before the joint), 4 (the wrist
+  // centre) and 6 (the flange) of the nominal arm: the sag is far too small to move them.
+  std::array<Frame<double>, kJointCount + 1> frame;
+  for (int i = 0; i < kJointCount; ++i)
+    frame[i + 1] = frame[i] * dhLink(w.robot.dh[i], q_deg[i] * kDegToRad);
+  // Lumped masses (fractions of the arm's moving mass beyond joint 2; inferred, see
+  // docs/simulated-cell.md): upper arm at its middle, forearm between joint 3 and the wrist
+  // centre, wrist with the laser at the flange.
+  struct Mass {
+    double fraction;
+    Eigen::Vector3d at;
+    int beyond_joint;  // the last joint (1-based) between the base and the mass
+  };
+  const Mass masses[] = {{0.40, 0.5 * (frame[1].p + frame[2].p), 2},
+                         {0.40, 0.5 * (frame[2].p + frame[4].p), 3},
+                         {0.20, frame[6].p, 3}};
+  const Eigen::Vector3d down(0, 0, -1);
+  const auto sagOf = [&](int joint, double sag_deg) {
+    const Frame<double>& axis = frame[joint - 1];
+    const Eigen::Vector3d z = axis.R.col(2);
+    double torque = 0, bound = 0;
+    for (const Mass& m : masses) {
+      if (m.beyond_joint < joint) continue;  // not carried by this joint
+      const Eigen::Vector3d r = m.at - axis.p;
+      torque += m.fraction * r.cross(down).dot(z);
+      bound += m.fraction * (r - r.dot(z) * z).norm();
+    }
+    return bound > 0 ? sag_deg * torque / bound : 0.0;
+  };
+  sag[1] = sagOf(2, c.joint2_sag_deg);
+  sag[2] = sagOf(3, c.joint3_sag_deg);
+  return sag;
+}
+
+Eigen::Vector3d trueFlangePositionMm(const World& w, const Joints& q_deg, double time_s) {
+  return trueFlange(w, q_deg, w.true_offsets_deg, time_s).p;
+}
+
+std::optional<BeamHit> beamHit(const World& world, const Joints& q_deg, const Joints& extra_deg,
+                               double time_s) {
   Joints delta;
   for (int i = 0; i < kJointCount; ++i) delta[i] = world.true_offsets_deg[i] + extra_deg[i];
-  const Frame<double> flange = flangePoseDeg(world.robot, q_deg, delta);
+  const Frame<double> flange = trueFlange(world, q_deg, delta, time_s);
   const Eigen::Vector3d p = flange.apply(world.laser_point_mm);
   const Eigen::Vector3d d = (flange.R * world.laser_direction).normalized();
   const Eigen::Vector3d normal = world.psd_rotation.col(2);
@@ -30,6 +106,32 @@ std::optional<BeamHit> beamHit(const World& world, const Joints& q_deg, const Jo
   const Eigen::Vector3d local =
       world.psd_rotation.transpose() * (p + t * d - world.psd_position_mm);
   return BeamHit{local.x(), local.y(), t};
+}
+
+void updateGross(const GrossErrors& gross, const Joints& q_deg, std::mt19937_64& rng,
+                 GrossState* state) {
+  if (state->anchored) {
+    double moved = 0;
+    for (int i = 0; i < kJointCount; ++i)
+      moved = std::max(moved, std::abs(q_deg[i] - state->anchor_deg[i]));
+    if (moved <= kGrossPoseExtentDeg) return;
+  }
+  state->anchored = true;
+  state->anchor_deg = q_deg;
+  ++state->draws;
+  // Always the same five draws, so that one kind's rate does not change the other's sequence.
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const double stray = unit(rng), angle = 2 * kPi * unit(rng);
+  const double unsettled = unit(rng), which = unit(rng), sign = unit(rng);
+  state->stray_light_mm = Eigen::Vector2d::Zero();
+  if (stray < gross.stray_light_rate)
+    state->stray_light_mm =
+        gross.stray_light_mm * Eigen::Vector2d(std::cos(angle), std::sin(angle));
+  state->unsettled_deg = Joints{};
+  if (unsettled < gross.unsettled_rate) {
+    const int joint = std::min(kJointCount - 1, static_cast<int>(which * kJointCount));
+    state->unsettled_deg[joint] = sign < 0.5 ? -gross.unsettled_deg : gross.unsettled_deg;
+  }
 }
 
 std::string worldHash(const World& w) {
@@ -58,6 +160,24 @@ std::string worldHash(const World& w) {
   }
   value(w.noise.repeatability_deg);
   value(w.noise.psd_mm);
+  for (const DhError& e : w.dh_errors) {
+    value(e.a_mm);
+    value(e.d_mm);
+    value(e.alpha_deg);
+  }
+  value(w.compliance.joint2_sag_deg);
+  value(w.compliance.joint3_sag_deg);
+  value(w.thermal.expansion_per_k);
+  value(w.thermal.rise_k);
+  value(w.thermal.time_constant_s);
+  for (int i = 0; i < 3; ++i) {
+    value(w.psd_centre_taught_mm[i]);
+    for (int j = 0; j < 3; ++j) value(w.psd_rotation_configured(i, j));
+  }
+  value(w.gross.stray_light_rate);
+  value(w.gross.stray_light_mm);
+  value(w.gross.unsettled_rate);
+  value(w.gross.unsettled_deg);
   char buf[17];
   std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
   return buf;
@@ -92,6 +212,27 @@ class Reader {
       }
     }
     return good;
+  }
+
+  // As vec(), but an absent key keeps *out and is no problem.
+  template <int N>
+  bool optionalVec(const YAML::Node& map, const std::string& key, const std::string& where,
+                   Eigen::Matrix<double, N, 1>* out) {
+    return map[key] ? vec<N>(map, key, where, out) : false;
+  }
+
+  // Only the keys named may appear in the map.
+  void onlyKeys(const YAML::Node& map, const std::string& where,
+                std::initializer_list<const char*> keys) {
+    if (!map.IsMap()) {
+      problems_->push_back(where + ": must be a map");
+      return;
+    }
+    for (const auto& entry : map) {
+      const std::string key = entry.first.as<std::string>("");
+      if (std::none_of(keys.begin(), keys.end(), [&](const char* k) { return key == k; }))
+        problems_->push_back(where + (where.empty() ? "" : ".") + key + ": unknown key");
+    }
   }
 
   void number(const YAML::Node& map, const std::string& key, const std::string& where,
@@ -180,6 +321,52 @@ World parseWorld(const std::string& yaml_text, const std::string& origin,
     read.number(noise, "repeatability_deg", "noise.", &w.noise.repeatability_deg);
     read.number(noise, "psd_mm", "noise.", &w.noise.psd_mm);
   }
+  read.onlyKeys(root, "",
+                {"robot", "true_offsets_deg", "laser", "psd", "noise", "dh_errors", "compliance",
+                 "thermal", "gross_errors"});
+  if (psd && psd.IsMap()) {
+    read.onlyKeys(psd, "psd", {"position_mm", "rpy_deg", "configured_rpy_deg", "taught_centre_mm"});
+    w.psd_rotation_configured = w.psd_rotation;
+    w.psd_centre_taught_mm = w.psd_position_mm + Eigen::Vector3d(3, -3, 3);
+    Eigen::Vector3d configured;
+    if (read.optionalVec<3>(psd, "configured_rpy_deg", "psd.", &configured))
+      w.psd_rotation_configured = rpy(configured);
+    read.optionalVec<3>(psd, "taught_centre_mm", "psd.", &w.psd_centre_taught_mm);
+  }
+  if (const YAML::Node links = root["dh_errors"]) {
+    read.onlyKeys(links, "dh_errors", {"a_mm", "d_mm", "alpha_deg"});
+    Eigen::Matrix<double, 6, 1> v;
+    if (read.optionalVec<6>(links, "a_mm", "dh_errors.", &v))
+      for (int i = 0; i < 6; ++i) w.dh_errors[i].a_mm = v[i];
+    if (read.optionalVec<6>(links, "d_mm", "dh_errors.", &v))
+      for (int i = 0; i < 6; ++i) w.dh_errors[i].d_mm = v[i];
+    if (read.optionalVec<6>(links, "alpha_deg", "dh_errors.", &v))
+      for (int i = 0; i < 6; ++i) w.dh_errors[i].alpha_deg = v[i];
+  }
+  if (const YAML::Node c = root["compliance"]) {
+    read.onlyKeys(c, "compliance", {"joint2_sag_deg", "joint3_sag_deg"});
+    read.number(c, "joint2_sag_deg", "compliance.", &w.compliance.joint2_sag_deg);
+    read.number(c, "joint3_sag_deg", "compliance.", &w.compliance.joint3_sag_deg);
+  }
+  if (const YAML::Node t = root["thermal"]) {
+    read.onlyKeys(t, "thermal", {"expansion_per_k", "rise_k", "time_constant_s"});
+    read.number(t, "expansion_per_k", "thermal.", &w.thermal.expansion_per_k);
+    read.number(t, "rise_k", "thermal.", &w.thermal.rise_k);
+    read.number(t, "time_constant_s", "thermal.", &w.thermal.time_constant_s);
+    if (!(w.thermal.time_constant_s > 0))
+      problems.push_back("thermal.time_constant_s: must be > 0");
+  }
+  if (const YAML::Node g = root["gross_errors"]) {
+    read.onlyKeys(g, "gross_errors",
+                  {"stray_light_rate", "stray_light_mm", "unsettled_rate", "unsettled_deg"});
+    read.number(g, "stray_light_rate", "gross_errors.", &w.gross.stray_light_rate);
+    read.number(g, "stray_light_mm", "gross_errors.", &w.gross.stray_light_mm);
+    read.number(g, "unsettled_rate", "gross_errors.", &w.gross.unsettled_rate);
+    read.number(g, "unsettled_deg", "gross_errors.", &w.gross.unsettled_deg);
+    if (w.gross.stray_light_rate > 1)
+      problems.push_back("gross_errors.stray_light_rate: must be <= 1");
+    if (w.gross.unsettled_rate > 1) problems.push_back("gross_errors.unsettled_rate: must be <= 1");
+  }
   if (!problems.empty()) throw ConfigError(origin, problems);
   return w;
 }
@@ -193,7 +380,7 @@ World loadWorld(const std::string& path) {
   return parseWorld(text.str(), path, slash == std::string::npos ? "." : path.substr(0, slash));
 }
 
-World randomWorld(std::uint64_t seed) {
+World randomWorld(std::uint64_t seed, WorldKind kind) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
   World w;
@@ -205,7 +392,97 @@ World randomWorld(std::uint64_t seed) {
   w.psd_position_mm =
       Eigen::Vector3d(900 + 20 * unit(rng), -50 + 20 * unit(rng), 400 + 20 * unit(rng));
   w.psd_rotation = rpy(Eigen::Vector3d(10 * unit(rng), 10 * unit(rng), 180 * unit(rng)));
+  w.psd_rotation_configured = w.psd_rotation;
+  w.psd_centre_taught_mm = w.psd_position_mm + Eigen::Vector3d(3, -3, 3);
+  if (kind == WorldKind::kIdeal) return w;
+
+  // The imperfections from their own stream: the ideal world of a seed stays what it was, and
+  // the realistic one shares its offsets, laser and PSD pose. Magnitudes: docs/simulated-cell.md.
+  std::mt19937_64 more(seed ^ 0x7265616c69737469ull);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  std::uniform_real_distribution<double> zero_one(0.0, 1.0);
+  const auto between = [&](double lo, double hi) { return lo + (hi - lo) * zero_one(more); };
+  const auto direction = [&] {
+    Eigen::Vector3d v;
+    do v = Eigen::Vector3d(normal(more), normal(more), normal(more));
+    while (v.norm() < 1e-6);
+    return v.normalized();
+  };
+  for (DhError& e : w.dh_errors) {
+    e.a_mm = kLinkLengthSigmaMm * normal(more);
+    e.d_mm = kLinkLengthSigmaMm * normal(more);
+    e.alpha_deg = kLinkTwistSigmaDeg * normal(more);
+  }
+  w.compliance.joint2_sag_deg = between(0.003, 0.010);
+  w.compliance.joint3_sag_deg = between(0.002, 0.006);
+  w.thermal.expansion_per_k = 23e-6;  // aluminium
+  w.thermal.rise_k = between(3, 10);
+  w.thermal.time_constant_s = between(1800, 7200);
+  const double psd_angle_deg = between(1, 3);
+  w.psd_rotation_configured =
+      w.psd_rotation * Eigen::AngleAxisd(psd_angle_deg * kDegToRad, direction()).toRotationMatrix();
+  w.psd_centre_taught_mm = w.psd_position_mm + between(1, 5) * direction();
+  w.gross.stray_light_rate = kDefaultGrossRate;
+  w.gross.unsettled_rate = kDefaultGrossRate;
   return w;
+}
+
+namespace {
+
+Eigen::Vector3d rpyOf(const Eigen::Matrix3d& r) {
+  // R = Rz(yaw) Ry(pitch) Rx(roll), pitch in [-90, 90] deg.
+  return Eigen::Vector3d(std::atan2(r(2, 1), r(2, 2)), std::asin(std::clamp(-r(2, 0), -1.0, 1.0)),
+                         std::atan2(r(1, 0), r(0, 0))) *
+         kRadToDeg;
+}
+
+std::string num(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+
+template <typename V>
+std::string list(const V& v, int n) {
+  std::string s = "[";
+  for (int i = 0; i < n; ++i) s += num(v[i]) + (i + 1 < n ? ", " : "]");
+  return s;
+}
+
+}  // namespace
+
+std::string worldYaml(const World& w, const std::string& robot_file) {
+  std::ostringstream o;
+  o << "# The truth of a simulated cell (zerocal world file, docs/simulated-cell.md).\n"
+    << "# world hash " << worldHash(w) << " (" << w.robot.name << ")\n"
+    << "robot: " << robot_file << "\n"
+    << "true_offsets_deg: " << list(w.true_offsets_deg, 6) << "\n"
+    << "laser:\n  point_mm: " << list(w.laser_point_mm, 3)
+    << "\n  direction: " << list(w.laser_direction, 3) << "\n"
+    << "psd:\n  position_mm: " << list(w.psd_position_mm, 3)
+    << "\n  rpy_deg: " << list(rpyOf(w.psd_rotation), 3)
+    << "\n  configured_rpy_deg: " << list(rpyOf(w.psd_rotation_configured), 3)
+    << "\n  taught_centre_mm: " << list(w.psd_centre_taught_mm, 3) << "\n"
+    << "noise:\n  repeatability_deg: " << num(w.noise.repeatability_deg)
+    << "\n  psd_mm: " << num(w.noise.psd_mm) << "\n";
+  Joints a, d, alpha;
+  for (int i = 0; i < kJointCount; ++i) {
+    a[i] = w.dh_errors[i].a_mm;
+    d[i] = w.dh_errors[i].d_mm;
+    alpha[i] = w.dh_errors[i].alpha_deg;
+  }
+  o << "dh_errors:\n  a_mm: " << list(a, 6) << "\n  d_mm: " << list(d, 6)
+    << "\n  alpha_deg: " << list(alpha, 6) << "\n"
+    << "compliance:\n  joint2_sag_deg: " << num(w.compliance.joint2_sag_deg)
+    << "\n  joint3_sag_deg: " << num(w.compliance.joint3_sag_deg) << "\n"
+    << "thermal:\n  expansion_per_k: " << num(w.thermal.expansion_per_k)
+    << "\n  rise_k: " << num(w.thermal.rise_k)
+    << "\n  time_constant_s: " << num(w.thermal.time_constant_s) << "\n"
+    << "gross_errors:\n  stray_light_rate: " << num(w.gross.stray_light_rate)
+    << "\n  stray_light_mm: " << num(w.gross.stray_light_mm)
+    << "\n  unsettled_rate: " << num(w.gross.unsettled_rate)
+    << "\n  unsettled_deg: " << num(w.gross.unsettled_deg) << "\n";
+  return o.str();
 }
 
 }  // namespace zerocal

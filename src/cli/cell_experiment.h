@@ -16,6 +16,7 @@ struct CellExperimentArgs {
   int worlds = 10;
   std::uint64_t seed0 = 1;
   bool json = false;
+  bool ideal_world = false;            // the seeds' ideal worlds instead of the realistic default
   std::vector<std::string> overrides;  // daemon configuration keys, section.key=value
   // The requirements (issue 5).
   double max_sigmas = 3.0;

@@ -224,6 +224,9 @@ std::vector<Field> schema(DaemonConfig& c) {
                                {{"hardware", BackendKind::kHardware}, {"sim", BackendKind::kSim}}));
   f.push_back(pathField("backend.sim_world", c.backend.sim_world));
   f.push_back(seedField("backend.sim_seed", c.backend.sim_seed));
+  f.push_back(choiceField<bool>("backend.sim_ideal_world", c.backend.sim_ideal_world,
+                                {{"false", false}, {"true", true}}));
+  f.push_back(realField("backend.sim_gross_rate", c.backend.sim_gross_rate));
   f.push_back(realField("backend.sim_pace", c.backend.sim_pace));
   f.push_back(textField("backend.sim_host", c.backend.sim_host));
   f.push_back(integerField("backend.sim_port", c.backend.sim_port));
@@ -451,6 +454,7 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
 
   const auto& b = c.backend;
   check.range("backend.sim_pace", b.sim_pace, 0.0, 10.0);
+  check.range("backend.sim_gross_rate", b.sim_gross_rate, 0.0, 1.0);
   if (b.kind == BackendKind::kSim) {
     if (!b.sim_world.empty() && b.sim_seed)
       check.fail("backend.sim_seed", "give backend.sim_world or backend.sim_seed, not both");

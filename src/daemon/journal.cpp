@@ -396,6 +396,11 @@ std::vector<SessionInfo> SessionStore::unfinished() const {
   return sessions;
 }
 
+void SessionStore::writeFile(const std::string& id, const std::string& name,
+                             const std::string& text) {
+  writeFileAtomically(fs::path(sessionDir(id)) / name, text);
+}
+
 void SessionStore::writeResult(const std::string& id, const Json& result) {
   writeFileAtomically(fs::path(sessionDir(id)) / kResultFile, result.dump(2) + "\n");
 }

@@ -27,13 +27,20 @@ RunSettings runSettingsOf(const DaemonConfig& config) {
 std::unique_ptr<CellBackend> makeBackend(const DaemonConfig& cfg) {
   if (cfg.backend.kind == BackendKind::kHardware) return std::make_unique<HardwareBackend>(cfg);
   const std::uint64_t seed = cfg.backend.sim_seed.value_or(1);
-  sim::SimulatedCellOptions o = sim::seededCellOptions(seed);
+  sim::SimulatedCellOptions o = sim::seededCellOptions(
+      seed, cfg.backend.sim_ideal_world ? WorldKind::kIdeal : WorldKind::kRealistic);
+  if (!cfg.backend.sim_ideal_world) {
+    o.world.gross.stray_light_rate = cfg.backend.sim_gross_rate;
+    o.world.gross.unsettled_rate = cfg.backend.sim_gross_rate;
+  }
   if (!cfg.backend.sim_world.empty()) o.world = loadWorld(cfg.backend.sim_world);
   if (!cfg.backend.sim_host.empty()) {
     // The controller in an external zerocal-sim, the board in-process (sim::ExternalSimBackend).
     sim::ExternalSimOptions e;
-    e.world_source = cfg.backend.sim_world.empty() ? "backend.sim_seed " + std::to_string(seed)
-                                                   : "backend.sim_world " + cfg.backend.sim_world;
+    e.world_source = cfg.backend.sim_world.empty()
+                         ? "backend.sim_seed " + std::to_string(seed) +
+                               (cfg.backend.sim_ideal_world ? ", ideal world" : "")
+                         : "backend.sim_world " + cfg.backend.sim_world;
     e.client = irc5OptionsOf(cfg.controller);
     e.client.host = cfg.backend.sim_host;
     e.client.port = cfg.backend.sim_port;

@@ -87,6 +87,9 @@ class SessionManager::LiveSlot {
 
 namespace {
 
+// A simulated session's whole world, beside its result (docs/simulated-cell.md).
+constexpr const char* kTruthWorldFile = "truth-world.yaml";
+
 // The run's PSD reader, passing each reading on to the live slot.
 template <class Slot>
 class ObservedReader final : public PsdReader {
@@ -590,6 +593,14 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
   if (const auto truth = cell_->truthDeg()) {
     result["truth"] = nlohmann::json::object();
     for (int k = 0; k < kOffsetCount; ++k) result["truth"][unknownName(k)] = (*truth)[k];
+  }
+  if (const auto world = cell_->truthWorldYaml()) {
+    try {
+      store_.writeFile(id, kTruthWorldFile, *world);
+      result["truth"]["world_file"] = kTruthWorldFile;
+    } catch (const std::exception& e) {
+      return finish(SessionState::kFaulted, std::string("cannot write the truth: ") + e.what());
+    }
   }
   nlohmann::json breakdown = nlohmann::json::array();
   for (const PoseRecord& r : outcome->records)

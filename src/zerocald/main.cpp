@@ -125,6 +125,10 @@ int main(int argc, char** argv) {
   app.add_flag("--sim", sim, "use the in-process simulated cell (backend.kind=sim)");
   app.add_flag("--once", once, "run one calibration as configured (session.*), then exit");
   app.add_option("--seed", seed, "simulated world from this seed (backend.sim_seed)");
+  bool ideal_world = false;
+  app.add_flag("--ideal-world", ideal_world,
+               "the seed's ideal world instead of its realistic one (backend.sim_ideal_world; "
+               "docs/simulated-cell.md)");
   app.add_option("--data-dir", data_dir, "where session folders go (session.data_dir)");
   app.add_flag("--json", json, "--once: print the result as one JSON object");
   try {
@@ -136,6 +140,7 @@ int main(int argc, char** argv) {
   sources.drop_in_dir_explicit = app.count("--config-dir") > 0;
   if (sim) sources.overrides.push_back("backend.kind=sim");
   if (seed) sources.overrides.push_back("backend.sim_seed=" + std::to_string(*seed));
+  if (ideal_world) sources.overrides.push_back("backend.sim_ideal_world=true");
   if (!data_dir.empty()) sources.overrides.push_back("session.data_dir=\"" + data_dir + "\"");
   try {
     const DaemonConfig cfg = loadDaemonConfig(sources);

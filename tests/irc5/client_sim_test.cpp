@@ -58,7 +58,7 @@ class RawSocket {
 };
 
 World testWorld() {
-  World w = randomWorld(7);
+  World w = randomWorld(7, WorldKind::kIdeal);  // exact: the protocol is under test
   w.noise.repeatability_deg = 0;  // exact read-backs below; noise is tested separately
   return w;
 }

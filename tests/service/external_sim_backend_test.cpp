@@ -26,9 +26,10 @@ struct TempDir {
   std::string path;
 };
 
+// The ideal world (results are checked against the truth), on both sides.
 SimControllerOptions externalSim(std::uint64_t seed) {
   SimControllerOptions o;
-  o.world = randomWorld(seed);
+  o.world = randomWorld(seed, WorldKind::kIdeal);
   o.seed = seed;
   return o;
 }
@@ -37,6 +38,7 @@ DaemonConfig configFor(const SimController& sim, std::uint64_t seed, const std::
   DaemonConfig c;
   c.backend.kind = BackendKind::kSim;
   c.backend.sim_seed = seed;
+  c.backend.sim_ideal_world = true;
   c.backend.sim_host = "127.0.0.1";
   c.backend.sim_port = sim.port();
   c.servo.settle_s = 0.0;  // the cell clock is the steady clock: waits are real
@@ -54,8 +56,8 @@ TEST(ExternalSim, ProtocolExtensionsAnswerTheSpotAndTheWorld) {
   Irc5Client client(o);
   client.connect();
   const SimWorldId id = client.readSimWorldId();
-  EXPECT_EQ(id.hash, worldHash(randomWorld(4)));
-  EXPECT_NE(id.hash, worldHash(randomWorld(5)));
+  EXPECT_EQ(id.hash, worldHash(randomWorld(4, WorldKind::kIdeal)));
+  EXPECT_NE(id.hash, worldHash(randomWorld(5, WorldKind::kIdeal)));
   EXPECT_EQ(id.seed, 4u);
   const auto spot = client.readSimBeamSpot();
   const std::optional<BeamHit> hit = sim.beamHitNow();
@@ -82,7 +84,7 @@ TEST(ExternalSim, SessionRunsToTheWorldsTruth) {
   // The servo's link and the board's spot link, both to the external simulator.
   EXPECT_GE(sim.connectionCount(), 2);
   const nlohmann::json result = manager.result(id);
-  const World truth = randomWorld(kSeed);
+  const World truth = randomWorld(kSeed, WorldKind::kIdeal);
   for (int k = 0; k < kOffsetCount; ++k) {
     const std::string name = unknownName(k);
     const double error =
@@ -103,8 +105,8 @@ TEST(ExternalSim, AMismatchedWorldIsRefusedBeforeAnythingMoves) {
     FAIL() << "a zerocal-sim of another world was accepted";
   } catch (const ConfigError& e) {
     const std::string what = e.what();
-    EXPECT_NE(what.find(worldHash(randomWorld(5))), std::string::npos) << what;
-    EXPECT_NE(what.find(worldHash(randomWorld(6))), std::string::npos) << what;
+    EXPECT_NE(what.find(worldHash(randomWorld(5, WorldKind::kIdeal))), std::string::npos) << what;
+    EXPECT_NE(what.find(worldHash(randomWorld(6, WorldKind::kIdeal))), std::string::npos) << what;
     EXPECT_NE(what.find("--seed 5"), std::string::npos) << what;
     EXPECT_NE(what.find("backend.sim_seed 6"), std::string::npos) << what;
   }

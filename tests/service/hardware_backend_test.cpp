@@ -73,7 +73,7 @@ class HardwareBackendOnSimulatedCell : public ::testing::Test {
 
   static sim::SimulatedCellOptions cellOptions() {
     sim::SimulatedCellOptions o;
-    o.world = randomWorld(13);
+    o.world = randomWorld(13, WorldKind::kIdeal);  // the result is checked against the truth
     o.controller_seed = 13;
     o.psd.seed = 113;
     return o;

@@ -15,6 +15,7 @@
 
 #include "zerocal/io/joint_set.h"
 #include "zerocal/sim/sim_backend.h"
+#include "zerocal/sim/world.h"
 
 namespace zerocal::service {
 namespace {
@@ -29,7 +30,10 @@ struct TempDir {
   std::string path;
 };
 
-sim::SimulatedCellOptions cellFor(std::uint64_t seed) { return sim::seededCellOptions(seed); }
+// The ideal world: the manager's results are checked against the truth (docs/simulated-cell.md).
+sim::SimulatedCellOptions cellFor(std::uint64_t seed) {
+  return sim::seededCellOptions(seed, WorldKind::kIdeal);
+}
 
 ManagerSettings settingsIn(const std::string& dir) {
   ManagerSettings s;
@@ -143,6 +147,13 @@ TEST(SessionManager, RunsASessionToDoneThroughEveryStateWithAResultNearTheTruth)
   EXPECT_EQ(result["pose_breakdown"].size(), 8u);
   EXPECT_EQ(journalIndices(dir.path + "/" + id + "/journal.jsonl"),
             (std::vector<int>{0, 1, 2, 3, 4, 5, 6, 7}));
+  // The whole simulated world beside the result: it reads back to the cell's world.
+  ASSERT_EQ(result["truth"]["world_file"], "truth-world.yaml");
+  const World truth = loadWorld(dir.path + "/" + id + "/truth-world.yaml");
+  const World& simulated = backend.cell().world();
+  EXPECT_EQ(truth.true_offsets_deg, simulated.true_offsets_deg);
+  EXPECT_EQ(truth.psd_centre_taught_mm, simulated.psd_centre_taught_mm);
+  EXPECT_EQ(truth.gross.stray_light_rate, simulated.gross.stray_light_rate);
 }
 
 TEST(SessionManager, OneSessionAtATimeAndAbortStopsIt) {

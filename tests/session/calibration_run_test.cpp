@@ -18,8 +18,10 @@
 namespace zerocal {
 namespace {
 
+// The ideal world: these tests check the run's journal and resumption by the accuracy of its
+// result, which the realistic world's model errors would blur (docs/simulated-cell.md).
 sim::SimulatedRig rigFor(std::uint64_t seed) {
-  sim::SimulatedCellOptions o = sim::seededCellOptions(seed);
+  sim::SimulatedCellOptions o = sim::seededCellOptions(seed, WorldKind::kIdeal);
   o.world.noise.repeatability_deg = 5e-4;
   return sim::SimulatedRig(std::move(o));
 }

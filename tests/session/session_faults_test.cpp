@@ -18,7 +18,11 @@
 namespace zerocal {
 namespace {
 
-sim::SimulatedCellOptions cellOptions(std::uint64_t seed) { return sim::seededCellOptions(seed); }
+// The ideal world: these tests judge recovery from faults by the accuracy of the result, which the
+// realistic world's model errors would blur (docs/simulated-cell.md).
+sim::SimulatedCellOptions cellOptions(std::uint64_t seed) {
+  return sim::seededCellOptions(seed, WorldKind::kIdeal);
+}
 
 struct TempDir {
   TempDir() {

@@ -8,6 +8,7 @@
 #include <array>
 #include <memory>
 #include <optional>
+#include <string>
 
 #include "zerocal/calib/cell_model.h"
 #include "zerocal/cell/controller_link.h"
@@ -37,6 +38,9 @@ class ConnectedCell {
   virtual void stopRobot() noexcept = 0;
   // The true offsets delta2..delta5 in degrees, on a simulated cell only (for its reports).
   virtual std::optional<std::array<double, 4>> truthDeg() const { return std::nullopt; }
+  // The whole simulated world as a world file (docs/simulated-cell.md), on a simulated cell only:
+  // written beside the session's result as its truth.
+  virtual std::optional<std::string> truthWorldYaml() const { return std::nullopt; }
 };
 
 class CellBackend {

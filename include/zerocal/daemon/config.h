@@ -34,6 +34,11 @@ struct BackendConfig {
   // neither, the seed 1 world.
   std::string sim_world;
   std::optional<std::uint64_t> sim_seed;
+  // A seed's world: realistic (the arm's geometry, compliance and warming, the PSD's orientation
+  // and centre as known, gross errors; docs/simulated-cell.md) or ideal (exact, for tests).
+  bool sim_ideal_world = false;
+  // Realistic seeded worlds: the chance per pose of each kind of gross error.
+  double sim_gross_rate = 0.01;
   // Wall seconds per simulated second of a move: 0 as fast as the computer goes, 1 real time,
   // 0.1 ten times faster (to watch a session on the simulated cell).
   double sim_pace = 0.0;

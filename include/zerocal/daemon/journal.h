@@ -137,6 +137,8 @@ class SessionStore {
   nlohmann::json readSession(const std::string& id) const;
   // Writes result.json atomically (temporary file, fsync, rename, fsync of the folder).
   void writeResult(const std::string& id, const nlohmann::json& result);
+  // Writes another file of the session's folder atomically, as writeResult.
+  void writeFile(const std::string& id, const std::string& name, const std::string& text);
   std::string journalPath(const std::string& id) const;
   std::string sessionDir(const std::string& id) const;
 

@@ -79,9 +79,12 @@ class SimController {
 
   // Joints as the controller believes them (the float32 values it stores), degrees.
   Joints commandedJoints() const;
-  // The repeatability error of the last move (deg); true joints = commanded + offsets + this.
+  // The error of the last move (deg): its repeatability error plus, while a reading is taken
+  // before the arm settled (World::gross), that error; true joints = commanded + offsets +
+  // gravity sag + this.
   Joints moveErrorDeg() const;
-  // Where the true beam meets the PSD plane now.
+  // Where the detector sees the beam now: the true arm (beamHit at simTimeS()), shifted by stray
+  // light while there is some.
   std::optional<BeamHit> beamHitNow() const;
   // Simulated seconds since construction (advanced by moves only).
   double simTimeS() const;

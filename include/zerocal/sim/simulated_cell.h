@@ -34,9 +34,10 @@ struct SimulatedCellOptions {
   double sweep_half_width_mm = 0.8, sweep_step_mm = 0.04;
 };
 
-// The simulated cell of one seed: the world randomWorld(seed), and the controller's and the PSD's
-// noise drawn from the same seed (backend.sim_seed of the daemon, the seeded cells of the tests).
-SimulatedCellOptions seededCellOptions(std::uint64_t seed);
+// The simulated cell of one seed: the world randomWorld(seed, kind), and the controller's and the
+// PSD's noise drawn from the same seed (backend.sim_seed of the daemon, the seeded cells of the
+// tests). kIdeal is for tests that need exact figures; a session's default is kRealistic.
+SimulatedCellOptions seededCellOptions(std::uint64_t seed, WorldKind kind = WorldKind::kRealistic);
 
 // The PSD map fitted from a simulated stage sweep of the detector `psd` describes (with the next
 // seed: the bench's noise, not the session's).

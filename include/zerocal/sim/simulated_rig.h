@@ -36,8 +36,9 @@ struct SimulatedRig {
 };
 
 // What a session on the simulated cell is given, as a technician would give it on a real one:
-// the nominal robot and laser, the PSD's mounting orientation, and the PSD centre as taught by
-// jogging (3 mm off the truth on each axis, a realistic teaching error).
+// the nominal robot and laser, the PSD's mounting orientation as configured, and the PSD centre
+// as taught by jogging (World::psd_rotation_configured and psd_centre_taught_mm: a few degrees
+// and a few mm off the truth in the realistic world).
 struct SessionKnowledge {
   CellModel cell;
   Eigen::Vector3d taught_centre;
@@ -46,8 +47,8 @@ struct SessionKnowledge {
 inline SessionKnowledge knowledgeOf(const World& world) {
   SessionKnowledge k;
   k.cell.robot = world.robot;
-  k.cell.psd_rotation = world.psd_rotation;
-  k.taught_centre = world.psd_position_mm + Eigen::Vector3d(3, -3, 3);
+  k.cell.psd_rotation = world.psd_rotation_configured;
+  k.taught_centre = world.psd_centre_taught_mm;
   return k;
 }
 

@@ -1,12 +1,17 @@
 // The simulated cell's ground truth: what calibration must recover (true joint offsets, the true
-// laser line) and what it may not know (the true PSD pose), plus the noise the simulators add.
+// laser line), what it may not know (the true PSD pose, the arm's true geometry and compliance,
+// its thermal state), what the technician gives it (the PSD's configured orientation and taught
+// centre), plus the noise and the gross errors the simulators add. docs/simulated-cell.md gives
+// the evidence for every magnitude.
 // Frames: base = robot base, flange = DH frame 6 (tool0), PSD = a frame whose z = 0 plane is the
-// detector surface, u along its x axis and v along its y axis. Millimetres and degrees.
+// detector surface, u along its x axis and v along its y axis. Millimetres, degrees, seconds.
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
 #include <cstdint>
 #include <optional>
+#include <random>
 #include <string>
 
 #include "zerocal/model/robot.h"
@@ -24,17 +29,72 @@ struct WorldNoise {
   double psd_mm = 0.001;
 };
 
+// How one link of the true arm differs from the nominal DH row (added to a, d and alpha).
+struct DhError {
+  double a_mm = 0;
+  double d_mm = 0;
+  double alpha_deg = 0;
+};
+
+// Gravity sag of joints 2 and 3: the gearboxes yield to the gravity torque of the arm beyond
+// them, so the true joint angle is the commanded one plus sag * tau(q) / tau_max, tau(q) the
+// gravity torque about the joint's axis at pose q (a lumped-mass model of the IRB 1600's arm:
+// upper arm, forearm, wrist and tool) and tau_max its bound with every lever arm horizontal.
+struct Compliance {
+  double joint2_sag_deg = 0;  // at tau_max
+  double joint3_sag_deg = 0;
+};
+
+// Thermal growth of the arm: every DH length (a, d) grows by expansion_per_k * dT(t), where
+// dT(t) = rise_k * (1 - exp(-t / time_constant_s)) and t is the controller's time (its moves
+// since it started): the arm starts at ambient temperature and warms towards rise_k.
+struct ThermalDrift {
+  double expansion_per_k = 0;
+  double rise_k = 0;
+  double time_constant_s = 3600;
+};
+
+// Occasional gross errors, drawn per pose: whenever the arm comes to rest more than
+// kGrossPoseExtentDeg (any joint) from the pose of the last draw, each kind happens with its
+// rate and lasts while the arm stays near that pose.
+struct GrossErrors {
+  // Stray light (a reflection off the arm or fixture reaching the detector): the reading's
+  // apparent spot is shifted by stray_light_mm in a random direction.
+  double stray_light_rate = 0;
+  double stray_light_mm = 0.5;
+  // A reading taken before the arm settled: the arm is unsettled_deg off its commanded angle on
+  // one random joint while the pose is read.
+  double unsettled_rate = 0;
+  double unsettled_deg = 0.05;
+};
+constexpr double kGrossPoseExtentDeg = 5.0;
+
+// The realistic world's draws (randomWorld); docs/simulated-cell.md gives the evidence.
+constexpr double kLinkLengthSigmaMm = 0.1;   // every a and d
+constexpr double kLinkTwistSigmaDeg = 0.01;  // every alpha
+constexpr double kDefaultGrossRate = 0.01;   // per pose, each kind
+
 struct World {
+  // The nominal robot: what the controller and the session believe.
   Robot robot;
   // Added to the controller's joint angles to get the true ones (deg).
   Joints true_offsets_deg{};
+  // The true arm: its links' deviations from the nominal table, compliance and warming.
+  std::array<DhError, kJointCount> dh_errors{};
+  Compliance compliance;
+  ThermalDrift thermal;
   // The beam in the flange frame: a point on it (mm) and its unit direction.
   Eigen::Vector3d laser_point_mm = Eigen::Vector3d::Zero();
   Eigen::Vector3d laser_direction = Eigen::Vector3d::UnitX();
   // The PSD frame in the base frame: x_base = psd_rotation * x_psd + psd_position_mm.
   Eigen::Vector3d psd_position_mm = Eigen::Vector3d(900, -50, 400);
   Eigen::Matrix3d psd_rotation = Eigen::Matrix3d::Identity();
+  // What the technician gives the session: the PSD's orientation as configured (the mounting
+  // drawing's) and its centre as taught by jogging.
+  Eigen::Matrix3d psd_rotation_configured = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d psd_centre_taught_mm = Eigen::Vector3d(903, -53, 403);
   WorldNoise noise;
+  GrossErrors gross;
 };
 
 // Where the beam crosses the PSD plane.
@@ -44,15 +104,36 @@ struct BeamHit {
   double range_mm = 0;  // from the laser point to the hit, along the beam
 };
 
-// The true beam for controller joints q_deg (true angles = q_deg + true offsets + extra_deg, the
-// last being e.g. the repeatability error of the current move) meets the PSD plane; nullopt when
-// the beam is parallel to the plane or points away from it.
+// The true beam for controller joints q_deg (true angles = q_deg + true offsets + extra_deg +
+// gravity sag, extra_deg being e.g. the error of the current move) of the true arm at time_s
+// (thermal state) meets the PSD plane; nullopt when the beam is parallel to the plane or points
+// away from it. Allocates nothing.
 std::optional<BeamHit> beamHit(const World& world, const Joints& q_deg,
-                               const Joints& extra_deg = Joints{});
+                               const Joints& extra_deg = Joints{}, double time_s = 0);
 
-// A fingerprint of everything that makes a world (robot, offsets, laser, PSD pose, noise), as 16
-// hex digits: equal for the same seed or the same world file on every build of this code, so two
-// processes can check that they simulate the same cell.
+// The true arm's joint deflection (deg) under gravity at controller joints q_deg.
+Joints gravitySagDeg(const World& world, const Joints& q_deg);
+
+// The flange pose of the true arm (links, offsets, sag, thermal state at time_s), in mm.
+Eigen::Vector3d trueFlangePositionMm(const World& world, const Joints& q_deg, double time_s = 0);
+
+// The gross errors in force at the arm's current pose (see GrossErrors).
+struct GrossState {
+  bool anchored = false;
+  Joints anchor_deg{};  // the pose of the last draw
+  Eigen::Vector2d stray_light_mm = Eigen::Vector2d::Zero();
+  Joints unsettled_deg{};
+  long draws = 0;  // poses drawn so far
+};
+
+// Called after every move to q_deg: redraws `state` from `rng` when the arm left the last pose.
+void updateGross(const GrossErrors& gross, const Joints& q_deg, std::mt19937_64& rng,
+                 GrossState* state);
+
+// A fingerprint of everything that makes a world (robot, offsets, the true arm, laser, PSD pose
+// and what is known of it, noise, gross errors), as 16 hex digits: equal for the same seed or
+// the same world file on every build of this code, so two processes can check that they
+// simulate the same cell.
 std::string worldHash(const World& world);
 
 // Reads a world file (config/worlds/example.yaml):
@@ -60,15 +141,34 @@ std::string worldHash(const World& world);
 //   true_offsets_deg: [6 numbers]
 //   laser: {point_mm: [x, y, z], direction: [x, y, z]}          # flange frame
 //   psd: {position_mm: [x, y, z], rpy_deg: [roll, pitch, yaw]}  # base frame, R = Rz Ry Rx
+//        optional: configured_rpy_deg (default rpy_deg), taught_centre_mm (default position
+//        + (3, -3, 3))
 //   noise: {repeatability_deg: 1.5e-3, psd_mm: 0.001}           # optional
+//   optional, each absent = none (the ideal arm):
+//   dh_errors: {a_mm: [6], d_mm: [6], alpha_deg: [6]}
+//   compliance: {joint2_sag_deg: x, joint3_sag_deg: x}
+//   thermal: {expansion_per_k: x, rise_k: x, time_constant_s: x}
+//   gross_errors: {stray_light_rate: x, stray_light_mm: x, unsettled_rate: x, unsettled_deg: x}
 // Throws ConfigError listing every problem found.
 World loadWorld(const std::string& path);
 World parseWorld(const std::string& yaml_text, const std::string& origin,
                  const std::string& base_dir = ".");
+// The world as a world file, every number to 17 digits: the truth a simulated session ran on.
+// parseWorld reads it back to the same world up to rounding (the PSD rotations go through
+// roll-pitch-yaw). `robot_file` is what the file's robot key names.
+std::string worldYaml(const World& world, const std::string& robot_file = "builtin");
+
+enum class WorldKind {
+  kRealistic,  // every imperfection of a real cell (docs/simulated-cell.md)
+  kIdeal,      // the exact nominal arm, the PSD orientation known, no gross errors
+};
 
 // A random but plausible world, the same for the same seed: the built-in IRB1600, offsets
 // uniform in +-1 deg, a laser near the flange x axis, the PSD facing up near (900, -50, 400) mm
-// with a tilt of up to 10 deg.
-World randomWorld(std::uint64_t seed);
+// with a tilt of up to 10 deg, taught 3 mm off on each axis. kRealistic adds, from a second
+// stream of the same seed, the arm's link errors, compliance and warming, the PSD's configured
+// orientation a few degrees off, a taught centre a few mm off in a random direction and gross
+// errors at their default rates; the offsets, laser and PSD pose are those of kIdeal.
+World randomWorld(std::uint64_t seed, WorldKind kind = WorldKind::kRealistic);
 
 }  // namespace zerocal

@@ -27,13 +27,24 @@ std::string costName(CostKind cost) {
   return cost == CostKind::kMaximumLikelihood ? "ml" : "pairwise";
 }
 
+nlohmann::json toJson(const Verdict& v) { return {{"usable", v.usable}, {"reasons", v.reasons}}; }
+
 nlohmann::json toJson(const SolveReport& r) {
   nlohmann::json j;
+  j["verdict"] = toJson(r.verdict);
+  j["suspect_poses"] = nlohmann::json::array();
+  for (const SuspectPose& s : r.suspect_poses)
+    j["suspect_poses"].push_back({{"pose", s.pose},
+                                  {"line", s.source_line},
+                                  {"reason", s.reason},
+                                  {"chi2_without", number(s.chi2_without)}});
   j["converged"] = r.converged;
   j["message"] = r.message;
   j["cost"] = costName(r.cost);
   j["model"] = r.used_readings ? "hit-point" : "point-to-line";
   j["poses"] = r.pose_count;
+  j["poses_used"] = r.poses_used;
+  j["required_accuracy_deg"] = r.required_accuracy_deg;
   nlohmann::json params = nlohmann::json::object();
   for (const auto& p : r.parameters) {
     nlohmann::json e;
@@ -59,18 +70,23 @@ nlohmann::json toJson(const SolveReport& r) {
   j["noise_mm"] = number(r.noise_mm);
   j["noise_source"] = r.noise_estimated ? "estimated from the residuals" : "given";
   j["chi2_per_dof"] = r.chi2_per_dof ? number(*r.chi2_per_dof) : nlohmann::json();
+  j["chi2_p_value"] = r.chi2_p_value ? number(*r.chi2_p_value) : nlohmann::json();
+  j["noise_scale"] = r.noise_scale;
   j["rms_miss_mm"] = r.rms_miss_mm;
   j["residuals_mm"] = nlohmann::json::array();
   j["pose_residuals"] = nlohmann::json::array();
   for (std::size_t i = 0; i < r.poses.size(); ++i) {
     const auto& p = r.poses[i];
     j["residuals_mm"].push_back(p.miss_norm_mm);
-    j["pose_residuals"].push_back({{"pose", i + 1},
-                                   {"line", p.source_line},
-                                   {"miss_mm", {p.miss_mm.x(), p.miss_mm.y()}},
-                                   {"normalised", number(p.normalised)},
-                                   {"outlier", p.outlier},
-                                   {"standoff_mm", p.standoff_mm}});
+    j["pose_residuals"].push_back(
+        {{"pose", i + 1},
+         {"line", p.source_line},
+         {"miss_mm", {p.miss_mm.x(), p.miss_mm.y()}},
+         {"normalised", number(p.normalised)},
+         {"outlier", p.outlier},
+         {"used", p.used},
+         {"duplicate_of", p.duplicate_of ? nlohmann::json(p.duplicate_of) : nlohmann::json()},
+         {"standoff_mm", p.standoff_mm}});
   }
   nlohmann::json corr = nlohmann::json::array();
   for (int a = 0; a < r.correlation.rows(); ++a) {
@@ -84,8 +100,24 @@ nlohmann::json toJson(const SolveReport& r) {
   return j;
 }
 
+std::string toText(const Verdict& v) {
+  std::ostringstream o;
+  o << (v.usable ? "VERDICT: usable\n"
+                 : "VERDICT: NOT USABLE - no correction is offered; do not change the robot\n");
+  for (const std::string& reason : v.reasons) o << "  - " << reason << "\n";
+  return o.str();
+}
+
 std::string toText(const SolveReport& r) {
   std::ostringstream o;
+  o << toText(r.verdict);
+  if (!r.suspect_poses.empty()) o << "suspect poses:\n";
+  for (const SuspectPose& s : r.suspect_poses) {
+    o << "  pose " << s.pose;
+    if (s.source_line) o << " (line " << s.source_line << ")";
+    o << ": " << s.reason << printf(" [chi-square per dof without it %.2f]\n", s.chi2_without);
+  }
+  o << "\n";
   o << "Calibration from " << r.pose_count << " poses, "
     << (r.cost == CostKind::kMaximumLikelihood ? "maximum-likelihood cost, "
                                                : "pairwise (paper eq. 6) cost, ")
@@ -93,15 +125,29 @@ std::string toText(const SolveReport& r) {
     << "\n";
   o << (r.converged ? "converged" : "DID NOT CONVERGE") << " after " << r.iterations
     << " iterations (" << printf("%.2f", r.solve_time_ms) << " ms): " << r.message << "\n";
+  if (r.poses_used != r.pose_count)
+    o << r.poses_used << " of the " << r.pose_count << " poses used (see the suspect poses)\n";
   o << printf("noise %.4f mm (%s)", r.noise_mm,
-              r.noise_estimated ? "estimated from the residuals" : "given");
+              r.noise_estimated ? "estimated from the residuals"
+              : r.noise_scale > 1
+                  ? printf("given %.4f mm, scaled up by sqrt(chi2/dof) = %.2f: the poses miss "
+                           "by more than it",
+                           r.noise_mm / r.noise_scale, r.noise_scale)
+                        .c_str()
+                  : "given");
   if (r.chi2_per_dof)
-    o << printf(", chi-square per degree of freedom %.2f (dof %d)", *r.chi2_per_dof, r.dof);
-  o << "\n\n";
+    o << printf(", chi-square per degree of freedom %.2f (dof %d, p = %.2g)", *r.chi2_per_dof,
+                r.dof, r.chi2_p_value.value_or(NAN));
+  o << printf("\nrequired accuracy %.4f deg (one sigma of each offset)\n\n",
+              r.required_accuracy_deg);
   o << printf("%-19s %12s %10s   %s\n", "parameter", "value", "sigma", "95% interval");
   for (const auto& p : r.parameters) {
     if (!p.identifiable) {
       o << printf("%-19s %12s\n", p.name.c_str(), "not identifiable (see below)");
+      continue;
+    }
+    if (!r.verdict.usable && p.name.rfind("delta", 0) == 0) {
+      o << printf("%-19s %12s\n", p.name.c_str(), "withheld: the result is not usable");
       continue;
     }
     o << printf("%-19s %12.5f %10.5f   [%.5f, %.5f]\n", p.name.c_str(), p.value, p.sigma,
@@ -126,7 +172,10 @@ std::string toText(const SolveReport& r) {
   for (std::size_t i = 0; i < r.poses.size(); ++i) {
     const auto& p = r.poses[i];
     o << printf("%5zu %6d %10.4f %10.2f %11.1f %12s\n", i + 1, p.source_line, p.miss_norm_mm,
-                p.normalised, p.standoff_mm, p.outlier ? "OUTLIER" : "");
+                p.normalised, p.standoff_mm,
+                p.outlier        ? "LEFT OUT"
+                : p.duplicate_of ? "DUPLICATE"
+                                 : "");
   }
   o << printf("RMS miss %.4f mm\n", r.rms_miss_mm);
   return o.str();

@@ -15,12 +15,13 @@ namespace {
 constexpr double kNullTolerance = 1e-8;
 
 // An uncertainty above these (for sigma = the measurement noise) means the poses do not
-// determine the unknown in any useful sense: larger than the offsets being sought.
-double determinedLimit(int k) {
-  if (k < kOffsetCount) return 0.5 * kDegToRad;  // rad
-  if (k < kOffsetCount + 2) return 0.05;         // slope
-  if (k < kIdentifiedCount) return 10.0;         // mm
-  return 50.0;                                   // target, mm
+// determine the unknown in any useful sense: for an offset, worse than the accuracy the
+// calibration is for; for the laser and the target, larger than any plausible mounting error.
+double determinedLimit(int k, double required_accuracy_deg) {
+  if (k < kOffsetCount) return required_accuracy_deg * kDegToRad;  // rad
+  if (k < kOffsetCount + 2) return 0.05;                           // slope
+  if (k < kIdentifiedCount) return 10.0;                           // mm
+  return 50.0;                                                     // target, mm
 }
 
 std::string readable(int k) {
@@ -86,7 +87,8 @@ std::vector<double> standoffs(const CellModel& cell, const std::vector<Pose>& po
 
 Identifiability analyseIdentifiability(const Eigen::MatrixXd& jacobian, const CellModel& cell,
                                        const std::vector<Pose>& poses,
-                                       const CalibrationParameters& params, double sigma_mm) {
+                                       const CalibrationParameters& params, double sigma_mm,
+                                       double required_accuracy_deg) {
   const int n = static_cast<int>(jacobian.cols());
   Identifiability out;
   out.identifiable.assign(n, true);
@@ -149,7 +151,7 @@ Identifiability analyseIdentifiability(const Eigen::MatrixXd& jacobian, const Ce
     null_weight = std::sqrt(null_weight);
     const double sigma_k = sigma_mm * std::sqrt(std::max(0.0, out.unit_covariance(k, k)));
     const bool in_null = null_weight > 1e-4;
-    const bool too_weak = !in_null && sigma_k > determinedLimit(k);
+    const bool too_weak = !in_null && sigma_k > determinedLimit(k, required_accuracy_deg);
     if (!in_null && !too_weak) continue;
     out.identifiable[k] = false;
 
@@ -200,7 +202,9 @@ Identifiability analyseIdentifiability(const Eigen::MatrixXd& jacobian, const Ce
     if (too_weak) {
       const bool angle = k < kOffsetCount;
       why += " (it is determined only to " + fmt(angle ? sigma_k * kRadToDeg : sigma_k, 3) +
-             (angle ? " deg" : "") + ", one standard deviation)";
+             (angle ? " deg" : "") + ", one standard deviation" +
+             (angle ? "; the required accuracy is " + fmt(required_accuracy_deg, 3) + " deg" : "") +
+             ")";
     }
     out.reason[k] = why;
   }

@@ -122,7 +122,10 @@ std::optional<Joints> servoOnto(const CellModel& cell, const CalibrationParamete
 Prediction predictUncertainty(const CellModel& cell, const std::vector<Pose>& poses,
                               const CalibrationParameters& at, double sigma_mm) {
   const Eigen::MatrixXd jac = pointToLineJacobian(cell, poses, at, sigma_mm, false);
-  const Identifiability id = analyseIdentifiability(jac, cell, poses, at, 1.0);
+  // A plan predicts; whether its accuracy is enough is the solve's verdict. Here an offset counts
+  // as determined up to the half degree beyond which a value means nothing.
+  constexpr double kMeaningfulDeg = 0.5;
+  const Identifiability id = analyseIdentifiability(jac, cell, poses, at, 1.0, kMeaningfulDeg);
   Prediction out;
   out.rank = id.rank;
   out.condition_number = id.condition_number;

@@ -1,8 +1,14 @@
 #include "zerocal/calib/solver.h"
 
+#include <Eigen/Eigenvalues>
+#include <Eigen/SVD>
+#include <algorithm>
+#include <boost/math/distributions/chi_squared.hpp>
+#include <boost/math/distributions/fisher_f.hpp>
 #include <boost/math/distributions/students_t.hpp>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 #include "costs.h"
@@ -115,27 +121,30 @@ std::string SolveOptions::validate() const {
   if (loss != RobustLoss::kNone && !noise_mm)
     return "a robust loss needs the noise level (--noise), to know what counts as large";
   if (max_iterations < 1) return "max_iterations must be at least 1";
-  if (!(outlier_threshold > 0)) return "the outlier threshold must be positive";
+  if (!(required_accuracy_deg > 0 && std::isfinite(required_accuracy_deg)))
+    return "the required accuracy must be a positive number of degrees";
+  if (!(max_offset_deg > 0)) return "the plausible offset bound must be positive";
+  if (!(max_noise_scale >= 1)) return "the largest noise scale must be at least 1";
+  if (!(gross_error_alpha > 0 && gross_error_alpha < 1))
+    return "the gross-error test level must lie between 0 and 1";
   return {};
 }
 
-SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
-                  const SolveOptions& options) {
-  checkInput(cell, poses, options);
-  const auto start = std::chrono::steady_clock::now();
-  const int n = static_cast<int>(poses.size());
-  bool readings = options.use_readings;
-  for (const auto& p : poses) readings = readings && p.psd_uv_mm.has_value();
+namespace {
 
-  SolveReport report;
-  report.cost = options.cost;
-  report.used_readings = readings;
-  report.pose_count = n;
-
-  // Start: zero offsets, nominal laser, the point the nominal lines pass closest to.
+struct Fit {
   CalibrationParameters est;
-  est.target_mm = bestTarget(cell, poses, est, readings);
+  bool converged = false;
+  std::string message;
+  int iterations = 0;
+};
 
+// One Ceres solve on the given poses from `start`.
+Fit runFit(const CellModel& cell, const std::vector<Pose>& poses, const SolveOptions& options,
+           bool readings, const CalibrationParameters& start) {
+  Fit fit;
+  fit.est = start;
+  CalibrationParameters& est = fit.est;
   const double sigma_in = options.noise_mm.value_or(1.0);
   ceres::Problem::Options problem_options;
   problem_options.cost_function_ownership = ceres::TAKE_OWNERSHIP;
@@ -168,54 +177,352 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
   solver_options.callbacks.push_back(&cancel);
   ceres::Solver::Summary summary;
   ceres::Solve(solver_options, &problem, &summary);
-  report.converged = summary.termination_type == ceres::CONVERGENCE;
-  report.message = summary.termination_type == ceres::USER_FAILURE ? "cancelled" : summary.message;
-  report.iterations = static_cast<int>(summary.iterations.size());
+  fit.converged = summary.termination_type == ceres::CONVERGENCE;
+  fit.message = summary.termination_type == ceres::USER_FAILURE ? "cancelled" : summary.message;
+  fit.iterations = static_cast<int>(summary.iterations.size());
   if (options.cost == CostKind::kPairwise) est.target_mm = bestTarget(cell, poses, est, readings);
-  report.estimate = est;
+  return fit;
+}
 
-  // Residuals in mm, noise level, identifiability, covariance.
-  const Eigen::MatrixXd jac_mm = pointToLineJacobian(cell, poses, est, 1.0, readings);
-  double rss = 0;
-  for (int i = 0; i < n; ++i) {
+// The line's miss of each pose's hit point, mm: 2 per pose.
+Eigen::VectorXd misses(const CellModel& cell, const std::vector<Pose>& poses,
+                       const CalibrationParameters& est, bool readings) {
+  Eigen::VectorXd r(2 * poses.size());
+  for (std::size_t i = 0; i < poses.size(); ++i) {
     PointToLineCost functor(cell, poses[i].q_deg, hitPointOffset(cell, poses[i], readings), 1.0);
-    double r[2];
-    functor(est.delta_rad.data(), est.laser.data(), est.target_mm.data(), r);
+    functor(est.delta_rad.data(), est.laser.data(), est.target_mm.data(), r.data() + 2 * i);
+  }
+  return r;
+}
+
+// Deletion diagnostics, to first order: how much the sum of squared misses drops when pose i is
+// left out, D_i = r_i^T (I - H_ii)^-1 r_i with H the hat matrix of the (column-scaled) Jacobian.
+// NaN where the pose cannot be checked: the others do not determine what it measures (I - H_ii
+// singular).
+struct Deletion {
+  std::vector<double> drop_mm2;
+  int rank = 0;
+};
+Deletion deletionDrops(const Eigen::MatrixXd& jac_mm, const Eigen::VectorXd& r) {
+  const int m = static_cast<int>(jac_mm.rows()) / 2;
+  Eigen::VectorXd scale = jac_mm.colwise().norm().transpose();
+  for (int k = 0; k < scale.size(); ++k)
+    if (!(scale[k] > 0)) scale[k] = 1;
+  const Eigen::MatrixXd scaled = jac_mm * scale.cwiseInverse().asDiagonal();
+  Eigen::BDCSVD<Eigen::MatrixXd> svd(scaled, Eigen::ComputeThinU);
+  const Eigen::VectorXd s = svd.singularValues();
+  Deletion out;
+  for (int i = 0; i < s.size(); ++i) out.rank += s[i] > 1e-8 * std::max(s[0], 1e-300) ? 1 : 0;
+  const Eigen::MatrixXd u = svd.matrixU().leftCols(out.rank);
+  for (int i = 0; i < m; ++i) {
+    const Eigen::Matrix2d h = u.middleRows(2 * i, 2) * u.middleRows(2 * i, 2).transpose();
+    const Eigen::Matrix2d free = Eigen::Matrix2d::Identity() - h;
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(free);
+    const Eigen::Vector2d ri = r.segment<2>(2 * i);
+    out.drop_mm2.push_back(eig.eigenvalues().minCoeff() < 1e-6
+                               ? std::numeric_limits<double>::quiet_NaN()
+                               : ri.dot(free.ldlt().solve(ri)));
+  }
+  return out;
+}
+
+std::vector<Pose> subset(const std::vector<Pose>& poses, const std::vector<int>& indices) {
+  std::vector<Pose> out;
+  for (int i : indices) out.push_back(poses[i]);
+  return out;
+}
+
+std::string poseName(const std::vector<Pose>& poses, int i) {
+  return "pose " + std::to_string(i + 1) +
+         (poses[i].source_line ? " (line " + std::to_string(poses[i].source_line) + ")"
+                               : std::string());
+}
+
+std::string fixed(double v, int precision) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", precision, v);
+  return buf;
+}
+
+std::string general(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.2g", v);
+  return buf;
+}
+
+// One round of the deletion test on the poses `active` fitted by `fit`.
+struct DeletionTest {
+  bool checkable = false;         // enough redundancy to test at all
+  int best = -1, runner_up = -1;  // positions in `active`, by decreasing statistic
+  std::vector<double> ratio;      // statistic over its threshold, per active pose (NaN: unchecked)
+  double rss_mm2 = 0;
+  int dof = 0;
+};
+DeletionTest deletionTest(const CellModel& cell, const std::vector<Pose>& active,
+                          const CalibrationParameters& est, bool readings,
+                          const SolveOptions& options) {
+  DeletionTest t;
+  const Eigen::VectorXd r = misses(cell, active, est, readings);
+  const Deletion d = deletionDrops(pointToLineJacobian(cell, active, est, 1.0, readings), r);
+  t.rss_mm2 = r.squaredNorm();
+  t.dof = 2 * static_cast<int>(active.size()) - d.rank;
+  const int rest_dof = t.dof - 2;  // of the fit without one pose
+  if (rest_dof < 1) return t;
+  int checked = 0;
+  for (double x : d.drop_mm2) checked += std::isfinite(x) ? 1 : 0;
+  if (checked == 0) return t;
+  t.checkable = true;
+  const double level = 1 - options.gross_error_alpha / checked;  // family-wise (Bonferroni)
+  // With the noise given it is a floor: misses that the rest of the poses share (model error)
+  // raise it, so that only what sets one pose apart from the others counts.
+  const double threshold =
+      options.noise_mm ? boost::math::quantile(boost::math::chi_squared(2), level)
+                       : 2 * boost::math::quantile(boost::math::fisher_f(2, rest_dof), level);
+  const double floor_mm2 = options.noise_mm ? *options.noise_mm * *options.noise_mm : 1e-12;
+  double best = -1, second = -1;
+  for (std::size_t i = 0; i < d.drop_mm2.size(); ++i) {
+    const double drop = d.drop_mm2[i];
+    if (!std::isfinite(drop)) {
+      t.ratio.push_back(std::numeric_limits<double>::quiet_NaN());
+      continue;
+    }
+    const double rest_var = std::max((t.rss_mm2 - drop) / rest_dof, floor_mm2);
+    const double ratio = drop / rest_var / threshold;
+    t.ratio.push_back(ratio);
+    if (ratio > best) {
+      second = best, t.runner_up = t.best;
+      best = ratio, t.best = static_cast<int>(i);
+    } else if (ratio > second) {
+      second = ratio, t.runner_up = static_cast<int>(i);
+    }
+  }
+  return t;
+}
+
+bool significant(const DeletionTest& t, int i) { return t.checkable && i >= 0 && t.ratio[i] > 1; }
+
+// The gates: any reason here and the result is not offered for use.
+Verdict judge(const SolveReport& r, const SolveOptions& o,
+              const std::vector<std::string>& gross_problems) {
+  Verdict v;
+  auto& why = v.reasons;
+  if (!r.converged) why.push_back("the solve did not converge (" + r.message + ")");
+  std::string behind;
+  int behind_count = 0;
+  for (std::size_t i = 0; i < r.poses.size(); ++i)
+    if (r.poses[i].used && !(r.poses[i].standoff_mm > 0)) {
+      if (behind_count++ < 8) behind += (behind.empty() ? "" : ", ") + std::to_string(i + 1);
+    }
+  if (behind_count > 0)
+    why.push_back("the fitted beam points away from the PSD (stand-off <= 0) at " +
+                  std::to_string(behind_count) + " of " + std::to_string(r.poses_used) +
+                  " poses (" + behind + (behind_count > 8 ? ", ..." : "") +
+                  "), which no real beam does: the nominal laser direction or the robot model is "
+                  "wrong");
+  for (int k = 0; k < kOffsetCount; ++k) {
+    const ParameterEstimate& p = r.parameters[k];
+    if (!p.identifiable) {
+      why.push_back(p.name.substr(0, 6) + " is not determined: " + p.reason);
+    } else if (!(std::abs(p.value) <= o.max_offset_deg)) {
+      why.push_back(p.name.substr(0, 6) + " = " + fixed(p.value, 3) +
+                    " deg lies beyond the plausible +-" + fixed(o.max_offset_deg, 1) +
+                    " deg of a zero offset: the model (robot file, laser direction) is wrong, "
+                    "not the zero");
+    }
+  }
+  if (r.noise_scale > o.max_noise_scale)
+    why.push_back("the poses miss by " + fixed(r.noise_scale, 1) +
+                  " times the given noise (chi-square per degree of freedom " +
+                  fixed(r.chi2_per_dof.value_or(0), 1) + ", largest believable " +
+                  fixed(o.max_noise_scale * o.max_noise_scale, 0) +
+                  "): the stated noise or the model is not the cell's");
+  for (const std::string& g : gross_problems) why.push_back(g);
+  v.usable = why.empty();
+  return v;
+}
+
+}  // namespace
+
+SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
+                  const SolveOptions& options) {
+  checkInput(cell, poses, options);
+  const auto start = std::chrono::steady_clock::now();
+  const int n = static_cast<int>(poses.size());
+  bool readings = options.use_readings;
+  for (const auto& p : poses) readings = readings && p.psd_uv_mm.has_value();
+
+  SolveReport report;
+  report.cost = options.cost;
+  report.used_readings = readings;
+  report.pose_count = n;
+  report.required_accuracy_deg = options.required_accuracy_deg;
+
+  // Exact duplicates (the same joints and reading) are one measurement recorded twice: counted
+  // once, or they would claim information (and degrees of freedom) that was never measured.
+  std::vector<int> duplicate_of(n, -1), active;
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < i && duplicate_of[i] < 0; ++j)
+      if (duplicate_of[j] < 0 && poses[i].q_deg == poses[j].q_deg &&
+          poses[i].psd_uv_mm == poses[j].psd_uv_mm)
+        duplicate_of[i] = j;
+    if (duplicate_of[i] < 0) active.push_back(i);
+  }
+  if (static_cast<int>(active.size()) < kMinimumPoses)
+    throw InputError(std::to_string(n) + " poses given, but only " + std::to_string(active.size()) +
+                     " are distinct (" +
+                     poseName(poses,
+                              [&] {
+                                for (int i = 0; i < n; ++i)
+                                  if (duplicate_of[i] >= 0) return i;
+                                return 0;
+                              }()) +
+                     " repeats an earlier one exactly); the solve needs at least " +
+                     std::to_string(kMinimumPoses) + " distinct poses");
+
+  // Start: zero offsets, nominal laser, the point the nominal lines pass closest to.
+  CalibrationParameters nominal;
+  nominal.target_mm = bestTarget(cell, subset(poses, active), nominal, readings);
+  Fit fit = runFit(cell, subset(poses, active), options, readings, nominal);
+  int iterations = fit.iterations;
+
+  // Gross errors: leave out, one at a time, the pose whose removal explains the most misfit, while
+  // it explains more than chance and the rest keeps the redundancy to check it.
+  std::vector<int> left_out;
+  std::vector<std::string> gross_problems;
+  constexpr int kMostLeftOut = 2;
+  const bool diagnose = options.find_gross_errors && options.cost == CostKind::kMaximumLikelihood &&
+                        options.loss == RobustLoss::kNone;
+  while (diagnose && fit.converged) {
+    const std::vector<Pose> current = subset(poses, active);
+    // A beam fitted pointing away from the PSD is a wrong model at every pose, not one bad pose.
+    const auto current_standoffs = standoffs(cell, current, fit.est);
+    if (*std::min_element(current_standoffs.begin(), current_standoffs.end()) <= 0) break;
+    const DeletionTest t = deletionTest(cell, current, fit.est, readings, options);
+    if (!significant(t, t.best)) break;
+    const int worst = active[t.best];
+    if (static_cast<int>(left_out.size()) == kMostLeftOut) {
+      gross_problems.push_back(poseName(poses, worst) + " does not fit either, after " +
+                               std::to_string(kMostLeftOut) +
+                               " poses were left out: the poses do not describe one cell (a "
+                               "wrong model or a disturbed session), measure them again");
+      break;
+    }
+    // Leaving it out must keep a check on the rest: 2 (N-1) - 11 >= 3.
+    if (t.dof - 2 < 3) {
+      gross_problems.push_back(poseName(poses, worst) +
+                               " does not fit the others, but there are too few poses to leave "
+                               "it out and still check the rest: measure it again or add poses");
+      break;
+    }
+    std::vector<int> without = active;
+    without.erase(without.begin() + t.best);
+    const Fit refit = runFit(cell, subset(poses, without), options, readings, fit.est);
+    iterations += refit.iterations;
+    if (!refit.converged) break;
+    // The same misfit may be explained by another pose: then the data cannot say which is wrong.
+    if (significant(t, t.runner_up)) {
+      std::vector<int> other = active;
+      other.erase(other.begin() + t.runner_up);
+      const Fit alt = runFit(cell, subset(poses, other), options, readings, fit.est);
+      iterations += alt.iterations;
+      if (alt.converged) {
+        const DeletionTest ta =
+            deletionTest(cell, subset(poses, other), alt.est, readings, options);
+        const int pos = t.best < t.runner_up ? t.best : t.best - 1;
+        if (ta.checkable && !significant(ta, pos)) {
+          gross_problems.push_back(
+              poseName(poses, worst) + " or " + poseName(poses, active[t.runner_up]) +
+              " does not fit, and the poses cannot tell which: leaving out either one leaves a "
+              "consistent set; measure both again or add poses");
+          break;
+        }
+      }
+    }
+    const double rss_without =
+        misses(cell, subset(poses, without), refit.est, readings).squaredNorm();
+    const int dof_without = t.dof - 2;
+    SuspectPose sp;
+    sp.pose = worst + 1;
+    sp.source_line = poses[worst].source_line;
+    const double before = t.rss_mm2 / t.dof, after = rss_without / dof_without;
+    sp.chi2_without = after;  // rescaled below to the noise in force
+    sp.reason =
+        "does not fit the other poses: leaving it out lowers the misfit (RMS miss per "
+        "degree of freedom) from " +
+        fixed(1e3 * std::sqrt(before), 1) + " to " + fixed(1e3 * std::sqrt(after), 1) +
+        " um (test statistic " + fixed(t.ratio[t.best], 1) + " times its " +
+        general(options.gross_error_alpha) + " family-wise threshold); left out of the result";
+    report.suspect_poses.push_back(sp);
+    left_out.push_back(worst);
+    active = without;
+    fit = refit;
+  }
+  report.iterations = iterations;
+  report.converged = fit.converged;
+  report.message = fit.message;
+  const CalibrationParameters est = fit.est;
+  report.estimate = est;
+  const std::vector<Pose> used = subset(poses, active);
+  const int m = static_cast<int>(used.size());
+  report.poses_used = m;
+
+  // Residuals in mm (every given pose, at the result), noise level, identifiability, covariance.
+  const Eigen::MatrixXd jac_mm = pointToLineJacobian(cell, used, est, 1.0, readings);
+  const Eigen::VectorXd r_all = misses(cell, poses, est, readings);
+  double rss = 0;
+  for (int i : active) rss += r_all.segment<2>(2 * i).squaredNorm();
+  for (int i = 0; i < n; ++i) {
     PoseResidual pr;
     pr.source_line = poses[i].source_line;
-    pr.miss_mm = {r[0], r[1]};
+    pr.miss_mm = r_all.segment<2>(2 * i);
     pr.miss_norm_mm = pr.miss_mm.norm();
-    rss += pr.miss_mm.squaredNorm();
+    pr.used = std::binary_search(active.begin(), active.end(), i);
+    pr.duplicate_of = duplicate_of[i] + 1;
+    pr.outlier = std::find(left_out.begin(), left_out.end(), i) != left_out.end();
     report.poses.push_back(pr);
   }
   const auto stand = standoffs(cell, poses, est);
-  Identifiability ident = analyseIdentifiability(jac_mm, cell, poses, est, 1.0);
+  Identifiability ident =
+      analyseIdentifiability(jac_mm, cell, used, est, 1.0, options.required_accuracy_deg);
   report.rank = ident.rank;
   report.condition_number = ident.condition_number;
-  report.dof = 2 * n - ident.rank;
-  report.rms_miss_mm = std::sqrt(rss / n);
+  report.dof = 2 * m - ident.rank;
+  report.rms_miss_mm = std::sqrt(rss / m);
   if (options.noise_mm) {
     report.noise_mm = *options.noise_mm;
-    if (report.dof > 0)
-      report.chi2_per_dof = rss / (report.noise_mm * report.noise_mm) / report.dof;
+    if (report.dof > 0) {
+      const double chi2 = rss / (report.noise_mm * report.noise_mm);
+      report.chi2_per_dof = chi2 / report.dof;
+      report.chi2_p_value =
+          boost::math::cdf(boost::math::complement(boost::math::chi_squared(report.dof), chi2));
+      // The poses miss by more than the stated noise: the honest sigma is the one they show
+      // (the Birge ratio). Never scaled down: a small chi-square with few poses is chance.
+      report.noise_scale = std::max(1.0, std::sqrt(*report.chi2_per_dof));
+      report.noise_mm *= report.noise_scale;
+    }
   } else {
     report.noise_estimated = true;
     report.noise_mm =
         report.dof > 0 ? std::sqrt(rss / report.dof) : std::numeric_limits<double>::quiet_NaN();
   }
   const double sigma = report.noise_mm;
+  for (SuspectPose& sp : report.suspect_poses) {
+    const double unit = options.noise_mm ? *options.noise_mm : sigma;
+    sp.chi2_without /= unit * unit;
+  }
   // Re-judge identifiability against the noise actually in force.
-  ident = analyseIdentifiability(jac_mm, cell, poses, est, sigma);
+  ident = analyseIdentifiability(jac_mm, cell, used, est, sigma, options.required_accuracy_deg);
   Eigen::MatrixXd cov = sigma * sigma * ident.unit_covariance;
   if (options.cost == CostKind::kPairwise) {
-    const Eigen::MatrixXd pc = pairwiseCovariance(cell, poses, est, sigma);
+    const Eigen::MatrixXd pc = pairwiseCovariance(cell, used, est, sigma);
     cov.topLeftCorner(kIdentifiedCount, kIdentifiedCount) = pc;
     for (int k = 0; k < kIdentifiedCount; ++k)
       if (!ident.identifiable[k]) cov.row(k).setConstant(NAN), cov.col(k).setConstant(NAN);
   }
 
+  // Student's t whenever the sigma in force comes from the residuals (estimated, or scaled up).
   double quantile = 1.959963984540054;
-  if (report.noise_estimated && report.dof > 0)
+  if ((report.noise_estimated || report.noise_scale > 1) && report.dof > 0)
     quantile = boost::math::quantile(boost::math::students_t(report.dof), 0.975);
 
   report.not_identifiable.push_back({"delta1_deg", delta1Reason()});
@@ -253,8 +560,15 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
     auto& pr = report.poses[i];
     pr.standoff_mm = stand[i];
     pr.normalised = pr.miss_norm_mm / sigma;
-    pr.outlier = pr.normalised > options.outlier_threshold;
   }
+  for (int i = 0; i < n; ++i)
+    if (duplicate_of[i] >= 0)
+      report.suspect_poses.push_back(
+          {i + 1, poses[i].source_line,
+           "repeats " + poseName(poses, duplicate_of[i]) +
+               " exactly (the same joints and reading): one measurement, counted once",
+           report.chi2_per_dof.value_or(1.0)});
+  report.verdict = judge(report, options, gross_problems);
   report.solve_time_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return report;

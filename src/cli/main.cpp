@@ -4,7 +4,9 @@
 // --robot).
 // Exit codes: 0 done; 1 unexpected failure; 2 bad input or usage, or no USB-1408FS / no permission
 // to open it; 3 the solver did not converge; 4 solved, but some of delta2..delta5 are not
-// identifiable from the poses; 7 (experiment cell) a requirement of issue 5 does not hold. The
+// identifiable from the poses (or not to the required accuracy); 7 (experiment cell) a requirement
+// does not hold; 8 solved, but the verdict refuses the result (stand-off, offset bound, misfit,
+// gross errors: the reasons are printed, no correction is). The
 // client commands add 3 (the watched session was aborted or faulted), 5 (cannot connect) and 6
 // (token refused or unusable); control_commands.h.
 #include <unistd.h>
@@ -18,6 +20,7 @@
 #include "cell_experiment.h"
 #include "control_commands.h"
 #include "psd_commands.h"
+#include "robustness_experiment.h"
 #include "zerocal/calib/format.h"
 #include "zerocal/calib/experiment.h"
 #include "zerocal/calib/planner.h"
@@ -34,7 +37,14 @@
 namespace zerocal {
 namespace {
 
-enum ExitCode { kOk = 0, kFailure = 1, kBadInput = 2, kNotConverged = 3, kNotIdentifiable = 4 };
+enum ExitCode {
+  kOk = 0,
+  kFailure = 1,
+  kBadInput = 2,
+  kNotConverged = 3,
+  kNotIdentifiable = 4,
+  kRefused = 8,
+};
 
 struct CellArgs {
   std::string robot;
@@ -110,6 +120,19 @@ int main(int argc, char** argv) {
   solve_cmd->add_option("--loss", loss, "robust loss: none (default), huber or cauchy")
       ->check(CLI::IsMember({"none", "huber", "cauchy"}));
   solve_cmd->add_option("--loss-scale", loss_scale, "where the robust loss bends, in noise sigmas");
+  SolveOptions solve_defaults;
+  double required_accuracy = solve_defaults.required_accuracy_deg;
+  double max_offset = solve_defaults.max_offset_deg;
+  solve_cmd
+      ->add_option("--required-accuracy", required_accuracy,
+                   "the accuracy the calibration is for, deg: an offset whose one-sigma "
+                   "uncertainty is larger is not determined and the result is not usable")
+      ->default_val(required_accuracy);
+  solve_cmd
+      ->add_option("--max-offset", max_offset,
+                   "largest plausible zero offset, deg; beyond it the result is refused (the "
+                   "model is wrong, not the zero)")
+      ->default_val(max_offset);
   solve_cmd->add_flag("--json", solve_json, "print one JSON object instead of text");
   std::optional<int> holdout_count;
   std::vector<int> holdout_poses;
@@ -188,6 +211,8 @@ int main(int argc, char** argv) {
   table2_cmd->add_flag("--json", exp_json, "print one JSON object instead of text");
   cli::CellExperimentArgs cell_exp_args;
   auto* cell_exp_cmd = cli::addCellExperiment(*exp_cmd, cell_exp_args);
+  cli::RobustnessExperimentArgs robustness_args;
+  cli::addRobustnessExperiments(*exp_cmd, robustness_args);
 
   // sensitivity
   auto* sens_cmd = app.add_subcommand(
@@ -274,6 +299,8 @@ int main(int argc, char** argv) {
                      : loss == "cauchy" ? RobustLoss::kCauchy
                                         : RobustLoss::kNone;
       options.loss_scale_sigmas = loss_scale;
+      options.required_accuracy_deg = required_accuracy;
+      options.max_offset_deg = max_offset;
       bool has_readings = !poses.empty() && poses.front().psd_uv_mm.has_value();
       options.use_readings = has_readings && !ignore_readings;
       if (options.use_readings) {
@@ -299,7 +326,7 @@ int main(int argc, char** argv) {
       if (!report.converged) return kNotConverged;
       for (int k = 0; k < kOffsetCount; ++k)
         if (!report.parameters[k].identifiable) return kNotIdentifiable;
-      return kOk;
+      return report.verdict.usable ? kOk : kRefused;
     }
     if (plan_cmd->parsed()) {
       const CellModel cell = plan_cell.cell();
@@ -334,6 +361,7 @@ int main(int argc, char** argv) {
       return kOk;
     }
     if (cell_exp_cmd->parsed()) return cli::runCellExperiment(cell_exp_args);
+    if (const int rc = cli::runRobustnessExperiment(robustness_args); rc >= 0) return rc;
     if (sim_cmd->parsed()) {
       const CellModel cell = sim_cell.cell();
       CalibrationParameters truth;

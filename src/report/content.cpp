@@ -47,8 +47,16 @@ std::vector<const PoseRow*> worstPoses(const SessionReport& r, std::size_t count
   return solved;
 }
 
+bool refused(const SessionReport& r) { return r.usable && !*r.usable; }
+
 std::string verdict(const SessionReport& r) {
-  std::string v = r.converged ? "The solve converged" : "THE SOLVE DID NOT CONVERGE: do not use";
+  std::string v;
+  if (r.usable) {
+    v = *r.usable ? "VERDICT: usable. "
+                  : "VERDICT: NOT USABLE, no correction is offered; do not change the robot. ";
+    for (const std::string& reason : r.refusal_reasons) v += "Why: " + reason + ". ";
+  }
+  v += r.converged ? "The solve converged" : "THE SOLVE DID NOT CONVERGE: do not use";
   v += " (" + r.message + ").";
   bool all = true;
   for (const ParameterRow& p : r.parameters)
@@ -56,16 +64,22 @@ std::string verdict(const SessionReport& r) {
   v += all ? " delta2..delta5 are all identified."
            : " Some of delta2..delta5 are NOT identifiable from these poses (see below).";
   if (r.chi2_per_dof) {
-    // Five degrees of freedom (8 poses) make 0.2..2.5 unremarkable (docs/reading-a-result.md).
+    // Judged by the chi-square distribution with the result's degrees of freedom (its p-value),
+    // not by a fixed ratio (docs/reading-a-result.md).
     const double c = *r.chi2_per_dof;
-    v += format(" Chi-square per degree of freedom %.2f:", c);
-    v += c > 3     ? " the poses miss by more than the stated noise; look at the worst poses."
-         : c < 0.1 ? " far below 1: the stated noise is too pessimistic."
-                   : " consistent with the stated noise.";
+    v += format(" Chi-square per degree of freedom %.2f (dof %d):", c, r.dof);
+    v += r.chi2_p_value && *r.chi2_p_value < 0.001
+             ? format(
+                   " the poses miss by more than the stated noise (p = %.2g); the "
+                   "uncertainties are scaled up by sqrt(chi2/dof).",
+                   *r.chi2_p_value)
+         : r.chi2_p_value && *r.chi2_p_value > 0.999
+             ? " far below 1: the stated noise is too pessimistic."
+             : " consistent with the stated noise.";
   }
   int outliers = 0;
   for (const PoseRow& p : r.poses) outliers += p.solved && p.outlier;
-  if (outliers) v += format(" %d pose(s) flagged as outliers.", outliers);
+  if (outliers) v += format(" %d pose(s) did not fit the others and were left out.", outliers);
   return v;
 }
 
@@ -89,6 +103,10 @@ Section abbSection(const SessionReport& r) {
   for (const ParameterRow& o : r.parameters) {
     if (!isOffset(o)) continue;
     const int j = jointOf(o);
+    if (refused(r)) {
+      p.push_back(format("Joint %d: the result is not usable; do not change it.", j));
+      continue;
+    }
     if (!o.identifiable) {
       p.push_back(format("Joint %d: not identifiable from these poses; do not change it (%s).", j,
                          o.reason.c_str()));

@@ -21,7 +21,11 @@ std::string unitOf(const std::string& name);  // "deg", "mm" or "" (dimensionles
 // Solved poses by decreasing normalised residual, at most `count`, plus any outlier beyond.
 std::vector<const PoseRow*> worstPoses(const SessionReport& r, std::size_t count = 3);
 
-// One line: did it converge, and is the noise believable.
+// True when the result carries a verdict that refuses it: then no offset is shown as a correction.
+bool refused(const SessionReport& r);
+
+// One paragraph: the verdict and its reasons first, then did it converge, and is the noise
+// believable.
 std::string verdict(const SessionReport& r);
 
 // A heading and paragraphs: the ABB section as plain sentences (no markup).

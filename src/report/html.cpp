@@ -250,8 +250,14 @@ std::string reportHtml(const SessionReport& r) {
   o << "<h1>" << esc("Calibration report, session " + r.session_id) << "</h1>\n";
   if (r.simulated) o << "<p class=\"bad\">Simulated cell: the truth is known and shown.</p>\n";
   if (!r.plan_description.empty()) o << "<p>Plan: " << esc(r.plan_description) << "</p>\n";
-  o << "<p class=\"verdict" << (r.converged ? "" : " fail") << "\">" << esc(detail::verdict(r))
-    << "</p>\n";
+  o << "<p class=\"verdict" << (r.converged && !detail::refused(r) ? "" : " fail") << "\">"
+    << esc(detail::verdict(r)) << "</p>\n";
+  if (!r.suspect_poses.empty()) {
+    o << "<p>Suspect poses (the result does not rest on them):</p>\n<ul>\n";
+    for (const SuspectRow& sp : r.suspect_poses)
+      o << "<li>" << esc(format("pose %d (line %d): ", sp.pose, sp.line) + sp.reason) << "</li>\n";
+    o << "</ul>\n";
+  }
   o << "<p>"
     << esc(format("Solved from %d poses (%s model, %s cost); noise %s mm (%s); ", r.solved_poses,
                   r.model.c_str(), r.cost.c_str(), num("%.4f", r.noise_mm).c_str(),
@@ -272,9 +278,11 @@ std::string reportHtml(const SessionReport& r) {
   for (const ParameterRow& p : r.parameters) {
     if (!detail::isOffset(p)) continue;
     o << "<tr>" << td(p.name.substr(0, 6));
-    if (!p.identifiable) {
-      o << "<td colspan=\"5\" class=\"bad\">not identifiable (see below)</td>"
-        << (r.simulated ? td(p.truth ? format("%+.5f", *p.truth) : "", "n") : "") << "</tr>\n";
+    if (!p.identifiable || detail::refused(r)) {
+      o << "<td colspan=\"5\" class=\"bad\">"
+        << (p.identifiable ? "withheld: the result is not usable" : "not identifiable (see below)")
+        << "</td>" << (r.simulated ? td(p.truth ? format("%+.5f", *p.truth) : "", "n") : "")
+        << "</tr>\n";
       continue;
     }
     o << td(format("%+.5f", p.value), "n") << td(format("%+.7f", p.value * kDegToRad), "n")

@@ -168,6 +168,20 @@ SessionReport parseSession(const SessionFiles& files) {
       session.has("plan") && session.at("plan").is_object() ? &session.at("plan") : nullptr;
   if (plan) r.plan_description = Reader(*plan, "session.json plan").stringOr("description", "");
 
+  if (result.has("verdict")) {
+    const Reader v(result.at("verdict"), "result.json verdict");
+    r.usable = v.boolean("usable");
+    for (const Json& reason : v.array("reasons")) {
+      if (!reason.is_string()) throw ReportError("result.json verdict.reasons: not a string");
+      r.refusal_reasons.push_back(reason.get<std::string>());
+    }
+  }
+  if (result.has("suspect_poses"))
+    for (const Json& e : result.array("suspect_poses")) {
+      const Reader s(e, "result.json suspect_poses");
+      r.suspect_poses.push_back({s.integer("pose"), s.integer("line"), s.string("reason"),
+                                 s.numberOrNan("chi2_without")});
+    }
   r.converged = result.boolean("converged");
   r.message = result.stringOr("message", "");
   r.cost = result.stringOr("cost", "");
@@ -180,6 +194,7 @@ SessionReport parseSession(const SessionFiles& files) {
   r.noise_mm = result.numberOrNan("noise_mm");
   r.rms_miss_mm = result.numberOrNan("rms_miss_mm");
   r.chi2_per_dof = result.optionalNumber("chi2_per_dof");
+  r.chi2_p_value = result.optionalNumber("chi2_p_value");
   r.cell_time_s = result.optionalNumber("cell_time_s");
   r.simulated = result.has("truth") && result.at("truth").is_object();
 

@@ -16,6 +16,8 @@ std::string summaryText(const SessionReport& r) {
     << (r.simulated ? " (SIMULATED cell: the truth is known)" : "") << "\n";
   if (!r.plan_description.empty()) o << detail::wrap("plan: " + r.plan_description, 100, 0);
   o << detail::wrap(detail::verdict(r), 100, 0);
+  for (const SuspectRow& sp : r.suspect_poses)
+    o << detail::wrap(format("Suspect pose %d (line %d): ", sp.pose, sp.line) + sp.reason, 100, 2);
   std::string fit = format("Solved from %d poses (%s model, %s cost); noise %s mm (%s); ",
                            r.solved_poses, r.model.c_str(), r.cost.c_str(),
                            num("%.4f", r.noise_mm).c_str(), r.noise_source.c_str());
@@ -36,8 +38,10 @@ std::string summaryText(const SessionReport& r) {
   for (const ParameterRow& p : r.parameters) {
     if (!detail::isOffset(p)) continue;
     const std::string name = p.name.substr(0, 6);
-    if (!p.identifiable) {
-      o << format("%-7s %s\n", name.c_str(), "NOT IDENTIFIABLE (see below)");
+    if (!p.identifiable || detail::refused(r)) {
+      o << format(
+          "%-7s %s\n", name.c_str(),
+          p.identifiable ? "withheld: the result is not usable" : "NOT IDENTIFIABLE (see below)");
       continue;
     }
     o << format("%-7s %+12.5f %+13.7f %11.5f %12.7f   [%+.5f, %+.5f]", name.c_str(), p.value,

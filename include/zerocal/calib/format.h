@@ -15,6 +15,10 @@
 
 namespace zerocal {
 
+// The verdict object of a result: {usable, reasons}; its text is the first lines of a solve's.
+nlohmann::json toJson(const Verdict& verdict);
+std::string toText(const Verdict& verdict);
+
 nlohmann::json toJson(const SolveReport& report);
 std::string toText(const SolveReport& report);
 

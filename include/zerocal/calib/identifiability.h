@@ -23,10 +23,12 @@ struct Identifiability {
 
 // jacobian: whitened residual Jacobian (2N x 11) at the parameters; poses and parameters give
 // the words of the reasons (joint-1 span, stand-off spread, ...). sigma_mm converts the unit
-// covariance into the thresholds on how large an uncertainty still counts as determined.
+// covariance into standard deviations; an offset whose standard deviation exceeds
+// required_accuracy_deg counts as not determined (not identifiable, with the figure in the reason).
 Identifiability analyseIdentifiability(const Eigen::MatrixXd& jacobian, const CellModel& cell,
                                        const std::vector<Pose>& poses,
-                                       const CalibrationParameters& params, double sigma_mm);
+                                       const CalibrationParameters& params, double sigma_mm,
+                                       double required_accuracy_deg);
 
 // Why delta1 and delta6 can never be identified by this method.
 std::string delta1Reason();

@@ -28,7 +28,18 @@ struct SolveOptions {
   RobustLoss loss = RobustLoss::kNone;
   double loss_scale_sigmas = 3.0;  // where the robust loss starts to bend, in noise sigmas
   int max_iterations = 200;
-  double outlier_threshold = 3.5;  // |normalised residual| above which a pose is flagged
+  // The accuracy the calibration is for: an offset whose one-sigma uncertainty is larger is not
+  // determined, and the result is not usable.
+  double required_accuracy_deg = 0.01;
+  // Gates of the verdict: an offset beyond this is not a zero offset but a wrong model (robot
+  // file, laser direction); misses more than this many times the given noise (the square root
+  // of chi-square per degree of freedom) mean the stated noise or the model is not the cell's.
+  double max_offset_deg = 10.0;
+  double max_noise_scale = 5.0;
+  // Deletion diagnostics (maximum-likelihood cost): a pose whose removal lowers the misfit by
+  // more than chance allows at this family-wise level is named and left out of the result.
+  bool find_gross_errors = true;
+  double gross_error_alpha = 0.01;
   // Polled between iterations; returning true abandons the solve (report.message says so).
   std::function<bool()> cancelled;
   // Returns a description of the first problem, or empty when the options are usable.
@@ -46,19 +57,42 @@ struct ParameterEstimate {
 
 struct PoseResidual {
   int source_line = 0;
+  bool used = true;      // false: left out of the fit (a gross error, or a duplicate)
+  int duplicate_of = 0;  // 1-based pose this one repeats exactly, 0 when none
   Eigen::Vector2d miss_mm = Eigen::Vector2d::Zero();  // line's miss of the hit point, 2 axes
   double miss_norm_mm = 0;
   double normalised = 0;  // miss_norm / sigma
-  bool outlier = false;
+  bool outlier = false;   // named by the deletion diagnostics as not fitting the others
   double standoff_mm = 0;
 };
 
+// Whether the result may be used as a correction, and if not, why not (each reason a sentence).
+struct Verdict {
+  bool usable = false;
+  std::vector<std::string> reasons;
+};
+
+// A pose the result does not rest on: one that does not fit the others (left out), or an exact
+// duplicate of an earlier pose (counted once).
+struct SuspectPose {
+  int pose = 0;  // 1-based position in the given poses
+  int source_line = 0;
+  std::string reason;
+  // Chi-square per degree of freedom of the fit without this pose, in the given noise (or, when
+  // the noise is estimated, in the result's noise estimate).
+  double chi2_without = 0;
+};
+
 struct SolveReport {
+  Verdict verdict;
+  std::vector<SuspectPose> suspect_poses;
   bool converged = false;
   std::string message;  // Ceres' summary line, or why it stopped
   CostKind cost = CostKind::kMaximumLikelihood;
   bool used_readings = false;
-  int pose_count = 0;
+  int pose_count = 0;  // as given, duplicates and left-out poses included
+  int poses_used = 0;  // in the fit
+  double required_accuracy_deg = 0;
 
   std::vector<ParameterEstimate> parameters;  // the 8 identified, in unknownName order
   struct NotIdentifiable {
@@ -74,7 +108,11 @@ struct SolveReport {
   int dof = 0;
   double noise_mm = 0;                 // the sigma behind the reported uncertainties
   bool noise_estimated = false;        // true: from the residuals; false: given
-  std::optional<double> chi2_per_dof;  // only when the noise was given
+  std::optional<double> chi2_per_dof;  // only when the noise was given, in the given noise
+  std::optional<double> chi2_p_value;  // chance of a chi-square this large with the given noise
+  // sqrt(chi2/dof) when the poses miss by more than the given noise (then noise_mm is the given
+  // noise times this, and the intervals use Student's t), else 1.
+  double noise_scale = 1;
   double rms_miss_mm = 0;
   std::vector<PoseResidual> poses;
 
@@ -87,8 +125,9 @@ struct SolveReport {
 // before the robot moves for a plan.
 void checkPoses(const CellModel& cell, const std::vector<Pose>& poses);
 
-// Throws InputError for fewer than kMinimumPoses poses, joints outside the robot's limits, or
-// invalid options. Everything else (non-convergence, unidentifiable parameters) is in the report.
+// Throws InputError for fewer than kMinimumPoses distinct poses, joints outside the robot's
+// limits, or invalid options. Everything else (non-convergence, unidentifiable parameters, poses
+// that do not fit) is in the report, and its verdict says whether the result may be used.
 SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
                   const SolveOptions& options = {});
 

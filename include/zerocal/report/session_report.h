@@ -70,8 +70,20 @@ struct Validation {
   double rms_before_mm = 0, rms_after_mm = 0;
 };
 
+// A pose the result does not rest on (result.json suspect_poses).
+struct SuspectRow {
+  int pose = 0;  // 1-based
+  int line = 0;
+  std::string reason;
+  double chi2_without = 0;
+};
+
 // Everything the summary and the report show, taken from the session's files.
 struct SessionReport {
+  // The solve's verdict (result.json "verdict"); unset in results written before verdicts.
+  std::optional<bool> usable;
+  std::vector<std::string> refusal_reasons;
+  std::vector<SuspectRow> suspect_poses;
   std::string session_id;
   std::string dir;
   bool simulated = false;  // result.json carries the simulated truth
@@ -80,7 +92,7 @@ struct SessionReport {
   std::string message, cost, model, noise_source;
   int solved_poses = 0, rank = 0, dof = 0;
   double condition_number = 0, noise_mm = 0, rms_miss_mm = 0;
-  std::optional<double> chi2_per_dof, cell_time_s;
+  std::optional<double> chi2_per_dof, chi2_p_value, cell_time_s;
   std::vector<ParameterRow> parameters;  // the 8 identified, offsets first
   struct NotIdentifiable {
     std::string name, reason;

@@ -61,6 +61,7 @@ struct SimController::Impl {
       : options(std::move(o)), acceptor(ctx), rng(options.seed), faults(options.faults) {
     commanded = options.start_joints;
     for (double& q : commanded) q = f32(q);
+    initMotorCalibration();
     const std::string violation = options.world.robot.limitViolation(commanded);
     if (!violation.empty())
       throw ConfigError("SimControllerOptions", {"start joints: " + violation});
@@ -79,6 +80,14 @@ struct SimController::Impl {
 
   void accept();
   void closeAll();
+  void initMotorCalibration();
+  // The true joint angles' excess over commanded + world offsets: the move's error plus how far
+  // cal_offset changes have moved each zero (deg).
+  Joints trueExtraDeg() const {
+    Joints e;
+    for (int i = 0; i < kJointCount; ++i) e[i] = move_error[i] + zero_shift_rad[i] * kRadToDeg;
+    return e;
+  }
 
   // The reply text (without terminator) to one request, or nullopt for no reply (99). Also
   // returns, through wall_delay, how long a paced move takes. Locks the state.
@@ -105,7 +114,28 @@ struct SimController::Impl {
   bool fine = false;
   double sim_time_s = 0;
   long requests = 0, connections = 0;
+  std::array<double, kJointCount> cal_offset{}, transmission{}, zero_shift_rad{};
 };
+
+void SimController::Impl::initMotorCalibration() {
+  transmission = options.motor.transmission.value_or(options.world.robot.transmission);
+  if (options.motor.cal_offset_rad) {
+    cal_offset = *options.motor.cal_offset_rad;
+  } else {
+    // Every public controller backup holds cal_offset in [0, 2 pi) (docs/apply.md).
+    std::mt19937_64 fixed(options.seed ^ 0x5eed);
+    std::uniform_real_distribution<double> u(0.0, 2 * kPi);
+    for (double& v : cal_offset) v = u(fixed);
+  }
+  std::vector<std::string> problems;
+  for (int i = 0; i < kJointCount; ++i) {
+    cal_offset[i] = f32(cal_offset[i]);
+    if (!(cal_offset[i] >= 0 && cal_offset[i] < 2 * kPi))
+      problems.push_back("motor.cal_offset_rad of joint " + std::to_string(i + 1) +
+                         " is outside [0, 2 pi)");
+  }
+  if (!problems.empty()) throw ConfigError("SimControllerOptions", problems);
+}
 
 class SimController::Impl::Session : public std::enable_shared_from_this<Session> {
  public:
@@ -429,14 +459,8 @@ std::optional<std::string> SimController::Impl::respond(const irc5::ParsedReques
       return done;
     case irc5::kStop:
       return n == 0 ? done : bad;  // moves are instantaneous on the simulated clock
-    case irc5::kReadCalOffset: {
-      if (n != 0) return bad;
-      std::array<double, 6> cal;
-      std::mt19937_64 fixed(options.seed ^ 0x5eed);
-      std::uniform_real_distribution<double> u(-2 * kPi, 2 * kPi);
-      for (double& v : cal) v = f32(u(fixed));
-      return six(cal, 6);
-    }
+    case irc5::kReadCalOffset:
+      return n == 0 ? six(cal_offset, 6) : bad;
     case irc5::kReadJointBounds: {
       if (n != 1 || (r.params[0] != 0 && r.params[0] != 1)) return bad;
       std::array<double, 6> b;
@@ -450,7 +474,7 @@ std::optional<std::string> SimController::Impl::respond(const irc5::ParsedReques
       // Simulator only: what a PSD placed in the world would see now (an external daemon's
       // simulated board asks this over its own connection).
       if (n != 0) return bad;
-      const std::optional<BeamHit> hit = beamHit(options.world, commanded, move_error);
+      const std::optional<BeamHit> hit = beamHit(options.world, commanded, trueExtraDeg());
       if (!hit || !std::isfinite(hit->u_mm) || !std::isfinite(hit->v_mm) ||
           std::abs(hit->u_mm) > 1e6 || std::abs(hit->v_mm) > 1e6)
         return done + "0 0 0";
@@ -526,7 +550,48 @@ Joints SimController::moveErrorDeg() const {
 
 std::optional<BeamHit> SimController::beamHitNow() const {
   std::lock_guard<std::mutex> lock(impl_->mutex);
-  return beamHit(impl_->options.world, impl_->commanded, impl_->move_error);
+  return beamHit(impl_->options.world, impl_->commanded, impl_->trueExtraDeg());
+}
+
+std::array<double, kJointCount> SimController::calOffsets() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->cal_offset;
+}
+
+void SimController::writeCalOffset(int joint, double rad) {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  const std::string where = "joint " + std::to_string(joint);
+  if (joint < 1 || joint > kJointCount) throw ConfigError("simulated controller", {"no " + where});
+  const int i = joint - 1;
+  const double stored = f32(rad);
+  if (!(stored >= 0 && stored < 2 * kPi))
+    throw ConfigError("simulated controller", {where + ": cal_offset outside [0, 2 pi)"});
+  if (impl_->transmission[i] == 0)
+    throw ConfigError("simulated controller", {where + ": the arm's transmission is unknown"});
+  // q = (phi - cal) / k with the revolution counter's turn unchanged: theta - q grows by the
+  // change over k.
+  impl_->zero_shift_rad[i] += (stored - impl_->cal_offset[i]) / impl_->transmission[i];
+  impl_->cal_offset[i] = stored;
+}
+
+void SimController::updateRevolutionCounter(int joint) {
+  if (joint < 1 || joint > kJointCount)
+    throw ConfigError("simulated controller", {"no joint " + std::to_string(joint)});
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  const int i = joint - 1;
+  const double k = impl_->transmission[i];
+  if (k == 0) return;
+  // At the mark the joint reads -shift; the counter takes the turn that brings the reading
+  // within half a motor turn of the calibration position.
+  const double turn = 2 * kPi / k;
+  impl_->zero_shift_rad[i] -= turn * std::round(impl_->zero_shift_rad[i] / turn);
+}
+
+Joints SimController::zeroShiftDeg() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  Joints d;
+  for (int i = 0; i < kJointCount; ++i) d[i] = impl_->zero_shift_rad[i] * kRadToDeg;
+  return d;
 }
 
 double SimController::simTimeS() const {

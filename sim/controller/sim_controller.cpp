@@ -115,6 +115,18 @@ struct SimController::Impl {
   double sim_time_s = 0;
   long requests = 0, connections = 0;
   std::array<double, kJointCount> cal_offset{}, transmission{}, zero_shift_rad{};
+  // Written over the link (45), taken at the next restart (46).
+  std::array<std::optional<double>, kJointCount> pending_cal{};
+  bool restart_requested = false;
+  // Moves joint i's zero for a new cal_offset: q = (phi - cal) / k with the revolution
+  // counter's turn unchanged, so theta - q grows by the change over k. Locked by the caller.
+  void takeCalOffset(int i, double stored) {
+    zero_shift_rad[i] += (stored - cal_offset[i]) / transmission[i];
+    cal_offset[i] = stored;
+  }
+  // The restart after 46 has been answered: pending values taken, every connection dropped
+  // (the listener stays, as the RAPID server comes back). I/O thread.
+  void restart();
 };
 
 void SimController::Impl::initMotorCalibration() {
@@ -285,7 +297,8 @@ class SimController::Impl::Session : public std::enable_shared_from_this<Session
                         pieces_.pop_front();
                         if (pieces_.empty()) {
                           writing_ = false;
-                          handleNext();
+                          impl_->restart();  // when 46 was just answered
+                          if (socket_.is_open()) handleNext();
                           return;
                         }
                         timer_.expires_after(split_gap_);
@@ -319,6 +332,19 @@ void SimController::Impl::accept() {
     session->start();
     accept();
   });
+}
+
+void SimController::Impl::restart() {
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (!restart_requested) return;
+    restart_requested = false;
+    for (int i = 0; i < kJointCount; ++i)
+      if (pending_cal[i]) takeCalOffset(i, *pending_cal[i]);
+    pending_cal.fill(std::nullopt);
+  }
+  const auto copy = sessions;
+  for (const auto& s : copy) s->close();
 }
 
 void SimController::Impl::closeAll() {
@@ -459,8 +485,28 @@ std::optional<std::string> SimController::Impl::respond(const irc5::ParsedReques
       return done;
     case irc5::kStop:
       return n == 0 ? done : bad;  // moves are instantaneous on the simulated clock
-    case irc5::kReadCalOffset:
-      return n == 0 ? six(cal_offset, 6) : bad;
+    case irc5::kReadCalOffset: {
+      // The configuration's values, written ones included, as ReadCfgData reads them.
+      if (n != 0) return bad;
+      std::array<double, 6> configured = cal_offset;
+      for (int i = 0; i < kJointCount; ++i) configured[i] = pending_cal[i].value_or(cal_offset[i]);
+      return six(configured, 6);
+    }
+    case irc5::kWriteCalOffset: {
+      if (n != 2) return bad;
+      const double joint = r.params[0], value = f32(r.params[1]);
+      if (!(joint >= 1 && joint <= kJointCount && joint == std::floor(joint)) ||
+          !(value >= 0 && value < 2 * kPi))
+        return bad;
+      const int i = static_cast<int>(joint) - 1;
+      if (transmission[i] == 0) return c + " 0 transmission unknown";
+      pending_cal[i] = value;
+      return done;
+    }
+    case irc5::kRestart:
+      if (n != 0) return bad;
+      restart_requested = true;
+      return done;
     case irc5::kReadJointBounds: {
       if (n != 1 || (r.params[0] != 0 && r.params[0] != 1)) return bad;
       std::array<double, 6> b;
@@ -568,10 +614,8 @@ void SimController::writeCalOffset(int joint, double rad) {
     throw ConfigError("simulated controller", {where + ": cal_offset outside [0, 2 pi)"});
   if (impl_->transmission[i] == 0)
     throw ConfigError("simulated controller", {where + ": the arm's transmission is unknown"});
-  // q = (phi - cal) / k with the revolution counter's turn unchanged: theta - q grows by the
-  // change over k.
-  impl_->zero_shift_rad[i] += (stored - impl_->cal_offset[i]) / impl_->transmission[i];
-  impl_->cal_offset[i] = stored;
+  impl_->takeCalOffset(i, stored);
+  impl_->pending_cal[i].reset();
 }
 
 void SimController::updateRevolutionCounter(int joint) {

@@ -107,6 +107,29 @@ TEST(SimulatedMotorCalibration, AWrongSignDoublesTheOffsetAWrongRatioLeavesPart)
   EXPECT_NEAR(o.world.true_offsets_deg[3] + shift[3], 0.5 * (1 - believed[3] / k_true), 1e-5);
 }
 
+TEST(SimulatedMotorCalibration, WrittenOverTheLinkTakenAtTheRestart) {
+  SimControllerOptions o;
+  o.world = randomWorld(2);
+  o.motor.cal_offset_rad = std::array<double, 6>{1, 2, 3, 4, 5, 6};
+  SimController sim(o);
+  sim.start();
+  Irc5Client client(clientOptions(sim.port()));
+  client.connect();
+  client.writeCalOffset(3, 3.5);
+  // The configuration holds it at once (ReadCfgData); the motion system only after a restart.
+  EXPECT_NEAR(client.readCalOffsets()[2], 3.5, 1e-6);
+  EXPECT_EQ(sim.zeroShiftDeg(), Joints{});
+  EXPECT_THROW(client.writeCalOffset(3, 6.3), BadMessageError);  // beyond one motor turn
+  EXPECT_THROW(client.writeCalOffset(7, 1.0), BadMessageError);  // no such joint
+  const long connections = sim.connectionCount();
+  client.restartController();  // the controller drops the link; the client reconnects
+  EXPECT_GT(sim.connectionCount(), connections);
+  EXPECT_NEAR(sim.zeroShiftDeg()[2], 0.5 / builtinIrb1600().transmission[2] * kRadToDeg, 1e-9);
+  EXPECT_NEAR(sim.calOffsets()[2], 3.5, 1e-6);
+  EXPECT_NEAR(client.readCalOffsets()[2], 3.5, 1e-6);
+  EXPECT_EQ(sim.zeroShiftDeg()[1], 0.0);
+}
+
 TEST(SimulatedMotorCalibration, RefusesValuesNoControllerHolds) {
   SimControllerOptions o;
   o.world = randomWorld(1);

@@ -83,19 +83,22 @@ Verdict judge(const std::array<CalOffsetChange, 4>& changes, const Offsets& befo
   for (int k = 0; k < 4; ++k) {
     const int j = k + 2;
     const double a = after[k].value_deg, b = before[k].value_deg;
-    const double bound = std::max(3 * after[k].sigma_deg, required_deg);
+    // The remaining offset is the first calibration's error (sigma before) measured by the
+    // second (sigma after): its standard uncertainty combines both.
+    const double sigma = std::hypot(before[k].sigma_deg, after[k].sigma_deg);
+    const double bound = std::max(3 * sigma, required_deg);
     if (std::abs(a) <= bound) continue;
     v.pass = false;
     const std::string d = "delta" + std::to_string(j);
     const double turn_deg = kTwoPi / changes[k].transmission * kDeg;
     std::string why;
-    if (std::abs(b) > 3 * after[k].sigma_deg && std::abs(a / b - 2.0) < 0.25)
+    if (std::abs(b) > 3 * sigma && std::abs(a / b - 2.0) < 0.25)
       why = d + " doubled (" + fmt("%+.4f deg before, %+.4f deg after", b, a) +
             "): the sign of joint " + std::to_string(j) + "'s transmission is wrong";
     else if (std::abs(std::abs(a) - std::abs(turn_deg)) < std::max(bound, 0.02))
       why = "joint " + std::to_string(j) + fmt(" is one motor turn (%+.4f deg) off", a) +
             ": its revolution counter was not updated at the synchronisation mark";
-    else if (std::abs(b) > 3 * after[k].sigma_deg && std::abs(1 - a / b) > 0.05)
+    else if (std::abs(b) > 3 * sigma && std::abs(a) > 5 * sigma && std::abs(1 - a / b) > 0.05)
       why = d + fmt(" went from %+.4f to %+.4f deg", b, a) + ": joint " + std::to_string(j) +
             "'s transmission looks like " + fmt("%+.1f", changes[k].transmission / (1 - a / b)) +
             ", not " + fmt("%+g", changes[k].transmission);
@@ -186,7 +189,13 @@ OnlineApplyOutcome applyOnline(CalibrationStore& store,
       counters_updated.insert(c.joint);
     }
     say("verifying by measurement");
-    out.after = options.verify();
+    try {
+      out.after = options.verify();
+    } catch (const std::exception& e) {
+      // No measurement, no new values: the backup goes back.
+      rollBack(std::string("the verification did not complete: ") + e.what());
+      return out;
+    }
     const Verdict v = judge(changes, before, out.after, options.required_deg);
     journal.append({{"step", "verified"},
                     {"pass", v.pass},

@@ -264,6 +264,35 @@ void addApplyCommands(CLI::App& app, ApplyCommands& commands) {
   c->add_flag("--unconfirmed-transmission", a.unconfirmed_transmission,
               "accept transmissions the robot file marks as not confirmed (then verify by "
               "measurement after loading)");
+
+  CLI::App* experiment = nullptr;
+  try {
+    experiment = app.get_subcommand("experiment");
+  } catch (const CLI::OptionNotFound&) {
+    return;
+  }
+  ApplyExperimentArgs& e = commands.experiment_args;
+  commands.experiment = experiment->add_subcommand(
+      "apply",
+      "on seeded simulated cells: calibrate, apply online (backup, write, restart), verify by a "
+      "second calibration; with --wrong-sign J, check the rollback names joint J");
+  auto* x = commands.experiment;
+  x->add_option("--worlds", e.worlds, "number of seeded worlds")
+      ->default_val(e.worlds)
+      ->check(CLI::Range(1, 1000));
+  x->add_option("--seed0", e.seed0, "seed of the first world")->default_val(e.seed0);
+  x->add_option("--poses", e.poses, "poses per calibration")->default_val(e.poses);
+  x->add_option("--wrong-sign", e.wrong_sign_joint,
+                "flip joint J's transmission sign in the configuration (2..5)")
+      ->check(CLI::Range(2, 5));
+  x->add_option("--required", e.required_deg, "required accuracy, deg")
+      ->default_val(e.required_deg);
+}
+
+int runApplyCommands(const ApplyCommands& commands, std::ostream& out, std::ostream& err) {
+  if (commands.experiment && commands.experiment->parsed())
+    return runApplyExperiment(commands.experiment_args, out, err);
+  return runApply(commands.args, out, err);
 }
 
 int runApply(const ApplyArgs& args, std::ostream& out, std::ostream& err) {

@@ -244,7 +244,7 @@ int main(int argc, char** argv) {
 
   for (auto* c : client_cmds.apps)
     if (c->parsed()) return cli::runClient(client_cmds.args, std::cout, std::cerr, isatty(1));
-  if (apply_cmds.apply->parsed()) return cli::runApply(apply_cmds.args, std::cout, std::cerr);
+  if (apply_cmds.parsed()) return cli::runApplyCommands(apply_cmds, std::cout, std::cerr);
   if (plan_cmd->parsed() && plan_cell.robot.empty()) {
     // On the daemon: its cell, its planner; only the options of a session request apply.
     for (const char* local :

@@ -139,6 +139,24 @@ TEST(OnlineApply, AWrongRatioAndAForgottenCounterAreNamed) {
   EXPECT_NE(out.message.find("joint 4 is one motor turn"), std::string::npos) << out.message;
 }
 
+TEST(OnlineApply, AVerificationThatCannotCompleteRollsBack) {
+  Cell cell(7);
+  const auto before = cell.sim->calOffsets();
+  OnlineApplyOptions options = cell.options();
+  options.verify = []() -> Offsets { throw Error("spot not found (test)"); };
+  ApplyJournal journal(journalPath("noverify.jsonl"));
+  const OnlineApplyOutcome out = applyOnline(
+      *cell.store, cell.changes(builtinIrb1600().transmission), cell.truth(), options, journal);
+  EXPECT_EQ(out.state, ApplyState::kRolledBack);
+  EXPECT_NE(out.message.find("the verification did not complete: spot not found (test)"),
+            std::string::npos)
+      << out.message;
+  for (int i = 0; i < 6; ++i) EXPECT_NEAR(cell.sim->calOffsets()[i], before[i], 1e-6);
+  // Joint 4 crossed the seam and its counter was updated: back on the old value it is updated
+  // again, so the world is as it was.
+  for (double s : cell.sim->zeroShiftDeg()) EXPECT_NEAR(s, 0.0, 1e-6);
+}
+
 TEST(OnlineApply, RefusesWhenTheControllerChangedSinceTheComputation) {
   Cell cell(4);
   const auto changes = cell.changes(builtinIrb1600().transmission);

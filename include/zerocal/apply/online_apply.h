@@ -33,7 +33,8 @@ struct MeasuredOffset {
 using Offsets = std::array<MeasuredOffset, 4>;  // joints 2..5
 
 struct OnlineApplyOptions {
-  // Pass when every remaining offset is within max(3 sigma, required_deg).
+  // Pass when every remaining offset is within max(3 sigma, required_deg), sigma combining the
+  // calibration the change came from and the verification (hypot of the two).
   double required_deg = 0.003;
   // Measures joints 2..5 now (a verification calibration). Throws to abort (then rolled back).
   std::function<Offsets()> verify;

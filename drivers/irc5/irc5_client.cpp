@@ -536,6 +536,16 @@ std::array<double, 6> Irc5Client::readCalOffsets() {
       transact(request(irc5::kReadCalOffset), irc5::kReadCalOffset, 6, options_.request_timeout));
 }
 
+void Irc5Client::writeCalOffset(int joint, double rad) {
+  transact(request(irc5::kWriteCalOffset, {{double(joint), 0}, {rad, 6}}), irc5::kWriteCalOffset, 0,
+           options_.request_timeout);
+}
+
+void Irc5Client::restartController() {
+  transact(request(irc5::kRestart), irc5::kRestart, 0, options_.request_timeout);
+  reconnect();
+}
+
 std::array<JointLimit, kJointCount> Irc5Client::readJointBounds() {
   const auto lower = sixNumbers(transact(request(irc5::kReadJointBounds, {{0, 0}}),
                                          irc5::kReadJointBounds, 6, options_.request_timeout));

@@ -65,6 +65,7 @@ struct SimController::Impl {
         faults(options.faults) {
     commanded = options.start_joints;
     for (double& q : commanded) q = f32(q);
+    initMotorCalibration();
     const std::string violation = options.world.robot.limitViolation(commanded);
     if (!violation.empty())
       throw ConfigError("SimControllerOptions", {"start joints: " + violation});
@@ -83,6 +84,14 @@ struct SimController::Impl {
 
   void accept();
   void closeAll();
+  void initMotorCalibration();
+  // The true joint angles' excess over commanded + world offsets: the move's error plus how far
+  // cal_offset changes have moved each zero (deg).
+  Joints trueExtraDeg() const {
+    Joints e;
+    for (int i = 0; i < kJointCount; ++i) e[i] = move_error[i] + zero_shift_rad[i] * kRadToDeg;
+    return e;
+  }
 
   // The reply text (without terminator) to one request, or nullopt for no reply (99). Also
   // returns, through wall_delay, how long a paced move takes. Locks the state.
@@ -114,7 +123,40 @@ struct SimController::Impl {
   bool fine = false;
   double sim_time_s = 0;
   long requests = 0, connections = 0;
+  std::array<double, kJointCount> cal_offset{}, transmission{}, zero_shift_rad{};
+  // Written over the link (45), taken at the next restart (46).
+  std::array<std::optional<double>, kJointCount> pending_cal{};
+  bool restart_requested = false;
+  // Moves joint i's zero for a new cal_offset: q = (phi - cal) / k with the revolution
+  // counter's turn unchanged, so theta - q grows by the change over k. Locked by the caller.
+  void takeCalOffset(int i, double stored) {
+    zero_shift_rad[i] += (stored - cal_offset[i]) / transmission[i];
+    cal_offset[i] = stored;
+  }
+  // The restart after 46 has been answered: pending values taken, every connection dropped
+  // (the listener stays, as the RAPID server comes back). I/O thread.
+  void restart();
 };
+
+void SimController::Impl::initMotorCalibration() {
+  transmission = options.motor.transmission.value_or(options.world.robot.transmission);
+  if (options.motor.cal_offset_rad) {
+    cal_offset = *options.motor.cal_offset_rad;
+  } else {
+    // Every public controller backup holds cal_offset in [0, 2 pi) (docs/apply.md).
+    std::mt19937_64 fixed(options.seed ^ 0x5eed);
+    std::uniform_real_distribution<double> u(0.0, 2 * kPi);
+    for (double& v : cal_offset) v = u(fixed);
+  }
+  std::vector<std::string> problems;
+  for (int i = 0; i < kJointCount; ++i) {
+    cal_offset[i] = f32(cal_offset[i]);
+    if (!(cal_offset[i] >= 0 && cal_offset[i] < 2 * kPi))
+      problems.push_back("motor.cal_offset_rad of joint " + std::to_string(i + 1) +
+                         " is outside [0, 2 pi)");
+  }
+  if (!problems.empty()) throw ConfigError("SimControllerOptions", problems);
+}
 
 class SimController::Impl::Session : public std::enable_shared_from_this<Session> {
  public:
@@ -264,7 +306,8 @@ class SimController::Impl::Session : public std::enable_shared_from_this<Session
                         pieces_.pop_front();
                         if (pieces_.empty()) {
                           writing_ = false;
-                          handleNext();
+                          impl_->restart();  // when 46 was just answered
+                          if (socket_.is_open()) handleNext();
                           return;
                         }
                         timer_.expires_after(split_gap_);
@@ -298,6 +341,19 @@ void SimController::Impl::accept() {
     session->start();
     accept();
   });
+}
+
+void SimController::Impl::restart() {
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (!restart_requested) return;
+    restart_requested = false;
+    for (int i = 0; i < kJointCount; ++i)
+      if (pending_cal[i]) takeCalOffset(i, *pending_cal[i]);
+    pending_cal.fill(std::nullopt);
+  }
+  const auto copy = sessions;
+  for (const auto& s : copy) s->close();
 }
 
 void SimController::Impl::closeAll() {
@@ -369,7 +425,7 @@ std::string SimController::Impl::moveTo(const Joints& target, int code, millisec
 }
 
 std::optional<BeamHit> SimController::Impl::spotNow() const {
-  std::optional<BeamHit> hit = beamHit(options.world, commanded, move_error, sim_time_s);
+  std::optional<BeamHit> hit = beamHit(options.world, commanded, trueExtraDeg(), sim_time_s);
   if (hit) {
     hit->u_mm += gross.stray_light_mm.x();
     hit->v_mm += gross.stray_light_mm.y();
@@ -450,13 +506,27 @@ std::optional<std::string> SimController::Impl::respond(const irc5::ParsedReques
     case irc5::kStop:
       return n == 0 ? done : bad;  // moves are instantaneous on the simulated clock
     case irc5::kReadCalOffset: {
+      // The configuration's values, written ones included, as ReadCfgData reads them.
       if (n != 0) return bad;
-      std::array<double, 6> cal;
-      std::mt19937_64 fixed(options.seed ^ 0x5eed);
-      std::uniform_real_distribution<double> u(-2 * kPi, 2 * kPi);
-      for (double& v : cal) v = f32(u(fixed));
-      return six(cal, 6);
+      std::array<double, 6> configured = cal_offset;
+      for (int i = 0; i < kJointCount; ++i) configured[i] = pending_cal[i].value_or(cal_offset[i]);
+      return six(configured, 6);
     }
+    case irc5::kWriteCalOffset: {
+      if (n != 2) return bad;
+      const double joint = r.params[0], value = f32(r.params[1]);
+      if (!(joint >= 1 && joint <= kJointCount && joint == std::floor(joint)) ||
+          !(value >= 0 && value < 2 * kPi))
+        return bad;
+      const int i = static_cast<int>(joint) - 1;
+      if (transmission[i] == 0) return c + " 0 transmission unknown";
+      pending_cal[i] = value;
+      return done;
+    }
+    case irc5::kRestart:
+      if (n != 0) return bad;
+      restart_requested = true;
+      return done;
     case irc5::kReadJointBounds: {
       if (n != 1 || (r.params[0] != 0 && r.params[0] != 1)) return bad;
       std::array<double, 6> b;
@@ -547,6 +617,45 @@ Joints SimController::moveErrorDeg() const {
 std::optional<BeamHit> SimController::beamHitNow() const {
   std::lock_guard<std::mutex> lock(impl_->mutex);
   return impl_->spotNow();
+}
+
+std::array<double, kJointCount> SimController::calOffsets() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->cal_offset;
+}
+
+void SimController::writeCalOffset(int joint, double rad) {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  const std::string where = "joint " + std::to_string(joint);
+  if (joint < 1 || joint > kJointCount) throw ConfigError("simulated controller", {"no " + where});
+  const int i = joint - 1;
+  const double stored = f32(rad);
+  if (!(stored >= 0 && stored < 2 * kPi))
+    throw ConfigError("simulated controller", {where + ": cal_offset outside [0, 2 pi)"});
+  if (impl_->transmission[i] == 0)
+    throw ConfigError("simulated controller", {where + ": the arm's transmission is unknown"});
+  impl_->takeCalOffset(i, stored);
+  impl_->pending_cal[i].reset();
+}
+
+void SimController::updateRevolutionCounter(int joint) {
+  if (joint < 1 || joint > kJointCount)
+    throw ConfigError("simulated controller", {"no joint " + std::to_string(joint)});
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  const int i = joint - 1;
+  const double k = impl_->transmission[i];
+  if (k == 0) return;
+  // At the mark the joint reads -shift; the counter takes the turn that brings the reading
+  // within half a motor turn of the calibration position.
+  const double turn = 2 * kPi / k;
+  impl_->zero_shift_rad[i] -= turn * std::round(impl_->zero_shift_rad[i] / turn);
+}
+
+Joints SimController::zeroShiftDeg() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  Joints d;
+  for (int i = 0; i < kJointCount; ++i) d[i] = impl_->zero_shift_rad[i] * kRadToDeg;
+  return d;
 }
 
 double SimController::simTimeS() const {

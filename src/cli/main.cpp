@@ -17,6 +17,7 @@
 #include <iostream>
 #include <sstream>
 
+#include "apply_commands.h"
 #include "cell_experiment.h"
 #include "control_commands.h"
 #include "psd_commands.h"
@@ -255,6 +256,8 @@ int main(int argc, char** argv) {
   cli::addPsdCommands(app, psd_cmds);
   cli::ClientCommands client_cmds;
   cli::addClientCommands(app, client_cmds);
+  cli::ApplyCommands apply_cmds;
+  cli::addApplyCommands(app, apply_cmds);
 
   try {
     app.parse(argc, argv);
@@ -266,6 +269,7 @@ int main(int argc, char** argv) {
 
   for (auto* c : client_cmds.apps)
     if (c->parsed()) return cli::runClient(client_cmds.args, std::cout, std::cerr, isatty(1));
+  if (apply_cmds.parsed()) return cli::runApplyCommands(apply_cmds, std::cout, std::cerr);
   if (plan_cmd->parsed() && plan_cell.robot.empty()) {
     // On the daemon: its cell, its planner; only the options of a session request apply.
     for (const char* local :

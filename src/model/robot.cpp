@@ -124,10 +124,19 @@ Robot parseRobot(const std::string& yaml_text, const std::string& origin) {
                                     robot.max_speed_deg_s[i] <= kMaxJointSpeedDegS))
         problems.push_back(where + ": max_speed_deg_s must lie within " + fmt(kMinJointSpeedDegS) +
                            ".." + fmt(kMaxJointSpeedDegS));
+      if (j["transmission"]) {
+        // Written with its sign ("+120", "-80"): a bare magnitude is how signs get lost.
+        const std::string text = j["transmission"].IsScalar() ? j["transmission"].Scalar() : "";
+        robot.transmission[i] = number(j, "transmission", where, problems);
+        if (text.empty() || (text[0] != '+' && text[0] != '-'))
+          problems.push_back(where + ": 'transmission' must be written with its sign (+ or -)");
+        else if (!(std::abs(robot.transmission[i]) >= 1.0))
+          problems.push_back(where + ": 'transmission' must be at least 1 in magnitude");
+      }
       for (const auto& kv : j) {
         static const char* known[] = {
-            "a_mm",      "alpha_deg", "d_mm",           "theta_offset_deg",
-            "lower_deg", "upper_deg", "max_speed_deg_s"};
+            "a_mm",      "alpha_deg",       "d_mm",        "theta_offset_deg", "lower_deg",
+            "upper_deg", "max_speed_deg_s", "transmission"};
         const auto key = kv.first.as<std::string>();
         bool ok = false;
         for (const char* k : known) ok = ok || key == k;
@@ -135,9 +144,16 @@ Robot parseRobot(const std::string& yaml_text, const std::string& origin) {
       }
     }
   }
+  if (const YAML::Node confirmed = root["transmission_confirmed"]) {
+    try {
+      robot.transmission_confirmed = confirmed.as<bool>();
+    } catch (const YAML::Exception&) {
+      problems.push_back("'transmission_confirmed' must be true or false");
+    }
+  }
   for (const auto& kv : root) {
     const auto key = kv.first.as<std::string>();
-    if (key != "name" && key != "joints" && key != "description")
+    if (key != "name" && key != "joints" && key != "description" && key != "transmission_confirmed")
       problems.push_back("unknown key '" + key + "'");
   }
   if (!problems.empty()) throw ConfigError(origin, std::move(problems));

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "zerocal/error.h"
 #include "zerocal/model/builtin.h"
 
@@ -62,6 +64,36 @@ TEST(RobotFile, AbsurdLimitsSpeedsAndLinksAreRefused) {
     EXPECT_NE(all.find("joint 1: d_mm must lie within +-10000"), std::string::npos) << all;
     EXPECT_NE(all.find("joint 1: max_speed_deg_s must lie within"), std::string::npos) << all;
     EXPECT_EQ(e.problems().size(), 4u);
+  }
+}
+
+TEST(RobotFile, TransmissionsAreSignedAndUnconfirmedInTheShippedFile) {
+  const Robot r = builtinIrb1600();
+  for (double k : r.transmission) EXPECT_GE(std::abs(k), 1.0);
+  EXPECT_FALSE(r.transmission_confirmed);  // placeholders: docs/apply.md
+  std::string yaml = builtinIrb1600Yaml();
+  yaml.replace(yaml.find("transmission: +120"), 18, "transmission: -117.5");
+  yaml.replace(yaml.find("transmission_confirmed: false"), 29, "transmission_confirmed: true");
+  const Robot m = parseRobot(yaml, "m.yaml");
+  EXPECT_EQ(m.transmission[0], -117.5);
+  EXPECT_TRUE(m.transmission_confirmed);
+  // A magnitude without its sign, a ratio below 1, a flag that is not a boolean.
+  std::string bad = builtinIrb1600Yaml();
+  bad.replace(bad.find("transmission: +120"), 18, "transmission: 120");
+  bad.replace(bad.find("transmission: +80"), 17, "transmission: +0.5");
+  bad.replace(bad.find("transmission_confirmed: false"), 29, "transmission_confirmed: maybe");
+  try {
+    parseRobot(bad, "bad.yaml");
+    FAIL() << "expected ConfigError";
+  } catch (const ConfigError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("joint 1: 'transmission' must be written with its sign"), std::string::npos)
+        << what;
+    EXPECT_NE(what.find("joint 4: 'transmission' must be at least 1 in magnitude"),
+              std::string::npos)
+        << what;
+    EXPECT_NE(what.find("'transmission_confirmed' must be true or false"), std::string::npos);
+    EXPECT_EQ(e.problems().size(), 3u);
   }
 }
 

@@ -55,6 +55,7 @@ MODULE ZerocalServer
     VAR num ok := 0;
     VAR string data := "";
     VAR bool close_after := FALSE;
+    VAR bool restart_after := FALSE;
 
     ! Joint bounds from MOC.cfg ARM, converted to degrees at start-up.
     VAR num lower_deg{6};
@@ -96,6 +97,11 @@ MODULE ZerocalServer
                     HandleRequest;
                     SendReply;
                     IF close_after client_connected := FALSE;
+                    IF restart_after THEN
+                        SocketClose client_socket;
+                        SocketClose server_socket;
+                        WarmStart;
+                    ENDIF
                 ENDIF
             ENDWHILE
             SocketClose client_socket;
@@ -371,6 +377,22 @@ MODULE ZerocalServer
                     IF i < 6 data := data + " ";
                 ENDFOR
                 ok := 1;
+            ENDIF
+        CASE 45:
+            ! Write MOC MOTOR_CALIB cal_offset (radians, motor side) of motor params{1}. The motion
+            ! system takes it at the next restart (46). Values outside one motor turn are refused.
+            IF n_params = 2 AND params{1} >= 1 AND params{1} <= 6 AND params{1} = Trunc(params{1})
+                AND params{2} >= 0 AND params{2} < 2 * pi THEN
+                WriteCfgData "/MOC/MOTOR_CALIB/rob1_" + NumToStr(params{1}, 0), "cal_offset",
+                    params{2};
+                ok := 1;
+            ENDIF
+        CASE 46:
+            ! Restart so that written system parameters take effect: reply first, then warm start
+            ! (the connection closes; the client reconnects when the server is back).
+            IF n_params = 0 THEN
+                ok := 1;
+                restart_after := TRUE;
             ENDIF
         CASE 98:
             IF n_params = 0 THEN

@@ -101,6 +101,13 @@ class Irc5Client final : public ControllerLink {
   std::array<double, 6> readExternalAxes();
   // MOC cal_offset of the six motors, radians, read only.
   std::array<double, 6> readCalOffsets();
+  // Writes MOC MOTOR_CALIB cal_offset of joint (1..6), rad in [0, 2 pi), 6 decimals (request
+  // 45, RAPID WriteCfgData). The motion system takes it at the controller's next restart; read
+  // back with readCalOffsets. Throws BadMessageError when the controller refuses it.
+  void writeCalOffset(int joint, double rad);
+  // Restarts the controller so that written system parameters take effect (request 46, RAPID
+  // WarmStart), then reconnect()s. Throws as reconnect() when the controller does not come back.
+  void restartController();
   // The controller's own joint bounds, degrees.
   std::array<JointLimit, kJointCount> readJointBounds();
   // Simulator only (zerocal-sim; the RAPID module replies ok = 0, thrown as BadMessageError):

@@ -32,6 +32,8 @@ enum Code : int {
   kReadJointBounds = 42,  // extension: 1 param, 0 = lower, 1 = upper bounds, degrees
   kSimBeamSpot = 43,      // simulator only: present flag, u, v (mm) of the beam on the PSD plane
   kSimWorldId = 44,       // simulator only: hash of the simulated world (16 hex digits), seed
+  kWriteCalOffset = 45,   // extension: 2 params, joint 1..6 and MOC cal_offset (rad, [0, 2 pi))
+  kRestart = 46,          // extension: reply, then restart the controller (MOC changes take effect)
   kRobotInfo = 98,
   kClose = 99,
 };

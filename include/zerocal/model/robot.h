@@ -33,6 +33,12 @@ struct Robot {
   std::array<DhRow, kJointCount> dh;
   std::array<JointLimit, kJointCount> limits;
   std::array<double, kJointCount> max_speed_deg_s{};
+  // Each joint's transmission: the motor angle change per joint angle change, signed (negative:
+  // the motor turns backwards when the joint turns forwards). 0: not given in the robot file.
+  // It takes an arm-side offset to the motor side, where the controller keeps its calibration.
+  std::array<double, kJointCount> transmission{};
+  // false: the values above are placeholders to be confirmed on the robot before they are used.
+  bool transmission_confirmed = false;
 
   // True when every joint lies inside its limits shrunk by margin_deg on both sides.
   bool withinLimits(const Joints& q_deg, double margin_deg = 0.0) const;

@@ -7,6 +7,7 @@
 // zerocal-sim program). The state accessors are thread-safe.
 #pragma once
 
+#include <array>
 #include <chrono>
 #include <cstdint>
 #include <memory>
@@ -35,8 +36,23 @@ struct SimFaults {
   bool stall_moves = false;
 };
 
+// Motor-side calibration as an IRC5 keeps it (docs/apply.md): per joint the MOC MOTOR_CALIB
+// cal_offset (rad, [0, 2 pi)) and the arm's true transmission k (motor angle per joint angle,
+// signed). The controller's joint angle is (motor angle - cal_offset) / k, so writing a
+// cal_offset moves the joint's true zero by (new - old) / k on the arm side, whatever k the
+// robot's configuration believes: a wrong sign or ratio there leaves the error it would leave on
+// a real robot. The revolution counter keeps counting from its motor turn until it is updated.
+struct SimMotorCalibration {
+  // The cal_offset values at start; nullopt: drawn from the seed, uniform in [0, 2 pi).
+  std::optional<std::array<double, kJointCount>> cal_offset_rad;
+  // The arm's true transmission; nullopt: the robot model's (0 where it gives none: such a
+  // joint's cal_offset cannot be written).
+  std::optional<std::array<double, kJointCount>> transmission;
+};
+
 struct SimControllerOptions {
   World world;
+  SimMotorCalibration motor;
   std::string address = "127.0.0.1";
   std::uint16_t port = 0;  // 0: an ephemeral port, see SimController::port()
   // false: replies end with no LF, like upstream's server.
@@ -81,11 +97,25 @@ class SimController {
   Joints commandedJoints() const;
   // The error of the last move (deg): its repeatability error plus, while a reading is taken
   // before the arm settled (World::gross), that error; true joints = commanded + offsets +
-  // gravity sag + this.
+  // zeroShiftDeg() + gravity sag + this.
   Joints moveErrorDeg() const;
   // Where the detector sees the beam now: the true arm (beamHit at simTimeS()), shifted by stray
   // light while there is some.
   std::optional<BeamHit> beamHitNow() const;
+  // MOC cal_offset values now (rad), as request 41 reports them.
+  std::array<double, kJointCount> calOffsets() const;
+  // Writes joint's (1..6) cal_offset (stored as a float32, as RAPID's num) and has the
+  // controller take it, as a real one does after the restart that follows a MOC change: the
+  // joint's true zero moves by (new - old) / k. Throws ConfigError (nothing changed) for a value
+  // outside [0, 2 pi) or a joint whose true transmission is unknown.
+  void writeCalOffset(int joint, double rad);
+  // Updates the revolution counter of joint (1..6) with the joint at its synchronisation mark
+  // (where it stood at q = 0 under the calibration it started with): the counter takes the motor
+  // turn nearest to the calibration position, so a whole-turn error goes, the rest stays.
+  void updateRevolutionCounter(int joint);
+  // How far each joint's true zero has moved since start (deg): true joint angles are the
+  // commanded ones plus world().true_offsets_deg plus this (plus the move's error).
+  Joints zeroShiftDeg() const;
   // Simulated seconds since construction (advanced by moves only).
   double simTimeS() const;
   // Requests answered or dropped, over all connections.

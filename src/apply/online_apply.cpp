@@ -1,0 +1,261 @@
+#include "zerocal/apply/online_apply.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <set>
+
+#include "zerocal/error.h"
+
+namespace zerocal::apply {
+
+namespace {
+
+using nlohmann::json;
+
+constexpr double kDeg = 57.29577951308232;
+
+std::string fmt(const char* f, double a, double b = 0, double c = 0) {
+  char buf[160];
+  std::snprintf(buf, sizeof buf, f, a, b, c);
+  return buf;
+}
+
+json offsetsJson(const Offsets& o) {
+  json a = json::array();
+  for (const auto& m : o) a.push_back({{"value_deg", m.value_deg}, {"sigma_deg", m.sigma_deg}});
+  return a;
+}
+
+// Writes joints 2..5 of `values`, restarts, and checks the controller reads them back.
+void writeAndRestart(CalibrationStore& store, const std::array<double, 6>& values) {
+  for (int j = 2; j <= 5; ++j) store.writeCalOffset(j, values[j - 1]);
+  store.restart();
+  const std::array<double, 6> now = store.readCalOffsets();
+  for (int j = 2; j <= 5; ++j)
+    if (std::abs(now[j - 1] - values[j - 1]) > 2e-6)
+      throw Error("joint " + std::to_string(j) + ": the controller reads back cal_offset " +
+                  fmt("%.6f", now[j - 1]) + " after writing " + fmt("%.6f", values[j - 1]));
+}
+
+std::string valuesText(const std::array<double, 6>& v) {
+  std::string s;
+  for (int j = 2; j <= 5; ++j) s += "rob1_" + std::to_string(j) + " " + fmt("%.6f", v[j - 1]) + " ";
+  return s;
+}
+
+}  // namespace
+
+void ApplyJournal::append(json line) {
+  line["time_unix_s"] =
+      std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+  const std::string text = line.dump() + "\n";
+  const int fd = ::open(path_.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+  bool ok = fd >= 0 && ::write(fd, text.data(), text.size()) == static_cast<ssize_t>(text.size());
+  ok = ok && ::fsync(fd) == 0;
+  if (fd >= 0) ::close(fd);
+  if (!ok) throw Error(path_ + ": cannot journal the apply step; nothing more is done");
+}
+
+std::vector<json> ApplyJournal::read() const {
+  std::vector<json> lines;
+  std::ifstream in(path_);
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.empty()) continue;
+    try {
+      lines.push_back(json::parse(line));
+    } catch (const json::exception&) {
+      break;  // a line cut short by a crash: the last one
+    }
+  }
+  return lines;
+}
+
+Verdict judge(const std::array<CalOffsetChange, 4>& changes, const Offsets& before,
+              const Offsets& after, double required_deg) {
+  Verdict v{true, ""};
+  std::string reasons;
+  for (int k = 0; k < 4; ++k) {
+    const int j = k + 2;
+    const double a = after[k].value_deg, b = before[k].value_deg;
+    // The remaining offset is the first calibration's error (sigma before) measured by the
+    // second (sigma after): its standard uncertainty combines both.
+    const double sigma = std::hypot(before[k].sigma_deg, after[k].sigma_deg);
+    const double bound = std::max(3 * sigma, required_deg);
+    if (std::abs(a) <= bound) continue;
+    v.pass = false;
+    const std::string d = "delta" + std::to_string(j);
+    const double turn_deg = kTwoPi / changes[k].transmission * kDeg;
+    std::string why;
+    if (std::abs(b) > 3 * sigma && std::abs(a / b - 2.0) < 0.25)
+      why = d + " doubled (" + fmt("%+.4f deg before, %+.4f deg after", b, a) +
+            "): the sign of joint " + std::to_string(j) + "'s transmission is wrong";
+    else if (std::abs(std::abs(a) - std::abs(turn_deg)) < std::max(bound, 0.02))
+      why = "joint " + std::to_string(j) + fmt(" is one motor turn (%+.4f deg) off", a) +
+            ": its revolution counter was not updated at the synchronisation mark";
+    else if (std::abs(b) > 3 * sigma && std::abs(a) > 5 * sigma && std::abs(1 - a / b) > 0.05)
+      why = d + fmt(" went from %+.4f to %+.4f deg", b, a) + ": joint " + std::to_string(j) +
+            "'s transmission looks like " + fmt("%+.1f", changes[k].transmission / (1 - a / b)) +
+            ", not " + fmt("%+g", changes[k].transmission);
+    else
+      why = d + fmt(" = %+.4f deg remains, beyond max(3 sigma, required) = %.4f deg", a, bound);
+    reasons += (reasons.empty() ? "" : "; ") + why;
+  }
+  v.message = v.pass ? "every remaining offset of joints 2..5 is within max(3 sigma, " +
+                           fmt("%.4f", required_deg) + " deg)"
+                     : reasons;
+  return v;
+}
+
+OnlineApplyOutcome applyOnline(CalibrationStore& store,
+                               const std::array<CalOffsetChange, 4>& changes, const Offsets& before,
+                               const OnlineApplyOptions& options, ApplyJournal& journal) {
+  const auto say = [&](const std::string& s) {
+    if (options.progress) options.progress(s);
+  };
+  OnlineApplyOutcome out;
+  out.before_rad = store.readCalOffsets();
+  out.written_rad = out.before_rad;
+  json changes_json = json::array();
+  for (const CalOffsetChange& c : changes) {
+    if (std::abs(out.before_rad[c.joint - 1] - c.old_rad) > 2e-6)
+      throw Error("joint " + std::to_string(c.joint) + ": the controller holds cal_offset " +
+                  fmt("%.6f", out.before_rad[c.joint - 1]) + ", the new value was computed from " +
+                  fmt("%.6f", c.old_rad) + "; nothing was written");
+    out.written_rad[c.joint - 1] = c.new_rad;
+    changes_json.push_back({{"joint", c.joint},
+                            {"delta_rad", c.delta_rad},
+                            {"transmission", c.transmission},
+                            {"old_rad", c.old_rad},
+                            {"new_rad", c.new_rad},
+                            {"turns", c.turns},
+                            {"formula", formulaText(c)}});
+  }
+  journal.append({{"step", "begin"},
+                  {"before_rad", out.before_rad},
+                  {"new_rad", out.written_rad},
+                  {"changes", changes_json},
+                  {"offsets_before", offsetsJson(before)}});
+  say("backed up: " + valuesText(out.before_rad));
+  std::set<int> counters_updated;
+  const auto rollBack = [&](const std::string& reason) {
+    journal.append({{"step", "rolling_back"}, {"reason", reason}});
+    say("rolling back: " + reason);
+    writeAndRestart(store, out.before_rad);
+    for (int j : counters_updated) {
+      // The counter was moved to the new value's turn: back on the old value it must move back.
+      journal.append({{"step", "revolution_counter"}, {"joint", j}});
+      if (!options.update_revolution_counter ||
+          !options.update_revolution_counter(j, -changes[j - 2].turnErrorRad() * kDeg))
+        throw Error("rolled back, but joint " + std::to_string(j) +
+                    "'s revolution counter must be updated again at its synchronisation mark");
+    }
+    journal.append({{"step", "done"}, {"outcome", "rolled_back"}, {"message", reason}});
+    out.state = ApplyState::kRolledBack;
+    out.message = reason;
+    say("restored: " + valuesText(out.before_rad));
+  };
+  try {
+    for (int j = 2; j <= 5; ++j) store.writeCalOffset(j, out.written_rad[j - 1]);
+    journal.append({{"step", "written"}});
+    say("written: " + valuesText(out.written_rad));
+    journal.append({{"step", "restarting"}});
+    store.restart();
+    journal.append({{"step", "restarted"}});
+    const std::array<double, 6> now = store.readCalOffsets();
+    for (int j = 2; j <= 5; ++j)
+      if (std::abs(now[j - 1] - out.written_rad[j - 1]) > 2e-6) {
+        rollBack("joint " + std::to_string(j) + ": the controller reads back " +
+                 fmt("%.6f", now[j - 1]) + " after the restart, not the " +
+                 fmt("%.6f", out.written_rad[j - 1]) + " written");
+        return out;
+      }
+    for (const CalOffsetChange& c : changes) {
+      if (!c.crossesSeam()) continue;
+      say("joint " + std::to_string(c.joint) +
+          ": the new value crosses the seam; its revolution counter needs an update at its mark");
+      journal.append({{"step", "revolution_counter"}, {"joint", c.joint}});
+      if (!options.update_revolution_counter ||
+          !options.update_revolution_counter(c.joint, c.turnErrorRad() * kDeg)) {
+        rollBack("joint " + std::to_string(c.joint) +
+                 "'s revolution counter was not updated after a seam crossing");
+        return out;
+      }
+      counters_updated.insert(c.joint);
+    }
+    say("verifying by measurement");
+    try {
+      out.after = options.verify();
+    } catch (const std::exception& e) {
+      // No measurement, no new values: the backup goes back.
+      rollBack(std::string("the verification did not complete: ") + e.what());
+      return out;
+    }
+    const Verdict v = judge(changes, before, out.after, options.required_deg);
+    journal.append({{"step", "verified"},
+                    {"pass", v.pass},
+                    {"offsets_after", offsetsJson(out.after)},
+                    {"message", v.message}});
+    if (!v.pass) {
+      rollBack(v.message);
+      return out;
+    }
+    journal.append({{"step", "done"}, {"outcome", "verified"}, {"message", v.message}});
+    out.state = ApplyState::kVerified;
+    out.message = v.message;
+    return out;
+  } catch (const std::exception& e) {
+    try {
+      journal.append({{"step", "error"}, {"message", e.what()}});
+    } catch (...) {
+    }
+    throw Error(std::string("apply interrupted: ") + e.what() +
+                " (recoverApply restores the backed-up values)");
+  }
+}
+
+Recovery recoverApply(CalibrationStore& store, ApplyJournal& journal) {
+  const std::vector<json> lines = journal.read();
+  int begin = -1;
+  for (int i = 0; i < static_cast<int>(lines.size()); ++i)
+    if (lines[i].value("step", "") == "begin") begin = i;
+  Recovery r;
+  if (begin < 0) return r;
+  std::string last = "begin";
+  std::set<int> counters;
+  for (int i = begin + 1; i < static_cast<int>(lines.size()); ++i) {
+    last = lines[i].value("step", "");
+    if (last == "done") return r;
+    if (last == "revolution_counter") counters.insert(lines[i].value("joint", 0));
+  }
+  r.needed = true;
+  const auto before = lines[begin].at("before_rad").get<std::array<double, 6>>();
+  const std::array<double, 6> now = store.readCalOffsets();
+  bool unchanged = true;
+  for (int j = 2; j <= 5; ++j)
+    unchanged = unchanged && std::abs(now[j - 1] - before[j - 1]) <= 2e-6;
+  journal.append({{"step", "recovering"}, {"found_rad", now}, {"last_step", last}});
+  // Restore even when the configured values look unchanged: a restart may not have happened.
+  try {
+    writeAndRestart(store, before);
+  } catch (const std::exception& e) {
+    throw Error(std::string("an interrupted apply could not be rolled back (") + e.what() +
+                "); enter the backed-up values by hand: " + valuesText(before));
+  }
+  r.message = "an apply was interrupted after step '" + last + "' (controller held " +
+              (unchanged ? std::string("the backed-up values") : valuesText(now)) +
+              "); restored the backed-up values " + valuesText(before);
+  for (int j : counters)
+    r.message += "; joint " + std::to_string(j) +
+                 "'s revolution counter was updated during the apply: update it again at its "
+                 "synchronisation mark";
+  journal.append({{"step", "done"}, {"outcome", "recovered"}, {"message", r.message}});
+  return r;
+}
+
+}  // namespace zerocal::apply

@@ -134,11 +134,20 @@ void printResult(const json& r, std::ostream& out) {
       }
       out << "\n";
     }
-    out << "\nOn the controller (arm side; nothing was written to it): "
-        << (usable ? "add each identified delta to the joint's reading; joints 1 and 6 unchanged."
-                   : "change nothing: the verdict is not usable.")
-        << "\nsummary.txt and report.html in the session folder say where the IRC5 keeps the "
-           "calibration (zerocal report DIR).\n";
+    out << "\nOn the controller (arm side, joint angles; nothing was written to it):\n";
+    if (!usable) out << "  change nothing: the verdict is not usable.\n";
+    for (int joint = 2; usable && joint <= 5; ++joint) {
+      const json p = params.value("delta" + std::to_string(joint) + "_deg", json::object());
+      if (!p.value("identifiable", false) || !p["value"].is_number()) continue;
+      const double delta = p["value"];
+      std::snprintf(line, sizeof line,
+                    "  joint %d: the reading grows by %+.5f deg (its zero moves %+.5f deg)\n",
+                    joint, delta, -delta);
+      out << line;
+    }
+    if (usable) out << "  joints 1 and 6: unchanged (this method cannot determine them).\n";
+    out << "summary.txt and report.html in the session folder say where the IRC5 keeps the\n"
+           "calibration and how to enter it (zerocal report DIR).\n";
   }
   if (r.contains("cell_time_s") && r["cell_time_s"].is_number()) {
     char line[80];

@@ -170,7 +170,9 @@ TEST_F(ClientCommandsTest, ResultOpensWithTheVerdictThenTheOffsetsAndWhatToDo) {
   session_.result_value["verdict"] = {{"usable", true}, {"reasons", nlohmann::json::array()}};
   EXPECT_EQ(run(args("result")), 0);
   EXPECT_THAT(out_.str(), HasSubstr("verdict: USABLE\n"));
-  EXPECT_THAT(out_.str(), HasSubstr("add each identified delta to the joint's reading"));
+  EXPECT_THAT(
+      out_.str(),
+      HasSubstr("joint 2: the reading grows by +0.41203 deg (its zero moves -0.41203 deg)"));
   session_.result_value["verdict"] = {{"usable", false},
                                       {"reasons", {"chi-square per dof 7.1: the poses miss"}}};
   EXPECT_EQ(run(args("result")), 0);

@@ -7,6 +7,7 @@ packages=(
   libspdlog-dev libfmt-dev libusb-1.0-0-dev
   libgtest-dev libgmock-dev libbenchmark-dev umockdev libumockdev-dev
   zlib1g-dev chromium
+  libsystemd-dev systemd help2man dpkg-dev file
 )
 sudo=""
 [ "$(id -u)" -eq 0 ] || sudo="sudo"

@@ -3,9 +3,12 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <utility>
+#include <vector>
 
 #include "zerocal/control/client.h"
 #include "zerocal/control/token.h"
+#include "zerocal/daemon/config.h"
 
 namespace zerocal::cli {
 
@@ -72,6 +75,88 @@ void printStatus(const json& s, std::ostream& out) {
   if (s.contains("message")) out << "message:    " << s["message"].get<std::string>() << "\n";
 }
 
+// The verdict of a result: the solver's own (`verdict: {usable, reasons}`) when result.json has
+// one, else what convergence and identifiability alone say.
+std::pair<bool, std::vector<std::string>> verdictOf(const json& r) {
+  std::vector<std::string> reasons;
+  if (r.contains("verdict") && r["verdict"].is_object()) {
+    for (const auto& why : r["verdict"].value("reasons", json::array()))
+      reasons.push_back(why.is_string() ? why.get<std::string>() : why.dump());
+    return {r["verdict"].value("usable", false), reasons};
+  }
+  if (!r.value("converged", false))
+    reasons.push_back("the solve did not converge (" + r.value("message", std::string("-")) + ")");
+  const json params = r.value("parameters", json::object());
+  for (const char* name : {"delta2_deg", "delta3_deg", "delta4_deg", "delta5_deg"})
+    if (params.contains(name) && !params[name].value("identifiable", false))
+      reasons.push_back(std::string(name).substr(0, 6) + " is not identifiable from these poses");
+  if (!params.contains("delta2_deg")) reasons.push_back("the result carries no offsets");
+  return {reasons.empty(), reasons};
+}
+
+double numberOr(const json& j, double fallback) {
+  return j.is_number() ? j.get<double>() : fallback;
+}
+
+// What a technician reads: the verdict first, then the offsets and what to do with them.
+void printResult(const json& r, std::ostream& out) {
+  const auto [usable, reasons] = verdictOf(r);
+  const bool simulated = r.contains("truth");
+  out << "session " << r.value("session", std::string("-"))
+      << (simulated ? " (SIMULATED cell: the truth is known)" : "") << "\n";
+  out << "verdict: " << (usable ? "USABLE" : "NOT USABLE");
+  if (!r.contains("verdict")) out << " (convergence and identifiability only)";
+  out << "\n";
+  for (const auto& why : reasons) out << "  - " << why << "\n";
+  const json params = r.value("parameters", json::object());
+  if (params.contains("delta2_deg")) {
+    char line[200];
+    std::snprintf(line, sizeof line, "%-7s %12s %11s   %-26s", "offset", "value deg", "sigma deg",
+                  "95% interval deg");
+    out << "\n" << line << (simulated ? "  truth deg      error" : "") << "\n";
+    for (const char* name : {"delta2_deg", "delta3_deg", "delta4_deg", "delta5_deg"}) {
+      const json p = params.value(name, json::object());
+      const std::string offset = std::string(name).substr(0, 6);
+      if (!p.value("identifiable", false) || !p["value"].is_number()) {
+        out << offset << "  not identifiable: " << p.value("reason", std::string("-")) << "\n";
+        continue;
+      }
+      const double value = p["value"], sigma = numberOr(p["sigma"], NAN);
+      const json ci = p.value("ci95", json::array());
+      std::snprintf(line, sizeof line, "%-7s %+12.5f %11.5f   [%+.5f, %+.5f]", offset.c_str(),
+                    value, sigma, ci.size() == 2 ? numberOr(ci[0], NAN) : NAN,
+                    ci.size() == 2 ? numberOr(ci[1], NAN) : NAN);
+      out << line;
+      if (simulated && r["truth"].contains(name)) {
+        const double truth = numberOr(r["truth"][name], NAN);
+        std::snprintf(line, sizeof line, "  %+9.5f  %+9.5f", truth, value - truth);
+        out << line;
+      }
+      out << "\n";
+    }
+    out << "\nOn the controller (arm side, joint angles; nothing was written to it):\n";
+    if (!usable) out << "  change nothing: the verdict is not usable.\n";
+    for (int joint = 2; usable && joint <= 5; ++joint) {
+      const json p = params.value("delta" + std::to_string(joint) + "_deg", json::object());
+      if (!p.value("identifiable", false) || !p["value"].is_number()) continue;
+      const double delta = p["value"];
+      std::snprintf(line, sizeof line,
+                    "  joint %d: the reading grows by %+.5f deg (its zero moves %+.5f deg)\n",
+                    joint, delta, -delta);
+      out << line;
+    }
+    if (usable) out << "  joints 1 and 6: unchanged (this method cannot determine them).\n";
+    out << "summary.txt and report.html in the session folder say where the IRC5 keeps the\n"
+           "calibration and how to enter it (zerocal report DIR).\n";
+  }
+  if (r.contains("cell_time_s") && r["cell_time_s"].is_number()) {
+    char line[80];
+    std::snprintf(line, sizeof line, "cell time %.1f s, %d poses\n", r["cell_time_s"].get<double>(),
+                  r.value("poses", 0));
+    out << line;
+  }
+}
+
 int exitFor(const std::string& state) {
   return state == "aborted" || state == "faulted" ? kClientSessionFailed : kClientOk;
 }
@@ -128,8 +213,17 @@ int watch(control::ControlClient& client, const ClientArgs& args, std::ostream& 
     // Plain lines: the last one shown may already be the final one.
     if (tty || progressLine(status) != last_line) out << progressLine(status) << "\n";
     if (status.contains("message")) out << status["message"].get<std::string>() << "\n";
-    if (status.value("state", "") == "done")
-      out << "achieved: " << sigmaText(status.value("achieved_sigma_deg", json::array())) << "\n";
+    if (status.value("state", "") == "done") {  // the outcome: the verdict and the offsets
+      out << "\n";
+      try {
+        printResult(client.call("result", json{{"session", status.value("session", "")}},
+                                timeout)["result"],
+                    out);
+      } catch (const CommandError& e) {  // done, but its result cannot be read: say so, exit 0
+        out << "the result of session " << status.value("session", "")
+            << " cannot be shown: " << e.what() << " (zerocal result)\n";
+      }
+    }
   }
   return exitFor(status.value("state", ""));
 }
@@ -170,7 +264,37 @@ int printPlan(const json& plan, const ClientArgs& args, std::ostream& out) {
   return identifiable ? kClientOk : kClientNotIdentifiable;
 }
 
+// This program's version, and the daemon's with its protocol when one answers (no token needed).
+int version(const ClientArgs& args, std::ostream& out) {
+  json v{{"zerocal", PROJECT_VERSION}, {"zerocald", nullptr}};
+  std::string unreachable;
+  try {
+    control::ControlClient client;
+    client.connect(args.host, args.port, std::chrono::seconds(2));
+    const json r = client.call("version", json::object(), std::chrono::seconds(5));
+    v["zerocald"] = r.value("daemon", std::string("?"));
+    v["protocol"] = r.value("protocol", json(nullptr));
+  } catch (const std::exception& e) {
+    unreachable = e.what();
+    v["error"] = unreachable;
+  }
+  const std::string where = args.host + ":" + std::to_string(args.port);
+  if (args.json) {
+    v["address"] = where;
+    out << v.dump() << "\n";
+  } else {
+    out << "zerocal " << PROJECT_VERSION << "\n";
+    if (unreachable.empty())
+      out << "zerocald " << v["zerocald"].get<std::string>() << " at " << where
+          << ", control protocol " << v["protocol"].dump() << "\n";
+    else
+      out << "zerocald: none answers at " << where << " (" << unreachable << ")\n";
+  }
+  return kClientOk;
+}
+
 int run(const ClientArgs& args, std::ostream& out, std::ostream& err, bool tty) {
+  if (args.command == "version") return version(args, out);
   control::ControlClient client;
   client.connect(args.host, args.port, std::chrono::seconds(5));
   const auto timeout = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
@@ -246,7 +370,10 @@ int run(const ClientArgs& args, std::ostream& out, std::ostream& err, bool tty) 
     const auto r = client.call(
         "result", args.session.empty() ? json::object() : json{{"session", args.session}},
         timeout)["result"];
-    out << r.dump(2) << "\n";
+    if (args.json)
+      out << r.dump(2) << "\n";
+    else
+      printResult(r, out);
     return kClientOk;
   }
   if (cmd == "plan") {
@@ -262,14 +389,15 @@ int run(const ClientArgs& args, std::ostream& out, std::ostream& err, bool tty) 
 
 std::string defaultTokenFile() {
   const char* env = std::getenv("ZEROCAL_TOKEN_FILE");
-  return env && *env ? env : "/etc/zerocal/token";
+  return env && *env ? env : std::string(kConfigDir) + "/token";
 }
 
 void addConnectionOptions(CLI::App* command, ClientArgs& args) {
   command->add_option("--host", args.host, "zerocald's address")->default_val(args.host);
   command->add_option("--port", args.port, "zerocald's control port")->default_val(args.port);
-  command->add_option("--token-file", args.token_file,
-                      "the access token (default $ZEROCAL_TOKEN_FILE, else /etc/zerocal/token)");
+  command->add_option(
+      "--token-file", args.token_file,
+      "the access token (default $ZEROCAL_TOKEN_FILE, else " + std::string(kConfigDir) + "/token)");
   command->add_option("--timeout", args.timeout_s, "seconds to wait for an answer")
       ->default_val(args.timeout_s)
       ->check(CLI::PositiveNumber);
@@ -303,8 +431,10 @@ void addClientCommands(CLI::App& app, ClientCommands& commands) {
   resume->add_option("session", a.session, "session id (default the latest unfinished)");
   resume->add_flag("--watch", a.watch, "then show its progress until it ends");
   add("sessions", "the sessions in the daemon's data folder");
-  auto* result = add("result", "result.json of a finished session");
+  auto* result =
+      add("result", "the verdict and offsets of a finished session (--json: its result.json)");
   result->add_option("session", a.session, "session id (default the latest)");
+  add("version", "this zerocal's version, and zerocald's and its protocol when one answers");
 }
 
 int runClient(const ClientArgs& args, std::ostream& out, std::ostream& err, bool tty) {

@@ -24,7 +24,7 @@ enum ClientExit {
 };
 
 struct ClientArgs {
-  std::string command;  // start, status, watch, abort, resume, sessions, result, plan
+  std::string command;  // start, status, watch, abort, resume, sessions, result, version, plan
   std::string host = "127.0.0.1";
   std::uint16_t port = 7450;
   std::string token_file;  // empty: $ZEROCAL_TOKEN_FILE, else /etc/zerocal/token

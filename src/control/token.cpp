@@ -16,11 +16,14 @@ std::string loadToken(const std::string& path) {
   if (::stat(path.c_str(), &st) != 0)
     throw Error("cannot use the token file " + path + ": " + std::strerror(errno));
   if (!S_ISREG(st.st_mode)) throw Error("the token file " + path + " is not a regular file");
-  if ((st.st_mode & (S_IRWXG | S_IRWXO)) != 0) {
+  // The file's group is the set of people who may drive the robot (group zerocal on a cell PC:
+  // root:zerocal 0640); others nothing, and nobody but the owner may change it.
+  if ((st.st_mode & (S_IWGRP | S_IXGRP | S_IRWXO)) != 0) {
     char mode[8];
     std::snprintf(mode, sizeof mode, "%03o", static_cast<unsigned>(st.st_mode & 0777));
     throw Error("the token file " + path + " has mode " + mode +
-                ": group or others may access it; chmod 600 " + path);
+                ": others may read it or the group may change it; chmod 640 " + path +
+                " (readable by its group) or chmod 600 " + path);
   }
   // A token is a line of random characters: a large file is a wrong path, not a token.
   if (st.st_size > kMaxTokenFileBytes)

@@ -1,8 +1,13 @@
 #include "zerocal/daemon/logging.h"
 
+#include <spdlog/pattern_formatter.h>
 #include <spdlog/sinks/rotating_file_sink.h>
 #include <spdlog/sinks/stdout_sinks.h>
+#include <sys/stat.h>
 
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <mutex>
 #include <vector>
@@ -12,11 +17,37 @@
 namespace zerocal {
 namespace {
 
+// %* in a pattern: the line's syslog priority as journald reads it on a stream, "<3>" for an
+// error (sd-daemon(3)), so that `journalctl -p warning` and the colours work.
+class JournalPriorityFlag final : public spdlog::custom_flag_formatter {
+ public:
+  void format(const spdlog::details::log_msg& msg, const std::tm&,
+              spdlog::memory_buf_t& dest) override {
+    static constexpr const char* kPriority[] = {"<7>", "<7>", "<6>", "<4>", "<3>", "<2>", "<6>"};
+    const char* p = kPriority[std::min<int>(msg.level, spdlog::level::off)];
+    dest.append(p, p + 3);
+  }
+  std::unique_ptr<spdlog::custom_flag_formatter> clone() const override {
+    return std::make_unique<JournalPriorityFlag>();
+  }
+};
+
+std::shared_ptr<spdlog::sinks::sink> makeStderrSink() {
+  auto sink = std::make_shared<spdlog::sinks::stderr_sink_mt>();
+  if (stderrIsJournal()) {
+    // journald stamps each line itself: no second timestamp, the level as a priority prefix.
+    auto formatter = std::make_unique<spdlog::pattern_formatter>();
+    formatter->add_flag<JournalPriorityFlag>('*').set_pattern("%*[%n] %v");
+    sink->set_formatter(std::move(formatter));
+  }
+  return sink;
+}
+
 // The sinks every named logger writes to. One set for the process: spdlog's registry already is
 // process-wide, and loggers made before initLogging() are rewired to these by it.
 struct Sinks {
   std::mutex mutex;
-  std::vector<spdlog::sink_ptr> sinks{std::make_shared<spdlog::sinks::stderr_sink_mt>()};
+  std::vector<spdlog::sink_ptr> sinks{makeStderrSink()};
   spdlog::level::level_enum level = spdlog::level::info;
 };
 
@@ -26,6 +57,18 @@ Sinks& sinks() {
 }
 
 }  // namespace
+
+bool stderrIsJournal() {
+  // systemd sets JOURNAL_STREAM=<device>:<inode> of the stream it connected; stderr may since
+  // have been redirected (a shell under the unit), so compare it with stderr itself.
+  const char* stream = std::getenv("JOURNAL_STREAM");
+  unsigned long long device = 0, inode = 0;
+  if (!stream || std::sscanf(stream, "%llu:%llu", &device, &inode) != 2) return false;
+  struct stat st {};
+  if (::fstat(2, &st) != 0) return false;
+  return static_cast<unsigned long long>(st.st_dev) == device &&
+         static_cast<unsigned long long>(st.st_ino) == inode;
+}
 
 spdlog::level::level_enum toSpdlogLevel(LogLevel level) {
   switch (level) {
@@ -48,7 +91,7 @@ spdlog::level::level_enum toSpdlogLevel(LogLevel level) {
 }
 
 void initLogging(const LoggingConfig& config) {
-  std::vector<spdlog::sink_ptr> next{std::make_shared<spdlog::sinks::stderr_sink_mt>()};
+  std::vector<spdlog::sink_ptr> next{makeStderrSink()};
   if (!config.directory.empty()) {
     try {
       std::filesystem::create_directories(config.directory);

@@ -90,20 +90,30 @@ namespace {
 // A simulated session's whole world, beside its result (docs/simulated-cell.md).
 constexpr const char* kTruthWorldFile = "truth-world.yaml";
 
-// The run's PSD reader, passing each reading on to the live slot.
+std::int64_t steadyNowNs() noexcept {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+// The run's PSD reader, passing each reading on to the live slot, and its time to the watchdog's
+// progress mark (an atomic store: nothing that allocates or locks in the servo cycle).
 template <class Slot>
 class ObservedReader final : public PsdReader {
  public:
-  ObservedReader(PsdReader& inner, Slot& slot) : inner_(inner), slot_(slot) {}
+  ObservedReader(PsdReader& inner, Slot& slot, std::atomic<std::int64_t>& progress_ns)
+      : inner_(inner), slot_(slot), progress_ns_(progress_ns) {}
   PsdReading read() override {
     const PsdReading r = inner_.read();
     slot_.store(r);
+    progress_ns_.store(steadyNowNs(), std::memory_order_relaxed);
     return r;
   }
 
  private:
   PsdReader& inner_;
   Slot& slot_;
+  std::atomic<std::int64_t>& progress_ns_;
 };
 
 Pattern patternOf(PlanKind kind) {
@@ -217,7 +227,9 @@ void SessionManager::workerLoop() {
       cancelled = stopping_;
       busy_ = true;
     }
+    markProgress();
     task(cancelled);
+    progress_ns_.store(0, std::memory_order_relaxed);
     {
       std::lock_guard<std::mutex> lock(mutex_);
       busy_ = false;
@@ -267,6 +279,16 @@ SessionStatus SessionManager::waitIdle() {
   changed_.wait(
       lock, [this] { return !isActive(status_.state) && !starting_ && !busy_ && tasks_.empty(); });
   return status_;
+}
+
+void SessionManager::markProgress() noexcept {
+  progress_ns_.store(steadyNowNs(), std::memory_order_relaxed);
+}
+
+std::chrono::steady_clock::duration SessionManager::workerStalledFor() const {
+  const std::int64_t last = progress_ns_.load(std::memory_order_relaxed);
+  if (last == 0) return std::chrono::steady_clock::duration::zero();
+  return std::chrono::nanoseconds(std::max<std::int64_t>(0, steadyNowNs() - last));
 }
 
 StartRequest SessionManager::defaultRequest() const {
@@ -482,6 +504,7 @@ nlohmann::json SessionManager::stateEvent() const {
 }
 
 void SessionManager::setPhase(SessionState state, int pose) {
+  markProgress();
   nlohmann::json event;
   {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -552,6 +575,7 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
       setPhase(stateOf(phase), i + 1);
     };
     run.on_pose = [this, &id](const PoseRecord& r) {
+      markProgress();
       nlohmann::json event{{"event", "pose"},
                            {"session", id},
                            {"pose", r.index + 1},
@@ -565,7 +589,7 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
       }
       emit(event);
     };
-    ObservedReader<LiveSlot> reader(cell_->psd(), *live_);
+    ObservedReader<LiveSlot> reader(cell_->psd(), *live_, progress_ns_);
     outcome = run.run(cell_->robot(), reader, cell_->clock(), abort_);
     cell_time_s = cell_->clock().nowS() - start_s;
   } catch (const std::exception& e) {

@@ -19,6 +19,7 @@
 #include "zerocal/control/token.h"
 #include "zerocal/daemon/config.h"
 #include "zerocal/daemon/logging.h"
+#include "zerocal/daemon/systemd.h"
 #include "zerocal/error.h"
 #include "zerocal/service/daemon_setup.h"
 
@@ -30,6 +31,19 @@ using service::SessionManager;
 using service::SessionState;
 
 enum ExitCode { kOk = 0, kFailure = 1, kBadInput = 2, kStopped = 3, kNotIdentifiable = 4 };
+
+// No step of a session goes this long without progress (a phase, a PSD reading, a pose): the
+// longest is one move within its deadline (estimated duration x controller.move_timeout_factor +
+// margin, seconds to tens of seconds) or a connect with its retries. Longer, the worker is stuck.
+constexpr std::chrono::seconds kWorkerStallLimit{120};
+
+// Under systemd's watchdog (WatchdogSec=): why the worker is stuck, or nullopt while it is not.
+std::optional<std::string> stuckWorker(const SessionManager& manager) {
+  const auto stalled = manager.workerStalledFor();
+  if (stalled <= kWorkerStallLimit) return std::nullopt;
+  return "the session worker (and its servo) made no progress for " +
+         std::to_string(std::chrono::duration_cast<std::chrono::seconds>(stalled).count()) + " s";
+}
 
 void logUnfinished(SessionManager& manager) {
   auto log = makeLogger("session");
@@ -179,9 +193,22 @@ int main(int argc, char** argv) {
       throw ConfigError("zerocald", {"control port " + cfg.control.bind_address + ":" +
                                      std::to_string(cfg.control.port) + ": " + e.what()});
     }
+    // Ready for systemd (Type=notify) only now that the port accepts connections.
+    const std::string serving = "serving " + cfg.control.bind_address + ":" +
+                                std::to_string(server.port()) + " (" + backend->name() + " cell)";
+    notifyReady(serving);
+    std::optional<Watchdog> watchdog;
+    if (const auto interval = watchdogInterval()) {
+      watchdog.emplace(io, *interval, [&manager] { return stuckWorker(manager); });
+      watchdog->start();
+      log->info("systemd watchdog every {} ms; a worker stuck for {} s starves it",
+                interval->count() / 1000, kWorkerStallLimit.count());
+    }
     signals.async_wait([&](const boost::system::error_code& ec, int signal) {
       if (ec) return;
       log->warn("signal {}: aborting any session, stopping the robot, closing the port", signal);
+      notifyStopping("stopping: aborting any session, stopping the robot");
+      if (watchdog) watchdog->stop();
       manager.abort();
       server.stop();
       io.stop();

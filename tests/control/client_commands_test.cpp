@@ -117,12 +117,81 @@ TEST_F(ClientCommandsTest, AbortResumeSessionsResult) {
   EXPECT_EQ(run(args("sessions")), 0);
   EXPECT_THAT(out_.str(), HasSubstr("20261122-0001"));
   EXPECT_THAT(out_.str(), HasSubstr("unfinished"));
-  EXPECT_EQ(run(args("result")), 0);
+  auto as_json = args("result");
+  as_json.json = true;
+  EXPECT_EQ(run(as_json), 0);
   EXPECT_THAT(out_.str(), HasSubstr("\"converged\": true"));
+  EXPECT_EQ(run(args("result")), 0);  // for a person: this one has no offsets to offer
+  EXPECT_THAT(out_.str(), HasSubstr("verdict: NOT USABLE"));
+  EXPECT_THAT(out_.str(), HasSubstr("the result carries no offsets"));
   auto a = args("result");
   a.session = "nope";
   EXPECT_EQ(run(a), 2);
   EXPECT_THAT(err_.str(), HasSubstr("not_found"));
+}
+
+nlohmann::json offsetsResult() {
+  auto offset = [](double value, double sigma) {
+    return nlohmann::json{{"identifiable", true},
+                          {"value", value},
+                          {"sigma", sigma},
+                          {"ci95", {value - 2.5 * sigma, value + 2.5 * sigma}}};
+  };
+  return {{"session", "20261122-0000"},
+          {"converged", true},
+          {"message", "converged"},
+          {"poses", 8},
+          {"cell_time_s", 84.25},
+          {"parameters",
+           {{"delta2_deg", offset(0.41203, 0.002)},
+            {"delta3_deg", offset(-0.2, 0.001)},
+            {"delta4_deg", offset(0.7, 0.003)},
+            {"delta5_deg",
+             {{"identifiable", false}, {"value", nullptr}, {"reason", "joint 5 never moved"}}}}},
+          {"truth", {{"delta2_deg", 0.412}}}};
+}
+
+TEST_F(ClientCommandsTest, ResultOpensWithTheVerdictThenTheOffsetsAndWhatToDo) {
+  session_.result_value = offsetsResult();
+  EXPECT_EQ(run(args("result")), 0);
+  const std::string text = out_.str();
+  EXPECT_THAT(text, HasSubstr("(SIMULATED cell: the truth is known)"));
+  // Without the solver's verdict: convergence and identifiability decide.
+  EXPECT_THAT(text, HasSubstr("verdict: NOT USABLE (convergence and identifiability only)\n"
+                              "  - delta5 is not identifiable from these poses\n"));
+  EXPECT_THAT(text, HasSubstr("delta2      +0.41203     0.00200   [+0.40703, +0.41703]"));
+  EXPECT_THAT(text, HasSubstr("+0.41200   +0.00003"));  // truth and error
+  EXPECT_THAT(text, HasSubstr("delta5  not identifiable: joint 5 never moved"));
+  EXPECT_THAT(text, HasSubstr("change nothing: the verdict is not usable"));
+  EXPECT_THAT(text, HasSubstr("cell time 84.2 s, 8 poses"));
+  EXPECT_LT(text.find("verdict:"), text.find("delta2 "));
+
+  // The solver's own verdict, when result.json carries one, is the one shown.
+  session_.result_value["verdict"] = {{"usable", true}, {"reasons", nlohmann::json::array()}};
+  EXPECT_EQ(run(args("result")), 0);
+  EXPECT_THAT(out_.str(), HasSubstr("verdict: USABLE\n"));
+  EXPECT_THAT(
+      out_.str(),
+      HasSubstr("joint 2: the reading grows by +0.41203 deg (its zero moves -0.41203 deg)"));
+  session_.result_value["verdict"] = {{"usable", false},
+                                      {"reasons", {"chi-square per dof 7.1: the poses miss"}}};
+  EXPECT_EQ(run(args("result")), 0);
+  EXPECT_THAT(out_.str(),
+              HasSubstr("verdict: NOT USABLE\n  - chi-square per dof 7.1: the poses miss\n"));
+}
+
+TEST_F(ClientCommandsTest, VersionShowsTheDaemonsVersionAndProtocolWhenOneAnswers) {
+  EXPECT_EQ(run(args("version")), 0);
+  EXPECT_THAT(out_.str(), HasSubstr("zerocal " PROJECT_VERSION "\n"));
+  EXPECT_THAT(out_.str(), HasSubstr("zerocald 9.9.9 at 127.0.0.1:" +
+                                    std::to_string(server_->port()) + ", control protocol 1\n"));
+  auto a = args("version");
+  a.port = 1;  // nobody there
+  EXPECT_EQ(run(a), 0);
+  EXPECT_THAT(out_.str(), HasSubstr("zerocald: none answers at 127.0.0.1:1"));
+  a.json = true;
+  EXPECT_EQ(run(a), 0);
+  EXPECT_EQ(nlohmann::json::parse(out_.str())["zerocald"], nullptr);
 }
 
 TEST_F(ClientCommandsTest, PlanOnTheDaemon) {
@@ -158,6 +227,24 @@ TEST_F(ClientCommandsTest, WatchFollowsTheSessionToItsEnd) {
   ASSERT_NE(done, std::string::npos) << text;
   EXPECT_EQ(text.find("  done  ", done + 1), std::string::npos) << text;
   EXPECT_EQ(text.substr(done).find(" um now"), std::string::npos) << text;
+}
+
+TEST_F(ClientCommandsTest, WatchEndsWithTheVerdictAndTheOffsets) {
+  session_.start({});
+  session_.result_session = "20261122-0001";
+  session_.result_value = offsetsResult();
+  session_.result_value["verdict"] = {{"usable", true}, {"reasons", nlohmann::json::array()}};
+  std::thread cell([this] {
+    std::this_thread::sleep_for(100ms);
+    session_.setState(SessionState::kDone, 8, 8);
+  });
+  EXPECT_EQ(run(args("watch")), 0);
+  cell.join();
+  const std::string text = out_.str();
+  EXPECT_THAT(text, HasSubstr("verdict: USABLE"));
+  EXPECT_THAT(text, HasSubstr("delta2      +0.41203"));
+  EXPECT_EQ(text.find("achieved:"), std::string::npos) << text;
+  EXPECT_LT(text.find("  done  "), text.find("verdict:")) << text;
 }
 
 TEST_F(ClientCommandsTest, WatchOfAnAbortedSessionIsExitCode3) {

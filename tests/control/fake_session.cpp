@@ -89,8 +89,8 @@ std::vector<SessionInfo> FakeSession::sessions() const {
 }
 
 nlohmann::json FakeSession::result(const std::string& id) const {
-  if (!id.empty() && id != "20261122-0000") throw Refused("not_found", "no result for " + id);
-  return {{"session", "20261122-0000"}, {"converged", true}};
+  if (!id.empty() && id != result_session) throw Refused("not_found", "no result for " + id);
+  return result_value;
 }
 
 void FakeSession::readPsd(ReadingDone done) {

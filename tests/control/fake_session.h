@@ -37,6 +37,9 @@ class FakeSession : public service::SessionControl {
   std::chrono::milliseconds preview_time{0};  // preview() spins this long
   std::chrono::milliseconds start_time{0};    // start() spins this long before it answers
   bool psd_fails = false;
+  // What result() answers for the session `result_session` (and for an empty id).
+  std::string result_session = "20261122-0000";
+  nlohmann::json result_value = {{"session", "20261122-0000"}, {"converged", true}};
 
  private:
   mutable std::mutex mutex_;

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -453,6 +454,60 @@ TEST(SessionManager, ACellThatCannotBeReachedFaultsTheSessionWithTheReason) {
   manager.readPsd(
       [&error](std::optional<LiveReading>, const std::string& e) { error.set_value(e); });
   EXPECT_NE(error.get_future().get().find("connection refused"), std::string::npos);
+}
+
+// A cell whose connect() hangs until released, as a wedged driver would.
+class HangingBackend final : public CellBackend {
+ public:
+  explicit HangingBackend(CellKnowledge k) : k_(std::move(k)) {}
+  const char* name() const override { return "hardware"; }
+  CellKnowledge knowledge() const override { return k_; }
+  std::unique_ptr<ConnectedCell> connect() override {
+    entered_.set_value();
+    release_.get_future().wait();
+    throw Error("released");
+  }
+  std::promise<void> entered_, release_;
+
+ private:
+  CellKnowledge k_;
+};
+
+TEST(SessionManager, TheWorkersStallShowsWhileItHangsAndIsZeroWhileItWaitsForWork) {
+  const TempDir dir;
+  sim::SimBackend sim_backend(cellFor(12));
+  HangingBackend backend(sim_backend.knowledge());
+  SessionManager manager(backend, settingsIn(dir.path));
+  EXPECT_EQ(manager.workerStalledFor(), std::chrono::steady_clock::duration::zero());
+  manager.start(manager.defaultRequest());
+  backend.entered_.get_future().wait();
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_GE(manager.workerStalledFor(), std::chrono::milliseconds(90));
+  backend.release_.set_value();
+  EXPECT_EQ(manager.waitIdle().state, SessionState::kFaulted);
+  EXPECT_EQ(manager.workerStalledFor(), std::chrono::steady_clock::duration::zero());
+}
+
+TEST(SessionManager, ASessionsProgressKeepsTheWorkersStallShort) {
+  const TempDir dir;
+  sim::SimBackend backend(cellFor(12));
+  SessionManager manager(backend, settingsIn(dir.path));
+  std::atomic<bool> done{false};
+  std::chrono::steady_clock::duration longest{};
+  std::thread sampler([&] {
+    while (!done) {
+      longest = std::max(longest, manager.workerStalledFor());
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+  });
+  manager.start(manager.defaultRequest());
+  const SessionStatus end = manager.waitIdle();
+  done = true;
+  sampler.join();
+  EXPECT_EQ(end.state, SessionState::kDone) << end.message;
+  // Readings, phases and poses mark progress: far below the daemon's 120 s stall limit.
+  EXPECT_LT(longest, std::chrono::seconds(10));
+  EXPECT_EQ(manager.workerStalledFor(), std::chrono::steady_clock::duration::zero());
 }
 
 }  // namespace

@@ -23,8 +23,10 @@
 
 namespace zerocal {
 
-inline constexpr const char* kDefaultConfigPath = "/etc/zerocal/zerocald.yaml";
-inline constexpr const char* kDefaultDropInDir = "/etc/zerocal/zerocald.d";
+// ZEROCAL_CONFDIR: the installed configuration folder, /etc/zerocal with the prefix /usr (CMake).
+inline constexpr const char* kConfigDir = ZEROCAL_CONFDIR;
+inline constexpr const char* kDefaultConfigPath = ZEROCAL_CONFDIR "/zerocald.yaml";
+inline constexpr const char* kDefaultDropInDir = ZEROCAL_CONFDIR "/zerocald.d";
 
 enum class BackendKind { kHardware, kSim };
 

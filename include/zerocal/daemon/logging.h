@@ -14,9 +14,10 @@
 namespace zerocal {
 
 // Sets the sinks and level of every logger, existing and future: stderr (which systemd's journal
-// records), plus a rotating zerocald.log in `config.directory` when it is not empty (the folder is
-// created). Call once at start-up, before other threads log. Throws Error when the log file
-// cannot be opened.
+// records; when stderr is the journal's stream, each line carries its priority as "<4>" and no
+// timestamp of its own), plus a rotating zerocald.log in `config.directory` when it is not empty
+// (the folder is created). Call once at start-up, before other threads log. Throws Error when the
+// log file cannot be opened.
 void initLogging(const LoggingConfig& config);
 
 // The logger of that name, created on first use with the current sinks and level. Thread-safe.
@@ -24,5 +25,8 @@ void initLogging(const LoggingConfig& config);
 std::shared_ptr<spdlog::logger> makeLogger(const std::string& name);
 
 spdlog::level::level_enum toSpdlogLevel(LogLevel level);
+
+// True when stderr is the stream systemd connected to the journal (JOURNAL_STREAM names it).
+bool stderrIsJournal();
 
 }  // namespace zerocal

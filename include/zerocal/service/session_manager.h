@@ -10,7 +10,9 @@
 #include <Eigen/Core>
 #include <array>
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
+#include <cstdint>
 #include <deque>
 #include <functional>
 #include <memory>
@@ -60,6 +62,10 @@ class SessionManager final : public SessionControl {
   SessionStatus waitIdle();
   // The request the configuration describes (session.plan, poses, plan_file, target).
   StartRequest defaultRequest() const;
+  // How long the worker thread (which also runs the servo) has been inside one step of its task
+  // without a sign of progress: a phase change, a PSD reading, a recorded pose. Zero while it
+  // waits for work. Lock-free, for the watchdog: a worker stuck while holding the mutex shows.
+  std::chrono::steady_clock::duration workerStalledFor() const;
 
  private:
   class LiveSlot;
@@ -73,6 +79,7 @@ class SessionManager final : public SessionControl {
   void setPhase(SessionState state, int pose);
   void emit(const nlohmann::json& event);
   nlohmann::json stateEvent() const;  // mutex_ held
+  void markProgress() noexcept;
   Plan makePlan(const StartRequest& request, Eigen::Vector3d& target, double& noise_mm) const;
 
   CellBackend& backend_;
@@ -91,7 +98,9 @@ class SessionManager final : public SessionControl {
   bool stopping_ = false;
   std::atomic<bool> abort_{false};
   std::unique_ptr<ConnectedCell> cell_;  // worker thread only
-  std::thread worker_;                   // last member: starts after the others exist
+  // Steady-clock nanoseconds of the worker's latest progress; 0 while it waits for work.
+  std::atomic<std::int64_t> progress_ns_{0};
+  std::thread worker_;  // last member: starts after the others exist
 };
 
 }  // namespace zerocal::service

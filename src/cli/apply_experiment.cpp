@@ -66,7 +66,7 @@ WorldRun runWorld(std::uint64_t seed, const ApplyExperimentArgs& args, const std
   config.servo.settle_s = 0.0;
   config.session.data_dir = dir + "/sessions";
   config.session.poses = args.poses;
-  const std::unique_ptr<service::CellBackend> backend = service::makeBackend(config);
+  const std::unique_ptr<CellBackend> backend = service::makeBackend(config);
   service::SessionManager manager(*backend, service::managerSettingsOf(config));
   // The verification is planned around the PSD centre the calibration found (result.json
   // target_mm), not the taught one: it knows the cell better.

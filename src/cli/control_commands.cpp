@@ -8,7 +8,7 @@
 
 #include "zerocal/control/client.h"
 #include "zerocal/control/token.h"
-#include "zerocal/daemon/config.h"
+#include "zerocal/paths.h"
 
 namespace zerocal::cli {
 

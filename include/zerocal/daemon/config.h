@@ -18,15 +18,11 @@
 #include <string>
 #include <vector>
 
+#include "zerocal/paths.h"
 #include "zerocal/psd/psd.h"
-#include "zerocal/service/session_control.h"  // PlanKind
+#include "zerocal/service/plan_kind.h"
 
 namespace zerocal {
-
-// ZEROCAL_CONFDIR: the installed configuration folder, /etc/zerocal with the prefix /usr (CMake).
-inline constexpr const char* kConfigDir = ZEROCAL_CONFDIR;
-inline constexpr const char* kDefaultConfigPath = ZEROCAL_CONFDIR "/zerocald.yaml";
-inline constexpr const char* kDefaultDropInDir = ZEROCAL_CONFDIR "/zerocald.d";
 
 enum class BackendKind { kHardware, kSim };
 

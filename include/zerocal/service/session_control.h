@@ -13,14 +13,8 @@
 #include "zerocal/calib/planner.h"
 #include "zerocal/daemon/journal.h"
 #include "zerocal/error.h"
+#include "zerocal/service/plan_kind.h"
 #include "zerocal/cell/psd_reader.h"
-
-namespace zerocal {
-
-// Where a session's plan comes from: one of the planner's patterns, or a joint-set file.
-enum class PlanKind { kOptimal, kI, kII, kMixed, kFile };
-
-}  // namespace zerocal
 
 namespace zerocal::service {
 

@@ -59,13 +59,23 @@ class Daemon {
   Daemon(const std::string& dir, const std::string& name,
          const std::vector<std::string>& extra_args = {})
       : log_(dir + "/" + name + ".log") {
-    std::vector<std::string> args = {ZEROCALD,     "--sim",
-                                     "--seed",     "4",
-                                     "--config",   "/dev/null",
-                                     "--data-dir", dir + "/sessions",
-                                     "--set",      "control.token_file=" + dir + "/token",
-                                     "--set",      "control.port=0",
-                                     "--set",      "backend.sim_pace=0.05"};
+    // The ideal world: the resumed result is checked against the truth, which the realistic
+    // world's model errors would blur (docs/simulated-cell.md).
+    std::vector<std::string> args = {ZEROCALD,
+                                     "--sim",
+                                     "--ideal-world",
+                                     "--seed",
+                                     "4",
+                                     "--config",
+                                     "/dev/null",
+                                     "--data-dir",
+                                     dir + "/sessions",
+                                     "--set",
+                                     "control.token_file=" + dir + "/token",
+                                     "--set",
+                                     "control.port=0",
+                                     "--set",
+                                     "backend.sim_pace=0.05"};
     args.insert(args.end(), extra_args.begin(), extra_args.end());
     std::vector<char*> argv;
     for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));

@@ -120,5 +120,21 @@ TEST(ExternalSim, AMismatchedWorldIsRefusedBeforeAnythingMoves) {
   EXPECT_EQ(sim.commandedJoints(), before);
 }
 
+// By default both sides draw the seed's realistic world with the same gross-error rate: they
+// agree; and a daemon on the ideal world is refused by a zerocal-sim on the realistic one.
+TEST(ExternalSim, TheDefaultRealisticWorldsOfDaemonAndZerocalSimAgree) {
+  TempDir dir;
+  SimControllerOptions o;
+  o.world = randomWorld(9);  // what zerocal-sim --seed 9 simulates
+  o.seed = 9;
+  SimController sim(o);
+  sim.start();
+  DaemonConfig config = configFor(sim, 9, dir.path);
+  config.backend.sim_ideal_world = false;
+  EXPECT_NO_THROW(makeBackend(config)->connect());
+  config.backend.sim_ideal_world = true;
+  EXPECT_THROW(makeBackend(config)->connect(), ConfigError);
+}
+
 }  // namespace
 }  // namespace zerocal::service

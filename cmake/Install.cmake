@@ -41,9 +41,12 @@ install(FILES config/udev/60-zerocal-usb1408fs.rules DESTINATION ${ZEROCAL_UDEV_
 # The RAPID server module, for the controller (docs/irc5.md loads it from here).
 install(FILES drivers/irc5/rapid/ZerocalServer.mod DESTINATION ${CMAKE_INSTALL_DATADIR}/zerocal/rapid)
 
-# Bash completion of zerocal's commands and options (asked of `zerocal --help` as one types).
-install(FILES config/bash-completion/zerocal
-        DESTINATION ${CMAKE_INSTALL_DATADIR}/bash-completion/completions)
+# Bash completion of the commands and options (asked of the program's --help as one types); one
+# file per program, since bash-completion loads a completion by the name of the command.
+foreach(program zerocal zerocald zerocal-sim)
+  install(FILES config/bash-completion/zerocal
+          DESTINATION ${CMAKE_INSTALL_DATADIR}/bash-completion/completions RENAME ${program})
+endforeach()
 
 # Man pages from each program's --help (help2man, scripts/install-deps.sh).
 option(ZEROCAL_MAN_PAGES "Make and install man pages with help2man" ON)

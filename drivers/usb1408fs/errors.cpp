@@ -6,10 +6,13 @@ namespace {
 // A literal, not a std::string, so that the messages work during static initialisation too.
 constexpr const char* kIdentity = "Measurement Computing USB-1408FS (USB VID:PID 09db:00a1)";
 
+// The rule gives the board to group zerocal (and the user at the seat), so both halves matter.
 std::string udevAdvice() {
-  return std::string("install the udev rule ") + kUdevRulePath +
-         " into /etc/udev/rules.d/, run `sudo udevadm control --reload-rules && sudo udevadm "
-         "trigger`, and replug the board";
+  return std::string("the udev rule (installed with zerocal; from a source tree, copy ") +
+         kUdevRulePath +
+         " into /etc/udev/rules.d/) gives the board to group zerocal: add this user to it "
+         "(`sudo usermod -aG zerocal $USER`, then log in again), run `sudo udevadm control "
+         "--reload-rules && sudo udevadm trigger`, and replug the board";
 }
 
 }  // namespace

@@ -204,6 +204,10 @@ int run(const ApplyArgs& args, std::ostream& out, std::ostream& err) {
   out << "\nWritten " << args.out_file << ": only these lines differ from the backup\n"
       << apply::diffText(moc_changes);
   warnings.push_back(
+      "The session does not record the controller's cal_offset: the backup must hold the values "
+      "the robot had during the calibration (no calibration change in between), which zerocal "
+      "cannot check.");
+  warnings.push_back(
       "Load the file into the controller as ABB's procedure says (system parameters, MOC; a "
       "restart), keep the backup to restore, then run a verification calibration: every new "
       "delta must lie within its uncertainty of zero, a doubled one means a wrong sign.");

@@ -70,8 +70,8 @@ std::string summaryText(const SessionReport& r) {
               num("%.3f", r.target_sigma_mm[0]).c_str(), num("%.3f", r.target_sigma_mm[1]).c_str(),
               num("%.3f", r.target_sigma_mm[2]).c_str());
 
-  o << "\nWorst poses (largest normalised residual = miss / noise sigma; SUSPECT: named by the\n"
-       "deletion diagnostics as not fitting the others):\n";
+  o << "\nWorst poses (normalised residual = miss / noise sigma; SUSPECT: did not fit the "
+       "others):\n";
   o << format("  %5s %10s %11s %12s\n", "pose", "miss um", "normalised", "standoff mm");
   for (const PoseRow* p : detail::worstPoses(r))
     o << format("  %5d %10.1f %11.2f %12.1f%s\n", p->pose, p->miss_um, p->normalised,

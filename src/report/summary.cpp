@@ -14,10 +14,10 @@ std::string summaryText(const SessionReport& r) {
   std::ostringstream o;
   o << "zerocal calibration summary, session " << r.session_id
     << (r.simulated ? " (SIMULATED cell: the truth is known)" : "") << "\n";
-  if (!r.plan_description.empty()) o << detail::wrap("plan: " + r.plan_description, 100, 0);
   o << detail::wrap(detail::verdict(r), 100, 0);
   for (const SuspectRow& sp : r.suspect_poses)
     o << detail::wrap(format("Suspect pose %d (line %d): ", sp.pose, sp.line) + sp.reason, 100, 2);
+  if (!r.plan_description.empty()) o << detail::wrap("plan: " + r.plan_description, 100, 0);
   std::string fit = format("Solved from %d poses (%s model, %s cost); noise %s mm (%s); ",
                            r.solved_poses, r.model.c_str(), r.cost.c_str(),
                            num("%.4f", r.noise_mm).c_str(), r.noise_source.c_str());

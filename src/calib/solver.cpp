@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <memory>
 
 #include "costs.h"
 #include "zerocal/calib/identifiability.h"
@@ -139,6 +140,19 @@ struct Fit {
   int iterations = 0;
 };
 
+// The robust loss of the options, in noise sigmas; null for none.
+std::unique_ptr<ceres::LossFunction> makeLoss(const SolveOptions& options) {
+  switch (options.loss) {
+    case RobustLoss::kHuber:
+      return std::make_unique<ceres::HuberLoss>(options.loss_scale_sigmas);
+    case RobustLoss::kCauchy:
+      return std::make_unique<ceres::CauchyLoss>(options.loss_scale_sigmas);
+    case RobustLoss::kNone:
+      break;
+  }
+  return nullptr;
+}
+
 // One Ceres solve on the given poses from `start`.
 Fit runFit(const CellModel& cell, const std::vector<Pose>& poses, const SolveOptions& options,
            bool readings, const CalibrationParameters& start) {
@@ -150,16 +164,11 @@ Fit runFit(const CellModel& cell, const std::vector<Pose>& poses, const SolveOpt
   problem_options.cost_function_ownership = ceres::TAKE_OWNERSHIP;
   ceres::Problem problem(problem_options);
   if (options.cost == CostKind::kMaximumLikelihood) {
-    for (const auto& pose : poses) {
-      ceres::LossFunction* loss = nullptr;
-      if (options.loss == RobustLoss::kHuber)
-        loss = new ceres::HuberLoss(options.loss_scale_sigmas);
-      if (options.loss == RobustLoss::kCauchy)
-        loss = new ceres::CauchyLoss(options.loss_scale_sigmas);
+    for (const auto& pose : poses)
       problem.AddResidualBlock(
           PointToLineCost::create(cell, pose.q_deg, hitPointOffset(cell, pose, readings), sigma_in),
-          loss, est.delta_rad.data(), est.laser.data(), est.target_mm.data());
-    }
+          makeLoss(options).release(), est.delta_rad.data(), est.laser.data(),
+          est.target_mm.data());
   } else {
     problem.AddResidualBlock(PairwiseCost::create(cell, poses, sigma_in), nullptr,
                              est.delta_rad.data(), est.laser.data());
@@ -467,10 +476,28 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
   report.poses_used = m;
 
   // Residuals in mm (every given pose, at the result), noise level, identifiability, covariance.
-  const Eigen::MatrixXd jac_mm = pointToLineJacobian(cell, used, est, 1.0, readings);
+  Eigen::MatrixXd jac_mm = pointToLineJacobian(cell, used, est, 1.0, readings);
   const Eigen::VectorXd r_all = misses(cell, poses, est, readings);
-  double rss = 0;
-  for (int i : active) rss += r_all.segment<2>(2 * i).squaredNorm();
+  // A robust loss weighs each pose by rho'(s) at the solution (s: its squared miss in noise
+  // sigmas, as Ceres sees it), which is how much it still pulls on the result. The covariance,
+  // the chi-square and the degrees of freedom are those of that weighted fit, so that a pose the
+  // loss has set aside no longer counts as information.
+  std::vector<double> weight(n, 1.0);
+  if (std::unique_ptr<ceres::LossFunction> loss = makeLoss(options)) {
+    const double s2 = *options.noise_mm * *options.noise_mm;
+    for (int k = 0; k < m; ++k) {
+      double rho[3];
+      loss->Evaluate(r_all.segment<2>(2 * active[k]).squaredNorm() / s2, rho);
+      weight[active[k]] = rho[1];
+      jac_mm.middleRows(2 * k, 2) *= std::sqrt(rho[1]);
+    }
+  }
+  double rss = 0, weights = 0, unweighted_rss = 0;
+  for (int i : active) {
+    rss += weight[i] * r_all.segment<2>(2 * i).squaredNorm();
+    unweighted_rss += r_all.segment<2>(2 * i).squaredNorm();
+    weights += weight[i];
+  }
   for (int i = 0; i < n; ++i) {
     PoseResidual pr;
     pr.source_line = poses[i].source_line;
@@ -486,8 +513,8 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
       analyseIdentifiability(jac_mm, cell, used, est, 1.0, options.required_accuracy_deg);
   report.rank = ident.rank;
   report.condition_number = ident.condition_number;
-  report.dof = 2 * m - ident.rank;
-  report.rms_miss_mm = std::sqrt(rss / m);
+  report.dof = static_cast<int>(std::lround(2 * weights)) - ident.rank;
+  report.rms_miss_mm = std::sqrt(unweighted_rss / m);
   if (options.noise_mm) {
     report.noise_mm = *options.noise_mm;
     if (report.dof > 0) {
@@ -561,6 +588,19 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
     pr.standoff_mm = stand[i];
     pr.normalised = pr.miss_norm_mm / sigma;
   }
+  for (int i : active)
+    if (options.loss != RobustLoss::kNone &&
+        report.poses[i].miss_norm_mm > options.loss_scale_sigmas * *options.noise_mm) {
+      report.poses[i].outlier = true;
+      report.suspect_poses.push_back(
+          {i + 1, poses[i].source_line,
+           "the robust loss weighs it " + fixed(weight[i], 2) + " (it misses by " +
+               fixed(report.poses[i].miss_norm_mm / *options.noise_mm, 1) +
+               " given noise sigmas, beyond where the loss bends): it counts for that fraction of "
+               "a "
+               "pose",
+           std::numeric_limits<double>::quiet_NaN()});
+    }
   for (int i = 0; i < n; ++i)
     if (duplicate_of[i] >= 0)
       report.suspect_poses.push_back(

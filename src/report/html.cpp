@@ -312,7 +312,7 @@ std::string reportHtml(const SessionReport& r) {
   for (const PoseRow* p : detail::worstPoses(r))
     o << "<tr>" << td(std::to_string(p->pose), "n") << td(format("%.1f", p->miss_um), "n")
       << td(format("%.2f", p->normalised), "n") << td(format("%.1f", p->standoff_mm), "n")
-      << (p->outlier ? "<td class=\"bad\">OUTLIER</td>" : "<td></td>") << "</tr>\n";
+      << (p->outlier ? "<td class=\"bad\">SUSPECT</td>" : "<td></td>") << "</tr>\n";
   o << "</table>\n";
 
   // Servo paths.

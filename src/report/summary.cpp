@@ -14,10 +14,10 @@ std::string summaryText(const SessionReport& r) {
   std::ostringstream o;
   o << "zerocal calibration summary, session " << r.session_id
     << (r.simulated ? " (SIMULATED cell: the truth is known)" : "") << "\n";
-  if (!r.plan_description.empty()) o << detail::wrap("plan: " + r.plan_description, 100, 0);
   o << detail::wrap(detail::verdict(r), 100, 0);
   for (const SuspectRow& sp : r.suspect_poses)
     o << detail::wrap(format("Suspect pose %d (line %d): ", sp.pose, sp.line) + sp.reason, 100, 2);
+  if (!r.plan_description.empty()) o << detail::wrap("plan: " + r.plan_description, 100, 0);
   std::string fit = format("Solved from %d poses (%s model, %s cost); noise %s mm (%s); ",
                            r.solved_poses, r.model.c_str(), r.cost.c_str(),
                            num("%.4f", r.noise_mm).c_str(), r.noise_source.c_str());
@@ -70,11 +70,12 @@ std::string summaryText(const SessionReport& r) {
               num("%.3f", r.target_sigma_mm[0]).c_str(), num("%.3f", r.target_sigma_mm[1]).c_str(),
               num("%.3f", r.target_sigma_mm[2]).c_str());
 
-  o << "\nWorst poses (largest normalised residual = miss / noise sigma; outlier above 3.5):\n";
+  o << "\nWorst poses (normalised residual = miss / noise sigma; SUSPECT: did not fit the "
+       "others):\n";
   o << format("  %5s %10s %11s %12s\n", "pose", "miss um", "normalised", "standoff mm");
   for (const PoseRow* p : detail::worstPoses(r))
     o << format("  %5d %10.1f %11.2f %12.1f%s\n", p->pose, p->miss_um, p->normalised,
-                p->standoff_mm, p->outlier ? "  OUTLIER" : "");
+                p->standoff_mm, p->outlier ? "  SUSPECT" : "");
 
   o << "\nPredicted (plan, before any move) versus achieved one-sigma uncertainty:\n";
   for (const ParameterRow& p : r.parameters) {

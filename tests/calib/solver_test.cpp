@@ -107,7 +107,9 @@ TEST(Solver, DeletionDiagnosticsNameTheGrossErrorAndLeaveItOut) {
   EXPECT_TRUE(r.poses[5].outlier);
   EXPECT_FALSE(r.poses[5].used);
   for (int i = 0; i < 16; ++i) {
-    if (i != 5) EXPECT_FALSE(r.poses[i].outlier) << i;
+    if (i != 5) {
+      EXPECT_FALSE(r.poses[i].outlier) << i;
+    }
   }
   EXPECT_EQ(r.pose_count, 16);
   EXPECT_EQ(r.poses_used, 15);
@@ -122,6 +124,38 @@ TEST(Solver, DeletionDiagnosticsNameTheGrossErrorAndLeaveItOut) {
             3 * (r.estimate.delta_rad - sc.truth.delta_rad).norm());
   EXPECT_GT(*blind.chi2_per_dof, 10.0);
 }
+
+class RobustLossOnTheDefaultPlan : public ::testing::TestWithParam<RobustLoss> {};
+
+TEST_P(RobustLossOnTheDefaultPlan, ConvergesAndCountsTheDownWeightedPose) {
+  // The daemon's default: 8 optimal poses. One joint read 0.05 deg off (about 15 noise sigmas).
+  const Table2Scenario sc = table2Scenario();
+  const auto planned = plan(sc, Pattern::kOptimal, 8);
+  for (int seed = 1; seed <= 3; ++seed) {
+    std::mt19937_64 rng(seed);
+    auto recorded = simulateRecording(sc.cell, sc.truth, planned, sc.half_width_mm, rng);
+    recorded[4].q_deg[2] += 0.05;
+    SolveOptions options;
+    options.noise_mm = sc.half_width_mm / std::sqrt(3.0);
+    options.loss = GetParam();
+    const SolveReport r = solve(sc.cell, recorded, options);
+    EXPECT_TRUE(r.converged) << "seed " << seed << ": " << r.message;
+    EXPECT_TRUE(r.poses[4].outlier) << "seed " << seed;
+    ASSERT_FALSE(r.suspect_poses.empty()) << "seed " << seed;
+    EXPECT_EQ(r.suspect_poses[0].pose, 5);
+    EXPECT_NE(r.suspect_poses[0].reason.find("robust loss weighs it"), std::string::npos);
+    // The down-weighted pose is not counted as a whole pose of information (dof rounds the
+    // weights' sum, so a mild Huber down-weighting may leave it unchanged).
+    EXPECT_LE(r.dof, 2 * 8 - kUnknownCount) << "seed " << seed;
+    if (GetParam() == RobustLoss::kCauchy) {
+      EXPECT_LT(r.dof, 2 * 8 - kUnknownCount);
+    }
+    EXPECT_LT(worstErrorSigmas(r, sc.truth), 3.5) << "seed " << seed;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Losses, RobustLossOnTheDefaultPlan,
+                         ::testing::Values(RobustLoss::kHuber, RobustLoss::kCauchy));
 
 TEST(Solver, CleanSessionsNameNoSuspect) {
   const Table2Scenario sc = table2Scenario();

@@ -5,6 +5,7 @@
 
 #include "zerocal/irc5/irc5_client.h"
 #include "zerocal/psd/psd.h"
+#include "zerocal/servo/psd_reader.h"
 #include "zerocal/cell/cell.h"
 #include "zerocal/usb1408fs/usb1408fs.h"
 

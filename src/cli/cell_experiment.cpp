@@ -74,6 +74,9 @@ int runCellExperiment(const CellExperimentArgs& args) {
   Json worlds = Json::array();
   double sum_sq = 0, worst_sigmas = 0, max_cell_s = 0;
   int estimates = 0, failed_runs = 0, covered = 0;  // covered: truth inside value +- 1.96 sigma
+  // Results whose verdict refuses them, and offsets a result withholds (not determined): the
+  // worst error is judged on usable results only, as a technician would use them.
+  int refused_results = 0, withheld = 0;
   // Per pose over the worlds: sums for the mean breakdown, maxima of the moves.
   struct PoseSums {
     double move_s = 0, acquisition_s = 0, servo_s = 0, settle_s = 0;
@@ -140,15 +143,23 @@ int runCellExperiment(const CellExperimentArgs& args) {
     std::string line;
     if (completed) {
       Json offsets = Json::array();
+      const bool usable = result.value("verdict", Json::object()).value("usable", true);
+      if (!usable) ++refused_results;
+      world["usable"] = usable;
       for (int k = 0; k < kOffsetCount; ++k) {
         const std::string name = unknownName(k);
         const Json& e = result["parameters"][name];
+        if (!e["value"].is_number() || !e["sigma"].is_number()) {
+          ++withheld;
+          line += "   withheld       ";
+          continue;
+        }
         const double truth = result["truth"][name].get<double>();
         const double value = e["value"].get<double>(), sigma = e["sigma"].get<double>();
         const double error = value - truth;
         const double sigmas = std::abs(error) / sigma;
         sum_sq += error * error;
-        worst_sigmas = std::max(worst_sigmas, sigmas);
+        if (usable) worst_sigmas = std::max(worst_sigmas, sigmas);
         ++estimates;
         if (sigmas <= 1.959964) ++covered;
         offsets.push_back({{"name", name},
@@ -200,6 +211,8 @@ int runCellExperiment(const CellExperimentArgs& args) {
                       {"rms_error_deg", rms},
                       {"worst_error_sigmas", worst_sigmas},
                       {"coverage_95", coverage},
+                      {"refused_results", refused_results},
+                      {"withheld_offsets", withheld},
                       {"world", args.ideal_world ? "ideal" : "realistic"},
                       {"max_cell_time_s", max_cell_s},
                       {"requirements",
@@ -224,8 +237,10 @@ int runCellExperiment(const CellExperimentArgs& args) {
     std::printf("world          %s\n", args.ideal_world ? "ideal" : "realistic");
     std::printf("95%% coverage   %.1f%% of %d offsets inside value +- 1.96 sigma\n", 100 * coverage,
                 estimates);
-    std::printf("worst error    %.2f sigma   (<= %.1f)  %s\n", worst_sigmas, args.max_sigmas,
-                sigmas_ok ? "ok" : "FAIL");
+    std::printf("refused        %d results not usable by their verdict, %d offsets withheld\n",
+                refused_results, withheld);
+    std::printf("worst error    %.2f sigma   (<= %.1f)  %s  (usable results)\n", worst_sigmas,
+                args.max_sigmas, sigmas_ok ? "ok" : "FAIL");
     std::printf("RMS error      %.5f deg (<= %.3f) %s\n", rms, args.max_rms_deg,
                 rms_ok ? "ok" : "FAIL");
     std::printf("max cell time  %.1f s      (<= %.0f)   %s\n", max_cell_s, args.max_cell_time_s,

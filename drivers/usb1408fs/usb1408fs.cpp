@@ -70,6 +70,20 @@ void checkChannel(const Channel& channel) {
   }
 }
 
+// The reference driver scans only consecutive channels, lowest first, with the queue holding
+// exactly low..high; whether the firmware follows the queue or low..high is not known for other
+// orders (docs/usb1408fs.md), so only scans on which both readings agree are sent.
+void checkScanChannels(const std::vector<Channel>& channels) {
+  for (std::size_t i = 1; i < channels.size(); ++i) {
+    if (wireChannel(channels[i]) != wireChannel(channels[i - 1]) + 1) {
+      throw ProtocolError(
+          "a USB-1408FS scan takes consecutive inputs of one mode, lowest first (e.g. "
+          "differential 0, 1, 2); input " +
+          std::to_string(i + 1) + " of the scan breaks the sequence");
+    }
+  }
+}
+
 }  // namespace
 
 class Usb1408fs::PacketRouter final : public StreamSink {
@@ -243,7 +257,8 @@ double Usb1408fs::readVolts(const Channel& channel) {
 }
 
 std::uint16_t Usb1408fs::status() {
-  const std::uint8_t request[1] = {cmd::kGetStatus};
+  // The full 3-byte report, as the C driver that runs on boards sends it (docs/usb1408fs.md).
+  const std::uint8_t request[3] = {cmd::kGetStatus, 0, 0};
   std::uint8_t reply[3];
   command(request, sizeof request, reply, sizeof reply);
   return getU16(reply + 1);
@@ -292,6 +307,7 @@ Pacer Usb1408fs::startScan(const ScanConfig& config, ScanConsumer& consumer) {
   if (config.transfers_per_endpoint == 0) {
     throw ProtocolError("a scan needs at least one transfer in flight per endpoint");
   }
+  checkScanChannels(config.channels);
   const Pacer pacer = computePacer(config.rate_hz);
   const std::size_t n = config.channels.size();
   const std::uint64_t total_samples = static_cast<std::uint64_t>(config.scans) * n;
@@ -322,10 +338,11 @@ Pacer Usb1408fs::startScan(const ScanConfig& config, ScanConsumer& consumer) {
   });
   scanning_ = true;
 
-  // Inferred from the reference drivers, to be confirmed on a board: with the queue option, low
-  // and high channel are positions in the queue (first, last), and count is in conversions
-  // (scans x channels), which is also how the single-execution end is recognised here.
-  std::uint8_t request[11] = {cmd::kAInScan, 0, static_cast<std::uint8_t>(n - 1)};
+  // Low and high are the first and last channel numbers, as the reference driver sends them with
+  // the queue; count is in conversions (scans x channels), which is also how the single-execution
+  // end is recognised here (docs/usb1408fs.md: evidence and what is inferred).
+  std::uint8_t request[11] = {cmd::kAInScan, wireChannel(config.channels.front()),
+                              wireChannel(config.channels.back())};
   putU32(request + 3, static_cast<std::uint32_t>(total_samples));
   request[7] = pacer.prescale;
   putU16(request + 8, pacer.preload);

@@ -54,6 +54,7 @@ SimControllerOptions controllerOptions(const SimulatedCellOptions& o) {
   c.world = o.world;
   c.seed = o.controller_seed;
   c.pace = o.pace;
+  c.motion = o.motion;
   c.start_joints = o.start_joints;
   return c;
 }

@@ -41,6 +41,18 @@ int main(int argc, char** argv) {
   app.add_option("--pace", options.pace,
                  "wall seconds per simulated second of a move (1: real time; default 0: at once)")
       ->check(CLI::Range(0.0, 10.0));
+  app.add_option("--move-overhead-s", options.motion.overhead_s,
+                 "fixed cost of every move (s): request, reply, the planner's start-up")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 60.0));
+  app.add_option("--joint-accel", options.motion.joint_accel_deg_s2,
+                 "acceleration and braking of the joints (deg/s^2)")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  app.add_option("--settle-s", options.motion.settle_s,
+                 "settling at the fine point after every move (s)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 60.0));
   app.add_option("--drop-after", options.faults.drop_after_requests,
                  "close each connection instead of answering its request N+1");
   app.add_option("--delay-ms", delay_ms, "delay every reply (ms)");

@@ -63,6 +63,8 @@ struct SimController::Impl {
         rng(options.seed),
         gross_rng(options.seed ^ 0x67726f7373ull),
         faults(options.faults) {
+    const std::string motion = options.motion.validate();
+    if (!motion.empty()) throw ConfigError("SimControllerOptions", {"motion: " + motion});
     commanded = options.start_joints;
     for (double& q : commanded) q = f32(q);
     initMotorCalibration();
@@ -122,6 +124,7 @@ struct SimController::Impl {
   double speed_tcp_mm_s = 100, speed_ori_deg_s = 50;
   bool fine = false;
   double sim_time_s = 0;
+  MotionTotals totals;
   long requests = 0, connections = 0;
   std::array<double, kJointCount> cal_offset{}, transmission{}, zero_shift_rad{};
   // Written over the link (45), taken at the next restart (46).
@@ -409,11 +412,24 @@ std::string SimController::Impl::moveTo(const Joints& target, int code, millisec
   for (int i = 0; i < kJointCount; ++i) stored[i] = f32(target[i]);
   const std::string violation = options.world.robot.limitViolation(stored);
   if (!violation.empty()) return std::to_string(code) + " 0 out of bounds";
-  const double seconds = linear_seconds >= 0
-                             ? linear_seconds
-                             : irc5::jointMoveSeconds(options.world.robot, commanded, stored,
-                                                      speed_tcp_mm_s, speed_ori_deg_s);
+  irc5::MoveTime t;
+  if (linear_seconds >= 0) {
+    double largest = 0;
+    for (int i = 0; i < kJointCount; ++i)
+      largest = std::max(largest, std::abs(stored[i] - commanded[i]));
+    t.motion_s = irc5::rampedSeconds(linear_seconds, largest, options.motion.joint_accel_deg_s2);
+    t.overhead_s = options.motion.overhead_s;
+    t.settle_s = options.motion.settle_s;
+  } else {
+    t = irc5::jointMoveTime(options.world.robot, commanded, stored, speed_tcp_mm_s, speed_ori_deg_s,
+                            options.motion);
+  }
+  const double seconds = t.total();
   sim_time_s += seconds;
+  ++totals.moves;
+  totals.motion_s += t.motion_s;
+  totals.overhead_s += t.overhead_s;
+  totals.settle_s += t.settle_s;
   if (options.pace > 0)
     *wall_delay = milliseconds(static_cast<long long>(seconds * options.pace * 1000));
   commanded = stored;
@@ -504,7 +520,7 @@ std::optional<std::string> SimController::Impl::respond(const irc5::ParsedReques
       fine = r.params[0] == 1;
       return done;
     case irc5::kStop:
-      return n == 0 ? done : bad;  // moves are instantaneous on the simulated clock
+      return n == 0 ? done : bad;  // a move has ended (simulated) before its reply
     case irc5::kReadCalOffset: {
       // The configuration's values, written ones included, as ReadCfgData reads them.
       if (n != 0) return bad;
@@ -661,6 +677,11 @@ Joints SimController::zeroShiftDeg() const {
 double SimController::simTimeS() const {
   std::lock_guard<std::mutex> lock(impl_->mutex);
   return impl_->sim_time_s;
+}
+
+MotionTotals SimController::motionTotals() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->totals;
 }
 
 long SimController::requestCount() const {

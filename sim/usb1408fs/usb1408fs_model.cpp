@@ -14,7 +14,6 @@ namespace {
 // The board's FIFO is finite: beyond this many unread packets per endpoint, new data is lost,
 // as on a host that stops servicing the endpoints.
 constexpr std::size_t kMaxQueuedPackets = 512;
-constexpr std::uint16_t kStatusOverrun = 0x0004;
 
 void putF32(std::uint8_t* p, float f) {
   std::uint32_t bits;
@@ -118,6 +117,7 @@ bool Usb1408fsModel::execute(const std::uint8_t* d, std::size_t n) {
       return true;
     case cmd::kAIn: {
       if (n != 3 || d[1] > 15 || d[2] > 7 || (d[1] >= 8 && d[2] != 0)) return false;
+      range_[d[1]] = d[2];
       const Channel ch = decode(d[1], d[2]);
       const double volts = source_ ? source_(ch, now_.count() * 1e-9) : 0.0;
       std::vector<std::uint8_t> r(3);
@@ -140,6 +140,7 @@ bool Usb1408fsModel::execute(const std::uint8_t* d, std::size_t n) {
         if (ch > 15 || range > 7 || (ch >= 8 && range != 0)) return false;
         queue_.emplace_back(ch, range);
       }
+      for (const auto& [ch, range] : queue_) range_[ch] = range;
       return true;
     }
     case cmd::kMemRead: {
@@ -166,7 +167,8 @@ bool Usb1408fsModel::execute(const std::uint8_t* d, std::size_t n) {
       unplug();  // it drops off the bus and re-enumerates
       return true;
     case cmd::kGetStatus: {
-      if (n != 1) return false;
+      // The C driver that runs on boards sends the report's full 3 bytes, the Python one 1.
+      if (n != 1 && n != 3) return false;
       std::vector<std::uint8_t> r(3);
       r[0] = cmd::kGetStatus;
       putU16(&r[1], status_);
@@ -187,14 +189,18 @@ bool Usb1408fsModel::startScan(const std::uint8_t* d) {
   const std::uint8_t options = d[10];
   if (prescale > 8 || preload == 0 || high < low) return false;
   Scan scan;
+  // Low and high are channel numbers (0..7 differential, 8..15 single-ended), also with the queue:
+  // the reference driver loads the queue with single-ended 0..n-1 and scans "8..8+n-1"
+  // (docs/usb1408fs.md). With the queue the board converts the queue in order; without it,
+  // channels low..high, each at the range last set for it by AIN or ALOAD_QUEUE.
+  if (high > 15) return false;
   if (options & kScanUseQueue) {
-    if (high >= queue_.size()) return false;
-    for (std::size_t i = low; i <= high; ++i)
-      scan.channels.push_back(decode(queue_[i].first, queue_[i].second));
+    if (queue_.empty()) return false;
+    for (const auto& [ch, range] : queue_) scan.channels.push_back(decode(ch, range));
   } else {
-    if (high > 15 || (low < 8 && high >= 8)) return false;
+    if (low < 8 && high >= 8) return false;
     for (std::size_t c = low; c <= high; ++c)
-      scan.channels.push_back(decode(static_cast<std::uint8_t>(c), 0));
+      scan.channels.push_back(decode(static_cast<std::uint8_t>(c), range_[c]));
   }
   if ((options & kScanSingleExecution) && count == 0) return false;
   scan.running = true;
@@ -249,8 +255,9 @@ void Usb1408fsModel::emitPacket(bool final_packet) {
   scan_.next_endpoint = (scan_.next_endpoint + 1) % scan_packets_.size();
   const bool dropped = drop_.erase(scan_.index) > 0;
   ++scan_.index;
+  // Lost data shows only as a gap in the scan index: the status word has no overrun bit (its bits
+  // are sync, trigger edge, gated sync, calibration memory unlocked).
   if (dropped || q.size() >= kMaxQueuedPackets) {
-    if (!dropped) status_ |= kStatusOverrun;
     ++scan_.packets_dropped;
     return;
   }
@@ -307,6 +314,7 @@ void Usb1408fsModel::replug() {
   replies_.clear();
   for (auto& q : scan_packets_) q.clear();
   queue_.clear();
+  range_.fill(0);
   dir_ = {1, 1};
   dout_ = {0, 0};
   status_ = 0;

@@ -228,6 +228,7 @@ std::vector<Field> schema(DaemonConfig& c) {
                                 {{"false", false}, {"true", true}}));
   f.push_back(realField("backend.sim_gross_rate", c.backend.sim_gross_rate));
   f.push_back(realField("backend.sim_pace", c.backend.sim_pace));
+  f.push_back(realField("backend.sim_move_overhead_s", c.backend.sim_move_overhead_s));
   f.push_back(textField("backend.sim_host", c.backend.sim_host));
   f.push_back(integerField("backend.sim_port", c.backend.sim_port));
 
@@ -455,6 +456,7 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
   const auto& b = c.backend;
   check.range("backend.sim_pace", b.sim_pace, 0.0, 10.0);
   check.range("backend.sim_gross_rate", b.sim_gross_rate, 0.0, 1.0);
+  check.range("backend.sim_move_overhead_s", b.sim_move_overhead_s, 0.0, 60.0);
   if (b.kind == BackendKind::kSim) {
     if (!b.sim_world.empty() && b.sim_seed)
       check.fail("backend.sim_seed", "give backend.sim_world or backend.sim_seed, not both");
@@ -488,16 +490,27 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
   const auto& d = c.daq;
   const std::pair<const char*, const usb1408fs::Channel*> channels[] = {
       {"x", &d.channels.x}, {"y", &d.channels.y}, {"sum", &d.channels.sum}};
+  bool channels_valid = true;
   for (const auto& [name, channel] : channels) {
     const int highest = channel->mode == usb1408fs::InputMode::kDifferential ? 3 : 7;
     check.range(std::string("daq.channels.") + name + ".number", channel->number, 0, highest);
+    channels_valid = channels_valid && channel->number >= 0 && channel->number <= highest;
   }
   for (std::size_t i = 0; i < 3; ++i)
     for (std::size_t j = i + 1; j < 3; ++j) {
-      if (usb1408fs::sharesTerminal(*channels[i].second, *channels[j].second))
+      const bool shared = usb1408fs::sharesTerminal(*channels[i].second, *channels[j].second);
+      if (shared)
         check.fail(std::string("daq.channels.") + channels[j].first,
                    std::string("uses the same input as daq.channels.") + channels[i].first);
+      channels_valid = channels_valid && !shared;
     }
+  // The board scans consecutive inputs, lowest first (docs/usb1408fs.md): x, y, sum in that order.
+  if (channels_valid &&
+      (usb1408fs::wireChannel(d.channels.y) != usb1408fs::wireChannel(d.channels.x) + 1 ||
+       usb1408fs::wireChannel(d.channels.sum) != usb1408fs::wireChannel(d.channels.y) + 1))
+    check.fail("daq.channels",
+               "x, y and sum must be consecutive inputs of one mode in that order (e.g. "
+               "differential 0, 1, 2): the USB-1408FS scans a range of inputs");
   // The board converts at most 48 kS/s in all, shared by the three channels of a scan.
   check.positive("daq.scan_rate_hz", d.scan_rate_hz, 16000.0);
   check.range("daq.samples_per_reading", d.samples_per_reading, 1, 1000000);

@@ -49,6 +49,7 @@ std::unique_ptr<CellBackend> makeBackend(const DaemonConfig& cfg) {
     return std::make_unique<sim::ExternalSimBackend>(std::move(e));
   }
   o.pace = cfg.backend.sim_pace;
+  o.motion.overhead_s = cfg.backend.sim_move_overhead_s;
   // The controller section applies to the simulated controller as to a real one.
   return std::make_unique<sim::SimBackend>(std::move(o),
                                            [controller = cfg.controller](Irc5Options& client) {
@@ -69,6 +70,10 @@ ManagerSettings managerSettingsOf(const DaemonConfig& cfg) {
     s.target_mm = Eigen::Vector3d(t[0], t[1], t[2]);
   }
   s.config_snapshot = configToJson(cfg);
+  if (cfg.backend.kind == BackendKind::kSim && cfg.backend.sim_host.empty()) {
+    s.move_costs = irc5::MotionCosts{};
+    s.move_costs->overhead_s = cfg.backend.sim_move_overhead_s;
+  }
   s.write_reports = [](const std::string& dir) { report::writeSessionReport(dir); };
   return s;
 }

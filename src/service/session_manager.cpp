@@ -627,16 +627,24 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
     }
   }
   nlohmann::json breakdown = nlohmann::json::array();
-  for (const PoseRecord& r : outcome->records)
-    breakdown.push_back({{"pose", r.index + 1},
-                         {"move_s", r.servo.move_s},
-                         {"acquisition_s", r.servo.acquisition_s},
-                         {"servo_s", r.servo.servo_s},
-                         {"settle_s", r.servo.settle_s},
-                         {"servo_moves", r.servo.moves},
-                         {"search_moves", r.servo.search_moves},
-                         {"iterations", r.servo.iterations},
-                         {"final_error_um", r.servo.final_error_um}});
+  for (const PoseRecord& r : outcome->records) {
+    nlohmann::json pose{{"pose", r.index + 1},
+                        {"move_s", r.servo.move_s},
+                        {"acquisition_s", r.servo.acquisition_s},
+                        {"servo_s", r.servo.servo_s},
+                        {"settle_s", r.servo.settle_s},
+                        {"servo_moves", r.servo.moves},
+                        {"search_moves", r.servo.search_moves},
+                        {"iterations", r.servo.iterations},
+                        {"final_error_um", r.servo.final_error_um}};
+    if (settings_.move_costs) {
+      // Included in the times above: the planned move and every servo move pay them.
+      const double moves = r.servo.moves + 1;
+      pose["move_overhead_s"] = moves * settings_.move_costs->overhead_s;
+      pose["fine_point_settle_s"] = moves * settings_.move_costs->settle_s;
+    }
+    breakdown.push_back(pose);
+  }
   result["pose_breakdown"] = breakdown;
   try {
     store_.writeResult(id, result);

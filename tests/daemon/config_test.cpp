@@ -116,15 +116,24 @@ TEST_F(ConfigTest, DropInsApplyInLexicalOrderAndOnlyYamlFiles) {
 
 TEST_F(ConfigTest, CommandLineTakesYamlValuesAndNestedKeys) {
   write("main.yaml", "");
-  const DaemonConfig c =
-      loadDaemonConfig(sources({"session.target_mm=[1, 2.5, -3]", "daq.channels.sum.number=3",
-                                "daq.channels.sum.mode=differential", "backend.kind=sim",
-                                "backend.sim_seed=42", "logging.level=debug"}));
+  const DaemonConfig c = loadDaemonConfig(sources(
+      {"session.target_mm=[1, 2.5, -3]", "daq.channels.x.number=1", "daq.channels.y.number=2",
+       "daq.channels.sum.number=3", "daq.channels.sum.mode=differential", "backend.kind=sim",
+       "backend.sim_seed=42", "logging.level=debug"}));
   EXPECT_EQ(c.session.target_mm, (std::array<double, 3>{1, 2.5, -3}));
   EXPECT_EQ(c.daq.channels.sum.number, 3);
   EXPECT_EQ(c.backend.kind, BackendKind::kSim);
   EXPECT_EQ(c.backend.sim_seed, 42u);
   EXPECT_EQ(c.logging.level, LogLevel::kDebug);
+}
+
+TEST_F(ConfigTest, PsdChannelsMustBeConsecutiveInputsInScanOrder) {
+  write("main.yaml", "");
+  const auto p = problems(sources({"daq.channels.x.number=1", "daq.channels.y.number=0"}));
+  EXPECT_TRUE(reported(p, {"daq.channels", "consecutive inputs"})) << joined(p);
+  EXPECT_EQ(p.size(), 1u) << joined(p);
+  EXPECT_NO_THROW(loadDaemonConfig(sources(
+      {"daq.channels.x.number=1", "daq.channels.y.number=2", "daq.channels.sum.number=3"})));
 }
 
 TEST_F(ConfigTest, EmptySectionsAndFilesChangeNothing) {

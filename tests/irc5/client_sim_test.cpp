@@ -159,13 +159,37 @@ TEST_F(ClientSim, MoveAdvancesTheSimulatedClockNotTheWallClock) {
   Irc5Client client(clientOptions());
   client.connect();
   const auto t0 = std::chrono::steady_clock::now();
-  // J6 alone: the flange origin stays put, the tool turns 100 deg at v_ori = 50 deg/s: 2 s.
+  // J6 alone: the flange origin stays put, the tool turns 100 deg at v_ori = 50 deg/s: 2 s of
+  // cruise, 50 / 1000 s more for the ramps, plus the fixed cost and the fine-point settling.
   client.moveJoints({0, 0, 0, 0, 30, 100});
-  EXPECT_NEAR(sim_->simTimeS(), 2.0, 1e-5);
+  const irc5::MotionCosts costs;
+  EXPECT_NEAR(sim_->simTimeS(), 2.0 + 50.0 / costs.joint_accel_deg_s2 + 0.3 + 0.1, 1e-5);
+  const MotionTotals first = sim_->motionTotals();
+  EXPECT_EQ(first.moves, 1);
+  EXPECT_NEAR(first.motion_s, 2.05, 1e-5);
+  EXPECT_NEAR(first.overhead_s, 0.3, 1e-12);
+  EXPECT_NEAR(first.settle_s, 0.1, 1e-12);
   // J1 swings the flange along an arc of about 100 deg x 0.85 m: v_tcp = 100 mm/s limits.
   client.moveJoints({100, 0, 0, 0, 30, 100});
-  EXPECT_GT(sim_->simTimeS() - 2.0, 12.0);
+  EXPECT_GT(sim_->simTimeS() - 2.45, 12.0 + 0.4);
+  EXPECT_EQ(sim_->motionTotals().moves, 2);
   EXPECT_LT(std::chrono::steady_clock::now() - t0, milliseconds(500));
+}
+
+TEST_F(ClientSim, EveryMovePaysTheFixedCostEvenWhenTiny) {
+  SimControllerOptions o;
+  o.world = testWorld();
+  o.motion.overhead_s = 1.0;
+  o.motion.settle_s = 0.0;
+  sim_ = std::make_unique<SimController>(o);
+  sim_->start();
+  Irc5Client client(clientOptions());
+  client.connect();
+  // 1e-3 deg of J6: the triangular profile takes 2 sqrt(1e-3 / 1000) = 2 ms.
+  client.moveJoints({0, 0, 0, 0, 30, 0.001});
+  EXPECT_NEAR(sim_->simTimeS(), 1.0 + 2 * std::sqrt(1e-3 / 1000.0), 1e-4);
+  o.motion.joint_accel_deg_s2 = 0;
+  EXPECT_THROW({ SimController bad(o); }, ConfigError);
 }
 
 TEST_F(ClientSim, RealTimePacedMoveUsesTheMoveDeadlineNotTheRequestTimeout) {
@@ -173,12 +197,14 @@ TEST_F(ClientSim, RealTimePacedMoveUsesTheMoveDeadlineNotTheRequestTimeout) {
   Irc5Options o = clientOptions();
   o.request_timeout = milliseconds(100);
   o.move_timeout_factor = 2.0;
-  o.move_timeout_margin = milliseconds(200);
+  o.move_timeout_margin = milliseconds(800);
   Irc5Client client(o);
   client.connect();
   const auto t0 = std::chrono::steady_clock::now();
-  client.moveJoints({0, 0, 0, 0, 30, 10});  // J6 only: 10 deg at 50 deg/s, 0.2 s
-  EXPECT_GE(std::chrono::steady_clock::now() - t0, milliseconds(190));
+  // J6 only: 10 deg at 50 deg/s, 0.2 s, and 0.45 s of ramps, fixed cost and settling; the
+  // deadline: 0.2 s x 2 + the margin.
+  client.moveJoints({0, 0, 0, 0, 30, 10});
+  EXPECT_GE(std::chrono::steady_clock::now() - t0, milliseconds(640));
 }
 
 TEST_F(ClientSim, ReadPoseIsTheForwardKinematicsOfTheReportedJoints) {

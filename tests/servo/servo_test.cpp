@@ -370,7 +370,7 @@ TEST(PsdServo, SpotNeverFoundFaultsWithTheRobotBackAtThePlannedPose) {
   RecordingLink link(s.planned);
   ExactPsd psd(s.world, link);
   ServoOptions o = centreOptions();
-  o.search_radius_mm = 20;
+  o.search_radius_mm = 30;
   PsdServo servo(s.cell, s.world.psd_position_mm, o);
   const ServoResult r = servo.run(link, psd, s.planned);
   EXPECT_EQ(r.status, ServoStatus::kSpotNotFound);
@@ -380,11 +380,13 @@ TEST(PsdServo, SpotNeverFoundFaultsWithTheRobotBackAtThePlannedPose) {
   EXPECT_GT(r.search_moves, 50);
   EXPECT_EQ(link.q, s.planned);
   expectMovesWithinBounds(s.cell.robot, s.planned, link.moves, o);
-  // The search points sit closer together on the PSD plane than the 2.5 mm spot is wide.
+  // Successive search points sit about search_step_mm apart on the PSD plane (5 mm: the 10 mm
+  // detector is lit from 5.7 mm off its centre), never much farther.
   for (std::size_t i = 1; i < 100; ++i) {
     const auto a = beamHit(s.world, link.moves[i - 1]), b = beamHit(s.world, link.moves[i]);
     ASSERT_TRUE(a && b);
-    EXPECT_LT(std::hypot(a->u_mm - b->u_mm, a->v_mm - b->v_mm), 2.5) << "move " << i;
+    EXPECT_LT(std::hypot(a->u_mm - b->u_mm, a->v_mm - b->v_mm), 1.2 * o.search_step_mm)
+        << "move " << i;
   }
   // The latched samples are the last ones, in order.
   for (std::size_t i = 1; i < servo.fault().sample_count; ++i)

@@ -188,7 +188,7 @@ TEST_F(Usb1408fsTest, StatusBlinkAndDigitalBytes) {
   auto& dev = open();
   model_.setStatus(0x0005);
   EXPECT_EQ(dev.status(), 0x0005);
-  EXPECT_THAT(lastCommand(), ElementsAre(0x44));
+  EXPECT_THAT(lastCommand(), ElementsAre(0x44, 0, 0));  // the full report, as the C driver sends
   dev.blinkLed();
   EXPECT_THAT(lastCommand(), ElementsAre(0x40));
   EXPECT_EQ(model_.blinkCount(), 1);
@@ -216,23 +216,24 @@ TEST_F(Usb1408fsTest, LoadQueueSends18Bytes) {
 TEST_F(Usb1408fsTest, ScanCommandBytes) {
   auto& dev = open();
   Collector sink(2);
-  ScanConfig config{{diff(0, Range::kBip10V), se(3)}, 1000.0, 100};
+  ScanConfig config{{se(2), se(3)}, 1000.0, 100};
   const Pacer pacer = dev.startScan(config, sink);
   EXPECT_EQ(pacer.preload, 10000);
   const auto& log = model_.commandLog();
   ASSERT_EQ(log.size(), 2u);
   EXPECT_THAT(log[0].data,
-              ElementsAreArray(Bytes{0x13, 2, 0, 1, 11, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0}));
-  // lowchan 0, highchan 1 (queue positions), count 200 samples, prescale 0, preload 10000,
-  // options: single execution + queue.
-  EXPECT_THAT(log[1].data, ElementsAre(0x11, 0, 1, 200, 0, 0, 0, 0, 0x10, 0x27, 0x11));
+              ElementsAreArray(Bytes{0x13, 2, 10, 0, 11, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0}));
+  // lowchan 10, highchan 11 (channel numbers, single-ended c is c + 8; not queue positions 0, 1),
+  // count 200 samples, prescale 0, preload 10000, options: single execution + queue.
+  EXPECT_THAT(log[1].data, ElementsAre(0x11, 10, 11, 200, 0, 0, 0, 0, 0x10, 0x27, 0x11));
   dev.stopScan();
   EXPECT_THAT(lastCommand(), ElementsAre(0x12));
 }
 
 TEST_F(Usb1408fsTest, SingleExecutionScanDeliversCalibratedSamplesPerChannel) {
   auto& dev = open();
-  const std::vector<Channel> channels = {diff(0, Range::kBip10V), se(3), diff(1, Range::kBip2V)};
+  const std::vector<Channel> channels = {diff(1, Range::kBip10V), diff(2, Range::kBip1V),
+                                         diff(3, Range::kBip2V)};
   Collector sink(channels.size());
   dev.startScan({channels, 2000.0, 100}, sink);
   for (int i = 0; i < 100 && !dev.scanComplete(); ++i) dev.pollScan(20ms);
@@ -250,7 +251,8 @@ TEST_F(Usb1408fsTest, SingleExecutionScanDeliversCalibratedSamplesPerChannel) {
 
 TEST_F(Usb1408fsTest, ScanGapsAreDetectedAndChannelPhaseKept) {
   auto& dev = open();
-  const std::vector<Channel> channels = {diff(0, Range::kBip10V), diff(1, Range::kBip10V), se(2)};
+  const std::vector<Channel> channels = {diff(0, Range::kBip10V), diff(1, Range::kBip10V),
+                                         diff(2, Range::kBip5V)};
   Collector sink(channels.size());
   model_.dropScanPackets(5, 3);
   model_.dropScanPackets(20, 1);
@@ -311,7 +313,8 @@ TEST_F(Usb1408fsTest, PacketsOvertakingEachOtherAreReorderedNotLost) {
   Usb1408fs dev([this]() -> std::unique_ptr<UsbTransport> {
     return std::make_unique<ReorderingTransport>(model_);
   });
-  const std::vector<Channel> channels = {diff(0, Range::kBip10V), se(1), diff(2, Range::kBip1V)};
+  const std::vector<Channel> channels = {diff(0, Range::kBip10V), diff(1, Range::kBip4V),
+                                         diff(2, Range::kBip1V)};
   Collector sink(channels.size());
   model_.dropScanPackets(10, 1);
   dev.startScan({channels, 4000.0, 0}, sink);
@@ -513,6 +516,14 @@ TEST_F(Usb1408fsTest, ErroneousScanConfigurationsAreRefused) {
   Collector sink(1);
   EXPECT_THROW(dev.startScan({{}, 1000.0, 0}, sink), ProtocolError);
   EXPECT_THROW(dev.startScan({{se(0)}, 0.1, 0}, sink), ProtocolError);
+  // Only consecutive inputs of one mode, lowest first: the order no reference driver sends is
+  // refused rather than guessed.
+  EXPECT_THROW(dev.startScan({{diff(0, Range::kBip10V), diff(2, Range::kBip10V)}, 1000.0, 0}, sink),
+               ProtocolError);
+  EXPECT_THROW(dev.startScan({{diff(1, Range::kBip10V), diff(0, Range::kBip10V)}, 1000.0, 0}, sink),
+               ProtocolError);
+  EXPECT_THROW(dev.startScan({{diff(3, Range::kBip10V), se(0)}, 1000.0, 0}, sink), ProtocolError);
+  EXPECT_TRUE(model_.commandLog().empty());  // refused before anything was sent
   EXPECT_THROW(dev.pollScan(1ms), ProtocolError);
   EXPECT_FALSE(model_.scanning());
 }

@@ -63,5 +63,58 @@ TEST(Usb1408fsModel, ScanPacketsRoundRobinWithIndexOnTheSimulatedClock) {
   EXPECT_EQ(send(m, {0x40}), Result::kNoDevice);
 }
 
+// What the reference C driver (wjasper/Linux_Drivers, usb-1408FS.c), which runs on boards, sends.
+TEST(Usb1408fsModel, AcceptsTheReferenceDriversGetStatusOfThreeBytes) {
+  Usb1408fsModel m;
+  m.setStatus(0x0009);
+  ASSERT_EQ(send(m, {0x44, 0, 0}), Result::kOk);
+  const auto r = m.takeReply();
+  ASSERT_TRUE(r.has_value());
+  EXPECT_EQ(r->length, 3u);
+  EXPECT_EQ(r->bytes[0], 0x44);
+  EXPECT_EQ(r->bytes[1] | (r->bytes[2] << 8), 0x0009);
+  ASSERT_EQ(send(m, {0x44}), Result::kOk);  // the Python driver's single byte
+  EXPECT_TRUE(m.takeReply().has_value());
+  EXPECT_EQ(send(m, {0x44, 0}), Result::kStall);
+}
+
+// First 31 samples of a single-channel scan, as the driver would read them.
+std::vector<std::uint16_t> firstPacket(Usb1408fsModel& m) {
+  m.advanceTo(m.now() + std::chrono::milliseconds(40));
+  std::optional<Usb1408fsModel::Packet> p;
+  EXPECT_EQ(m.takeScanPacket(0x83, p), Result::kOk);
+  std::vector<std::uint16_t> words;
+  if (p)
+    for (int i = 0; i < 31; ++i) words.push_back(p->bytes[2 * i] | (p->bytes[2 * i + 1] << 8));
+  return words;
+}
+
+TEST(Usb1408fsModel, QueuedScanTakesChannelNumbersAsTheReferenceDriverSendsThem) {
+  Usb1408fsModel m;
+  m.setAnalogSource([](const Channel& ch, double) { return ch.number == 2 ? 3.0 : -1.0; });
+  // usbAInScan_USB1408FS_SE for single-ended 2 only: the queue holds wire channel 10, and
+  // low = high = 10 (a channel number, not queue position 0).
+  ASSERT_EQ(send(m, {0x13, 1, 10, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0}), Result::kOk);
+  EXPECT_EQ(send(m, {0x11, 10, 16, 62, 0, 0, 0, 0, 0x10, 0x27, 0x11}), Result::kStall);  // no 16
+  ASSERT_EQ(send(m, {0x11, 10, 10, 62, 0, 0, 0, 0, 0x10, 0x27, 0x11}), Result::kOk);
+  const Channel se2{2, InputMode::kSingleEnded, Range::kBip10V};
+  const auto words = firstPacket(m);
+  ASSERT_EQ(words.size(), 31u);
+  for (std::uint16_t w : words) EXPECT_EQ(w, m.wordFor(se2, 3.0));
+}
+
+TEST(Usb1408fsModel, ScanWithoutTheQueueUsesEachChannelsLastSetRange) {
+  Usb1408fsModel m;
+  m.setAnalogSource([](const Channel&, double) { return 0.7; });
+  ASSERT_EQ(send(m, {0x10, 1, 7}), Result::kOk);  // AIN of differential 1 at +-1 V
+  ASSERT_TRUE(m.takeReply().has_value());
+  ASSERT_EQ(send(m, {0x11, 1, 1, 31, 0, 0, 0, 0, 0x10, 0x27, 0x01}), Result::kOk);
+  const Channel at_1v{1, InputMode::kDifferential, Range::kBip1V};
+  const auto words = firstPacket(m);
+  ASSERT_EQ(words.size(), 31u);
+  EXPECT_EQ(words.front(), m.wordFor(at_1v, 0.7));
+  EXPECT_NE(words.front(), m.wordFor({1, InputMode::kDifferential, Range::kBip20V}, 0.7));
+}
+
 }  // namespace
 }  // namespace zerocal::sim

@@ -155,7 +155,7 @@ TEST_F(UmockdevTest, CommandBytesReachTheBoard) {
     const auto& log = m.commandLog();
     EXPECT_EQ(log.size(), 6u);
     if (log.size() != 6u) return 0;
-    EXPECT_THAT(log[0].data, ElementsAre(0x44));
+    EXPECT_THAT(log[0].data, ElementsAre(0x44, 0, 0));
     EXPECT_THAT(log[1].data, ElementsAre(0x40));
     EXPECT_THAT(log[2].data, ElementsAre(0x01, 1, 0));
     EXPECT_THAT(log[3].data, ElementsAre(0x04, 1, 0x81));
@@ -211,7 +211,8 @@ TEST_F(UmockdevTest, StallBecomesStallError) {
 
 TEST_F(UmockdevTest, HardwarePacedScanWithTransfersInFlight) {
   Usb1408fs dev(realOpener(), shortTimeouts());
-  const std::vector<Channel> channels = {diff(0, Range::kBip10V), se(5), diff(1, Range::kBip4V)};
+  const std::vector<Channel> channels = {diff(0, Range::kBip10V), diff(1, Range::kBip4V),
+                                         diff(2, Range::kBip2V)};
   Collector sink(channels.size());
   board_.withModel([](Usb1408fsModel& m) {
     m.dropScanPackets(4, 2);

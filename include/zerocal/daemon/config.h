@@ -40,6 +40,9 @@ struct BackendConfig {
   // Wall seconds per simulated second of a move: 0 as fast as the computer goes, 1 real time,
   // 0.1 ten times faster (to watch a session on the simulated cell).
   double sim_pace = 0.0;
+  // The in-process simulated controller's fixed cost per move (s): the request and reply and the
+  // motion planner's start-up that a real IRC5 pays for every move (docs/simulated-cell.md).
+  double sim_move_overhead_s = 0.3;
   // An external zerocal-sim process instead of the in-process one: both set, or neither.
   std::string sim_host;
   std::uint16_t sim_port = 0;
@@ -80,8 +83,8 @@ struct ServoConfig {
   double timeout_s = 20.0;
   double settle_s = 0.2;           // wait after a move before a reading counts
   double search_radius_mm = 60.0;  // acquisition: spiral search around the planned spot
-  double search_step_mm = 2.0;     // spacing of the spiral (smaller than the spot)
-  double search_time_s = 300.0;
+  double search_step_mm = 4.0;     // spacing of the spiral (under half the detector)
+  double search_time_s = 600.0;
 };
 
 struct SessionConfig {

@@ -1,7 +1,9 @@
 // The simulated IRC5: a real TCP server speaking zerocal's RAPID module's protocol (and
 // upstream open_abb's, without LF, behind a switch), moving a simulated robot whose true pose
 // differs from what it reports by the world's joint offsets. Time is simulated: a move advances
-// the simulated clock by its duration and replies at once, unless real-time pacing is asked for.
+// the simulated clock by what it costs a real IRC5 (irc5::MotionCosts: a fixed cost per move, the
+// accelerating and braking profile, the settling at the fine point) and replies at once, unless
+// real-time pacing is asked for.
 //
 // Runs in-process on its own I/O thread (start()) or on the caller's thread (run(), for the
 // zerocal-sim program). The state accessors are thread-safe.
@@ -14,6 +16,7 @@
 #include <optional>
 #include <string>
 
+#include "zerocal/irc5/motion_time.h"
 #include "zerocal/model/robot.h"
 #include "zerocal/sim/world.h"
 
@@ -60,6 +63,8 @@ struct SimControllerOptions {
   // Wall-clock seconds a move's reply waits per simulated second of the move: 0 answers at once,
   // 1 in real time, 0.1 ten times faster (a demonstration one can follow).
   double pace = 0.0;
+  // What each move costs beyond its distance over its speed (docs/simulated-cell.md).
+  irc5::MotionCosts motion;
   // Seeds the repeatability noise.
   std::uint64_t seed = 1;
   // A request still missing its '#' after this long gets a bad-message reply and is discarded
@@ -73,10 +78,17 @@ struct SimControllerOptions {
   SimFaults faults;
 };
 
+// Where the simulated time of the moves went, summed over every move since construction.
+struct MotionTotals {
+  long moves = 0;
+  double motion_s = 0, overhead_s = 0, settle_s = 0;
+};
+
 class SimController {
  public:
   // Binds and listens at once (so port() is valid). Throws Error when the address cannot be
-  // bound, ConfigError when the start joints are outside the robot's limits.
+  // bound, ConfigError when the start joints are outside the robot's limits or the motion costs
+  // are invalid.
   explicit SimController(SimControllerOptions options);
   ~SimController();
   SimController(const SimController&) = delete;
@@ -118,6 +130,7 @@ class SimController {
   Joints zeroShiftDeg() const;
   // Simulated seconds since construction (advanced by moves only).
   double simTimeS() const;
+  MotionTotals motionTotals() const;
   // Requests answered or dropped, over all connections.
   long requestCount() const;
   long connectionCount() const;

@@ -26,8 +26,9 @@ namespace zerocal::sim {
 struct SimulatedCellOptions {
   World world;
   std::uint64_t controller_seed = 1;  // repeatability noise of the moves
-  double pace = 0.0;    // wall seconds per simulated second of a move (SimControllerOptions::pace)
-  PsdModelOptions psd;  // detector, board noise and its seed
+  double pace = 0.0;  // wall seconds per simulated second of a move (SimControllerOptions::pace)
+  irc5::MotionCosts motion;  // what each move costs the controller (SimControllerOptions::motion)
+  PsdModelOptions psd;       // detector, board noise and its seed
   std::uint32_t board_seed = 1408;  // the board's calibration table
   Joints start_joints{0, 0, 0, 0, 30, 0};
   // The stage sweep the PSD map is fitted from (as in the paper: a probe stage over the centre).

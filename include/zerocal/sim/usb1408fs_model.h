@@ -121,6 +121,9 @@ class Usb1408fsModel {
   std::deque<Packet> replies_;
   std::array<std::deque<Packet>, 3> scan_packets_;
   std::vector<std::pair<std::uint8_t, std::uint8_t>> queue_;  // wire (channel, range)
+  // Range byte last set per wire channel (AIN, ALOAD_QUEUE), for scans without the queue; 0
+  // (+-20 V) at power-on is assumed, not documented.
+  std::array<std::uint8_t, 16> range_{};
   std::array<std::uint8_t, 2> dir_{1, 1};
   std::array<std::uint8_t, 2> dout_{0, 0};
   std::array<std::uint8_t, 2> din_{0, 0};

@@ -27,9 +27,11 @@ enum class DigitalPort : std::uint8_t { kA = 0, kB = 1 };
 enum class DigitalDirection : std::uint8_t { kOutput = 0, kInput = 1 };
 
 struct ScanConfig {
-  std::vector<Channel> channels;  // 1..8 entries, loaded into the channel/gain queue
-  double rate_hz = 1000.0;        // scans per second (each scan converts every channel once)
-  std::uint32_t scans = 0;        // 0: continuous until stopScan(); else single execution
+  // 1..8 consecutive inputs of one mode, lowest first (wire numbers c, c+1, ...), loaded into the
+  // channel/gain queue with their ranges.
+  std::vector<Channel> channels;
+  double rate_hz = 1000.0;  // scans per second (each scan converts every channel once)
+  std::uint32_t scans = 0;  // 0: continuous until stopScan(); else single execution
   std::size_t transfers_per_endpoint = 4;  // asynchronous transfers in flight per endpoint
 };
 

@@ -53,7 +53,10 @@ struct WorldRun {
 WorldRun runWorld(std::uint64_t seed, const ApplyExperimentArgs& args, const std::string& dir,
                   std::ostream& out) {
   SimControllerOptions so;
-  so.world = randomWorld(seed);
+  // The seed's ideal world: on the realistic one the verdict withholds offsets an 8-pose
+  // calibration does not determine to the required accuracy, and nothing is applied
+  // (docs/apply.md).
+  so.world = randomWorld(seed, WorldKind::kIdeal);
   so.seed = seed;
   SimController sim(so);
   sim.start();
@@ -61,6 +64,7 @@ WorldRun runWorld(std::uint64_t seed, const ApplyExperimentArgs& args, const std
   DaemonConfig config;
   config.backend.kind = BackendKind::kSim;
   config.backend.sim_seed = seed;
+  config.backend.sim_ideal_world = true;
   config.backend.sim_host = "127.0.0.1";
   config.backend.sim_port = sim.port();
   config.servo.settle_s = 0.0;

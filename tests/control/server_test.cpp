@@ -66,8 +66,8 @@ TEST_F(TokenFileTest, RefusesATokenTooShortToGuardAnythingAndAFileTooLargeToBeOn
 }
 
 TEST_F(TokenFileTest, ReadsAFileItsGroupMayRead) {  // root:zerocal 0640, shared by technicians
-  EXPECT_EQ(loadToken(write("s3cret", 0640)), "s3cret");
-  EXPECT_EQ(loadToken(write("s3cret", 0440)), "s3cret");
+  EXPECT_EQ(loadToken(write("s3cret-s3cret-s3cret", 0640)), "s3cret-s3cret-s3cret");
+  EXPECT_EQ(loadToken(write("s3cret-s3cret-s3cret", 0440)), "s3cret-s3cret-s3cret");
 }
 
 TEST_F(TokenFileTest, RefusesAMissingFile) {

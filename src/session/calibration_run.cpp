@@ -3,8 +3,8 @@
 #include <chrono>
 #include <exception>
 
-#include "zerocal/error.h"
 #include "zerocal/cell/link_error.h"
+#include "zerocal/error.h"
 #include "zerocal/servo/spot_predictor.h"
 
 namespace zerocal {
@@ -65,8 +65,8 @@ CalibrationRun::CalibrationRun(CellModel knowledge, Eigen::Vector3d taught_centr
                      " poses but the plan only " + std::to_string(plan_.size()));
 }
 
-RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd,
-                               CellClock& clock, const std::atomic<bool>& abort) {
+RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock& clock,
+                               const std::atomic<bool>& abort) {
   RunOutcome out;
   out.records = journal_.recovered();
   out.resumed_from = journal_.nextIndex();
@@ -118,8 +118,8 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd,
         if (!r.ok()) {
           why = std::string("servo ") + servo::statusName(r.status) + ": " + servo.fault().message;
           const bool transient = servo.fault().link_kind == LinkError::Kind::kTransient;
-          failure = r.status == servo::ServoStatus::kAborted                  ? Failure::kAborted
-                    : !transient                                              ? Failure::kOther
+          failure = r.status == servo::ServoStatus::kAborted       ? Failure::kAborted
+                    : !transient                                   ? Failure::kOther
                     : r.status == servo::ServoStatus::kLinkError   ? Failure::kLink
                     : r.status == servo::ServoStatus::kSensorError ? Failure::kSensor
                                                                    : Failure::kOther;

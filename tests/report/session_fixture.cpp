@@ -5,8 +5,8 @@
 #include <filesystem>
 #include <fstream>
 
-#include "zerocal/calib/format.h"
 #include "zerocal/calib/experiment.h"
+#include "zerocal/calib/format.h"
 #include "zerocal/calib/validation.h"
 #include "zerocal/daemon/journal.h"
 

@@ -103,11 +103,11 @@ struct ControlConfig {
   std::uint16_t port = 7450;
   std::string token_file;  // required to serve the port; checked when bind_address is not loopback
   int max_clients = 64;    // connections at once; more are refused politely
-  int max_line_bytes = 65536;   // longest request line; a longer one is refused and closed
-  double idle_timeout_s = 600;  // a connection that sends no request this long is closed
-  double write_timeout_s = 30;  // a client whose write is stuck this long is dropped
-  int max_queued_kib = 1024;    // output queued for one client before it is dropped
-  int max_auth_failures = 3;    // failed auth attempts before a connection is closed
+  int max_line_bytes = 65536;     // longest request line; a longer one is refused and closed
+  double idle_timeout_s = 600;    // a connection that sends no request this long is closed
+  double write_timeout_s = 30;    // a client whose write is stuck this long is dropped
+  int max_queued_kib = 1024;      // output queued for one client before it is dropped
+  int max_auth_failures = 3;      // failed auth attempts before a connection is closed
   int max_clients_per_peer = 16;  // connections from one address at once
   double auth_timeout_s = 10;     // a connection not authenticated this long is closed
   // Plan files named in `start`/`plan` requests are file names in this folder; empty: none.

@@ -14,8 +14,9 @@ namespace zerocal {
 class BadMessageError : public LinkError {
  public:
   BadMessageError(int code, const std::string& detail)
-      : LinkError(Kind::kRefused, "controller refused request " + std::to_string(code) +
-                  (detail.empty() ? std::string(" (ok = 0)") : " (ok = 0): " + detail)),
+      : LinkError(Kind::kRefused,
+                  "controller refused request " + std::to_string(code) +
+                      (detail.empty() ? std::string(" (ok = 0)") : " (ok = 0): " + detail)),
         code_(code) {}
   int code() const noexcept { return code_; }
 

@@ -5,8 +5,8 @@
 
 #include <memory>
 
-#include "zerocal/daemon/config.h"
 #include "zerocal/cell/cell.h"
+#include "zerocal/daemon/config.h"
 #include "zerocal/service/session_manager.h"
 #include "zerocal/session/calibration_run.h"
 

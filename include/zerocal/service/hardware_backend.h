@@ -3,9 +3,9 @@
 // configuration. Nothing is opened until a session connects.
 #pragma once
 
+#include "zerocal/cell/cell.h"
 #include "zerocal/daemon/config.h"
 #include "zerocal/irc5/irc5_client.h"
-#include "zerocal/cell/cell.h"
 
 namespace zerocal::service {
 

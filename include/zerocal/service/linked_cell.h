@@ -3,10 +3,10 @@
 // simulated board and the simulated cell's clock; the code in between is the same.
 #pragma once
 
+#include "zerocal/cell/cell.h"
 #include "zerocal/irc5/irc5_client.h"
 #include "zerocal/psd/psd.h"
 #include "zerocal/servo/psd_reader.h"
-#include "zerocal/cell/cell.h"
 #include "zerocal/usb1408fs/usb1408fs.h"
 
 namespace zerocal::service {

@@ -11,10 +11,10 @@
 #include <vector>
 
 #include "zerocal/calib/planner.h"
+#include "zerocal/cell/psd_reader.h"
 #include "zerocal/daemon/journal.h"
 #include "zerocal/error.h"
 #include "zerocal/service/plan_kind.h"
-#include "zerocal/cell/psd_reader.h"
 
 namespace zerocal::service {
 

@@ -12,8 +12,8 @@
 #include <vector>
 
 #include "zerocal/calib/solver.h"
-#include "zerocal/daemon/journal.h"
 #include "zerocal/cell/controller_link.h"
+#include "zerocal/daemon/journal.h"
 #include "zerocal/servo/psd_reader.h"
 #include "zerocal/servo/servo.h"
 

@@ -18,6 +18,7 @@
 #include <regex>
 #include <sstream>
 
+#include "../support/temp_dir.h"
 #include "zerocal/control/client.h"
 
 extern char** environ;
@@ -27,22 +28,11 @@ namespace {
 
 using namespace std::chrono_literals;
 
-struct TempDir {
-  TempDir() {
-    char pattern[] = "/tmp/zerocal-notify-XXXXXX";
-    if (!::mkdtemp(pattern)) throw std::runtime_error("mkdtemp failed");
-    path = pattern;
-  }
-  ~TempDir() { std::filesystem::remove_all(path); }
-  std::string path;
+// The folder's name says which test left it, should one outlive its test.
+struct TempDir : testing::TempDir {
+  TempDir() : testing::TempDir("zerocal-notify") {}
 };
-
-std::string readFile(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using testing::readFile;
 
 // The next datagram within `timeout`, or nullopt.
 std::optional<std::string> receive(int fd, std::chrono::milliseconds timeout) {

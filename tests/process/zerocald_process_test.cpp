@@ -17,6 +17,7 @@
 #include <sstream>
 #include <thread>
 
+#include "../support/temp_dir.h"
 #include "zerocal/control/client.h"
 
 extern char** environ;
@@ -27,22 +28,11 @@ namespace {
 using namespace std::chrono_literals;
 using control::ControlClient;
 
-struct TempDir {
-  TempDir() {
-    char pattern[] = "/tmp/zerocal-process-XXXXXX";
-    if (!::mkdtemp(pattern)) throw std::runtime_error("mkdtemp failed");
-    path = pattern;
-  }
-  ~TempDir() { std::filesystem::remove_all(path); }
-  std::string path;
+// The folder's name says which test left it, should one outlive its test.
+struct TempDir : testing::TempDir {
+  TempDir() : testing::TempDir("zerocal-process") {}
 };
-
-std::string readFile(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using testing::readFile;
 
 std::vector<int> journalIndices(const std::string& path) {
   std::vector<int> indices;

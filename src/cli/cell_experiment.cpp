@@ -136,6 +136,7 @@ int runCellExperiment(const CellExperimentArgs& args) {
     int moves = 0;
     if (completed) {
       for (const Json& pose : result["pose_breakdown"]) {
+        if (pose.contains("skipped")) continue;  // never measured: no moves to count
         const int i = pose["pose"].get<int>() - 1;
         // Every move the controller made for the pose: the planned one and the servo's.
         const int pose_moves = pose["servo_moves"].get<int>() + 1;

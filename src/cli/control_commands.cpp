@@ -238,6 +238,13 @@ json startMembers(const ClientArgs& args) {
   return m;
 }
 
+json resumeMembers(const ClientArgs& args) {
+  json m = json::object();
+  if (!args.session.empty()) m["session"] = args.session;
+  if (args.skip_pose > 0) m["skip_pose"] = args.skip_pose;
+  return m;
+}
+
 int printPlan(const json& plan, const ClientArgs& args, std::ostream& out) {
   bool identifiable = true;
   const auto& predicted = plan.value("predicted", json::object());
@@ -320,12 +327,8 @@ int run(const ClientArgs& args, std::ostream& out, std::ostream& err, bool tty) 
   }
   if (cmd == "watch") return watch(client, args, out, tty);
   if (cmd == "start" || cmd == "resume") {
-    const auto r =
-        cmd == "start"
-            ? client.call("start", startMembers(args), timeout)
-            : client.call("resume",
-                          args.session.empty() ? json::object() : json{{"session", args.session}},
-                          timeout);
+    const auto r = cmd == "start" ? client.call("start", startMembers(args), timeout)
+                                  : client.call("resume", resumeMembers(args), timeout);
     const std::string id = r.value("session", "");
     if (!args.watch) {
       if (args.json)
@@ -360,6 +363,8 @@ int run(const ClientArgs& args, std::ostream& out, std::ostream& err, bool tty) 
                                          : "unfinished",
             s.value("recorded_poses", 0), s.value("planned_poses", 0), s.value("dir", "").c_str());
         out << line;
+        if (s.value("skipped_poses", 0) > 0)
+          out << "    " << s.value("skipped_poses", 0) << " of them skipped\n";
         if (s.contains("damaged")) out << "    " << s.value("damaged", "") << "\n";
       }
       if (list.empty()) out << "no sessions\n";
@@ -429,6 +434,11 @@ void addClientCommands(CLI::App& app, ClientCommands& commands) {
   add("abort", "stop the running session (the robot stops)");
   auto* resume = add("resume", "resume an unfinished session from its journal");
   resume->add_option("session", a.session, "session id (default the latest unfinished)");
+  resume
+      ->add_option("--skip-pose", a.skip_pose,
+                   "skip this pose, the next one to measure (its spot was never found, say); "
+                   "refused unless the plan identifies every offset without it")
+      ->check(CLI::PositiveNumber);
   resume->add_flag("--watch", a.watch, "then show its progress until it ends");
   add("sessions", "the sessions in the daemon's data folder");
   auto* result =

@@ -31,6 +31,7 @@ struct ClientArgs {
   bool json = false;
   bool watch = false;   // start, resume: then watch the session
   std::string session;  // resume, result: a session id (default the latest)
+  int skip_pose = 0;    // resume: the next pose, to skip (1-based; 0: none)
   std::string pattern;  // start, plan: optimal, I, II, mixed, file (default the daemon's)
   std::optional<int> poses;
   std::string plan_file;

@@ -12,6 +12,8 @@ namespace {
 const std::set<std::string> kStartMembers{"id",    "cmd",       "token",     "plan",
                                           "poses", "plan_file", "target_mm", "noise_mm"};
 
+const std::set<std::string> kResumeMembers{"id", "cmd", "token", "session", "skip_pose"};
+
 }  // namespace
 
 const char* planKindName(PlanKind kind) {
@@ -70,6 +72,20 @@ service::StartRequest parseStartRequest(const json& request,
   return r;
 }
 
+service::ResumeRequest parseResumeRequest(const json& request) {
+  for (const auto& item : request.items())
+    if (!kResumeMembers.count(item.key())) throw BadRequest("unknown member '" + item.key() + "'");
+  service::ResumeRequest r;
+  r.session = optionalString(request, "session");
+  if (request.contains("skip_pose")) {
+    const auto& p = request["skip_pose"];
+    if (!p.is_number_integer() || p.get<long long>() < 1 || p.get<long long>() > kMaxPlanPoses)
+      throw BadRequest("skip_pose: expected a pose number 1.." + std::to_string(kMaxPlanPoses));
+    r.skip_pose = p.get<int>();
+  }
+  return r;
+}
+
 json toJson(const service::SessionStatus& s) {
   // NaN (not identifiable) becomes null: JSON has no NaN and nlohmann writes null for it anyway.
   auto sigmas = [](const std::vector<double>& v) {
@@ -95,6 +111,7 @@ json toJson(const service::SessionStatus& s) {
          {"achieved_sigma_deg", sigmas(s.achieved_sigma_deg)},
          {"cell_time_s", s.cell_time_s}};
   if (!s.message.empty()) j["message"] = s.message;
+  if (s.skippable_pose > 0) j["skippable_pose"] = s.skippable_pose;
   return j;
 }
 
@@ -119,6 +136,7 @@ json toJson(const std::vector<SessionInfo>& sessions) {
                  {"finished", s.finished},
                  {"planned_poses", s.planned_poses},
                  {"recorded_poses", s.recorded_poses}});
+    if (s.skipped_poses > 0) a.back()["skipped_poses"] = s.skipped_poses;
     if (!s.damaged.empty()) a.back()["damaged"] = s.damaged;
   }
   return a;

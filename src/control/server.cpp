@@ -304,8 +304,13 @@ class Connection : public std::enable_shared_from_this<Connection> {
         return json{{"session", session_id}};
       });
     } else if (cmd == "resume") {
-      const auto session_id = session.resume(optionalString(request, "session"));
-      server_->log_->info("{}: resumed session {}", peer_, session_id);
+      const service::ResumeRequest resume = parseResumeRequest(request);
+      const auto session_id = session.resume(resume);
+      if (resume.skip_pose > 0)
+        server_->log_->warn("{}: resumed session {}, skipping pose {}", peer_, session_id,
+                            resume.skip_pose);
+      else
+        server_->log_->info("{}: resumed session {}", peer_, session_id);
       r["session"] = session_id;
     } else if (cmd == "abort") {
       const bool aborted = session.abort();

@@ -132,6 +132,8 @@ std::string newSessionId(const fs::path& data_dir) {
 }  // namespace
 
 Json toJson(const PoseRecord& r) {
+  if (!r.measured())
+    return Json{{"index", r.index}, {"skipped", r.skipped}, {"recorded_ns", r.recorded_ns}};
   // nlohmann writes doubles in the shortest form that reads back to the same bits.
   Json line{{"index", r.index},
             {"joints_deg", r.joints_deg},
@@ -159,6 +161,12 @@ PoseRecord poseRecordFromJson(const Json& j) {
   try {
     PoseRecord r;
     j.at("index").get_to(r.index);
+    if (j.contains("skipped")) {
+      j.at("skipped").get_to(r.skipped);
+      j.at("recorded_ns").get_to(r.recorded_ns);
+      if (r.skipped.empty()) throw JournalError("pose record: skipped without a reason");
+      return r;
+    }
     j.at("joints_deg").get_to(r.joints_deg);
     j.at("u_mm").get_to(r.u_mm);
     j.at("v_mm").get_to(r.v_mm);
@@ -236,9 +244,8 @@ JournalContents readJournal(const std::string& path) {
 
 Journal::Journal(const std::string& path) : path_(path) {
   JournalContents contents = readJournal(path);
-  recovered_ = std::move(contents.records);
+  records_ = std::move(contents.records);
   dropped_ = std::move(contents.dropped);
-  next_index_ = static_cast<int>(recovered_.size());
 
   const fs::path file(path);
   makeDirs(file.parent_path());
@@ -266,9 +273,9 @@ Journal::~Journal() {
 
 void Journal::append(const PoseRecord& record) {
   if (broken_) throw JournalError("journal " + path_ + " is unusable after a failed write");
-  if (record.index != next_index_)
+  if (record.index != nextIndex())
     throw JournalError("journal " + path_ + ": pose index " + std::to_string(record.index) +
-                       " where " + std::to_string(next_index_) + " is due");
+                       " where " + std::to_string(nextIndex()) + " is due");
   if (!allFinite(record))
     throw JournalError("journal " + path_ + ": pose " + std::to_string(record.index) +
                        " has a value that is not a finite number");
@@ -282,7 +289,7 @@ void Journal::append(const PoseRecord& record) {
     broken_ = true;
     throw;
   }
-  ++next_index_;
+  records_.push_back(record);
 }
 
 // What list() learnt of each session, and the journal's size and time it learnt it from.
@@ -367,7 +374,9 @@ std::vector<SessionInfo> SessionStore::list() const {
         continue;
       }
       try {
-        info.recorded_poses = readJournal(journal.string()).nextIndex();
+        const JournalContents contents = readJournal(journal.string());
+        info.recorded_poses = contents.nextIndex();
+        for (const PoseRecord& r : contents.records) info.skipped_poses += !r.measured();
       } catch (const JournalError& e) {
         // One damaged session must not hide the others (nor stop the daemon): it is listed,
         // named and never resumed; its files are left exactly as they are.

@@ -305,8 +305,8 @@ std::string reportHtml(const SessionReport& r) {
     norm.values.push_back(p.solved ? p.normalised : std::nan(""));
   }
   o << barChart("residuals", "How far each pose's laser line misses the PSD point", cats, {norm},
-                "pose (held-out poses have no bar)", "miss / noise sigma (1)", false, 3.5,
-                "outlier threshold 3.5");
+                "pose (held-out and skipped poses have no bar)", "miss / noise sigma (1)", false,
+                3.5, "outlier threshold 3.5");
   o << "<p>Worst poses:</p>\n<table>\n<tr><th>pose</th><th>miss (um)</th><th>miss / sigma</th>"
        "<th>stand-off (mm)</th><th></th></tr>\n";
   for (const PoseRow* p : detail::worstPoses(r))
@@ -407,6 +407,11 @@ std::string reportHtml(const SessionReport& r) {
   o << "<h2>Recorded poses</h2>\n<table>\n<tr><th>pose</th><th>q1..q6 (deg)</th><th>u, v (mm)"
        "</th><th>miss (um)</th><th>stand-off (mm)</th></tr>\n";
   for (const PoseRow& p : r.poses) {
+    if (!p.skipped.empty()) {
+      o << "<tr>" << td(std::to_string(p.pose), "n") << td("skipped: " + p.skipped) << td("")
+        << td("") << td("") << "</tr>\n";
+      continue;
+    }
     std::string q;
     for (const double v : p.joints_deg) q += format("%.4f ", v);
     o << "<tr>" << td(std::to_string(p.pose), "n") << td(q, "n")

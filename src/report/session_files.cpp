@@ -261,11 +261,15 @@ SessionReport parseSession(const SessionFiles& files) {
     r.validation = validation;
   }
   const int journal_poses = static_cast<int>(files.journal.size());
-  if (r.solved_poses + static_cast<int>(held_out.size()) != journal_poses)
-    throw ReportError("result.json solved " + std::to_string(r.solved_poses) + " poses" +
-                      (held_out.empty() ? "" : " and held out " + std::to_string(held_out.size())) +
-                      ", but journal.jsonl has " + std::to_string(journal_poses) +
-                      ": the files do not belong together");
+  int skipped_poses = 0;
+  for (const Json& line : files.journal) skipped_poses += line.contains("skipped");
+  if (r.solved_poses + static_cast<int>(held_out.size()) + skipped_poses != journal_poses)
+    throw ReportError(
+        "result.json solved " + std::to_string(r.solved_poses) + " poses" +
+        (held_out.empty() ? "" : " and held out " + std::to_string(held_out.size())) +
+        ", but journal.jsonl has " + std::to_string(journal_poses) +
+        (skipped_poses ? " of which " + std::to_string(skipped_poses) + " skipped" : "") +
+        ": the files do not belong together");
   const Json& residuals = result.array("pose_residuals");
   if (static_cast<int>(residuals.size()) != r.solved_poses)
     throw ReportError("result.json: " + std::to_string(residuals.size()) + " pose_residuals for " +
@@ -280,6 +284,12 @@ SessionReport parseSession(const SessionFiles& files) {
     }
     PoseRow row;
     row.pose = record.index + 1;
+    if (!record.measured()) {
+      row.solved = false;
+      row.skipped = record.skipped;
+      r.poses.push_back(std::move(row));
+      continue;
+    }
     for (int j = 0; j < 6; ++j) row.joints_deg[j] = record.joints_deg[j];
     row.u_mm = record.u_mm;
     row.v_mm = record.v_mm;

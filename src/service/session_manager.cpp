@@ -182,6 +182,22 @@ void refuseUnlessIdentifiable(const Prediction& prediction) {
                   "the plan cannot identify every offset, nothing moved: " + refusal);
 }
 
+// The plan's poses less those skipped: what the solve will have when the rest are measured.
+std::vector<Pose> posesKept(const std::vector<Pose>& plan, const std::vector<bool>& skipped) {
+  std::vector<Pose> kept;
+  for (std::size_t i = 0; i < plan.size(); ++i)
+    if (i >= skipped.size() || !skipped[i]) kept.push_back(plan[i]);
+  return kept;
+}
+
+std::vector<bool> skippedPoses(const std::vector<PoseRecord>& records, std::size_t plan_size) {
+  std::vector<bool> skipped(plan_size, false);
+  for (const PoseRecord& r : records)
+    if (!r.measured() && r.index >= 0 && static_cast<std::size_t>(r.index) < plan_size)
+      skipped[r.index] = true;
+  return skipped;
+}
+
 std::vector<Pose> posesOfPlanJson(const nlohmann::json& plan) {
   std::vector<Pose> poses;
   for (const auto& q : plan.at("poses")) {
@@ -400,15 +416,15 @@ std::string SessionManager::start(const StartRequest& request) {
   emit(state_event);
   post([this, id = info.id, poses = plan.poses, target, noise_mm](bool cancelled) {
     if (cancelled) return finish(SessionState::kAborted, "the daemon stopped before it began");
-    runSession(id, poses, target, noise_mm);
+    runSession(id, poses, target, noise_mm, {});
   });
   return info.id;
 }
 
-std::string SessionManager::resume(const std::string& requested) {
+std::string SessionManager::resume(const ResumeRequest& request) {
   const Claim claim(*this);
 
-  std::string id = requested;
+  std::string id = request.session;
   if (id.empty()) {
     const std::vector<SessionInfo> open = store_.unfinished();
     if (open.empty()) throw Refused("not_found", "no unfinished session to resume");
@@ -444,11 +460,46 @@ std::string SessionManager::resume(const std::string& requested) {
   try {
     checkPlanInput(target, noise_mm);
     checkPoses(knowledge_.cell, poses);
-    CalibrationParameters nominal;
-    nominal.target_mm = target;
-    refuseUnlessIdentifiable(predictUncertainty(knowledge_.cell, poses, nominal, noise_mm));
   } catch (const InputError& e) {
     throw Refused("bad_session", "session " + id + " cannot be resumed: " + e.what());
+  }
+  std::vector<bool> skipped;
+  try {
+    skipped = skippedPoses(readJournal(store_.journalPath(id)).records, poses.size());
+  } catch (const JournalError& e) {
+    throw Refused("damaged", "session " + id + " cannot be resumed, its journal is damaged: " +
+                                 e.what() + " (the files are left as they are)");
+  }
+  int skip_index = -1;
+  if (request.skip_pose != 0) {
+    const int next = info->recorded_poses;
+    if (next >= static_cast<int>(poses.size()))
+      throw Refused("bad_request", "session " + id + " has all " + std::to_string(poses.size()) +
+                                       " poses recorded: there is no pose left to skip");
+    if (request.skip_pose != next + 1)
+      throw Refused("bad_request", "pose " + std::to_string(request.skip_pose) +
+                                       " cannot be skipped: only the next pose to measure can, " +
+                                       "pose " + std::to_string(next + 1) + " of session " + id);
+    skip_index = next;
+    skipped[skip_index] = true;
+  }
+  try {
+    CalibrationParameters nominal;
+    nominal.target_mm = target;
+    refuseUnlessIdentifiable(
+        predictUncertainty(knowledge_.cell, posesKept(poses, skipped), nominal, noise_mm));
+  } catch (const Refused& e) {
+    if (skip_index < 0) throw;
+    throw Refused(e.code(), "without pose " + std::to_string(skip_index + 1) + ", " + e.what() +
+                                "; the pose is not skipped");
+  }
+  // Why the pose is given up, for the journal: the fault that stopped the session, when known.
+  std::string skip_reason;
+  if (skip_index >= 0) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    skip_reason = "skipped on request when the session was resumed";
+    if (status_.session_id == id && status_.state == SessionState::kFaulted)
+      skip_reason += ", after: " + status_.message;
   }
   makeLogger("session")->info("resuming session {}: {} of {} poses recorded", id,
                               info->recorded_poses, poses.size());
@@ -476,9 +527,9 @@ std::string SessionManager::resume(const std::string& requested) {
   }
   live_->clear();
   emit(state_event);
-  post([this, id, poses, target, noise_mm](bool cancelled) {
+  post([this, id, poses, target, noise_mm, skip_index, skip_reason](bool cancelled) {
     if (cancelled) return finish(SessionState::kAborted, "the daemon stopped before it resumed");
-    runSession(id, poses, target, noise_mm);
+    runSession(id, poses, target, noise_mm, {skip_index, skip_reason});
   });
   return id;
 }
@@ -539,7 +590,8 @@ void SessionManager::finish(SessionState state, const std::string& message) {
 }
 
 void SessionManager::runSession(const std::string& id, const std::vector<Pose>& plan,
-                                const Eigen::Vector3d& target, double noise_mm) {
+                                const Eigen::Vector3d& target, double noise_mm,
+                                const PoseSkip& skip) {
   auto log = makeLogger("session");
   if (abort_) return finish(SessionState::kAborted, "aborted before connecting");
   try {
@@ -558,6 +610,26 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
     Journal journal(store_.journalPath(id));
     if (!journal.dropped().empty())
       log->warn("session {}: {} (the pose will be measured again)", id, journal.dropped());
+    if (skip.index >= 0) {
+      // resume() checked this pose is the next one and the plan identifiable without it.
+      PoseRecord skipped;
+      skipped.index = skip.index;
+      skipped.skipped = skip.reason;
+      skipped.recorded_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                std::chrono::system_clock::now().time_since_epoch())
+                                .count();
+      journal.append(skipped);
+      log->warn("session {}: pose {} skipped ({})", id, skip.index + 1, skip.reason);
+      {
+        std::lock_guard<std::mutex> lock(mutex_);
+        status_.recorded = skip.index + 1;
+      }
+      emit({{"event", "pose"},
+            {"session", id},
+            {"pose", skip.index + 1},
+            {"pose_count", plan.size()},
+            {"skipped", skip.reason}});
+    }
     RunSettings run_settings = settings_.run;
     run_settings.solve.noise_mm = noise_mm;
     // A dropped controller connection or an unplugged board is recovered by reopening it; the
@@ -603,7 +675,30 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
   }
   if (outcome->state == RunState::kAborted) return finish(SessionState::kAborted, outcome->message);
   if (outcome->state == RunState::kFaulted) {
-    finish(SessionState::kFaulted, outcome->message);
+    std::string message = outcome->message;
+    if (outcome->pose_at_fault && outcome->stopped_at >= 0) {
+      // Measuring this pose again would fail again: say whether the plan can do without it.
+      std::vector<bool> skipped = skippedPoses(outcome->records, plan.size());
+      skipped[outcome->stopped_at] = true;
+      CalibrationParameters nominal;
+      nominal.target_mm = target;
+      const Prediction without =
+          predictUncertainty(knowledge_.cell, posesKept(plan, skipped), nominal, noise_mm);
+      const bool skippable =
+          std::all_of(without.identifiable.begin(), without.identifiable.begin() + kOffsetCount,
+                      [](bool b) { return b; });
+      const std::string pose = std::to_string(outcome->stopped_at + 1);
+      if (skippable) {
+        message += "; the plan identifies every offset without pose " + pose +
+                   ": `zerocal resume " + id + " --skip-pose " + pose + "` skips it";
+        std::lock_guard<std::mutex> lock(mutex_);
+        status_.skippable_pose = outcome->stopped_at + 1;
+      } else {
+        message += "; without pose " + pose +
+                   " the plan would not identify every offset: plan a new session";
+      }
+    }
+    finish(SessionState::kFaulted, message);
     cell_.reset();  // the links may be in any state: the next session connects afresh
     return;
   }
@@ -628,6 +723,10 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
   }
   nlohmann::json breakdown = nlohmann::json::array();
   for (const PoseRecord& r : outcome->records) {
+    if (!r.measured()) {
+      breakdown.push_back({{"pose", r.index + 1}, {"skipped", r.skipped}});
+      continue;
+    }
     nlohmann::json pose{{"pose", r.index + 1},
                         {"move_s", r.servo.move_s},
                         {"acquisition_s", r.servo.acquisition_s},

@@ -44,7 +44,7 @@ Recovery recover(const std::function<void()>& hook, CellClock& clock,
 std::vector<Pose> posesOf(const std::vector<PoseRecord>& records) {
   std::vector<Pose> poses;
   for (const PoseRecord& r : records)
-    poses.push_back({r.joints_deg, Eigen::Vector2d(r.u_mm, r.v_mm), 0});
+    if (r.measured()) poses.push_back({r.joints_deg, Eigen::Vector2d(r.u_mm, r.v_mm), 0});
   return poses;
 }
 
@@ -68,7 +68,7 @@ CalibrationRun::CalibrationRun(CellModel knowledge, Eigen::Vector3d taught_centr
 RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock& clock,
                                const std::atomic<bool>& abort) {
   RunOutcome out;
-  out.records = journal_.recovered();
+  out.records = journal_.records();
   out.resumed_from = journal_.nextIndex();
   servo::ServoOptions servo_options = settings_.servo;
   servo_options.abort = &abort;
@@ -76,7 +76,7 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
   servo::SpotPredictor predictor(knowledge_, taught_centre_);
   // Resumed poses teach the predictor where the spot falls, as if they had just been servoed.
   for (const PoseRecord& r : out.records)
-    predictor.addPose(r.joints_deg, Eigen::Vector2d(r.u_mm, r.v_mm));
+    if (r.measured()) predictor.addPose(r.joints_deg, Eigen::Vector2d(r.u_mm, r.v_mm));
   const int n = static_cast<int>(plan_.size());
   const auto phase = [&](int i, RunPhase p) {
     if (on_phase) on_phase(i, p);
@@ -94,6 +94,7 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
       // One attempt at the pose: the planned move, then the servo. Nothing is journalled until
       // it succeeds, so a failed attempt is simply done again after a recovery.
       Failure failure = Failure::kOther;
+      bool pose_at_fault = false;  // the pose itself failed, not the link or the board
       std::string why;
       const Joints& target = plan_[i].q_deg;
       phase(i, RunPhase::kMoving);
@@ -105,6 +106,7 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
       } catch (const LinkError& e) {
         // Only a transient failure is worth a reconnect; a refused target is never sent again.
         failure = e.kind() == LinkError::Kind::kTransient ? Failure::kLink : Failure::kOther;
+        pose_at_fault = e.kind() == LinkError::Kind::kRefused;
         why = std::string("move failed: ") + e.what();
       } catch (const Error& e) {
         why = std::string("move failed: ") + e.what();
@@ -118,6 +120,10 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
         if (!r.ok()) {
           why = std::string("servo ") + servo::statusName(r.status) + ": " + servo.fault().message;
           const bool transient = servo.fault().link_kind == LinkError::Kind::kTransient;
+          pose_at_fault = r.status == servo::ServoStatus::kSpotNotFound ||
+                          r.status == servo::ServoStatus::kSpotLost ||
+                          r.status == servo::ServoStatus::kNotConverged ||
+                          r.status == servo::ServoStatus::kLimit;
           failure = r.status == servo::ServoStatus::kAborted       ? Failure::kAborted
                     : !transient                                   ? Failure::kOther
                     : r.status == servo::ServoStatus::kLinkError   ? Failure::kLink
@@ -133,8 +139,10 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
       if (failure != Failure::kNone) {
         const std::function<void()>& hook =
             failure == Failure::kLink ? settings_.reconnect_link : settings_.reopen_sensor;
+        out.stopped_at = i;
         if (failure == Failure::kOther || !hook) {
           out.message = pose_name + ": " + why;
+          out.pose_at_fault = pose_at_fault;
           return out;
         }
         if (recoveries == settings_.recoveries_per_pose) {

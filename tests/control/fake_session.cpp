@@ -60,10 +60,12 @@ std::string FakeSession::start(const service::StartRequest& request) {
   return status_.session_id;
 }
 
-std::string FakeSession::resume(const std::string& id) {
+std::string FakeSession::resume(const service::ResumeRequest& request) {
   std::lock_guard<std::mutex> lock(mutex_);
+  last_resume_ = request;
   if (service::isActive(status_.state)) throw Refused("busy", "a session is running");
-  if (!id.empty() && id != "20261122-0001") throw Refused("not_found", "no session " + id);
+  if (!request.session.empty() && request.session != "20261122-0001")
+    throw Refused("not_found", "no session " + request.session);
   status_.state = SessionState::kConnecting;
   status_.session_id = "20261122-0001";
   return status_.session_id;
@@ -84,8 +86,8 @@ bool FakeSession::abort() {
 }
 
 std::vector<SessionInfo> FakeSession::sessions() const {
-  return {SessionInfo{"20261122-0000", "/tmp/s0", true, 8, 8},
-          SessionInfo{"20261122-0001", "/tmp/s1", false, 8, 3}};
+  return {SessionInfo{"20261122-0000", "/tmp/s0", true, 8, 8, 0, ""},
+          SessionInfo{"20261122-0001", "/tmp/s1", false, 8, 3, 1, ""}};
 }
 
 nlohmann::json FakeSession::result(const std::string& id) const {
@@ -142,6 +144,11 @@ void FakeSession::emit(const nlohmann::json& event) {
 service::StartRequest FakeSession::lastRequest() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return last_request_;
+}
+
+service::ResumeRequest FakeSession::lastResume() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return last_resume_;
 }
 
 }  // namespace zerocal::control::testing

@@ -21,7 +21,7 @@ class FakeSession : public service::SessionControl {
   service::SessionStatus status() const override;
   Plan preview(const service::StartRequest& request) const override;
   std::string start(const service::StartRequest& request) override;
-  std::string resume(const std::string& id) override;
+  std::string resume(const service::ResumeRequest& request) override;
   bool abort() override;
   std::vector<SessionInfo> sessions() const override;
   nlohmann::json result(const std::string& id) const override;
@@ -34,6 +34,7 @@ class FakeSession : public service::SessionControl {
   int startCalls() const { return start_calls_; }
   int abortCalls() const { return abort_calls_; }
   service::StartRequest lastRequest() const;
+  service::ResumeRequest lastResume() const;
   std::chrono::milliseconds preview_time{0};  // preview() spins this long
   std::chrono::milliseconds start_time{0};    // start() spins this long before it answers
   bool psd_fails = false;
@@ -45,6 +46,7 @@ class FakeSession : public service::SessionControl {
   mutable std::mutex mutex_;
   service::SessionStatus status_;
   service::StartRequest last_request_;
+  service::ResumeRequest last_resume_;
   EventSink sink_;
   std::vector<std::thread> readers_;
   std::atomic<int> start_calls_{0};

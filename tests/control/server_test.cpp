@@ -286,6 +286,17 @@ TEST_F(ControlServerTest, Resume) {
   session_.setState(SessionState::kAborted);
   EXPECT_EQ(c->request({{"cmd", "resume"}, {"session", "nope"}})["error"]["code"], "not_found");
   EXPECT_EQ(c->call("resume", {{"session", "20261122-0001"}})["session"], "20261122-0001");
+  EXPECT_EQ(session_.lastResume().skip_pose, 0);
+  session_.setState(SessionState::kFaulted);
+  // A pose to skip reaches the session as given; a malformed one, or a misspelt member, does not.
+  for (const json& bad : {json("2"), json(0), json(-1), json(2.5), json(201)})
+    EXPECT_EQ(c->request({{"cmd", "resume"}, {"skip_pose", bad}})["error"]["code"], "bad_request")
+        << bad;
+  EXPECT_EQ(c->request({{"cmd", "resume"}, {"skip", 2}})["error"]["code"], "bad_request");
+  EXPECT_EQ(session_.lastResume().skip_pose, 0);
+  c->call("resume", {{"skip_pose", 2}});
+  EXPECT_EQ(session_.lastResume().skip_pose, 2);
+  EXPECT_TRUE(session_.lastResume().session.empty());
 }
 
 TEST_F(ControlServerTest, Sessions) {

@@ -115,6 +115,39 @@ TEST_F(JournalTest, OlderRecordsWithoutPathOrSearchMovesReadBack) {
   EXPECT_EQ(r.servo.moves, 7);
 }
 
+// A skipped pose keeps its place in the sequence: a line with its index and the reason only.
+TEST_F(JournalTest, ASkippedPoseIsALineOfItsOwnThatKeepsTheIndicesConsecutive) {
+  const fs::path path = dir_ / "journal.jsonl";
+  {
+    Journal journal(path.string());
+    journal.append(sample(0));
+    PoseRecord skipped;
+    skipped.index = 1;
+    skipped.skipped = "spot not found";
+    skipped.recorded_ns = 42;
+    journal.append(skipped);
+    journal.append(sample(2));
+    EXPECT_EQ(journal.records().size(), 3u);  // appended records are the journal's too
+  }
+  std::ifstream in(path);
+  std::string line;
+  std::getline(in, line);
+  std::getline(in, line);
+  EXPECT_EQ(nlohmann::json::parse(line),
+            (nlohmann::json{{"index", 1}, {"skipped", "spot not found"}, {"recorded_ns", 42}}));
+  const JournalContents back = readJournal(path.string());
+  ASSERT_EQ(back.records.size(), 3u);
+  EXPECT_TRUE(back.records[0].measured());
+  EXPECT_FALSE(back.records[1].measured());
+  EXPECT_EQ(back.records[1].skipped, "spot not found");
+  expectSame(back.records[2], sample(2));
+  // A skip without its reason is not a record.
+  EXPECT_THROW(poseRecordFromJson({{"index", 1}, {"skipped", ""}, {"recorded_ns", 1}}),
+               JournalError);
+  EXPECT_THROW(poseRecordFromJson({{"index", 1}, {"skipped", 3}, {"recorded_ns", 1}}),
+               JournalError);
+}
+
 TEST_F(JournalTest, RefusesOutOfOrderDuplicateAndNonFiniteRecords) {
   Journal journal((dir_ / "journal.jsonl").string());
   EXPECT_THROW(journal.append(sample(1)), JournalError);
@@ -226,7 +259,7 @@ TEST_F(JournalTest, KillNineMidSessionLosesAndDuplicatesNothing) {
   ASSERT_EQ(last_ack, 19);
 
   Journal resumed(path.string());
-  const auto& records = resumed.recovered();
+  const auto& records = resumed.records();
   ASSERT_GE(static_cast<int>(records.size()), last_ack + 1);
   for (std::size_t i = 0; i < records.size(); ++i) expectSame(records[i], sample(i));
   // Resuming continues right after the last committed pose.

@@ -109,6 +109,21 @@ TEST(Parse, HeldOutPosesAreNotGivenSomeoneElsesResidual) {
   EXPECT_GT(r.validation->rms_before_mm, 30 * r.validation->rms_after_mm);
 }
 
+TEST(Parse, ASkippedPoseIsListedWithItsReasonAndTheSolvedOnesKeepTheirResiduals) {
+  test::FixtureOptions o;
+  o.skipped = {2};
+  const SessionReport r = parseSession(test::sessionFiles(o));
+  EXPECT_EQ(r.solved_poses, 9);
+  ASSERT_EQ(r.poses.size(), 10u);
+  EXPECT_FALSE(r.poses[1].solved);
+  EXPECT_EQ(r.poses[1].skipped, "spot not found");
+  EXPECT_TRUE(r.poses[2].solved);
+  EXPECT_TRUE(r.poses[2].skipped.empty());
+  const std::string html = reportHtml(r);
+  EXPECT_TRUE(contains(html, "skipped: spot not found")) << html.size();
+  EXPECT_EQ(unbalancedTag(html), "");
+}
+
 TEST(Summary, GivesEachOffsetInDegreesAndRadiansWithSigmaAndInterval) {
   const SessionReport& r = plainSession();
   const std::string s = summaryText(r);

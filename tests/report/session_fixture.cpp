@@ -30,9 +30,16 @@ report::SessionFiles sessionFiles(const FixtureOptions& options) {
                    {"id", options.id},
                    {"plan", plan_json},
                    {"config", nlohmann::json::object()}};
+  std::vector<Pose> measured;
   for (std::size_t i = 0; i < recorded.size(); ++i) {
     PoseRecord r;
     r.index = static_cast<int>(i);
+    if (std::count(options.skipped.begin(), options.skipped.end(), r.index + 1)) {
+      r.skipped = "spot not found";
+      files.journal.push_back(toJson(r));
+      continue;
+    }
+    measured.push_back(recorded[i]);
     r.joints_deg = recorded[i].q_deg;
     r.u_mm = 0.001 * static_cast<double>(i);
     r.v_mm = -0.002;
@@ -53,7 +60,7 @@ report::SessionFiles sessionFiles(const FixtureOptions& options) {
     files.journal.push_back(line);
   }
   if (options.held_out.empty()) {
-    files.result = toJson(solve(sc.cell, recorded, so));
+    files.result = toJson(solve(sc.cell, measured, so));
   } else {
     const HoldoutReport h = validateHoldout(sc.cell, recorded, options.held_out, so);
     files.result = toJson(h.fit);

@@ -215,7 +215,7 @@ TEST(SessionManager, AnAbortedSessionResumesWithoutLosingOrRepeatingAPose) {
   ASSERT_EQ(manager.sessions().size(), 1u);
   EXPECT_FALSE(manager.sessions()[0].finished);
 
-  EXPECT_EQ(manager.resume(""), id);  // the latest unfinished one
+  EXPECT_EQ(manager.resume({}), id);  // the latest unfinished one
   end = manager.waitIdle();
   ASSERT_EQ(end.state, SessionState::kDone) << end.message;
   EXPECT_EQ(end.resumed_from, 3);
@@ -223,7 +223,7 @@ TEST(SessionManager, AnAbortedSessionResumesWithoutLosingOrRepeatingAPose) {
             (std::vector<int>{0, 1, 2, 3, 4, 5, 6, 7}));
   EXPECT_EQ(manager.result(id)["resumed_from"], 3);
   try {
-    manager.resume(id);
+    manager.resume({id});
     FAIL() << "a finished session was resumed";
   } catch (const Refused& e) {
     EXPECT_EQ(e.code(), "finished");
@@ -296,6 +296,111 @@ TEST(SessionManager, APlanFileWithTooFewPosesIsRefusedEveryTimeAndNothingMoves) 
   EXPECT_TRUE(manager.sessions().empty());
 }
 
+// A plan whose first pose points the laser far off the detector, as a fixture or a cable in the
+// beam would: the spot is never found there (no pose yet to predict it from). `count` poses.
+StartRequest planWithABlindFirstPose(SessionManager& manager, sim::SimBackend& backend,
+                                     const std::string& dir, int count) {
+  PlanOptions options;
+  options.poses = count;
+  options.psd_normal = backend.knowledge().cell.psd_rotation.col(2);
+  Plan plan = planPoses(backend.knowledge().cell, backend.knowledge().taught_centre_mm, options);
+  plan.poses[0].q_deg[0] += 20.0;  // some 300 mm off at the PSD, far beyond the search
+  StartRequest request = manager.defaultRequest();
+  request.plan = PlanKind::kFile;
+  request.plan_file = dir + "/blind.csv";
+  std::ofstream(request.plan_file) << formatJointSet(plan.poses);
+  return request;
+}
+
+// A pose whose spot is never found faults the session on every resume; the technician may skip
+// it, journalled, when the plan still identifies every offset without it.
+TEST(SessionManager, APoseWhoseSpotIsNeverFoundIsSkippedOnRequestWhenThePlanDoesWithoutIt) {
+  const TempDir dir;
+  sim::SimBackend backend(cellFor(5));
+  SessionManager manager(backend, settingsIn(dir.path));
+  EventLog log;
+  manager.setEventSink(log.sink());
+  const std::string id = manager.start(planWithABlindFirstPose(manager, backend, dir.path, 10));
+  SessionStatus end = manager.waitIdle();
+  ASSERT_EQ(end.state, SessionState::kFaulted) << end.message;
+  EXPECT_EQ(end.recorded, 0);
+  EXPECT_NE(end.message.find("spot not found"), std::string::npos) << end.message;
+  EXPECT_NE(end.message.find("zerocal resume " + id + " --skip-pose 1"), std::string::npos)
+      << end.message;
+  EXPECT_EQ(end.skippable_pose, 1);
+
+  // Resumed as it is, the pose fails again: nothing is skipped without being asked.
+  manager.resume({id});
+  end = manager.waitIdle();
+  ASSERT_EQ(end.state, SessionState::kFaulted) << end.message;
+  EXPECT_EQ(end.skippable_pose, 1);
+  EXPECT_TRUE(journalIndices(dir.path + "/" + id + "/journal.jsonl").empty());
+
+  // Only the next pose may be skipped.
+  for (int wrong : {2, 10, 11}) {
+    try {
+      manager.resume({id, wrong});
+      FAIL() << "pose " << wrong << " was skipped";
+    } catch (const Refused& e) {
+      EXPECT_EQ(e.code(), "bad_request") << e.what();
+    }
+  }
+  EXPECT_EQ(manager.status().state, SessionState::kFaulted);
+
+  EXPECT_EQ(manager.resume({id, 1}), id);
+  end = manager.waitIdle();
+  ASSERT_EQ(end.state, SessionState::kDone) << end.message;
+  EXPECT_EQ(end.recorded, 10);
+  EXPECT_EQ(end.skippable_pose, 0);
+  EXPECT_EQ(journalIndices(dir.path + "/" + id + "/journal.jsonl"),
+            (std::vector<int>{0, 1, 2, 3, 4, 5, 6, 7, 8, 9}));
+  const JournalContents journal = readJournal(dir.path + "/" + id + "/journal.jsonl");
+  ASSERT_EQ(journal.records.size(), 10u);
+  EXPECT_FALSE(journal.records[0].measured());
+  // The reason on disk names the fault that made the technician skip it.
+  EXPECT_NE(journal.records[0].skipped.find("spot not found"), std::string::npos)
+      << journal.records[0].skipped;
+  for (std::size_t i = 1; i < journal.records.size(); ++i)
+    EXPECT_TRUE(journal.records[i].measured());
+
+  const nlohmann::json result = manager.result(id);
+  EXPECT_EQ(result["poses"], 9);  // the solve rests on the measured poses only
+  ASSERT_EQ(result["pose_breakdown"].size(), 10u);
+  EXPECT_TRUE(result["pose_breakdown"][0].contains("skipped"));
+  EXPECT_FALSE(result["pose_breakdown"][1].contains("skipped"));
+  for (int k = 0; k < kOffsetCount; ++k)  // the ideal world: the truth within a few sigma
+    EXPECT_NEAR(result["parameters"][unknownName(k)]["value"].get<double>(),
+                result["truth"][unknownName(k)].get<double>(),
+                5 * result["parameters"][unknownName(k)]["sigma"].get<double>() + 1e-4)
+        << unknownName(k);
+  bool skip_event = false;
+  for (const auto& e : log.of("pose")) skip_event |= e.contains("skipped") && e["pose"] == 1;
+  EXPECT_TRUE(skip_event);
+  ASSERT_EQ(manager.sessions().size(), 1u);
+  EXPECT_EQ(manager.sessions()[0].skipped_poses, 1);
+}
+
+// With 6 poses, none can go: the fault says so, and a skip is refused with nothing written.
+TEST(SessionManager, APoseThePlanCannotDoWithoutIsNotSkipped) {
+  const TempDir dir;
+  sim::SimBackend backend(cellFor(5));
+  SessionManager manager(backend, settingsIn(dir.path));
+  const std::string id = manager.start(planWithABlindFirstPose(manager, backend, dir.path, 6));
+  const SessionStatus end = manager.waitIdle();
+  ASSERT_EQ(end.state, SessionState::kFaulted) << end.message;
+  EXPECT_EQ(end.skippable_pose, 0);
+  EXPECT_NE(end.message.find("plan a new session"), std::string::npos) << end.message;
+  try {
+    manager.resume({id, 1});
+    FAIL() << "a pose of a 6-pose plan was skipped";
+  } catch (const Refused& e) {
+    EXPECT_EQ(e.code(), "not_identifiable") << e.what();
+    EXPECT_NE(std::string(e.what()).find("without pose 1"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(manager.status().state, SessionState::kFaulted);
+  EXPECT_TRUE(journalIndices(dir.path + "/" + id + "/journal.jsonl").empty());
+}
+
 // A garbled line in one old session's journal must neither fail the listing nor stop another
 // session from being resumed; the damaged one is named and refused.
 TEST(SessionManager, ADamagedJournalIsReportedAndSkippedNeverFatalToTheOthers) {
@@ -340,13 +445,13 @@ TEST(SessionManager, ADamagedJournalIsReportedAndSkippedNeverFatalToTheOthers) {
       EXPECT_TRUE(s.damaged.empty()) << s.damaged;
   }
   try {
-    manager.resume(damaged);
+    manager.resume({damaged});
     FAIL() << "a damaged session was resumed";
   } catch (const Refused& e) {
     EXPECT_EQ(e.code(), "damaged");
   }
   // The latest resumable session is the healthy one, whichever is newer.
-  EXPECT_EQ(manager.resume(""), healthy);
+  EXPECT_EQ(manager.resume({}), healthy);
   const SessionStatus done = manager.waitIdle();
   EXPECT_EQ(done.state, SessionState::kDone) << done.message;
   EXPECT_TRUE(manager.result(healthy).contains("parameters"));
@@ -366,10 +471,10 @@ TEST(SessionManager, IdsThatAreNotSessionIdsAndUnknownSessionsAreRefused) {
     return "accepted";
   };
   EXPECT_EQ(codeOf([&] { manager.result("../../etc"); }), "bad_request");
-  EXPECT_EQ(codeOf([&] { manager.resume("/tmp"); }), "bad_request");
+  EXPECT_EQ(codeOf([&] { manager.resume({"/tmp"}); }), "bad_request");
   EXPECT_EQ(codeOf([&] { manager.result("20200101T000000Z"); }), "not_found");
-  EXPECT_EQ(codeOf([&] { manager.resume("20200101T000000Z"); }), "not_found");
-  EXPECT_EQ(codeOf([&] { manager.resume(""); }), "not_found");
+  EXPECT_EQ(codeOf([&] { manager.resume({"20200101T000000Z"}); }), "not_found");
+  EXPECT_EQ(codeOf([&] { manager.resume({}); }), "not_found");
   EXPECT_EQ(codeOf([&] { manager.result(""); }), "not_found");
 }
 

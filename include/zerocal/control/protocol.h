@@ -19,6 +19,10 @@ namespace zerocal::control {
 service::StartRequest parseStartRequest(const nlohmann::json& request,
                                         const service::StartRequest& defaults = {});
 
+// The members of a `resume` request: session (the latest unfinished when absent) and skip_pose
+// (1-based, 1..kMaxPlanPoses). Others but id, cmd and token are refused. Throws BadRequest.
+service::ResumeRequest parseResumeRequest(const nlohmann::json& request);
+
 const char* planKindName(PlanKind kind);
 // Throws BadRequest for an unknown name.
 PlanKind parsePlanKind(const std::string& name);

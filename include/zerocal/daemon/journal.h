@@ -58,6 +58,12 @@ struct PoseRecord {
   // kPathCapacity); outside the map's zone u and v are the chain's coarse estimate. Absent from
   // older journals: empty.
   std::vector<std::array<double, 3>> servo_path;
+  // Why the pose was skipped, on the technician's request at a resume (its spot was never found,
+  // say); empty for a measured pose. A skipped pose's line holds only index, skipped and
+  // recorded_ns: it keeps the indices consecutive and says on disk that the pose was given up on
+  // purpose, so that no later resume measures it and no solve uses it.
+  std::string skipped;
+  bool measured() const { return skipped.empty(); }
 };
 
 nlohmann::json toJson(const PoseRecord& record);
@@ -92,16 +98,16 @@ class Journal {
   // pose is on disk. record.index must equal nextIndex() and every number must be finite.
   // Throws JournalError (the journal is then unusable if the write itself failed).
   void append(const PoseRecord& record);
-  int nextIndex() const { return next_index_; }
-  const std::vector<PoseRecord>& recovered() const { return recovered_; }
+  int nextIndex() const { return static_cast<int>(records_.size()); }
+  // Every committed record: those read back at opening, then those appended since.
+  const std::vector<PoseRecord>& records() const { return records_; }
   const std::string& dropped() const { return dropped_; }
 
  private:
   std::string path_;
   int fd_ = -1;
-  int next_index_ = 0;
   bool broken_ = false;
-  std::vector<PoseRecord> recovered_;
+  std::vector<PoseRecord> records_;
   std::string dropped_;
 };
 
@@ -110,7 +116,8 @@ struct SessionInfo {
   std::string dir;
   bool finished = false;   // result.json present
   int planned_poses = 0;   // from session.json's plan.poses when present, else 0
-  int recorded_poses = 0;  // committed journal lines
+  int recorded_poses = 0;  // committed journal lines: poses measured or skipped
+  int skipped_poses = 0;   // of those, skipped
   // Why the journal cannot be read back (a bad line before the last, indices out of order);
   // empty when it can. A damaged session is listed but never resumed.
   std::string damaged;

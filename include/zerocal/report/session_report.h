@@ -49,7 +49,8 @@ struct PoseRow {
   int pose = 0;  // 1-based, as in the journal (index + 1)
   std::array<double, 6> joints_deg{};
   double u_mm = 0, v_mm = 0;  // PSD reading at the recorded moment
-  bool solved = true;         // false: held out of the solve (validation)
+  bool solved = true;         // false: held out of the solve (validation), or skipped
+  std::string skipped;        // why the pose was skipped at a resume; empty when measured
   double miss_um = 0;         // line's miss of the hit point (solved poses)
   double normalised = 0;      // miss / noise sigma
   bool outlier = false;

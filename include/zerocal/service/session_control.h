@@ -52,6 +52,13 @@ struct StartRequest {
   std::optional<double> noise_mm;            // measurement sigma; default session.noise_mm
 };
 
+struct ResumeRequest {
+  std::string session;  // the latest unfinished session when empty
+  // 1-based pose to skip before going on, 0 for none. Only the next pose to measure may be
+  // skipped, and only when the plan stays identifiable without it; the skip is journalled.
+  int skip_pose = 0;
+};
+
 struct SessionStatus {
   SessionState state = SessionState::kIdle;
   std::string backend;     // "sim" or "hardware"
@@ -61,6 +68,9 @@ struct SessionStatus {
   int recorded = 0;                // poses on disk in this session's journal
   int resumed_from = 0;            // poses found in the journal when the run (re)started
   std::string message;             // why it stopped, when aborted or faulted
+  // When faulted at a pose of its own fault (spot never found, say) that the plan can do
+  // without: that pose, 1-based, for `resume` with skip_pose. 0 otherwise.
+  int skippable_pose = 0;
   double last_servo_error_um = 0;  // at the last recorded pose
   // While servoing: the spot's distance from the PSD centre at the latest reading, um (NaN when
   // the spot is off the detector). Read without disturbing the servo; poll it for live display.
@@ -86,9 +96,11 @@ class SessionControl {
   // Starts a session and returns its id. Throws Refused: "busy" (one session at a time),
   // "bad_request", "not_identifiable" (the plan cannot identify delta2..delta5; nothing moved).
   virtual std::string start(const StartRequest& request) = 0;
-  // Resumes an unfinished session from its journal (the latest unfinished one when `id` is
-  // empty). Throws Refused: "busy", "not_found", "finished".
-  virtual std::string resume(const std::string& id) = 0;
+  // Resumes an unfinished session from its journal, skipping its next pose when asked. Throws
+  // Refused: "busy", "not_found", "finished", "damaged", "bad_session", "bad_request" (a pose
+  // that is not the next one), "not_identifiable" (the plan would not identify every offset
+  // without the pose; nothing skipped, nothing moved).
+  virtual std::string resume(const ResumeRequest& request) = 0;
   // Asks the running session to stop; the robot is stopped. False when nothing runs.
   virtual bool abort() = 0;
   virtual std::vector<SessionInfo> sessions() const = 0;

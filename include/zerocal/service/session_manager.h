@@ -55,7 +55,7 @@ class SessionManager final : public SessionControl {
   SessionStatus status() const override;
   Plan preview(const StartRequest& request) const override;
   std::string start(const StartRequest& request) override;
-  std::string resume(const std::string& id) override;
+  std::string resume(const ResumeRequest& request) override;
   bool abort() override;
   std::vector<SessionInfo> sessions() const override;
   nlohmann::json result(const std::string& id) const override;
@@ -77,8 +77,12 @@ class SessionManager final : public SessionControl {
   using Task = std::function<void(bool cancelled)>;  // cancelled: the daemon is stopping
   void workerLoop();
   void post(Task task);
+  struct PoseSkip {
+    int index = -1;  // 0-based pose to journal as skipped before running; -1: none
+    std::string reason;
+  };
   void runSession(const std::string& id, const std::vector<Pose>& plan,
-                  const Eigen::Vector3d& target, double noise_mm);
+                  const Eigen::Vector3d& target, double noise_mm, const PoseSkip& skip);
   void finish(SessionState state, const std::string& message);
   void setPhase(SessionState state, int pose);
   void emit(const nlohmann::json& event);

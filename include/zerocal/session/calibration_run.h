@@ -52,6 +52,10 @@ struct RunOutcome {
   std::optional<SolveReport> report;  // when completed
   int reconnects = 0;                 // link failures recovered
   int reopens = 0;                    // board failures recovered
+  int stopped_at = -1;                // 0-based pose at which a faulted run stopped
+  // The fault is the pose's own: its spot was never found or lost, the servo did not converge,
+  // or the target was refused. Measuring it again would fail again; skipping it may not.
+  bool pose_at_fault = false;
 };
 
 class CalibrationRun {
@@ -86,7 +90,7 @@ class CalibrationRun {
   Journal& journal_;
 };
 
-// The recorded poses as the solver takes them (joints with the PSD reading).
+// The measured poses as the solver takes them (joints with the PSD reading); skipped ones left out.
 std::vector<Pose> posesOf(const std::vector<PoseRecord>& records);
 
 }  // namespace zerocal

@@ -6,6 +6,7 @@
 #include <utility>
 #include <vector>
 
+#include "zerocal/calib/pose_count.h"
 #include "zerocal/control/client.h"
 #include "zerocal/control/token.h"
 #include "zerocal/paths.h"
@@ -422,7 +423,7 @@ void addClientCommands(CLI::App& app, ClientCommands& commands) {
   start->add_option("--pattern", a.pattern, "optimal, I, II, mixed or file (default the daemon's)")
       ->check(CLI::IsMember({"optimal", "I", "II", "mixed", "file"}));
   start->add_option("--poses", a.poses, "number of poses (default the daemon's)")
-      ->check(CLI::Range(1, 1000));
+      ->check(CLI::Range(kMinimumPoses, kMaxPlanPoses));
   start->add_option("--plan-file", a.plan_file,
                     "joint-set file on the daemon's host (--pattern file)");
   start->add_option("--target", a.target, "nominal PSD centre X Y Z in mm (default the cell's)")

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "zerocal/calib/pose_count.h"
 #include "zerocal/io/joint_set.h"
 #include "zerocal/model/laser.h"
 #include "zerocal/model/robot.h"
@@ -20,10 +21,6 @@ constexpr int kOffsetCount = 4;                                    // delta2..de
 constexpr int kIdentifiedCount = kOffsetCount + kLaserParamCount;  // the paper's 8
 constexpr int kTargetCount = 3;
 constexpr int kUnknownCount = kIdentifiedCount + kTargetCount;  // with the target: 11
-constexpr int kMinimumPoses = 6;  // 2N residuals must exceed 11 unknowns
-// The most poses one plan may have, wherever a pose count is given (the configuration, the
-// control port, the planner): a larger count is a typing error, not a calibration plan.
-constexpr int kMaxPlanPoses = 200;
 
 struct CellModel {
   Robot robot;

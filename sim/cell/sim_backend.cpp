@@ -37,7 +37,8 @@ SimBackend::SimBackend(SimulatedCellOptions options, std::function<void(Irc5Opti
 
 CellKnowledge SimBackend::knowledge() const {
   const SessionKnowledge k = knowledgeOf(cell_.world());
-  return {k.cell, k.taught_centre};
+  return {k.cell, k.taught_centre,
+          "simulated bench sweep, fingerprint " + cell_.psdMap().fingerprint()};
 }
 
 std::unique_ptr<ConnectedCell> SimBackend::connect() {
@@ -97,7 +98,7 @@ ExternalSimBackend::~ExternalSimBackend() = default;
 
 CellKnowledge ExternalSimBackend::knowledge() const {
   const SessionKnowledge k = knowledgeOf(options_.world);
-  return {k.cell, k.taught_centre};
+  return {k.cell, k.taught_centre, "simulated bench sweep, fingerprint " + map_.fingerprint()};
 }
 
 std::unique_ptr<ConnectedCell> ExternalSimBackend::connect() {

@@ -109,6 +109,12 @@ void printResult(const json& r, std::ostream& out) {
   if (!r.contains("verdict")) out << " (convergence and identifiability only)";
   out << "\n";
   for (const auto& why : reasons) out << "  - " << why << "\n";
+  // Whose offsets these are: a value entered on the wrong robot is worse than none.
+  const json controller = r.value("cell", json::object()).value("controller", json::object());
+  if (!controller.value("serial", std::string()).empty())
+    out << "robot: " << controller.value("robot_type", std::string("?")) << ", serial "
+        << controller.value("serial", std::string()) << ", RobotWare "
+        << controller.value("software_version", std::string("?")) << "\n";
   const json params = r.value("parameters", json::object());
   if (params.contains("delta2_deg")) {
     char line[200];

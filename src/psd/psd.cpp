@@ -358,6 +358,14 @@ SpotPosition PsdMap::apply(const VoltageReading& reading) const {
   return p;
 }
 
+std::string PsdMap::fingerprint() const {
+  std::uint64_t hash = 0xcbf29ce484222325ULL;
+  for (const unsigned char c : serialize()) hash = (hash ^ c) * 0x100000001b3ULL;
+  char text[17];
+  std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(hash));
+  return text;
+}
+
 std::string PsdMap::serialize() const {
   std::ostringstream out;
   out << std::setprecision(17);

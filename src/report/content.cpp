@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdarg>
 #include <cstdio>
+#include <ctime>
 #include <sstream>
 
 namespace zerocal::report::detail {
@@ -45,6 +46,26 @@ std::vector<const PoseRow*> worstPoses(const SessionReport& r, std::size_t count
   while (keep < solved.size() && solved[keep]->outlier) ++keep;  // never hide an outlier
   solved.resize(keep);
   return solved;
+}
+
+std::vector<std::string> identity(const SessionReport& r) {
+  const auto known = [](const std::string& s) { return s.empty() ? "not recorded" : s; };
+  std::vector<std::string> lines;
+  lines.push_back("Robot: " + known(r.robot.robot_type) + ", serial " + known(r.robot.serial) +
+                  ", controller software (RobotWare) " + known(r.robot.software_version) +
+                  (r.robot.serial.empty() ? "" : ", as the controller reported them") + ".");
+  lines.push_back("PSD map: " + known(r.psd_map) + ".");
+  std::string when = "not recorded";
+  if (r.finished_unix_s) {
+    const std::time_t t = static_cast<std::time_t>(*r.finished_unix_s);
+    std::tm local{};
+    char text[64];
+    if (::localtime_r(&t, &local) &&
+        std::strftime(text, sizeof text, "%Y-%m-%d %H:%M %Z (UTC%z)", &local))
+      when = text;
+  }
+  lines.push_back("Calibrated " + when + " by zerocal " + known(r.zerocal_version) + ".");
+  return lines;
 }
 
 bool refused(const SessionReport& r) { return r.usable && !*r.usable; }

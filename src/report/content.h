@@ -35,6 +35,11 @@ struct Section {
 };
 Section abbSection(const SessionReport& r);
 
+// Whose calibration, with what and when, one sentence each: the robot as its controller
+// identified itself, the PSD map, the zerocal version, the local date and time it finished.
+// "not recorded" for what an older result lacks.
+std::vector<std::string> identity(const SessionReport& r);
+
 // Wraps text at `width` columns with `indent` spaces before every line.
 std::string wrap(const std::string& text, std::size_t width, std::size_t indent);
 

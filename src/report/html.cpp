@@ -238,6 +238,14 @@ svg .ref { stroke: #b00; stroke-width: 1.5; stroke-dasharray: 6 4; }
 svg .panel { fill: #fafafa; stroke: #999; }
 svg .path { fill: none; stroke: #2a5db0; stroke-width: 1.5; }
 svg .start { fill: #2a2; } svg .end { fill: #c22; }
+.identity { color: #444; }
+@media print {
+  body { margin: 0; max-width: none; font-size: 10pt; }
+  .verdict { border: 1px solid #999; }
+  h2 { break-after: avoid; }
+  table, svg.plot, li { break-inside: avoid; }
+  section.result { break-after: page; }
+}
 )";
 
 }  // namespace
@@ -247,11 +255,17 @@ std::string reportHtml(const SessionReport& r) {
   o << "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>"
     << esc("zerocal report " + r.session_id) << "</title>\n<style>" << kStyle
     << "</style>\n</head>\n<body>\n";
+  // The result (verdict, identity, offsets) is one section, printed on a page of its own.
+  o << "<section class=\"result\">\n";
   o << "<h1>" << esc("Calibration report, session " + r.session_id) << "</h1>\n";
   if (r.simulated) o << "<p class=\"bad\">Simulated cell: the truth is known and shown.</p>\n";
   if (!r.plan_description.empty()) o << "<p>Plan: " << esc(r.plan_description) << "</p>\n";
   o << "<p class=\"verdict" << (r.converged && !detail::refused(r) ? "" : " fail") << "\">"
     << esc(detail::verdict(r)) << "</p>\n";
+  o << "<p class=\"identity\">";
+  const std::vector<std::string> identity = detail::identity(r);
+  for (std::size_t i = 0; i < identity.size(); ++i) o << (i ? "<br>" : "") << esc(identity[i]);
+  o << "</p>\n";
   if (!r.suspect_poses.empty()) {
     o << "<p>Suspect poses (the result does not rest on them):</p>\n<ul>\n";
     for (const SuspectRow& sp : r.suspect_poses)
@@ -294,7 +308,7 @@ std::string reportHtml(const SessionReport& r) {
   o << "</table>\n<h2>Not identifiable, and why</h2>\n<ul>\n";
   for (const auto& n : r.not_identifiable)
     o << "<li><b>" << esc(n.name) << "</b>: " << esc(n.reason) << "</li>\n";
-  o << "</ul>\n";
+  o << "</ul>\n</section>\n";
 
   // Residuals.
   o << "<h2>Per-pose residuals</h2>\n";
@@ -308,11 +322,12 @@ std::string reportHtml(const SessionReport& r) {
                 "pose (held-out and skipped poses have no bar)", "miss / noise sigma (1)", false,
                 3.5, "outlier threshold 3.5");
   o << "<p>Worst poses:</p>\n<table>\n<tr><th>pose</th><th>miss (um)</th><th>miss / sigma</th>"
-       "<th>stand-off (mm)</th><th></th></tr>\n";
+       "<th>stand-off (mm)</th><th>fit</th></tr>\n";
   for (const PoseRow* p : detail::worstPoses(r))
     o << "<tr>" << td(std::to_string(p->pose), "n") << td(format("%.1f", p->miss_um), "n")
       << td(format("%.2f", p->normalised), "n") << td(format("%.1f", p->standoff_mm), "n")
-      << (p->outlier ? "<td class=\"bad\">SUSPECT</td>" : "<td></td>") << "</tr>\n";
+      << (p->outlier ? "<td class=\"bad\">suspect: beyond 3.5 sigma</td>" : "<td>consistent</td>")
+      << "</tr>\n";
   o << "</table>\n";
 
   // Servo paths.

@@ -197,6 +197,22 @@ SessionReport parseSession(const SessionFiles& files) {
   r.chi2_p_value = result.optionalNumber("chi2_p_value");
   r.cell_time_s = result.optionalNumber("cell_time_s");
   r.simulated = result.has("truth") && result.at("truth").is_object();
+  if (result.has("cell")) {
+    const Reader cell(result.at("cell"), "result.json cell");
+    if (cell.has("controller")) {
+      const Reader c(cell.at("controller"), "result.json cell.controller");
+      r.robot = {c.stringOr("serial", ""), c.stringOr("software_version", ""),
+                 c.stringOr("robot_type", "")};
+    }
+    r.psd_map = cell.stringOr("psd_map", "");
+  }
+  r.zerocal_version = result.stringOr("zerocal_version", "");
+  if (result.has("finished_unix_s")) {
+    const Json& t = result.at("finished_unix_s");
+    if (!t.is_number_integer())
+      throw ReportError("result.json: 'finished_unix_s' is not an integer");
+    r.finished_unix_s = t.get<std::int64_t>();
+  }
 
   const Json& params = result.at("parameters");
   if (!params.is_object()) throw ReportError("result.json: 'parameters' is not an object");

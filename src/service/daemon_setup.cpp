@@ -1,5 +1,6 @@
 #include "zerocal/service/daemon_setup.h"
 
+#include "zerocal/irc5/motion_time.h"
 #include "zerocal/report/session_report.h"
 #include "zerocal/service/hardware_backend.h"
 #include "zerocal/sim/sim_backend.h"
@@ -71,8 +72,7 @@ ManagerSettings managerSettingsOf(const DaemonConfig& cfg) {
   }
   s.config_snapshot = configToJson(cfg);
   if (cfg.backend.kind == BackendKind::kSim && cfg.backend.sim_host.empty()) {
-    s.move_costs = irc5::MotionCosts{};
-    s.move_costs->overhead_s = cfg.backend.sim_move_overhead_s;
+    s.move_overhead = MoveOverhead{cfg.backend.sim_move_overhead_s, irc5::MotionCosts{}.settle_s};
   }
   s.write_reports = [](const std::string& dir) { report::writeSessionReport(dir); };
   return s;

@@ -72,6 +72,7 @@ HardwareBackend::HardwareBackend(const DaemonConfig& config)
   knowledge_.cell.psd_rotation = psdRotationOf(config.session.psd_rpy_deg);
   const auto& t = config.session.target_mm;
   knowledge_.taught_centre_mm = Eigen::Vector3d(t[0], t[1], t[2]);
+  knowledge_.psd_map = config.daq.map_file + ", fingerprint " + map_.fingerprint();
 }
 
 std::unique_ptr<ConnectedCell> HardwareBackend::connect() {

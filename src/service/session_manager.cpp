@@ -603,6 +603,15 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
   } catch (const std::exception& e) {
     return finish(SessionState::kFaulted, std::string("cannot connect to the cell: ") + e.what());
   }
+  // Which robot this is, as its controller says: the result names it (and a report of it).
+  RobotInfo robot;
+  try {
+    robot = cell_->robot().robotInfo();
+    log->info("session {}: {} serial {}, controller software {}", id, robot.robot_type,
+              robot.serial, robot.software_version);
+  } catch (const std::exception& e) {
+    log->warn("session {}: the controller did not identify the robot: {}", id, e.what());
+  }
 
   std::optional<RunOutcome> outcome;
   double cell_time_s = 0;
@@ -708,6 +717,15 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
   result["session"] = id;
   result["cell_time_s"] = cell_time_s;
   result["resumed_from"] = outcome->resumed_from;
+  result["cell"] = {{"controller",
+                     {{"robot_type", robot.robot_type},
+                      {"serial", robot.serial},
+                      {"software_version", robot.software_version}}},
+                    {"psd_map", knowledge_.psd_map}};
+  result["zerocal_version"] = PROJECT_VERSION;
+  result["finished_unix_s"] = std::chrono::duration_cast<std::chrono::seconds>(
+                                  std::chrono::system_clock::now().time_since_epoch())
+                                  .count();
   result["recoveries"] = {{"reconnects", outcome->reconnects}, {"reopens", outcome->reopens}};
   if (const auto truth = cell_->truthDeg()) {
     result["truth"] = nlohmann::json::object();
@@ -736,11 +754,11 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
                         {"search_moves", r.servo.search_moves},
                         {"iterations", r.servo.iterations},
                         {"final_error_um", r.servo.final_error_um}};
-    if (settings_.move_costs) {
+    if (settings_.move_overhead) {
       // Included in the times above: the planned move and every servo move pay them.
       const double moves = r.servo.moves + 1;
-      pose["move_overhead_s"] = moves * settings_.move_costs->overhead_s;
-      pose["fine_point_settle_s"] = moves * settings_.move_costs->settle_s;
+      pose["move_overhead_s"] = moves * settings_.move_overhead->fixed_s;
+      pose["fine_point_settle_s"] = moves * settings_.move_overhead->settle_s;
     }
     breakdown.push_back(pose);
   }

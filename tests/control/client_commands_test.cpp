@@ -16,6 +16,7 @@ namespace {
 
 using service::SessionState;
 using ::testing::HasSubstr;
+using ::testing::Not;
 
 class ClientCommandsTest : public ControlServerTest {
  protected:
@@ -187,6 +188,15 @@ TEST_F(ClientCommandsTest, ResultOpensWithTheVerdictThenTheOffsetsAndWhatToDo) {
   EXPECT_EQ(run(args("result")), 0);
   EXPECT_THAT(out_.str(),
               HasSubstr("verdict: NOT USABLE\n  - chi-square per dof 7.1: the poses miss\n"));
+  EXPECT_THAT(out_.str(), Not(HasSubstr("robot:")));  // not recorded: nothing made up
+  // The robot as its controller named itself, right after the verdict.
+  session_.result_value["cell"] = {{"controller",
+                                    {{"robot_type", "IRB 1600-10/1.45"},
+                                     {"serial", "1600-504321"},
+                                     {"software_version", "6.15"}}}};
+  EXPECT_EQ(run(args("result")), 0);
+  EXPECT_THAT(out_.str(), HasSubstr("the poses miss\nrobot: IRB 1600-10/1.45, serial 1600-504321, "
+                                    "RobotWare 6.15\n"));
 }
 
 TEST_F(ClientCommandsTest, VersionShowsTheDaemonsVersionAndProtocolWhenOneAnswers) {

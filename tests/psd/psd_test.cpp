@@ -213,6 +213,20 @@ TEST_F(PsdMapTest, SerialisesAndParsesBack) {
   EXPECT_THROW(PsdMap::parse("nonsense"), InputError);
 }
 
+// The fingerprint names the map, not its file: a copy has the same, a map differing in one
+// coefficient another.
+TEST_F(PsdMapTest, TheFingerprintNamesTheMapItself) {
+  const std::string fingerprint = map_.fingerprint();
+  EXPECT_EQ(fingerprint.size(), 16u);
+  EXPECT_EQ(fingerprint.find_first_not_of("0123456789abcdef"), std::string::npos);
+  EXPECT_EQ(PsdMap::parse(map_.serialize()).fingerprint(), fingerprint);
+  std::vector<double> u = map_.uCoefficients();
+  u[1] *= 1.0 + 1e-9;
+  const PsdMap other =
+      PsdMap::fromParts(map_.degree(), u, map_.vCoefficients(), map_.zone(), map_.minSumV());
+  EXPECT_NE(other.fingerprint(), fingerprint);
+}
+
 TEST(PsdMapFit, TooFewPointsIsAnInputError) {
   std::vector<SweepPoint> sweep(5, SweepPoint{0, 0, 0, 0, 3});
   EXPECT_THROW(PsdMap::fit(sweep, MapFitOptions{}), InputError);

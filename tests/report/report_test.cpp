@@ -159,6 +159,45 @@ TEST(Summary, SaysWhatIsNotIdentifiableAndWhy) {
   }
 }
 
+// The robot as its controller identified itself, the map, the version and the local time, in
+// both renderings; a result from before they were recorded says so instead of inventing them.
+TEST(Summary, NamesTheRobotThePsdMapTheVersionAndTheLocalTime) {
+  const char* saved = std::getenv("TZ");
+  const std::string old_tz = saved ? saved : "";
+  ::setenv("TZ", "CET-1CEST", 1);
+  ::tzset();
+  const std::string summary = summaryText(plainSession());
+  const std::string html = reportHtml(plainSession());
+  saved ? ::setenv("TZ", old_tz.c_str(), 1) : ::unsetenv("TZ");
+  ::tzset();
+  for (const std::string& text : {summary, html}) {
+    EXPECT_TRUE(contains(text, "IRB 1600-10/1.45, serial 1600-504321")) << text;
+    EXPECT_TRUE(contains(text, "RobotWare) 6.15.01.00")) << text;
+    EXPECT_TRUE(contains(text, "fingerprint 0123456789abcdef")) << text;
+    EXPECT_TRUE(contains(text, "2026-12-01 16:00 CET (UTC+0100) by zerocal 0.1.0")) << text;
+  }
+  // The verdict comes first, then who and when.
+  EXPECT_LT(summary.find("The solve converged"), summary.find("Robot: "));
+
+  test::FixtureOptions older;
+  older.identity = false;
+  const std::string old = summaryText(parseSession(test::sessionFiles(older)));
+  EXPECT_TRUE(contains(old, "Robot: not recorded, serial not recorded")) << old;
+  EXPECT_TRUE(contains(old, "Calibrated not recorded by zerocal not recorded.")) << old;
+}
+
+TEST(Html, HasAPrintLayoutWithTheResultOnAPageOfItsOwn) {
+  const std::string html = reportHtml(plainSession());
+  EXPECT_TRUE(contains(html, "@media print"));
+  EXPECT_TRUE(contains(html, "section.result { break-after: page; }"));
+  EXPECT_LT(html.find("<section class=\"result\">"), html.find("Joint offsets"));
+  EXPECT_LT(html.find("Joint offsets"), html.find("</section>"));
+  EXPECT_LT(html.find("</section>"), html.find("Per-pose residuals"));
+  // Every column of the worst poses has a heading and every row a word in it.
+  EXPECT_FALSE(contains(html, "<th></th>"));
+  EXPECT_FALSE(contains(html, "<td></td></tr>"));
+}
+
 TEST(Summary, ListsTheWorstPosesFirst) {
   const SessionReport& r = plainSession();
   const std::string s = summaryText(r);

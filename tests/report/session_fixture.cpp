@@ -68,6 +68,15 @@ report::SessionFiles sessionFiles(const FixtureOptions& options) {
   }
   files.result["session"] = options.id;
   files.result["cell_time_s"] = 123.4;
+  if (options.identity) {
+    files.result["cell"] = {{"controller",
+                             {{"robot_type", "IRB 1600-10/1.45"},
+                              {"serial", "1600-504321"},
+                              {"software_version", "6.15.01.00"}}},
+                            {"psd_map", "/etc/zerocal/psd-map.txt, fingerprint 0123456789abcdef"}};
+    files.result["zerocal_version"] = "0.1.0";
+    files.result["finished_unix_s"] = 1796137200;  // 2026-12-01 15:00 UTC
+  }
   files.result["truth"] = nlohmann::json::object();
   for (int k = 0; k < kOffsetCount; ++k)
     files.result["truth"][unknownName(k)] = sc.truth.delta_rad[k] * kRadToDeg;

@@ -17,6 +17,7 @@ struct FixtureOptions {
   std::vector<int> skipped;             // 1-based poses skipped at a resume (not with held_out)
   std::string id = "20261122T070000Z";
   std::string plan_description;  // empty: the planner's own
+  bool identity = true;          // false: a result written before the robot's identity was
 };
 
 // Writes session.json, journal.jsonl and result.json into a fresh folder under the test's

@@ -16,6 +16,7 @@
 
 #include "zerocal/io/joint_set.h"
 #include "zerocal/sim/sim_backend.h"
+#include "zerocal/sim/sim_controller.h"
 #include "zerocal/sim/world.h"
 
 namespace zerocal::service {
@@ -146,6 +147,19 @@ TEST(SessionManager, RunsASessionToDoneThroughEveryStateWithAResultNearTheTruth)
   }
   EXPECT_GT(result["cell_time_s"].get<double>(), 0);
   EXPECT_EQ(result["pose_breakdown"].size(), 8u);
+  // Whose result: the robot as the (simulated) controller named itself, the map that read the
+  // PSD, this zerocal, and when.
+  const SimControllerOptions controller;
+  EXPECT_EQ(result["cell"]["controller"]["serial"], controller.serial);
+  EXPECT_EQ(result["cell"]["controller"]["robot_type"], controller.robot_type);
+  EXPECT_EQ(result["cell"]["controller"]["software_version"], controller.software_version);
+  EXPECT_EQ(result["cell"]["psd_map"],
+            "simulated bench sweep, fingerprint " + backend.cell().psdMap().fingerprint());
+  EXPECT_FALSE(result["zerocal_version"].get<std::string>().empty());
+  const auto now_s = std::chrono::duration_cast<std::chrono::seconds>(
+                         std::chrono::system_clock::now().time_since_epoch())
+                         .count();
+  EXPECT_NEAR(result["finished_unix_s"].get<double>(), static_cast<double>(now_s), 600);
   EXPECT_EQ(journalIndices(dir.path + "/" + id + "/journal.jsonl"),
             (std::vector<int>{0, 1, 2, 3, 4, 5, 6, 7}));
   // The whole simulated world beside the result: it reads back to the cell's world.

@@ -21,6 +21,9 @@ namespace zerocal {
 struct CellKnowledge {
   CellModel cell;
   Eigen::Vector3d taught_centre_mm = Eigen::Vector3d::Zero();
+  // Which map turns the PSD's volts into millimetres, for the result: its source (a file, a
+  // simulated sweep) and fingerprint (psd::PsdMap::fingerprint).
+  std::string psd_map;
 };
 
 // A connected cell, owned by one session at a time. Destroying it closes the links.

@@ -24,6 +24,14 @@ struct RobotInfo {
   std::string robot_type;
 };
 
+// What every move costs a controller beyond its motion (s): the fixed cost of a move (request,
+// reply, the motion planner's start) and the settling at a fine point. Known for the simulated
+// controller (its model); on a real one only measured. The result's pose breakdown shows it.
+struct MoveOverhead {
+  double fixed_s = 0;
+  double settle_s = 0;
+};
+
 class ControllerLink {
  public:
   virtual ~ControllerLink() = default;

@@ -146,6 +146,9 @@ class PsdMap {
   // Plain-text form for the configuration, and back (throws zerocal::InputError).
   std::string serialize() const;
   static PsdMap parse(const std::string& text);
+  // 16 hex digits (FNV-1a of serialize()) that name this map in a result: two results with the
+  // same fingerprint were read through the same map, whatever its file was called.
+  std::string fingerprint() const;
 
   // The parts, so that the configuration can store the map in its own format (psd_config.h).
   // fromParts throws std::invalid_argument when the parts do not make a map: degree outside

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "zerocal/cell/controller_link.h"
 #include "zerocal/error.h"
 
 namespace zerocal::report {
@@ -102,6 +103,12 @@ struct SessionReport {
   std::array<double, 3> target_mm{}, target_sigma_mm{};
   std::vector<PoseRow> poses;  // every journalled pose, in order
   std::optional<Validation> validation;
+  // Whose calibration this is, from result.json's "cell", "zerocal_version" and
+  // "finished_unix_s": the robot as its controller identified itself, the PSD map, the zerocal
+  // that made the result, and when. Empty or unset in results written before they were recorded.
+  RobotInfo robot;
+  std::string psd_map, zerocal_version;
+  std::optional<std::int64_t> finished_unix_s;
 };
 
 // Reads session.json, journal.jsonl (committed lines, through readJournal's checks) and

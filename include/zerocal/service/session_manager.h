@@ -24,7 +24,6 @@
 #include <vector>
 
 #include "zerocal/cell/cell.h"
-#include "zerocal/irc5/motion_time.h"
 #include "zerocal/service/session_control.h"
 #include "zerocal/session/calibration_run.h"
 
@@ -41,7 +40,7 @@ struct ManagerSettings {
   nlohmann::json config_snapshot;            // written into each session.json
   // What every move costs the controller beyond its motion, when known (the simulated one's
   // model): the result's pose breakdown then shows it per pose, as moves x cost.
-  std::optional<irc5::MotionCosts> move_costs;
+  std::optional<MoveOverhead> move_overhead;
   // Called with a finished session's folder after result.json is written (summary, report).
   std::function<void(const std::string& session_dir)> write_reports;
 };

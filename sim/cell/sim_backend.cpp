@@ -3,6 +3,7 @@
 #include "zerocal/error.h"
 #include "zerocal/model/builtin.h"
 #include "zerocal/service/linked_cell.h"
+#include "zerocal/servo/psd_reader.h"
 #include "zerocal/sim/simulated_rig.h"
 #include "zerocal/sim/world.h"
 
@@ -19,7 +20,11 @@ std::optional<std::string> truthFile(const World& world) {
 class SimulatedLinkedCell final : public service::LinkedCell {
  public:
   SimulatedLinkedCell(SimulatedCell& cell, Irc5Options options)
-      : LinkedCell(std::move(options), cell.boardOpener(), cell.psdMap(), cell), cell_(cell) {}
+      : LinkedCell(
+            std::make_unique<Irc5Client>(std::move(options)),
+            std::make_unique<servo::Usb1408fsReadout>(cell.boardOpener(), cell.psdMap(), cell),
+            cell),
+        cell_(cell) {}
   std::optional<std::array<double, 4>> truthDeg() const override {
     const auto& t = cell_.world().true_offsets_deg;
     return std::array<double, 4>{t[1], t[2], t[3], t[4]};
@@ -50,7 +55,9 @@ std::unique_ptr<ConnectedCell> SimBackend::connect() {
 class ExternalSimBackend::Cell final : public service::LinkedCell {
  public:
   Cell(ExternalSimBackend& backend, std::unique_ptr<Irc5Client> spot_link)
-      : LinkedCell(backend.options_.client, FakeTransport::opener(backend.board_), backend.map_,
+      : LinkedCell(std::make_unique<Irc5Client>(backend.options_.client),
+                   std::make_unique<servo::Usb1408fsReadout>(FakeTransport::opener(backend.board_),
+                                                             backend.map_, backend.clock_),
                    backend.clock_),
         backend_(backend),
         spot_link_(std::move(spot_link)) {

@@ -233,6 +233,8 @@ std::vector<Field> schema(DaemonConfig& c) {
   f.push_back(integerField("backend.sim_port", c.backend.sim_port));
 
   auto& k = c.controller;
+  f.push_back(
+      choiceField<ControllerKind>("controller.kind", k.kind, {{"irc5", ControllerKind::kIrc5}}));
   f.push_back(pathField("controller.robot", k.robot, "builtin"));
   f.push_back(textField("controller.host", k.host));
   f.push_back(integerField("controller.port", k.port));
@@ -246,6 +248,7 @@ std::vector<Field> schema(DaemonConfig& c) {
   f.push_back(realField("controller.max_step_deg", k.max_step_deg));
   f.push_back(integerField("controller.reconnect_attempts", k.reconnect_attempts));
 
+  f.push_back(choiceField<DaqKind>("daq.kind", c.daq.kind, {{"usb-1408fs", DaqKind::kUsb1408fs}}));
   f.push_back(textField("daq.serial", c.daq.serial));
   addChannel(f, "x", c.daq.channels.x);
   addChannel(f, "y", c.daq.channels.y);

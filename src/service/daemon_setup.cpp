@@ -2,6 +2,7 @@
 
 #include "zerocal/irc5/motion_time.h"
 #include "zerocal/report/session_report.h"
+#include "zerocal/service/cell_factory.h"
 #include "zerocal/service/hardware_backend.h"
 #include "zerocal/sim/sim_backend.h"
 

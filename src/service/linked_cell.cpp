@@ -2,28 +2,24 @@
 
 namespace zerocal::service {
 
-LinkedCell::LinkedCell(Irc5Options controller, usb1408fs::Usb1408fs::Opener board,
-                       const psd::PsdMap& map, CellClock& clock,
-                       servo::ChainPsdReaderOptions reader)
-    : clock_(clock),
-      client_(std::move(controller)),
-      daq_(std::move(board)),
-      psd_(daq_, map, clock, std::move(reader)) {
-  client_.connect();
+LinkedCell::LinkedCell(std::unique_ptr<ControllerConnection> robot, std::unique_ptr<PsdReadout> psd,
+                       CellClock& clock)
+    : clock_(clock), robot_(std::move(robot)), psd_(std::move(psd)) {
+  robot_->connect();
 }
 
-LinkedCell::~LinkedCell() { client_.close(); }
+LinkedCell::~LinkedCell() { robot_->close(); }
 
-void LinkedCell::reconnectRobot() { client_.reconnect(); }
+void LinkedCell::reconnectRobot() { robot_->reconnect(); }
 
-void LinkedCell::reopenPsd() { daq_.reopen(); }
+void LinkedCell::reopenPsd() { psd_->reopen(); }
 
 void LinkedCell::stopRobot() noexcept {
   try {
-    if (client_.connected()) client_.stop();
+    if (robot_->connected()) robot_->stop();
   } catch (const std::exception&) {
-    // Unreachable controller: the RAPID server stops serving moves when its client goes away,
-    // and a move in progress ends at its target.
+    // Unreachable controller: the controller's server stops serving moves when its client goes
+    // away, and a move in progress ends at its target.
   }
 }
 

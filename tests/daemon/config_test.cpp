@@ -192,6 +192,23 @@ TEST_F(ConfigTest, WrongTypesAreErrorsNotDefaults) {
   EXPECT_TRUE(reported(p, {"main.yaml:10", "logging", "expected a mapping"}));
 }
 
+// A cell's devices are named by kind; a kind zerocal has no link for is an error, not the IRC5.
+TEST_F(ConfigTest, DeviceKindsAreTheOnesZerocalCanDrive) {
+  write("main.yaml",
+        "controller:\n"
+        "  kind: fanuc\n"  // 2
+        "daq:\n"
+        "  kind: usb-1608\n");  // 4
+  const auto p = problems(sources());
+  EXPECT_EQ(p.size(), 2u) << joined(p);
+  EXPECT_TRUE(reported(p, {"main.yaml:2", "controller.kind", "irc5", "'fanuc'"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"main.yaml:4", "daq.kind", "usb-1408fs", "'usb-1608'"})) << joined(p);
+  write("main.yaml", "controller: {kind: irc5}\ndaq: {kind: usb-1408fs}\n");
+  const DaemonConfig accepted = loadDaemonConfig(sources());
+  EXPECT_EQ(accepted.controller.kind, ControllerKind::kIrc5);
+  EXPECT_EQ(accepted.daq.kind, DaqKind::kUsb1408fs);
+}
+
 TEST_F(ConfigTest, OutOfRangeValuesNameWhereTheyWereSet) {
   write("main.yaml", "servo:\n  tolerance_um: -1\n");
   write("conf.d/10.yaml", "session:\n  poses: 3\n");

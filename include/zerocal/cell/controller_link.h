@@ -50,4 +50,20 @@ class ControllerLink {
   virtual void moveLinear(const TcpPose& target) = 0;
 };
 
+// A controller link with its connection's life: what a connected cell owns. The cell factory
+// (zerocal/service/cell_factory.h) makes one per controller.kind; Irc5Client is the IRC5's.
+class ControllerConnection : public ControllerLink {
+ public:
+  // Connects and prepares the controller for calibration moves (tool, speeds, fine points), and
+  // checks the robot file against the controller's own limits. Throws a LinkError, or
+  // ConfigError when the robot file and the controller disagree.
+  virtual void connect() = 0;
+  // Closes and connects again, with bounded attempts of its own; throws the last LinkError.
+  virtual void reconnect() = 0;
+  // Stops the robot between moves (a move in progress ends at its target). Throws a LinkError.
+  virtual void stop() = 0;
+  virtual bool connected() const noexcept = 0;
+  virtual void close() noexcept = 0;
+};
+
 }  // namespace zerocal

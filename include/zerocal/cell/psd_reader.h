@@ -48,4 +48,12 @@ class PsdReader {
   virtual PsdReading read() = 0;
 };
 
+// A PSD reader with its device's life: what a connected cell owns. The cell factory
+// (zerocal/service/cell_factory.h) makes one per daq.kind.
+class PsdReadout : public PsdReader {
+ public:
+  // Closes and opens the readout again (after an unplug); throws the device's error.
+  virtual void reopen() = 0;
+};
+
 }  // namespace zerocal

@@ -48,8 +48,13 @@ struct BackendConfig {
   std::uint16_t sim_port = 0;
 };
 
-// The IRC5 link (mapped onto Irc5Options by the daemon).
+// Which controller the cell has, hence which link the cell factory makes
+// (zerocal/service/cell_factory.h): ABB's IRC5 through zerocal's RAPID socket server.
+enum class ControllerKind { kIrc5 };
+
+// The controller link (for the IRC5 mapped onto Irc5Options by the cell factory).
 struct ControllerConfig {
+  ControllerKind kind = ControllerKind::kIrc5;
   std::string robot = "builtin";  // robot file, or the compiled-in IRB 1600-10/1.45
   std::string host = "192.168.125.1";
   std::uint16_t port = 5000;
@@ -64,7 +69,12 @@ struct ControllerConfig {
   int reconnect_attempts = 5;
 };
 
+// Which acquisition board reads the PSD, hence which readout the cell factory makes: the
+// Measurement Computing USB-1408FS through zerocal's libusb driver.
+enum class DaqKind { kUsb1408fs };
+
 struct DaqConfig {
+  DaqKind kind = DaqKind::kUsb1408fs;
   std::string serial;  // USB serial-number string; empty = the first USB-1408FS found
   psd::PsdChannels channels;
   double scan_rate_hz = 1000.0;   // scans per second (each scan converts x, y and sum once)

@@ -63,7 +63,7 @@ struct SimWorldId {
   std::uint64_t seed = 0;  // its --seed (the world's, unless it was given --world)
 };
 
-class Irc5Client final : public ControllerLink {
+class Irc5Client final : public ControllerConnection {
  public:
   // Does not connect. Throws ConfigError when the options are inconsistent.
   explicit Irc5Client(Irc5Options options);
@@ -76,13 +76,13 @@ class Irc5Client final : public ControllerLink {
   // ProtocolError, BadMessageError; ConfigError when the robot file's joint limits are wider than
   // the controller's bounds (a server without request 42 cannot be used). On any failure the
   // connection is closed.
-  void connect();
+  void connect() override;
   // Closes and connects again, up to reconnect_attempts times with exponential back-off. Throws
   // the last attempt's LinkError when all fail.
-  void reconnect();
+  void reconnect() override;
   // Sends 99 (the server closes and listens again) when connected, then closes. Never throws.
-  void close() noexcept;
-  bool connected() const noexcept;
+  void close() noexcept override;
+  bool connected() const noexcept override;
   // Robot info from the last connect() (empty before).
   const RobotInfo& info() const noexcept { return info_; }
 
@@ -97,7 +97,7 @@ class Irc5Client final : public ControllerLink {
   void moveLinear(const TcpPose& target) override;
 
   // Extensions (zerocal's server and simulator only; upstream replies ok = 0).
-  void stop();
+  void stop() override;
   std::array<double, 6> readExternalAxes();
   // MOC cal_offset of the six motors, radians, read only.
   std::array<double, 6> readCalOffsets();

@@ -38,4 +38,20 @@ class ChainPsdReader final : public PsdReader {
   psd::SpotDetector detector_;
 };
 
+// The USB-1408FS readout a cell owns: the board (opened by `opener`, libusb's or the simulated
+// board's) and the chain reading it.
+class Usb1408fsReadout final : public PsdReadout {
+ public:
+  // Opens the board. Throws as Usb1408fs.
+  Usb1408fsReadout(usb1408fs::Usb1408fs::Opener opener, psd::PsdMap map, CellClock& clock,
+                   ChainPsdReaderOptions options = {})
+      : daq_(std::move(opener)), chain_(daq_, std::move(map), clock, std::move(options)) {}
+  PsdReading read() override { return chain_.read(); }
+  void reopen() override { daq_.reopen(); }
+
+ private:
+  usb1408fs::Usb1408fs daq_;
+  ChainPsdReader chain_;
+};
+
 }  // namespace zerocal::servo

@@ -259,6 +259,7 @@ std::vector<Field> schema(DaemonConfig& c) {
   f.push_back(pathField("daq.map_file", c.daq.map_file));
 
   auto& s = c.servo;
+  using servo::ServoStop;
   f.push_back(choiceField<ServoStop>("servo.stop", s.stop,
                                      {{"centre", ServoStop::kCentre}, {"zone", ServoStop::kZone}}));
   f.push_back(realField("servo.tolerance_um", s.tolerance_um));
@@ -269,6 +270,8 @@ std::vector<Field> schema(DaemonConfig& c) {
   f.push_back(realField("servo.search_radius_mm", s.search_radius_mm));
   f.push_back(realField("servo.search_step_mm", s.search_step_mm));
   f.push_back(realField("servo.search_time_s", s.search_time_s));
+  f.push_back(realField("servo.gain", s.gain));
+  f.push_back(realField("servo.damping_mm", s.damping_mm));
 
   f.push_back(choiceField<PlanKind>("session.plan", c.session.plan,
                                     {{"optimal", PlanKind::kOptimal},
@@ -535,6 +538,10 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
     check.fail("servo.search_step_mm", str(s.search_step_mm) + " exceeds servo.search_radius_mm (" +
                                            str(s.search_radius_mm) + ")");
   check.positive("servo.search_time_s", s.search_time_s, 3600.0);
+  // Above 1 the step overshoots a right Jacobian; the servo is stable for any gain in (0, 1].
+  check.positive("servo.gain", s.gain, 1.0);
+  // Damping of 1 (mm/deg)^2 already shortens every step by about half at the usual 1 mm/deg.
+  check.range("servo.damping_mm", s.damping_mm, 0.0, 1.0);
 
   const auto& n = c.session;
   if (n.plan == PlanKind::kFile) {

@@ -9,19 +9,9 @@
 namespace zerocal::service {
 
 RunSettings runSettingsOf(const DaemonConfig& config) {
-  const ServoConfig& c = config.servo;
   RunSettings s;
-  servo::ServoOptions& o = s.servo;
-  o.mode = c.stop == ServoStop::kZone ? servo::ServoMode::kHitPoint : servo::ServoMode::kCentre;
-  o.tolerance_mm = c.tolerance_um * 1e-3;
-  o.max_step_deg = c.max_step_deg;
-  o.max_iterations = c.max_iterations;
-  o.max_time_s = c.timeout_s;
-  o.settle_s = c.settle_s;
-  o.search_radius_mm = c.search_radius_mm;
-  o.search_step_mm = c.search_step_mm;
-  o.max_search_time_s = c.search_time_s;
-  o.limit_margin_deg = config.controller.limit_margin_deg;
+  s.servo = config.servo;
+  s.servo.limit_margin_deg = config.controller.limit_margin_deg;
   s.solve.noise_mm = config.session.noise_mm;
   return s;
 }

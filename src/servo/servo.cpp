@@ -61,7 +61,7 @@ ImageJacobian imageJacobian(const CellModel& cell, const Eigen::Vector3d& psd_ce
 }
 
 std::string ServoOptions::validate() const {
-  if (!(tolerance_mm > 0)) return "tolerance_mm must be positive";
+  if (!(tolerance_um > 0)) return "tolerance_um must be positive";
   if (!(hit_zone_mm > 0)) return "hit_zone_mm must be positive";
   if (!(settle_mm > 0)) return "settle_mm must be positive";
   if (!(max_step_deg > 0)) return "max_step_deg must be positive";
@@ -70,11 +70,11 @@ std::string ServoOptions::validate() const {
   if (!(damping_mm >= 0)) return "damping_mm must not be negative";
   if (!(jacobian_prior_mm > 0)) return "jacobian_prior_mm must be positive";
   if (max_iterations < 1) return "max_iterations must be at least 1";
-  if (!(max_time_s > 0)) return "max_time_s must be positive";
+  if (!(timeout_s > 0)) return "timeout_s must be positive";
   if (!(search_step_mm > 0)) return "search_step_mm must be positive";
   if (!(search_radius_mm >= 0)) return "search_radius_mm must not be negative";
   if (max_search_points < 0) return "max_search_points must not be negative";
-  if (!(max_search_time_s > 0)) return "max_search_time_s must be positive";
+  if (!(search_time_s > 0)) return "search_time_s must be positive";
   if (!(settle_s >= 0)) return "settle_s must not be negative";
   return {};
 }
@@ -245,7 +245,7 @@ bool PsdServo::acquire(ControllerLink& robot, PsdReader& psd, const Joints& plan
   for (int point = 0; point < options_.max_search_points; ++point) {
     const double r = b * theta;
     if (r > options_.search_radius_mm) break;
-    if (result.reading.time_s - result.start_s > options_.max_search_time_s) break;
+    if (result.reading.time_s - result.start_s > options_.search_time_s) break;
     // Spot offsets wanted from where it is expected: dq = J^+ (wanted - expected).
     const Eigen::Vector2d offset(r * std::cos(theta), r * std::sin(theta));
     const Joints target = toJoints(base + pinv * (offset - expected_uv));
@@ -306,15 +306,15 @@ void PsdServo::fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& res
       return;
     }
     if (r.in_valid_zone) {
-      if (options_.mode == ServoMode::kCentre && e.norm() <= options_.tolerance_mm) break;
-      if (options_.mode == ServoMode::kHitPoint && e.norm() <= options_.hit_zone_mm) {
+      if (options_.stop == ServoStop::kCentre && e.norm() <= 1e-3 * options_.tolerance_um) break;
+      if (options_.stop == ServoStop::kZone && e.norm() <= options_.hit_zone_mm) {
         if (settling && (uv - settle_uv).norm() <= options_.settle_mm) break;
         // Read again without moving: a reading is only recorded once it repeats.
         settling = true;
         settle_uv = uv;
         have_previous = false;
         if (result.iterations >= options_.max_iterations ||
-            r.time_s - result.acquired_s > options_.max_time_s) {
+            r.time_s - result.acquired_s > options_.timeout_s) {
           latch(result, ServoStatus::kNotConverged, "the reading did not settle in time");
           return;
         }
@@ -331,7 +331,7 @@ void PsdServo::fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& res
       correction = observed_moments * motion_moments.inverse();  // both start at w^2 I
     }
     if (result.iterations >= options_.max_iterations ||
-        r.time_s - result.acquired_s > options_.max_time_s) {
+        r.time_s - result.acquired_s > options_.timeout_s) {
       latch(result, ServoStatus::kNotConverged, "iterations or time exhausted");
       return;
     }

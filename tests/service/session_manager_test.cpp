@@ -40,7 +40,7 @@ sim::SimulatedCellOptions cellFor(std::uint64_t seed) {
 ManagerSettings settingsIn(const std::string& dir) {
   ManagerSettings s;
   s.data_dir = dir;
-  s.run.servo.mode = servo::ServoMode::kHitPoint;
+  s.run.servo.stop = servo::ServoStop::kZone;
   s.noise_mm = 0.010;
   return s;
 }

@@ -41,6 +41,15 @@ struct PoseFigures {
 };
 
 // Moves to each planned pose and servoes; returns the recorded poses (hit-point readings).
+// These tests run the servo without a cell clock (the rig's moves are instant), so no reading
+// waits to settle.
+ServoOptions withoutClock(ServoStop stop) {
+  ServoOptions o;
+  o.stop = stop;
+  o.settle_s = 0;
+  return o;
+}
+
 std::vector<Pose> record(Rig& rig, const Knowledge& k, const Plan& plan, const ServoOptions& o,
                          std::vector<PoseFigures>* figures) {
   PsdServo servo(k.cell, k.taught_centre, o);
@@ -71,9 +80,7 @@ TEST(SimulatedCell, ServoConvergesToTwoMicrometresOfTheCentre) {
   Rig rig(cellOptions(11, 0.0));
   const Knowledge k = knowledgeOf(rig.cell.world());
   const Plan plan = planFor(k);
-  ServoOptions o;
-  o.mode = ServoMode::kCentre;
-  PsdServo servo(k.cell, k.taught_centre, o);
+  PsdServo servo(k.cell, k.taught_centre, withoutClock(ServoStop::kCentre));
   SpotPredictor predictor(k.cell, k.taught_centre);
   for (std::size_t i = 0; i < plan.poses.size(); ++i) {
     const Joints& planned = plan.poses[i].q_deg;
@@ -96,7 +103,7 @@ TEST(SimulatedCell, SpotNeverFoundLeavesTheRobotAtThePlannedPose) {
   Knowledge k = knowledgeOf(rig.cell.world());
   // The session believes the PSD is 100 mm from where it is: the spot is nowhere near.
   k.taught_centre += Eigen::Vector3d(100, 0, 0);
-  ServoOptions o;
+  ServoOptions o = withoutClock(ServoStop::kZone);
   o.search_radius_mm = 10;
   PsdServo servo(k.cell, k.taught_centre, o);
   // Aim well away from the detector by planning against the wrong centre.
@@ -116,7 +123,7 @@ TEST(SimulatedCell, LinkDropAndUnpluggedBoardAreLatchedFaults) {
   Rig rig(cellOptions(13, 0.0));
   const Knowledge k = knowledgeOf(rig.cell.world());
   const Plan plan = planFor(k);
-  PsdServo servo(k.cell, k.taught_centre, ServoOptions{});
+  PsdServo servo(k.cell, k.taught_centre, withoutClock(ServoStop::kZone));
   const Joints& planned = plan.poses[0].q_deg;
   rig.client.moveJoints(planned);
   SimFaults faults;
@@ -148,8 +155,7 @@ TEST(SimulatedCell, EightServoedPosesCalibrateWithinThreeSigma) {
     Rig rig(cellOptions(seed, 5e-4, WorldKind::kIdeal));
     const Knowledge k = knowledgeOf(rig.cell.world());
     const Plan plan = planFor(k);
-    ServoOptions o;
-    o.mode = ServoMode::kHitPoint;
+    const ServoOptions o = withoutClock(ServoStop::kZone);
     std::vector<PoseFigures> figures;
     const std::vector<Pose> poses = record(rig, k, plan, o, &figures);
     ASSERT_EQ(poses.size(), plan.poses.size());

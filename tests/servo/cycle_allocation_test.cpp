@@ -164,12 +164,12 @@ TEST(ServoCycleAllocation, ASteadyStateServoRunAllocatesNothingOnItsThread) {
   const Plan plan = planPoses(k.cell, k.taught_centre, p);
   ASSERT_GE(plan.poses.size(), 2u);
   ServoOptions o;  // the daemon's defaults: stop in the zone, 0.2 s settling
-  o.mode = ServoMode::kHitPoint;
+  o.stop = ServoStop::kZone;
   o.settle_s = 0.2;
   // A fine spiral: this world's second spot lies ~58 mm out, where 5 mm spacing through the
   // linearised model misses it; what is counted here is the cycle, not the search's success.
   o.search_step_mm = 2.0;
-  o.max_search_time_s = 3600;  // ~2600 points at about half a second each
+  o.search_time_s = 3600;  // ~2600 points at about half a second each
   PsdServo servo(k.cell, k.taught_centre, o);
   SpotPredictor predictor(k.cell, k.taught_centre);
 

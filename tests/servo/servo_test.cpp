@@ -108,7 +108,8 @@ Scenario scenario(std::uint64_t seed) {
 
 ServoOptions centreOptions() {
   ServoOptions o;
-  o.mode = ServoMode::kCentre;
+  o.stop = ServoStop::kCentre;
+  o.settle_s = 0;  // runs without a cell clock: readings count at once
   return o;
 }
 
@@ -285,7 +286,7 @@ TEST(PsdServo, KeepsTheFirstAndLastReadingsOfALongPath) {
   o.max_step_deg = 0.002;  // a slow approach: far more readings than the path holds
   o.max_iterations = 2000;
   o.max_search_points = 20000;
-  o.max_time_s = o.max_search_time_s = 1e5;
+  o.timeout_s = o.search_time_s = 1e5;
   PsdServo servo(s.cell, s.world.psd_position_mm, o);
   const ServoResult r = servo.run(link, psd, s.planned);
   ASSERT_TRUE(r.ok()) << statusName(r.status);
@@ -334,7 +335,7 @@ TEST(PsdServo, NeverExceedsASmallStepLimit) {
   o.max_step_deg = 0.02;
   o.max_iterations = 400;
   o.max_search_points = 5000;
-  o.max_time_s = o.max_search_time_s = 1e4;
+  o.timeout_s = o.search_time_s = 1e4;
   PsdServo servo(s.cell, s.world.psd_position_mm, o);
   const ServoResult r = servo.run(link, psd, s.planned);
   EXPECT_TRUE(r.ok()) << statusName(r.status);

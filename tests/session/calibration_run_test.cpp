@@ -47,7 +47,7 @@ TEST(CalibrationRun, InterruptedRunResumesFromItsJournalWithoutLosingOrRepeating
   po.psd_normal = knowledge.psd_rotation.col(2);
   const Plan plan = planPoses(knowledge, taught, po);
   RunSettings settings;
-  settings.servo.mode = servo::ServoMode::kHitPoint;
+  settings.servo.stop = servo::ServoStop::kZone;
   settings.solve.noise_mm = 0.010;  // the simulated robot's repeatability at the PSD
   const TempDir dir;
   const std::string journal_path = dir.path + "/journal.jsonl";

@@ -21,6 +21,7 @@
 #include "zerocal/paths.h"
 #include "zerocal/psd/psd.h"
 #include "zerocal/service/plan_kind.h"
+#include "zerocal/servo/servo.h"
 
 namespace zerocal {
 
@@ -83,20 +84,6 @@ struct DaqConfig {
   std::string map_file;  // the PSD's volts-to-mm map (zerocal psd-map); required by hardware
 };
 
-enum class ServoStop { kCentre, kZone };
-
-struct ServoConfig {
-  ServoStop stop = ServoStop::kZone;  // centre: within tolerance_um; zone: settled in the zone
-  double tolerance_um = 2.0;
-  double max_step_deg = 0.5;  // largest joint step of one servo move (<= controller.max_step_deg)
-  int max_iterations = 40;
-  double timeout_s = 20.0;
-  double settle_s = 0.2;           // wait after a move before a reading counts
-  double search_radius_mm = 60.0;  // acquisition: spiral search around the planned spot
-  double search_step_mm = 4.0;     // spacing of the spiral (under half the detector)
-  double search_time_s = 600.0;
-};
-
 struct SessionConfig {
   PlanKind plan = PlanKind::kOptimal;
   std::string plan_file;  // a joint-set file; required by plan: file, refused otherwise
@@ -135,7 +122,7 @@ struct DaemonConfig {
   BackendConfig backend;
   ControllerConfig controller;
   DaqConfig daq;
-  ServoConfig servo;
+  servo::ServoOptions servo;  // the servo section is the servo's own options (servo.h)
   SessionConfig session;
   ControlConfig control;
   LoggingConfig logging;

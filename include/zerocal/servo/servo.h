@@ -65,38 +65,40 @@ using ImageJacobian = Eigen::Matrix<double, 2, kJointCount>;  // mm per deg
 ImageJacobian imageJacobian(const CellModel& cell, const Eigen::Vector3d& psd_centre_mm,
                             const Joints& q_deg);
 
-enum class ServoMode {
-  kCentre,    // stop within tolerance_mm of the target
-  kHitPoint,  // stop at a settled reading inside the valid zone within hit_zone_mm of the target
+enum class ServoStop {
+  kCentre,  // stop within tolerance_um of the target
+  kZone,    // stop at a settled reading inside the valid zone within hit_zone_mm of the target
 };
 
+// The servo's options. The first group is the configuration's `servo` section itself: key for
+// key the same names, units and defaults (docs/configuration.md), so that a parameter is one
+// field here and one line of the configuration's schema. The rest are fixed by the method or set
+// by the caller.
 struct ServoOptions {
-  ServoMode mode = ServoMode::kCentre;
-  double target_u_mm = 0, target_v_mm = 0;
-  double tolerance_mm = 0.002;  // kCentre
-  double hit_zone_mm = 0.05;    // kHitPoint
-  // kHitPoint: two readings at the same pose agreeing within this are settled.
-  double settle_mm = 0.005;
-
-  double max_step_deg = 0.5;      // largest joint change of any single move
-  double limit_margin_deg = 1.0;  // kept from every joint limit
-  double gain = 0.9;              // below 1: no overshoot from a slightly wrong Jacobian
-  double damping_mm = 1e-3;       // Tikhonov term of the pseudo-inverse (mm/deg)^2 scale
+  ServoStop stop = ServoStop::kZone;
+  double tolerance_um = 2.0;  // kCentre
+  double max_step_deg = 0.5;  // largest joint change of any single move
   int max_iterations = 40;
-  double max_time_s = 20;  // fine servo, from acquisition, cell clock
-
-  bool correct_jacobian = true;    // fit A (above); false: the model's J throughout
-  double jacobian_prior_mm = 0.3;  // w above: the motion that weighs as much as the model
-
-  double search_step_mm = 4.0;
-  // Offsets of 1 deg, the laser's mounting and the teaching error miss by up to ~55 mm.
-  double search_radius_mm = 60.0;
-  int max_search_points = 3000;
-  double max_search_time_s = 600;  // at ~0.5 s a point, the 60 mm radius ends it first
-
+  double timeout_s = 20;  // fine servo, from acquisition, cell clock
   // Cell time waited after a move before a reading that counts (see above); needs the clock
   // given to run().
-  double settle_s = 0;
+  double settle_s = 0.2;
+  // Offsets of 1 deg, the laser's mounting and the teaching error miss by up to ~55 mm.
+  double search_radius_mm = 60.0;
+  double search_step_mm = 4.0;
+  double search_time_s = 600;  // at ~0.5 s a point, the 60 mm radius ends it first
+  double gain = 0.9;           // below 1: no overshoot from a slightly wrong Jacobian
+  double damping_mm = 1e-3;    // Tikhonov term of the pseudo-inverse (mm/deg)^2 scale
+
+  double target_u_mm = 0, target_v_mm = 0;
+  double hit_zone_mm = 0.05;  // kZone
+  // kZone: two readings at the same pose agreeing within this are settled.
+  double settle_mm = 0.005;
+  double limit_margin_deg = 1.0;   // kept from every joint limit (controller.limit_margin_deg)
+  bool correct_jacobian = true;    // fit A (above); false: the model's J throughout
+  double jacobian_prior_mm = 0.3;  // w above: the motion that weighs as much as the model
+  int max_search_points = 3000;
+
   // Polled each cycle; may be null. Must outlive every run().
   const std::atomic<bool>* abort = nullptr;
 

@@ -13,6 +13,7 @@ RunSettings runSettingsOf(const DaemonConfig& config) {
   s.servo = config.servo;
   s.servo.limit_margin_deg = config.controller.limit_margin_deg;
   s.solve.noise_mm = config.session.noise_mm;
+  s.solve.required_accuracy_deg = config.session.required_accuracy_deg;
   return s;
 }
 

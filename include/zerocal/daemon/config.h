@@ -92,6 +92,9 @@ struct SessionConfig {
   // The PSD's orientation in the base frame: roll, pitch, yaw (fixed x, y, z); 0 0 0 faces up.
   std::array<double, 3> psd_rpy_deg{0.0, 0.0, 0.0};
   double noise_mm = 0.020;  // measurement sigma: the robot's repeatability seen at the PSD
+  // The accuracy the calibration is for: an offset known only worse than this (one sigma) is
+  // not identified, and the result not usable (SolveOptions::required_accuracy_deg).
+  double required_accuracy_deg = 0.01;
   std::string data_dir = "/var/lib/zerocal/sessions";  // one folder per session (journal.h)
 };
 

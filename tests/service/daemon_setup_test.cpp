@@ -1,0 +1,44 @@
+// The daemon's parts from its configuration: each section reaches its component whole.
+#include "zerocal/service/daemon_setup.h"
+
+#include <gtest/gtest.h>
+
+namespace zerocal::service {
+namespace {
+
+// The servo section is the servo's options; the controller's margin and the session's noise and
+// required accuracy join them for the run.
+TEST(DaemonSetup, TheRunTakesTheServoSectionWholeAndTheSessionsAccuracy) {
+  DaemonConfig config;
+  config.servo.stop = servo::ServoStop::kCentre;
+  config.servo.tolerance_um = 1.5;
+  config.servo.gain = 0.7;
+  config.servo.damping_mm = 0.01;
+  config.servo.search_step_mm = 3.0;
+  config.controller.limit_margin_deg = 2.5;
+  config.session.noise_mm = 0.03;
+  config.session.required_accuracy_deg = 0.02;
+  const RunSettings run = runSettingsOf(config);
+  EXPECT_EQ(run.servo.stop, servo::ServoStop::kCentre);
+  EXPECT_EQ(run.servo.tolerance_um, 1.5);
+  EXPECT_EQ(run.servo.gain, 0.7);
+  EXPECT_EQ(run.servo.damping_mm, 0.01);
+  EXPECT_EQ(run.servo.search_step_mm, 3.0);
+  EXPECT_EQ(run.servo.limit_margin_deg, 2.5);
+  EXPECT_EQ(run.solve.noise_mm, 0.03);
+  EXPECT_EQ(run.solve.required_accuracy_deg, 0.02);
+  EXPECT_TRUE(run.servo.validate().empty()) << run.servo.validate();
+}
+
+// One set of defaults: the configuration's are the servo's and the solver's.
+TEST(DaemonSetup, TheDefaultsAreTheComponentsOwn) {
+  const RunSettings run = runSettingsOf(DaemonConfig{});
+  const servo::ServoOptions servo;
+  EXPECT_EQ(run.servo.stop, servo.stop);
+  EXPECT_EQ(run.servo.settle_s, servo.settle_s);
+  EXPECT_EQ(run.servo.timeout_s, servo.timeout_s);
+  EXPECT_EQ(run.solve.required_accuracy_deg, SolveOptions{}.required_accuracy_deg);
+}
+
+}  // namespace
+}  // namespace zerocal::service

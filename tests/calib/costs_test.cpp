@@ -6,6 +6,7 @@
 
 #include <memory>
 
+#include "stored_plan.h"
 #include "zerocal/calib/experiment.h"
 
 namespace zerocal {
@@ -18,7 +19,7 @@ class CostGradients : public ::testing::Test {
   Eigen::Vector4d delta{0.01, -0.02, 0.015, -0.01};
   Eigen::Vector4d laser{0.01, -0.02, 0.5, -0.3};
   Eigen::Vector3d target{905, -48, 401};
-  std::vector<Pose> poses = planPoses(sc.cell, sc.truth.target_mm, PlanOptions{}).poses;
+  std::vector<Pose> poses = testing::storedPlan("table2-8");  // the optimal planner's
 
   void check(const ceres::CostFunction& cost, std::vector<const double*> params) {
     ceres::NumericDiffOptions numeric;

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include "stored_plan.h"
 #include "zerocal/calib/experiment.h"
 #include "zerocal/calib/planner.h"
 #include "zerocal/calib/solver.h"
@@ -84,10 +85,9 @@ TEST(Identifiability, OptimalPlanIsWellConditioned) {
 // empty vector): the verdict must be "not identifiable", the same every time, for any count.
 TEST(Identifiability, FewerPosesThanNeededAreNotIdentifiableTheSameEveryTime) {
   const Table2Scenario sc = table2Scenario();
-  PlanOptions o;
-  const Plan plan = planPoses(sc.cell, sc.truth.target_mm, o);
+  const std::vector<Pose> plan = testing::storedPlan("table2-8");  // the optimal planner's
   for (int count = 0; count < kMinimumPoses; ++count) {
-    const std::vector<Pose> few(plan.poses.begin(), plan.poses.begin() + count);
+    const std::vector<Pose> few(plan.begin(), plan.begin() + count);
     const Prediction first = predictUncertainty(sc.cell, few, sc.truth, 0.01);
     for (int repeat = 0; repeat < 5; ++repeat) {
       const Prediction again = predictUncertainty(sc.cell, few, sc.truth, 0.01);
@@ -100,7 +100,7 @@ TEST(Identifiability, FewerPosesThanNeededAreNotIdentifiableTheSameEveryTime) {
     }
   }
   // Six poses are enough to be judged on their merits.
-  const std::vector<Pose> six(plan.poses.begin(), plan.poses.begin() + kMinimumPoses);
+  const std::vector<Pose> six(plan.begin(), plan.begin() + kMinimumPoses);
   const Prediction judged = predictUncertainty(sc.cell, six, sc.truth, 0.01);
   EXPECT_FALSE(contains(judged.reason[0], "at least 6 poses")) << judged.reason[0];
 }
@@ -110,9 +110,7 @@ TEST(Identifiability, ReasonsForDelta1And6AreAlwaysGiven) {
   EXPECT_TRUE(contains(delta6Reason(), "laser-line parameters"));
   const Table2Scenario sc = table2Scenario();
   std::mt19937_64 rng(1);
-  PlanOptions o;
-  const auto rec = simulateRecording(sc.cell, sc.truth,
-                                     planPoses(sc.cell, sc.truth.target_mm, o).poses, 0.05, rng);
+  const auto rec = simulateRecording(sc.cell, sc.truth, testing::storedPlan("table2-8"), 0.05, rng);
   const SolveReport r = solve(sc.cell, rec);
   ASSERT_GE(r.not_identifiable.size(), 2u);
   EXPECT_EQ(r.not_identifiable[0].name, "delta1_deg");

@@ -4,6 +4,7 @@
 
 #include <cmath>
 
+#include "stored_plan.h"
 #include "zerocal/calib/experiment.h"
 #include "zerocal/error.h"
 #include "zerocal/model/kinematics.h"
@@ -11,10 +12,9 @@
 namespace zerocal {
 namespace {
 
+// The optimal plan of `n` poses (stored: the planner is not what is tested here), recorded.
 std::vector<Pose> recording(const Table2Scenario& sc, int n, double half_width, int seed) {
-  PlanOptions o;
-  o.poses = n;
-  const auto planned = planPoses(sc.cell, sc.truth.target_mm, o).poses;
+  const auto planned = testing::storedPlan("table2-" + std::to_string(n));
   std::mt19937_64 rng(seed);
   return simulateRecording(sc.cell, sc.truth, planned, half_width, rng);
 }
@@ -58,9 +58,7 @@ TEST(Holdout, CalibratedModelPredictsHeldOutPosesToTheNoiseLevel) {
   // parameters fitted to nine poses, and the beam's obliquity on the PSD plane (up to 2x at 60
   // deg). Measured over 20 recordings with the CLI: before 16.0 mm, after 0.06..0.26 mm, mean 0.13.
   const Table2Scenario sc = table2Scenario();
-  PlanOptions po;
-  po.poses = 12;
-  const auto planned = planPoses(sc.cell, sc.truth.target_mm, po).poses;
+  const auto planned = testing::storedPlan("table2-12");
   SolveOptions options;
   options.noise_mm = sc.half_width_mm / std::sqrt(3.0);
   const double sigma = *options.noise_mm;

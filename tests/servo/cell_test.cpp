@@ -8,7 +8,7 @@
 #include <cstdio>
 #include <vector>
 
-#include "zerocal/calib/planner.h"
+#include "stored_plan.h"
 #include "zerocal/calib/solver.h"
 #include "zerocal/irc5/irc5_client.h"
 #include "zerocal/servo/servo.h"
@@ -29,11 +29,9 @@ sim::SimulatedCellOptions cellOptions(std::uint64_t seed, double repeatability_d
   return o;
 }
 
-Plan planFor(const Knowledge& k) {
-  PlanOptions p;
-  p.psd_normal = k.cell.psd_rotation.col(2);
-  return planPoses(k.cell, k.taught_centre, p);
-}
+// The optimal planner's 8 poses for a world's knowledge, stored (tests/data/plans): these tests
+// are about the servo on the cell, not the planner. `world` names the kind and seed: "ideal-24".
+std::vector<Pose> planFor(const std::string& world) { return testing::storedPlan(world); }
 
 struct PoseFigures {
   double move_s = 0, acquisition_s = 0, servo_s = 0;
@@ -50,12 +48,12 @@ ServoOptions withoutClock(ServoStop stop) {
   return o;
 }
 
-std::vector<Pose> record(Rig& rig, const Knowledge& k, const Plan& plan, const ServoOptions& o,
-                         std::vector<PoseFigures>* figures) {
+std::vector<Pose> record(Rig& rig, const Knowledge& k, const std::vector<Pose>& plan,
+                         const ServoOptions& o, std::vector<PoseFigures>* figures) {
   PsdServo servo(k.cell, k.taught_centre, o);
   SpotPredictor predictor(k.cell, k.taught_centre);
   std::vector<Pose> poses;
-  for (const Pose& planned : plan.poses) {
+  for (const Pose& planned : plan) {
     const double t0 = rig.cell.nowS();
     rig.client.moveJoints(planned.q_deg);
     const double t1 = rig.cell.nowS();
@@ -79,11 +77,11 @@ TEST(SimulatedCell, ServoConvergesToTwoMicrometresOfTheCentre) {
   // No repeatability noise: every move lands where asked, so the centre is reachable.
   Rig rig(cellOptions(11, 0.0));
   const Knowledge k = knowledgeOf(rig.cell.world());
-  const Plan plan = planFor(k);
+  const std::vector<Pose> plan = planFor("realistic-11");
   PsdServo servo(k.cell, k.taught_centre, withoutClock(ServoStop::kCentre));
   SpotPredictor predictor(k.cell, k.taught_centre);
-  for (std::size_t i = 0; i < plan.poses.size(); ++i) {
-    const Joints& planned = plan.poses[i].q_deg;
+  for (std::size_t i = 0; i < plan.size(); ++i) {
+    const Joints& planned = plan[i].q_deg;
     rig.client.moveJoints(planned);
     const ServoResult r = servo.run(rig.client, rig.psd, planned, predictor.searchCentre(planned));
     ASSERT_TRUE(r.ok()) << statusName(r.status) << ": " << servo.fault().message;
@@ -107,8 +105,7 @@ TEST(SimulatedCell, SpotNeverFoundLeavesTheRobotAtThePlannedPose) {
   o.search_radius_mm = 10;
   PsdServo servo(k.cell, k.taught_centre, o);
   // Aim well away from the detector by planning against the wrong centre.
-  const Plan wrong = planFor(k);
-  const Joints& planned = wrong.poses[0].q_deg;
+  const Joints planned = planFor("realistic-12-taught-100mm-off")[0].q_deg;
   rig.client.moveJoints(planned);
   const ServoResult r = servo.run(rig.client, rig.psd, planned);
   EXPECT_EQ(r.status, ServoStatus::kSpotNotFound);
@@ -122,9 +119,8 @@ TEST(SimulatedCell, SpotNeverFoundLeavesTheRobotAtThePlannedPose) {
 TEST(SimulatedCell, LinkDropAndUnpluggedBoardAreLatchedFaults) {
   Rig rig(cellOptions(13, 0.0));
   const Knowledge k = knowledgeOf(rig.cell.world());
-  const Plan plan = planFor(k);
   PsdServo servo(k.cell, k.taught_centre, withoutClock(ServoStop::kZone));
-  const Joints& planned = plan.poses[0].q_deg;
+  const Joints planned = planFor("realistic-13")[0].q_deg;
   rig.client.moveJoints(planned);
   SimFaults faults;
   faults.drop_after_requests = 8;  // setup (6), the joint read-back, one move
@@ -154,11 +150,11 @@ TEST(SimulatedCell, EightServoedPosesCalibrateWithinThreeSigma) {
   for (std::uint64_t seed = 21; seed <= 30; ++seed) {
     Rig rig(cellOptions(seed, 5e-4, WorldKind::kIdeal));
     const Knowledge k = knowledgeOf(rig.cell.world());
-    const Plan plan = planFor(k);
+    const std::vector<Pose> plan = planFor("ideal-" + std::to_string(seed));
     const ServoOptions o = withoutClock(ServoStop::kZone);
     std::vector<PoseFigures> figures;
     const std::vector<Pose> poses = record(rig, k, plan, o, &figures);
-    ASSERT_EQ(poses.size(), plan.poses.size());
+    ASSERT_EQ(poses.size(), plan.size());
     // The measurement sigma a session configures: the robot's repeatability (5e-4 deg per joint,
     // about 0.01 mm per axis at the PSD, chi2/dof near 1 here) dwarfs the PSD's ~0.5 um. Estimating
     // it from 5 degrees of freedom instead makes the reported sigmas themselves scatter by a factor

@@ -16,7 +16,7 @@
 #include <thread>
 
 #include "allocation_counter.h"
-#include "zerocal/calib/planner.h"
+#include "stored_plan.h"
 #include "zerocal/irc5/irc5_client.h"
 #include "zerocal/servo/psd_reader.h"
 #include "zerocal/servo/servo.h"
@@ -159,10 +159,8 @@ TEST(AllocationCounter, CountsThisThreadOnlyAndNotWhilePaused) {
 TEST(ServoCycleAllocation, ASteadyStateServoRunAllocatesNothingOnItsThread) {
   CountedRig rig(41);
   const sim::SessionKnowledge k = sim::knowledgeOf(rig.cell.world());
-  PlanOptions p;
-  p.psd_normal = k.cell.psd_rotation.col(2);
-  const Plan plan = planPoses(k.cell, k.taught_centre, p);
-  ASSERT_GE(plan.poses.size(), 2u);
+  const std::vector<Pose> plan = testing::storedPlan("realistic-41");  // the optimal planner's
+  ASSERT_GE(plan.size(), 2u);
   ServoOptions o;  // the daemon's defaults: stop in the zone, 0.2 s settling
   o.stop = ServoStop::kZone;
   o.settle_s = 0.2;
@@ -173,14 +171,14 @@ TEST(ServoCycleAllocation, ASteadyStateServoRunAllocatesNothingOnItsThread) {
   PsdServo servo(k.cell, k.taught_centre, o);
   SpotPredictor predictor(k.cell, k.taught_centre);
 
-  const Joints& first = plan.poses[0].q_deg;
+  const Joints& first = plan[0].q_deg;
   rig.client.moveJoints(first);
   const ServoResult warm =
       servo.run(rig.client, rig.psd, rig.clock, first, predictor.searchCentre(first));
   ASSERT_TRUE(warm.ok()) << statusName(warm.status) << ": " << servo.fault().message;
   predictor.addPose(warm.q_deg, Eigen::Vector2d(warm.reading.u_mm, warm.reading.v_mm));
 
-  const Joints& next = plan.poses[1].q_deg;
+  const Joints& next = plan[1].q_deg;
   rig.client.moveJoints(next);
   const Eigen::Vector2d expected = predictor.searchCentre(next);
   ServoResult r;

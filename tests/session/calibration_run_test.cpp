@@ -11,7 +11,7 @@
 #include <fstream>
 #include <set>
 
-#include "zerocal/calib/planner.h"
+#include "stored_plan.h"
 #include "zerocal/irc5/irc5_client.h"
 #include "zerocal/sim/simulated_rig.h"
 
@@ -43,9 +43,7 @@ TEST(CalibrationRun, InterruptedRunResumesFromItsJournalWithoutLosingOrRepeating
   const sim::SessionKnowledge given = sim::knowledgeOf(world);
   const CellModel& knowledge = given.cell;
   const Eigen::Vector3d& taught = given.taught_centre;
-  PlanOptions po;
-  po.psd_normal = knowledge.psd_rotation.col(2);
-  const Plan plan = planPoses(knowledge, taught, po);
+  const std::vector<Pose> plan = testing::storedPlan("ideal-24");  // the optimal planner's
   RunSettings settings;
   settings.servo.stop = servo::ServoStop::kZone;
   settings.solve.noise_mm = 0.010;  // the simulated robot's repeatability at the PSD
@@ -56,7 +54,7 @@ TEST(CalibrationRun, InterruptedRunResumesFromItsJournalWithoutLosingOrRepeating
   std::atomic<bool> abort{false};
   {
     Journal journal(journal_path);
-    CalibrationRun run(knowledge, taught, plan.poses, settings, journal);
+    CalibrationRun run(knowledge, taught, plan, settings, journal);
     run.on_pose = [&](const PoseRecord& r) { abort = r.index == 2; };
     const RunOutcome out = run.run(rig.client, rig.psd, rig.cell, abort);
     EXPECT_EQ(out.state, RunState::kAborted);
@@ -70,13 +68,13 @@ TEST(CalibrationRun, InterruptedRunResumesFromItsJournalWithoutLosingOrRepeating
   Journal journal(journal_path);
   EXPECT_EQ(journal.nextIndex(), 3);
   EXPECT_FALSE(journal.dropped().empty());
-  CalibrationRun run(knowledge, taught, plan.poses, settings, journal);
+  CalibrationRun run(knowledge, taught, plan, settings, journal);
   const RunOutcome out = run.run(rig.client, rig.psd, rig.cell, abort);
   ASSERT_EQ(out.state, RunState::kCompleted) << out.message;
   EXPECT_EQ(out.resumed_from, 3);
-  ASSERT_EQ(out.records.size(), plan.poses.size());
+  ASSERT_EQ(out.records.size(), plan.size());
   const JournalContents on_disk = readJournal(journal_path);
-  ASSERT_EQ(on_disk.records.size(), plan.poses.size());
+  ASSERT_EQ(on_disk.records.size(), plan.size());
   for (std::size_t i = 0; i < on_disk.records.size(); ++i)
     EXPECT_EQ(on_disk.records[i].index, static_cast<int>(i));
 

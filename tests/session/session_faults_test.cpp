@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "zerocal/calib/planner.h"
+#include "stored_plan.h"
 #include "zerocal/service/daemon_setup.h"
 #include "zerocal/session/calibration_run.h"
 #include "zerocal/sim/simulated_rig.h"
@@ -69,16 +69,21 @@ class HookedPsd final : public PsdReader {
   PsdReader& inner_;
 };
 
-// One session on a rig with the simulated cell's default noise: the knowledge a technician gives,
-// the optimal plan, the daemon's default settings (hit-point mode, settling), a journal in a
+enum class Taught { kRight, k100MmOff };
+
+// One session on a rig with the simulated cell's default noise: the knowledge a technician gives
+// (with the PSD centre taught 100 mm off in x when asked), the optimal plan for it (stored in
+// tests/data/plans), the daemon's default settings (hit-point mode, settling), a journal in a
 // fresh folder. Recovery hooks are set by each test.
 struct Session {
-  explicit Session(std::uint64_t seed, double taught_error_x_mm = 0)
+  explicit Session(std::uint64_t seed, Taught taught = Taught::kRight)
       : rig(cellOptions(seed)), given(sim::knowledgeOf(rig.cell.world())) {
-    given.taught_centre.x() += taught_error_x_mm;
-    PlanOptions po;
-    po.psd_normal = given.cell.psd_rotation.col(2);
-    plan = planPoses(given.cell, given.taught_centre, po).poses;
+    std::string plan_name = "ideal-" + std::to_string(seed);
+    if (taught == Taught::k100MmOff) {
+      given.taught_centre.x() += 100;
+      plan_name += "-taught-100mm-off";
+    }
+    plan = testing::storedPlan(plan_name);
     settings = service::runSettingsOf(DaemonConfig{});
   }
   RunOutcome run(ControllerLink& link, PsdReader& psd,
@@ -230,7 +235,7 @@ TEST(SessionFaults, BoardThatNeverComesBackFaultsNamingThePose) {
 
 // The session believes the PSD is 100 mm from where it is: no spot anywhere near the plan.
 TEST(SessionFaults, SpotNeverFoundFaultsNamingThePoseWithTheRobotBackAtThePlannedPose) {
-  Session s(12, 100.0);
+  Session s(12, Taught::k100MmOff);
   s.settings.servo.search_radius_mm = 10;
   RecordingLink link(s.rig.client);
   const RunOutcome out = s.run(link, s.rig.psd);
@@ -258,7 +263,7 @@ TEST(SessionFaults, SpotNeverFoundFaultsNamingThePoseWithTheRobotBackAtThePlanne
 // Abort while the servo searches a spot it cannot find (a search of up to 3000 points): no
 // further move is sent once the flag is set.
 TEST(SessionFaults, AbortDuringALongSearchStopsWithinOneServoMove) {
-  Session s(12, 100.0);
+  Session s(12, Taught::k100MmOff);
   RecordingLink link(s.rig.client);
   HookedPsd psd(s.rig.psd);
   std::size_t moves_at_abort = 0;

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 
+#include "stored_plan_request.h"
 #include "zerocal/irc5/irc5_client.h"
 #include "zerocal/service/daemon_setup.h"
 #include "zerocal/service/session_manager.h"
@@ -78,7 +79,7 @@ TEST(ExternalSim, SessionRunsToTheWorldsTruth) {
   EXPECT_STREQ(backend->name(), "sim");
 
   SessionManager manager(*backend, managerSettingsOf(config));
-  const std::string id = manager.start(manager.defaultRequest());
+  const std::string id = manager.start(testing::onStoredPlan(manager.defaultRequest(), "ideal-7"));
   const SessionStatus end = manager.waitIdle();
   ASSERT_EQ(end.state, SessionState::kDone) << end.message;
   // The servo's link and the board's spot link, both to the external simulator.
@@ -113,7 +114,7 @@ TEST(ExternalSim, AMismatchedWorldIsRefusedBeforeAnythingMoves) {
 
   const Joints before = sim.commandedJoints();
   SessionManager manager(*backend, managerSettingsOf(config));
-  manager.start(manager.defaultRequest());
+  manager.start(testing::onStoredPlan(manager.defaultRequest(), "ideal-6"));  // this daemon's world
   const SessionStatus end = manager.waitIdle();
   EXPECT_EQ(end.state, SessionState::kFaulted);
   EXPECT_NE(end.message.find("simulates world"), std::string::npos) << end.message;

@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "stored_plan_request.h"
 #include "umockdev_board.h"
 #include "zerocal/psd/psd_config.h"
 #include "zerocal/service/daemon_setup.h"
@@ -112,9 +113,10 @@ TEST_F(HardwareBackendOnSimulatedCell, ConnectsReadsAndCalibratesThroughLibusbAn
   HardwareBackend absent(wrong_serial);
   EXPECT_THROW(absent.connect(), Error);
 
-  // Settled as zerocald settles it from the configuration.
+  // Settled as zerocald settles it from the configuration; on the optimal plan for this world,
+  // stored.
   SessionManager manager(backend, managerSettingsOf(config_));
-  const std::string id = manager.start(manager.defaultRequest());
+  const std::string id = manager.start(testing::onStoredPlan(manager.defaultRequest(), "ideal-13"));
   const SessionStatus end = manager.waitIdle();
   ASSERT_EQ(end.state, SessionState::kDone) << end.message;
   const nlohmann::json result = manager.result(id);

@@ -14,6 +14,7 @@
 #include <mutex>
 #include <thread>
 
+#include "stored_plan_request.h"
 #include "zerocal/io/joint_set.h"
 #include "zerocal/sim/sim_backend.h"
 #include "zerocal/sim/sim_controller.h"
@@ -33,6 +34,9 @@ struct TempDir {
 };
 
 // The ideal world: the manager's results are checked against the truth (docs/simulated-cell.md).
+// Sessions run on the optimal planner's plan for the seed's world, stored in tests/data/plans
+// ("ideal-<seed>"), so that start() does not plan for seconds; only the test of an abort while
+// planning plans.
 sim::SimulatedCellOptions cellFor(std::uint64_t seed) {
   return sim::seededCellOptions(seed, WorldKind::kIdeal);
 }
@@ -84,7 +88,7 @@ TEST(SessionManager, RunsASessionToDoneThroughEveryStateWithAResultNearTheTruth)
   manager.setEventSink(log.sink());
   EXPECT_EQ(manager.status().state, SessionState::kIdle);
 
-  const std::string id = manager.start(manager.defaultRequest());
+  const std::string id = manager.start(testing::onStoredPlan(manager.defaultRequest(), "ideal-5"));
   // Polled as a terminal would: the live servo error shows while servoing, and only then.
   int live_seen = 0, polls = 0, servoing = 0, any = 0;
   double cell_time_s = 0;
@@ -175,9 +179,9 @@ TEST(SessionManager, OneSessionAtATimeAndAbortStopsIt) {
   const TempDir dir;
   sim::SimBackend backend(cellFor(6));
   SessionManager manager(backend, settingsIn(dir.path));
-  const std::string id = manager.start(manager.defaultRequest());
+  const std::string id = manager.start(testing::onStoredPlan(manager.defaultRequest(), "ideal-6"));
   try {
-    manager.start(manager.defaultRequest());
+    manager.start(testing::onStoredPlan(manager.defaultRequest(), "ideal-6"));
     FAIL() << "a second start was accepted";
   } catch (const Refused& e) {
     EXPECT_EQ(e.code(), "busy");
@@ -222,7 +226,7 @@ TEST(SessionManager, AnAbortedSessionResumesWithoutLosingOrRepeatingAPose) {
     if (e["event"] == "pose" && e["pose"] == 3) manager.abort();
   };
   manager.setEventSink(log.sink());
-  const std::string id = manager.start(manager.defaultRequest());
+  const std::string id = manager.start(testing::onStoredPlan(manager.defaultRequest(), "ideal-7"));
   SessionStatus end = manager.waitIdle();
   ASSERT_EQ(end.state, SessionState::kAborted);
   ASSERT_EQ(end.recorded, 3);
@@ -285,16 +289,12 @@ TEST(SessionManager, APlanFileWithTooFewPosesIsRefusedEveryTimeAndNothingMoves) 
   const TempDir dir;
   sim::SimBackend backend(cellFor(8));
   SessionManager manager(backend, settingsIn(dir.path));
-  PlanOptions options;
-  options.psd_normal = backend.knowledge().cell.psd_rotation.col(2);
-  const Plan good =
-      planPoses(backend.knowledge().cell, backend.knowledge().taught_centre_mm, options);
+  const std::vector<Pose> good = testing::storedPlan("ideal-8");  // the optimal planner's
   StartRequest request = manager.defaultRequest();
   request.plan = PlanKind::kFile;
   request.plan_file = dir.path + "/few.csv";
   for (int count = 0; count < kMinimumPoses; ++count) {
-    std::ofstream(request.plan_file)
-        << formatJointSet({good.poses.begin(), good.poses.begin() + count});
+    std::ofstream(request.plan_file) << formatJointSet({good.begin(), good.begin() + count});
     for (int repeat = 0; repeat < 3; ++repeat) {
       try {
         manager.start(request);
@@ -311,18 +311,15 @@ TEST(SessionManager, APlanFileWithTooFewPosesIsRefusedEveryTimeAndNothingMoves) 
 }
 
 // A plan whose first pose points the laser far off the detector, as a fixture or a cable in the
-// beam would: the spot is never found there (no pose yet to predict it from). `count` poses.
-StartRequest planWithABlindFirstPose(SessionManager& manager, sim::SimBackend& backend,
-                                     const std::string& dir, int count) {
-  PlanOptions options;
-  options.poses = count;
-  options.psd_normal = backend.knowledge().cell.psd_rotation.col(2);
-  Plan plan = planPoses(backend.knowledge().cell, backend.knowledge().taught_centre_mm, options);
-  plan.poses[0].q_deg[0] += 20.0;  // some 300 mm off at the PSD, far beyond the search
+// beam would: the spot is never found there (no pose yet to predict it from). The optimal plan
+// of `count` poses for the world of seed 5 (stored), its first pose turned away.
+StartRequest planWithABlindFirstPose(SessionManager& manager, const std::string& dir, int count) {
+  std::vector<Pose> plan = testing::storedPlan("ideal-5-" + std::to_string(count) + "-poses");
+  plan[0].q_deg[0] += 20.0;  // some 300 mm off at the PSD, far beyond the search
   StartRequest request = manager.defaultRequest();
   request.plan = PlanKind::kFile;
   request.plan_file = dir + "/blind.csv";
-  std::ofstream(request.plan_file) << formatJointSet(plan.poses);
+  std::ofstream(request.plan_file) << formatJointSet(plan);
   return request;
 }
 
@@ -334,7 +331,7 @@ TEST(SessionManager, APoseWhoseSpotIsNeverFoundIsSkippedOnRequestWhenThePlanDoes
   SessionManager manager(backend, settingsIn(dir.path));
   EventLog log;
   manager.setEventSink(log.sink());
-  const std::string id = manager.start(planWithABlindFirstPose(manager, backend, dir.path, 10));
+  const std::string id = manager.start(planWithABlindFirstPose(manager, dir.path, 10));
   SessionStatus end = manager.waitIdle();
   ASSERT_EQ(end.state, SessionState::kFaulted) << end.message;
   EXPECT_EQ(end.recorded, 0);
@@ -399,7 +396,7 @@ TEST(SessionManager, APoseThePlanCannotDoWithoutIsNotSkipped) {
   const TempDir dir;
   sim::SimBackend backend(cellFor(5));
   SessionManager manager(backend, settingsIn(dir.path));
-  const std::string id = manager.start(planWithABlindFirstPose(manager, backend, dir.path, 6));
+  const std::string id = manager.start(planWithABlindFirstPose(manager, dir.path, 6));
   const SessionStatus end = manager.waitIdle();
   ASSERT_EQ(end.state, SessionState::kFaulted) << end.message;
   EXPECT_EQ(end.skippable_pose, 0);
@@ -436,7 +433,7 @@ TEST(SessionManager, ADamagedJournalIsReportedAndSkippedNeverFatalToTheOthers) {
         }
       };
       manager.setEventSink(log.sink());
-      *id = manager.start(manager.defaultRequest());
+      *id = manager.start(testing::onStoredPlan(manager.defaultRequest(), "ideal-12"));
       ASSERT_EQ(recorded.get_future().wait_for(std::chrono::seconds(120)),
                 std::future_status::ready);
       manager.waitIdle();
@@ -512,7 +509,7 @@ TEST(SessionManager, ReadsThePsdWhenIdleAndReportsTheSessionsLatestReadingDuring
           [&during](std::optional<LiveReading> r, const std::string&) { during.set_value(r); });
   };
   manager.setEventSink(log.sink());
-  manager.start(manager.defaultRequest());
+  manager.start(testing::onStoredPlan(manager.defaultRequest(), "ideal-10"));
   const std::optional<LiveReading> live = during.get_future().get();
   ASSERT_TRUE(live);
   EXPECT_TRUE(live->during_session);
@@ -534,7 +531,7 @@ TEST(SessionManager, DestroyedMidSessionItStopsCleanlyWithEveryRecordedPoseOnDis
       if (e["event"] == "pose" && e["pose"] == 2) two_recorded.set_value();
     };
     manager.setEventSink(log.sink());
-    id = manager.start(manager.defaultRequest());
+    id = manager.start(testing::onStoredPlan(manager.defaultRequest(), "ideal-11"));
     // A session that ends before its second pose fails here instead of waiting forever.
     ASSERT_EQ(two_recorded.get_future().wait_for(std::chrono::seconds(120)),
               std::future_status::ready)
@@ -564,7 +561,7 @@ TEST(SessionManager, ACellThatCannotBeReachedFaultsTheSessionWithTheReason) {
   sim::SimBackend sim_backend(cellFor(12));
   UnreachableBackend backend(sim_backend.knowledge());
   SessionManager manager(backend, settingsIn(dir.path));
-  manager.start(manager.defaultRequest());
+  manager.start(testing::onStoredPlan(manager.defaultRequest(), "ideal-12"));
   const SessionStatus end = manager.waitIdle();
   EXPECT_EQ(end.state, SessionState::kFaulted);
   EXPECT_NE(end.message.find("connection refused"), std::string::npos) << end.message;
@@ -598,7 +595,7 @@ TEST(SessionManager, TheWorkersStallShowsWhileItHangsAndIsZeroWhileItWaitsForWor
   HangingBackend backend(sim_backend.knowledge());
   SessionManager manager(backend, settingsIn(dir.path));
   EXPECT_EQ(manager.workerStalledFor(), std::chrono::steady_clock::duration::zero());
-  manager.start(manager.defaultRequest());
+  manager.start(testing::onStoredPlan(manager.defaultRequest(), "ideal-12"));
   backend.entered_.get_future().wait();
   std::this_thread::sleep_for(std::chrono::milliseconds(100));
   EXPECT_GE(manager.workerStalledFor(), std::chrono::milliseconds(90));
@@ -619,7 +616,7 @@ TEST(SessionManager, ASessionsProgressKeepsTheWorkersStallShort) {
       std::this_thread::sleep_for(std::chrono::milliseconds(1));
     }
   });
-  manager.start(manager.defaultRequest());
+  manager.start(testing::onStoredPlan(manager.defaultRequest(), "ideal-12"));
   const SessionStatus end = manager.waitIdle();
   done = true;
   sampler.join();

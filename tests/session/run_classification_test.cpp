@@ -110,6 +110,16 @@ class RunClassification : public ::testing::Test {
     EXPECT_CALL(link, readJoints()).WillOnce(Return(planned));
   }
 
+  // The pose recorded after `reconnects` and `reopens` recoveries, and the run stopped (run()).
+  void expectRecordedAfter(const RunOutcome& out, int reconnects, int reopens) {
+    EXPECT_EQ(out.state, RunState::kAborted) << out.message;
+    EXPECT_EQ(out.reconnects, reconnects);
+    EXPECT_EQ(out.reopens, reopens);
+    const std::vector<PoseRecord> records = journalled();
+    ASSERT_EQ(records.size(), 1u);
+    EXPECT_EQ(records[0].joints_deg, plan[0].q_deg);
+  }
+
   void expectFaultedAt(const RunOutcome& out, int pose, bool pose_at_fault) {
     EXPECT_EQ(out.state, RunState::kFaulted);
     EXPECT_EQ(out.stopped_at, pose);
@@ -157,13 +167,7 @@ TEST_F(RunClassification, ATransientMoveReconnectsOnceThenRedoesThePoseFromItsPl
     EXPECT_CALL(reconnect, Call());
     expectMeasured(plan[0].q_deg);
   }
-  const RunOutcome out = run();
-  EXPECT_EQ(out.state, RunState::kAborted) << out.message;  // after the recorded pose
-  EXPECT_EQ(out.reconnects, 1);
-  EXPECT_EQ(out.reopens, 0);
-  const std::vector<PoseRecord> records = journalled();
-  ASSERT_EQ(records.size(), 1u);
-  EXPECT_EQ(records[0].joints_deg, plan[0].q_deg);
+  expectRecordedAfter(run(), 1, 0);
 }
 
 TEST_F(RunClassification, ATransientMoveWithoutAReconnectHookFaults) {
@@ -185,10 +189,7 @@ TEST_F(RunClassification, ALinkFailureInTheServoReconnectsAndRedoesThePose) {
     EXPECT_CALL(reconnect, Call());
     expectMeasured(plan[0].q_deg);
   }
-  const RunOutcome out = run();
-  EXPECT_EQ(out.state, RunState::kAborted) << out.message;
-  EXPECT_EQ(out.reconnects, 1);
-  EXPECT_EQ(journalled().size(), 1u);
+  expectRecordedAfter(run(), 1, 0);
 }
 
 TEST_F(RunClassification, ATransientSensorFailureReopensTheBoardAndRedoesThePose) {
@@ -199,11 +200,7 @@ TEST_F(RunClassification, ATransientSensorFailureReopensTheBoardAndRedoesThePose
     EXPECT_CALL(reopen, Call());
     expectMeasured(plan[0].q_deg);
   }
-  const RunOutcome out = run();
-  EXPECT_EQ(out.state, RunState::kAborted) << out.message;
-  EXPECT_EQ(out.reopens, 1);
-  EXPECT_EQ(out.reconnects, 0);
-  EXPECT_EQ(journalled().size(), 1u);
+  expectRecordedAfter(run(), 0, 1);
 }
 
 TEST_F(RunClassification, AFatalSensorFailureFaultsWithoutReopening) {

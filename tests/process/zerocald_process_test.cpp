@@ -18,6 +18,7 @@
 #include <thread>
 
 #include "../support/temp_dir.h"
+#include "stored_plan.h"
 #include "zerocal/control/client.h"
 
 extern char** environ;
@@ -50,7 +51,8 @@ class Daemon {
          const std::vector<std::string>& extra_args = {})
       : log_(dir + "/" + name + ".log") {
     // The ideal world: the resumed result is checked against the truth, which the realistic
-    // world's model errors would blur (docs/simulated-cell.md).
+    // world's model errors would blur (docs/simulated-cell.md). Its sessions run on the optimal
+    // plan for that world, stored: the daemon as a process is tested here, not its planner.
     std::vector<std::string> args = {ZEROCALD,
                                      "--sim",
                                      "--ideal-world",
@@ -65,7 +67,11 @@ class Daemon {
                                      "--set",
                                      "control.port=0",
                                      "--set",
-                                     "backend.sim_pace=0.05"};
+                                     "backend.sim_pace=0.05",
+                                     "--set",
+                                     "session.plan=file",
+                                     "--set",
+                                     "session.plan_file=" + testing::storedPlanPath("ideal-4")};
     args.insert(args.end(), extra_args.begin(), extra_args.end());
     std::vector<char*> argv;
     for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));

@@ -92,7 +92,9 @@ report::SessionFiles sessionFiles(const FixtureOptions& options) {
 
 std::string makeSession(const std::string& name, const FixtureOptions& options) {
   namespace fs = std::filesystem;
-  const fs::path dir = fs::temp_directory_path() / ("zerocal-report-test-" + name);
+  // In this build tree, not /tmp: another checkout's tests running at the same time would remove
+  // and rewrite a folder of the same name under them.
+  const fs::path dir = fs::path(ZEROCAL_REPORT_FIXTURE_DIR) / name;
   fs::remove_all(dir);
   fs::create_directories(dir);
   report::SessionFiles files = sessionFiles(options);

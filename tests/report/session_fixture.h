@@ -20,8 +20,8 @@ struct FixtureOptions {
   bool identity = true;          // false: a result written before the robot's identity was
 };
 
-// Writes session.json, journal.jsonl and result.json into a fresh folder under the test's
-// temporary directory and returns its path.
+// Writes session.json, journal.jsonl and result.json into a fresh folder `name` (emptied first,
+// kept afterwards for a look) in the build tree's tests/report/sessions and returns its path.
 std::string makeSession(const std::string& name, const FixtureOptions& options = {});
 
 // The same session's files in memory (what readSessionFiles would return).

@@ -140,11 +140,7 @@ class RunClassification : public ::testing::Test {
 };
 
 TEST_F(RunClassification, ARefusedMoveFaultsAtOnceAsThePosesOwnAndIsNeverSentAgain) {
-  {
-    InSequence order;
-    EXPECT_CALL(link, moveJoints(plan[0].q_deg))
-        .WillOnce(Throw(failure(LinkError::Kind::kRefused)));
-  }
+  EXPECT_CALL(link, moveJoints(plan[0].q_deg)).WillOnce(Throw(failure(LinkError::Kind::kRefused)));
   const RunOutcome out = run();
   expectFaultedAt(out, 0, true);
   EXPECT_THAT(out.message, HasSubstr("move failed: refused failure"));

@@ -414,6 +414,7 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
                                std::to_string(kMostLeftOut) +
                                " poses were left out: the poses do not describe one cell (a "
                                "wrong model or a disturbed session), measure them again");
+      report.remeasure.push_back(worst + 1);
       break;
     }
     // Leaving it out must keep a check on the rest: 2 (N-1) - 11 >= 3.
@@ -421,6 +422,7 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
       gross_problems.push_back(poseName(poses, worst) +
                                " does not fit the others, but there are too few poses to leave "
                                "it out and still check the rest: measure it again or add poses");
+      report.remeasure.push_back(worst + 1);
       break;
     }
     std::vector<int> without = active;
@@ -443,6 +445,8 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
               poseName(poses, worst) + " or " + poseName(poses, active[t.runner_up]) +
               " does not fit, and the poses cannot tell which: leaving out either one leaves a "
               "consistent set; measure both again or add poses");
+          report.remeasure.push_back(worst + 1);
+          report.remeasure.push_back(active[t.runner_up] + 1);
           break;
         }
       }
@@ -462,6 +466,7 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
         " um (test statistic " + fixed(t.ratio[t.best], 1) + " times its " +
         general(options.gross_error_alpha) + " family-wise threshold); left out of the result";
     report.suspect_poses.push_back(sp);
+    report.remeasure.push_back(worst + 1);
     left_out.push_back(worst);
     active = without;
     fit = refit;

@@ -154,6 +154,7 @@ Json toJson(const PoseRecord& r) {
               {"final_error_um", r.servo.final_error_um}}}};
   // No path recorded (a record made without the servo) is no key, as in older journals.
   if (!r.servo_path.empty()) line["servo_path"] = r.servo_path;
+  if (r.remeasure_of >= 0) line["remeasure_of"] = r.remeasure_of;
   return line;
 }
 
@@ -185,6 +186,12 @@ PoseRecord poseRecordFromJson(const Json& j) {
     // Added later: journals written before have neither.
     if (s.contains("search_moves")) s.at("search_moves").get_to(r.servo.search_moves);
     if (j.contains("servo_path")) j.at("servo_path").get_to(r.servo_path);
+    if (j.contains("remeasure_of")) {
+      j.at("remeasure_of").get_to(r.remeasure_of);
+      if (r.remeasure_of < 0 || r.remeasure_of >= r.index)
+        throw JournalError("pose record: remeasure_of " + std::to_string(r.remeasure_of) +
+                           " is not an earlier line");
+    }
     return r;
   } catch (const Json::exception& e) {
     throw JournalError(std::string("pose record: ") + e.what());

@@ -68,6 +68,19 @@ std::vector<std::string> identity(const SessionReport& r) {
   return lines;
 }
 
+std::string remeasuredNote(const SessionReport& r) {
+  if (r.remeasured.empty()) return "";
+  std::string poses;
+  for (std::size_t i = 0; i < r.remeasured.size(); ++i)
+    poses += (i == 0                         ? ""
+              : i + 1 == r.remeasured.size() ? " and "
+                                             : ", ") +
+             std::to_string(r.remeasured[i]);
+  return std::string(r.remeasured.size() == 1 ? "Pose " : "Poses ") + poses +
+         " did not fit the others at first and " + (r.remeasured.size() == 1 ? "was" : "were") +
+         " measured again; the result rests on the new measurement, and both are in the journal.";
+}
+
 bool refused(const SessionReport& r) { return r.usable && !*r.usable; }
 
 std::string verdict(const SessionReport& r) {

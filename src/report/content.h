@@ -40,6 +40,9 @@ Section abbSection(const SessionReport& r);
 // "not recorded" for what an older result lacks.
 std::vector<std::string> identity(const SessionReport& r);
 
+// One sentence on the poses measured again after the first solve named them; empty when none.
+std::string remeasuredNote(const SessionReport& r);
+
 // Wraps text at `width` columns with `indent` spaces before every line.
 std::string wrap(const std::string& text, std::size_t width, std::size_t indent);
 

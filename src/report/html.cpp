@@ -262,6 +262,7 @@ std::string reportHtml(const SessionReport& r) {
   if (!r.plan_description.empty()) o << "<p>Plan: " << esc(r.plan_description) << "</p>\n";
   o << "<p class=\"verdict" << (r.converged && !detail::refused(r) ? "" : " fail") << "\">"
     << esc(detail::verdict(r)) << "</p>\n";
+  if (!r.remeasured.empty()) o << "<p>" << esc(detail::remeasuredNote(r)) << "</p>\n";
   o << "<p class=\"identity\">";
   const std::vector<std::string> identity = detail::identity(r);
   for (std::size_t i = 0; i < identity.size(); ++i) o << (i ? "<br>" : "") << esc(identity[i]);
@@ -429,9 +430,12 @@ std::string reportHtml(const SessionReport& r) {
     }
     std::string q;
     for (const double v : p.joints_deg) q += format("%.4f ", v);
-    o << "<tr>" << td(std::to_string(p.pose), "n") << td(q, "n")
-      << td(format("%+.4f, %+.4f", p.u_mm, p.v_mm), "n")
-      << td(p.solved ? format("%.1f", p.miss_um) : "held out", "n")
+    const std::string pose = std::to_string(p.pose) + (p.again ? " (again)" : "");
+    o << "<tr>" << td(pose, "n") << td(q, "n") << td(format("%+.4f, %+.4f", p.u_mm, p.v_mm), "n")
+      << td(p.solved       ? format("%.1f", p.miss_um)
+            : p.superseded ? "measured again"
+                           : "held out",
+            "n")
       << td(p.solved ? format("%.1f", p.standoff_mm) : "", "n") << "</tr>\n";
   }
   o << "</table>\n";

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 
 #include "zerocal/calib/cell_model.h"
@@ -277,29 +278,45 @@ SessionReport parseSession(const SessionFiles& files) {
     r.validation = validation;
   }
   const int journal_poses = static_cast<int>(files.journal.size());
-  int skipped_poses = 0;
-  for (const Json& line : files.journal) skipped_poses += line.contains("skipped");
-  if (r.solved_poses + static_cast<int>(held_out.size()) + skipped_poses != journal_poses)
-    throw ReportError(
-        "result.json solved " + std::to_string(r.solved_poses) + " poses" +
-        (held_out.empty() ? "" : " and held out " + std::to_string(held_out.size())) +
-        ", but journal.jsonl has " + std::to_string(journal_poses) +
-        (skipped_poses ? " of which " + std::to_string(skipped_poses) + " skipped" : "") +
-        ": the files do not belong together");
+  std::vector<PoseRecord> records;
+  for (int i = 0; i < journal_poses; ++i) {
+    try {
+      records.push_back(poseRecordFromJson(files.journal[i]));
+    } catch (const JournalError& e) {
+      throw ReportError("journal.jsonl pose " + std::to_string(i + 1) + ": " + e.what());
+    }
+  }
+  // Each plan pose's latest line is the one solved (a pose measured again replaces its first
+  // measurement); the residuals are in plan order.
+  std::map<int, int> latest;  // plan pose (0-based) -> its latest line
+  for (int i = 0; i < journal_poses; ++i) latest[records[i].planIndex()] = i;
+  std::map<int, int> residual_of;  // line -> its residual
+  int measured_poses = 0;
+  for (const auto& [plan_index, line] : latest) {
+    if (!records[line].measured()) continue;
+    ++measured_poses;
+    if (std::find(held_out.begin(), held_out.end(), plan_index + 1) == held_out.end())
+      residual_of[line] = static_cast<int>(residual_of.size());
+  }
+  if (r.solved_poses + static_cast<int>(held_out.size()) != measured_poses)
+    throw ReportError("result.json solved " + std::to_string(r.solved_poses) + " poses" +
+                      (held_out.empty() ? "" : " and held out " + std::to_string(held_out.size())) +
+                      ", but journal.jsonl has " + std::to_string(measured_poses) +
+                      " measured ones: the files do not belong together");
   const Json& residuals = result.array("pose_residuals");
   if (static_cast<int>(residuals.size()) != r.solved_poses)
     throw ReportError("result.json: " + std::to_string(residuals.size()) + " pose_residuals for " +
                       std::to_string(r.solved_poses) + " poses");
-  std::size_t next_residual = 0;
-  for (int i = 0; i < journal_poses; ++i) {
-    PoseRecord record;
-    try {
-      record = poseRecordFromJson(files.journal[i]);
-    } catch (const JournalError& e) {
-      throw ReportError("journal.jsonl pose " + std::to_string(i + 1) + ": " + e.what());
+  if (result.has("remeasured"))
+    for (const Json& pose : result.array("remeasured")) {
+      if (!pose.is_number_integer()) throw ReportError("result.json remeasured: not a pose number");
+      r.remeasured.push_back(pose.get<int>());
     }
+  for (int i = 0; i < journal_poses; ++i) {
+    const PoseRecord& record = records[i];
     PoseRow row;
-    row.pose = record.index + 1;
+    row.pose = record.planIndex() + 1;
+    row.again = record.remeasure_of >= 0;
     if (!record.measured()) {
       row.solved = false;
       row.skipped = record.skipped;
@@ -310,9 +327,11 @@ SessionReport parseSession(const SessionFiles& files) {
     row.u_mm = record.u_mm;
     row.v_mm = record.v_mm;
     row.servo_path = servoPath(files.journal[i], row.pose);
-    row.solved = std::find(held_out.begin(), held_out.end(), row.pose) == held_out.end();
+    row.superseded = latest[record.planIndex()] != i;
+    const auto residual = residual_of.find(i);
+    row.solved = residual != residual_of.end();
     if (row.solved) {
-      const Reader p(residuals[next_residual++], "result.json pose_residuals");
+      const Reader p(residuals[residual->second], "result.json pose_residuals");
       const auto miss = numbers(p.at("miss_mm"), 2, p.where() + ".miss_mm");
       row.miss_um = std::hypot(miss[0], miss[1]) * 1000;
       row.normalised = p.numberOrNan("normalised");

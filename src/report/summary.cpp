@@ -17,6 +17,7 @@ std::string summaryText(const SessionReport& r) {
   o << detail::wrap(detail::verdict(r), 100, 0);
   for (const SuspectRow& sp : r.suspect_poses)
     o << detail::wrap(format("Suspect pose %d (line %d): ", sp.pose, sp.line) + sp.reason, 100, 2);
+  if (!r.remeasured.empty()) o << detail::wrap(detail::remeasuredNote(r), 100, 0);
   for (const std::string& line : detail::identity(r)) o << detail::wrap(line, 100, 0);
   if (!r.plan_description.empty()) o << detail::wrap("plan: " + r.plan_description, 100, 0);
   std::string fit = format("Solved from %d poses (%s model, %s cost); noise %s mm (%s); ",

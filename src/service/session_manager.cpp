@@ -655,13 +655,21 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
       }
       setPhase(stateOf(phase), i + 1);
     };
+    run.on_remeasure = [this, &id, &log](const std::vector<int>& plan_indices) {
+      nlohmann::json poses = nlohmann::json::array();
+      for (const int i : plan_indices) poses.push_back(i + 1);
+      log->warn("session {}: the solve named poses {} as not fitting: measuring them again", id,
+                poses.dump());
+      emit({{"event", "remeasure"}, {"session", id}, {"poses", poses}});
+    };
     run.on_pose = [this, &id](const PoseRecord& r) {
       markProgress();
       nlohmann::json event{{"event", "pose"},
                            {"session", id},
-                           {"pose", r.index + 1},
+                           {"pose", r.planIndex() + 1},
                            {"servo_error_um", r.servo.final_error_um},
                            {"servo_moves", r.servo.moves}};
+      if (r.remeasure_of >= 0) event["again"] = true;
       {
         std::lock_guard<std::mutex> lock(mutex_);
         status_.recorded = r.index + 1;
@@ -685,7 +693,9 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
   if (outcome->state == RunState::kAborted) return finish(SessionState::kAborted, outcome->message);
   if (outcome->state == RunState::kFaulted) {
     std::string message = outcome->message;
-    if (outcome->pose_at_fault && outcome->stopped_at >= 0) {
+    // Only the next plan pose can be skipped (not one measured again after the plan).
+    if (outcome->pose_at_fault && outcome->stopped_at >= 0 &&
+        outcome->stopped_at == static_cast<int>(outcome->records.size())) {
       // Measuring this pose again would fail again: say whether the plan can do without it.
       std::vector<bool> skipped = skippedPoses(outcome->records, plan.size());
       skipped[outcome->stopped_at] = true;
@@ -717,6 +727,8 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
   result["session"] = id;
   result["cell_time_s"] = cell_time_s;
   result["resumed_from"] = outcome->resumed_from;
+  result["remeasured"] = nlohmann::json::array();
+  for (const int i : outcome->remeasured) result["remeasured"].push_back(i + 1);
   result["cell"] = {{"controller",
                      {{"robot_type", robot.robot_type},
                       {"serial", robot.serial},
@@ -745,7 +757,7 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
       breakdown.push_back({{"pose", r.index + 1}, {"skipped", r.skipped}});
       continue;
     }
-    nlohmann::json pose{{"pose", r.index + 1},
+    nlohmann::json pose{{"pose", r.planIndex() + 1},
                         {"move_s", r.servo.move_s},
                         {"acquisition_s", r.servo.acquisition_s},
                         {"servo_s", r.servo.servo_s},
@@ -754,6 +766,7 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
                         {"search_moves", r.servo.search_moves},
                         {"iterations", r.servo.iterations},
                         {"final_error_um", r.servo.final_error_um}};
+    if (r.remeasure_of >= 0) pose["again"] = true;
     if (settings_.move_overhead) {
       // Included in the times above: the planned move and every servo move pay them.
       const double moves = r.servo.moves + 1;

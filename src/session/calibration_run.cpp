@@ -1,5 +1,6 @@
 #include "zerocal/session/calibration_run.h"
 
+#include <algorithm>
 #include <chrono>
 #include <exception>
 
@@ -41,11 +42,33 @@ Recovery recover(const std::function<void()>& hook, CellClock& clock,
 
 }  // namespace
 
+namespace {
+
+// For each plan pose, its latest record (null when none).
+std::vector<const PoseRecord*> latestOf(const std::vector<PoseRecord>& records) {
+  std::vector<const PoseRecord*> latest;
+  for (const PoseRecord& r : records) {
+    const auto k = static_cast<std::size_t>(r.planIndex());
+    if (latest.size() <= k) latest.resize(k + 1, nullptr);
+    latest[k] = &r;
+  }
+  return latest;
+}
+
+}  // namespace
+
 std::vector<Pose> posesOf(const std::vector<PoseRecord>& records) {
   std::vector<Pose> poses;
-  for (const PoseRecord& r : records)
-    if (r.measured()) poses.push_back({r.joints_deg, Eigen::Vector2d(r.u_mm, r.v_mm), 0});
+  for (const PoseRecord* r : latestOf(records))
+    if (r && r->measured()) poses.push_back({r->joints_deg, Eigen::Vector2d(r->u_mm, r->v_mm), 0});
   return poses;
+}
+
+std::vector<int> planIndicesOf(const std::vector<PoseRecord>& records) {
+  std::vector<int> indices;
+  for (const PoseRecord* r : latestOf(records))
+    if (r && r->measured()) indices.push_back(r->planIndex());
+  return indices;
 }
 
 CalibrationRun::CalibrationRun(CellModel knowledge, Eigen::Vector3d taught_centre_mm,
@@ -60,8 +83,10 @@ CalibrationRun::CalibrationRun(CellModel knowledge, Eigen::Vector3d taught_centr
     throw InputError(
         "run settings: recovery_attempts must be at least 1, recoveries_per_pose and "
         "recovery_backoff_s not negative");
-  if (journal_.nextIndex() > static_cast<int>(plan_.size()))
-    throw InputError("the journal holds " + std::to_string(journal_.nextIndex()) +
+  int plan_lines = 0;
+  for (const PoseRecord& r : journal_.records()) plan_lines += r.remeasure_of < 0;
+  if (plan_lines > static_cast<int>(plan_.size()))
+    throw InputError("the journal holds " + std::to_string(plan_lines) +
                      " poses but the plan only " + std::to_string(plan_.size()));
 }
 
@@ -82,14 +107,17 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
     if (on_phase) on_phase(i, p);
   };
 
-  for (int i = journal_.nextIndex(); i < n; ++i) {
-    const std::string pose_name = "pose " + std::to_string(i + 1) + " of " + std::to_string(n);
+  // Measures plan pose i (again, when `again`) and journals it; false when the run must stop,
+  // `out` then saying why.
+  const auto measure = [&](int i, bool again) -> bool {
+    const std::string pose_name = "pose " + std::to_string(i + 1) + " of " + std::to_string(n) +
+                                  (again ? " (measured again)" : "");
     int recoveries = 0;
     for (;;) {
       if (abort.load()) {
         out.state = RunState::kAborted;
         out.message = "aborted before " + pose_name;
-        return out;
+        return false;
       }
       // One attempt at the pose: the planned move, then the servo. Nothing is journalled until
       // it succeeds, so a failed attempt is simply done again after a recovery.
@@ -134,7 +162,7 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
       if (failure == Failure::kAborted) {
         out.state = RunState::kAborted;
         out.message = pose_name + ": " + why;
-        return out;
+        return false;
       }
       if (failure != Failure::kNone) {
         const std::function<void()>& hook =
@@ -143,12 +171,12 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
         if (failure == Failure::kOther || !hook) {
           out.message = pose_name + ": " + why;
           out.pose_at_fault = pose_at_fault;
-          return out;
+          return false;
         }
         if (recoveries == settings_.recoveries_per_pose) {
           out.message = pose_name + ": " + why + " (" + std::to_string(recoveries) +
                         " recoveries already on this pose)";
-          return out;
+          return false;
         }
         ++recoveries;
         std::string recovery_problem;
@@ -157,14 +185,14 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
         if (rec == Recovery::kAborted) {
           out.state = RunState::kAborted;
           out.message = "aborted while recovering " + pose_name + " from: " + why;
-          return out;
+          return false;
         }
         if (rec == Recovery::kFailed) {
           out.message = pose_name + ": " + why + "; " +
                         (failure == Failure::kLink ? "reconnecting" : "reopening the board") +
                         " failed " + std::to_string(settings_.recovery_attempts) +
                         " times: " + recovery_problem;
-          return out;
+          return false;
         }
         ++(failure == Failure::kLink ? out.reconnects : out.reopens);
         continue;  // the pose again, from its planned move
@@ -172,7 +200,8 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
 
       phase(i, RunPhase::kRecording);
       PoseRecord record;
-      record.index = i;
+      record.index = journal_.nextIndex();
+      if (again) record.remeasure_of = i;
       record.joints_deg = r.q_deg;
       record.u_mm = r.reading.u_mm;
       record.v_mm = r.reading.v_mm;
@@ -194,14 +223,49 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
       out.records.push_back(record);
       predictor.addPose(record.joints_deg, Eigen::Vector2d(record.u_mm, record.v_mm));
       if (on_pose) on_pose(record);
-      break;
+      return true;
     }
-  }
+  };
+
+  for (int i = journal_.nextIndex(); i < n; ++i)
+    if (!measure(i, false)) return out;
 
   phase(n, RunPhase::kSolving);
   SolveOptions solve_options = settings_.solve;
   solve_options.cancelled = [&abort] { return abort.load(); };
   out.report = solve(knowledge_, posesOf(out.records), solve_options);
+  // The poses the solve names are measured once more and the solve run anew on each pose's
+  // latest measurement: a spot disturbed once, or a reading taken before the arm settled, is
+  // then replaced, not just left out. Once per session: a journal that has a second measurement
+  // already (a resumed session) is solved as it is.
+  const bool remeasured_before =
+      std::any_of(out.records.begin(), out.records.end(),
+                  [](const PoseRecord& r) { return r.remeasure_of >= 0; });
+  if (!abort.load() && !remeasured_before && settings_.remeasure_most > 0 &&
+      !out.report->remeasure.empty()) {
+    const std::vector<int> solved = planIndicesOf(out.records);
+    for (const int pose : out.report->remeasure)
+      if (static_cast<int>(out.remeasured.size()) < settings_.remeasure_most &&
+          std::find(out.remeasured.begin(), out.remeasured.end(), solved[pose - 1]) ==
+              out.remeasured.end())
+        out.remeasured.push_back(solved[pose - 1]);
+    if (on_remeasure) on_remeasure(out.remeasured);
+    for (const int i : out.remeasured) {
+      if (measure(i, true)) continue;
+      if (out.state == RunState::kFaulted && out.pose_at_fault) {
+        // The pose fails on its own (its spot not found now, say): its first measurement stays,
+        // and the solve leaves it out as before.
+        out.message.clear();
+        out.pose_at_fault = false;
+        out.stopped_at = -1;
+        continue;
+      }
+      out.report.reset();
+      return out;
+    }
+    phase(n, RunPhase::kSolving);
+    out.report = solve(knowledge_, posesOf(out.records), solve_options);
+  }
   if (abort.load()) {
     out.state = RunState::kAborted;
     out.message = "aborted during the solve";

@@ -115,6 +115,22 @@ TEST_F(JournalTest, OlderRecordsWithoutPathOrSearchMovesReadBack) {
   EXPECT_EQ(r.servo.moves, 7);
 }
 
+// A second measurement names the plan pose it measures again; it must be an earlier line's.
+TEST_F(JournalTest, ASecondMeasurementNamesItsPlanPose) {
+  PoseRecord again = sample(4);
+  again.remeasure_of = 1;
+  const nlohmann::json j = toJson(again);
+  EXPECT_EQ(j["remeasure_of"], 1);
+  EXPECT_FALSE(toJson(sample(1)).contains("remeasure_of"));  // plan lines as before
+  const PoseRecord back = poseRecordFromJson(j);
+  EXPECT_EQ(back.remeasure_of, 1);
+  EXPECT_EQ(back.planIndex(), 1);
+  EXPECT_EQ(sample(3).planIndex(), 3);
+  nlohmann::json later = j;
+  later["remeasure_of"] = 4;  // not an earlier line
+  EXPECT_THROW(poseRecordFromJson(later), JournalError);
+}
+
 // A skipped pose keeps its place in the sequence: a line with its index and the reason only.
 TEST_F(JournalTest, ASkippedPoseIsALineOfItsOwnThatKeepsTheIndicesConsecutive) {
   const fs::path path = dir_ / "journal.jsonl";

@@ -124,6 +124,31 @@ TEST(Parse, ASkippedPoseIsListedWithItsReasonAndTheSolvedOnesKeepTheirResiduals)
   EXPECT_EQ(unbalancedTag(html), "");
 }
 
+// A pose measured again: both lines listed, the solve's residual on the later one, and a sentence
+// that says so.
+TEST(Parse, APoseMeasuredAgainIsSolvedFromItsLatestLineAndSaidSo) {
+  test::FixtureOptions o;
+  o.remeasured = {3};
+  const SessionReport r = parseSession(test::sessionFiles(o));
+  EXPECT_EQ(r.solved_poses, 10);
+  ASSERT_EQ(r.poses.size(), 11u);
+  EXPECT_EQ(r.poses[2].pose, 3);
+  EXPECT_TRUE(r.poses[2].superseded);
+  EXPECT_FALSE(r.poses[2].solved);
+  EXPECT_EQ(r.poses[10].pose, 3);
+  EXPECT_TRUE(r.poses[10].again);
+  EXPECT_TRUE(r.poses[10].solved);
+  EXPECT_FALSE(r.poses[10].superseded);
+  EXPECT_EQ(r.remeasured, std::vector<int>{3});
+  const std::string summary = summaryText(r), html = reportHtml(r);
+  for (const std::string& text : {summary, html})
+    EXPECT_TRUE(contains(text, "Pose 3 did not fit the others at first and was measured again"))
+        << text;
+  EXPECT_TRUE(contains(html, "3 (again)"));
+  EXPECT_TRUE(contains(html, ">measured again<"));
+  EXPECT_EQ(unbalancedTag(html), "");
+}
+
 TEST(Summary, GivesEachOffsetInDegreesAndRadiansWithSigmaAndInterval) {
   const SessionReport& r = plainSession();
   const std::string s = summaryText(r);

@@ -66,6 +66,14 @@ report::SessionFiles sessionFiles(const FixtureOptions& options) {
     }
     files.journal.push_back(line);
   }
+  // A second measurement of a pose: a line after the plan's, the same pose recorded again.
+  for (const int pose : options.remeasured) {
+    PoseRecord r = poseRecordFromJson(files.journal[pose - 1]);
+    r.index = static_cast<int>(files.journal.size());
+    r.remeasure_of = pose - 1;
+    r.servo_path.clear();
+    files.journal.push_back(toJson(r));
+  }
   if (options.held_out.empty()) {
     files.result = toJson(solve(sc.cell, measured, so));
   } else {
@@ -75,6 +83,7 @@ report::SessionFiles sessionFiles(const FixtureOptions& options) {
   }
   files.result["session"] = options.id;
   files.result["cell_time_s"] = 123.4;
+  if (!options.remeasured.empty()) files.result["remeasured"] = options.remeasured;
   if (options.identity) {
     files.result["cell"] = {{"controller",
                              {{"robot_type", "IRB 1600-10/1.45"},

@@ -15,6 +15,7 @@ struct FixtureOptions {
   std::vector<int> held_out;            // validation, 1-based; empty: none
   std::vector<int> poses_without_path;  // 1-based poses whose journal line has no servo_path
   std::vector<int> skipped;             // 1-based poses skipped at a resume (not with held_out)
+  std::vector<int> remeasured;          // 1-based poses measured again after the plan's lines
   std::string id = "20261122T070000Z";
   std::string plan_description;  // empty: the planner's own
   bool identity = true;          // false: a result written before the robot's identity was

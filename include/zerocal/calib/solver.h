@@ -86,6 +86,9 @@ struct SuspectPose {
 struct SolveReport {
   Verdict verdict;
   std::vector<SuspectPose> suspect_poses;
+  // 1-based poses worth measuring again: each one named as not fitting, and both poses of a pair
+  // the data cannot decide between. A recorder (the daemon) measures them again and solves anew.
+  std::vector<int> remeasure;
   bool converged = false;
   std::string message;  // Ceres' summary line, or why it stopped
   CostKind cost = CostKind::kMaximumLikelihood;

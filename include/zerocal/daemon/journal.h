@@ -45,7 +45,13 @@ struct ServoStats {
 };
 
 struct PoseRecord {
-  int index = 0;        // 0-based position in the plan; journal lines are 0, 1, 2, ... with no gaps
+  // 0-based position of the line in the journal: lines are 0, 1, 2, ... with no gaps. The plan's
+  // poses come first, so for them it is also the position in the plan.
+  int index = 0;
+  // A second measurement of plan pose `remeasure_of` (0-based), made after the plan's poses
+  // because the solve named that pose; -1 for a plan pose's own line. The solve takes each plan
+  // pose's latest measurement; the earlier one stays in the journal.
+  int remeasure_of = -1;
   Joints joints_deg{};  // controller joint angles at the recorded reading
   double u_mm = 0, v_mm = 0;
   double u_se_mm = 0, v_se_mm = 0;  // standard errors of u and v
@@ -64,6 +70,7 @@ struct PoseRecord {
   // purpose, so that no later resume measures it and no solve uses it.
   std::string skipped;
   bool measured() const { return skipped.empty(); }
+  int planIndex() const { return remeasure_of >= 0 ? remeasure_of : index; }
 };
 
 nlohmann::json toJson(const PoseRecord& record);

@@ -52,6 +52,8 @@ struct PoseRow {
   double u_mm = 0, v_mm = 0;  // PSD reading at the recorded moment
   bool solved = true;         // false: held out of the solve (validation), or skipped
   std::string skipped;        // why the pose was skipped at a resume; empty when measured
+  bool again = false;         // a second measurement, made because the first solve named the pose
+  bool superseded = false;    // measured again later: the solve took the later measurement
   double miss_um = 0;         // line's miss of the hit point (solved poses)
   double normalised = 0;      // miss / noise sigma
   bool outlier = false;
@@ -101,7 +103,8 @@ struct SessionReport {
   };
   std::vector<NotIdentifiable> not_identifiable;
   std::array<double, 3> target_mm{}, target_sigma_mm{};
-  std::vector<PoseRow> poses;  // every journalled pose, in order
+  std::vector<PoseRow> poses;   // every journal line, in order
+  std::vector<int> remeasured;  // plan poses (1-based) measured again after the first solve
   std::optional<Validation> validation;
   // Whose calibration this is, from result.json's "cell", "zerocal_version" and
   // "finished_unix_s": the robot as its controller identified itself, the PSD map, the zerocal

@@ -37,6 +37,9 @@ struct RunSettings {
   int recovery_attempts = 3;
   double recovery_backoff_s = 2.0;
   int recoveries_per_pose = 2;
+  // The most poses measured again when the solve names them (0: none): a session of poses with
+  // no gross error measures none again.
+  int remeasure_most = 3;
 };
 
 enum class RunState { kCompleted, kAborted, kFaulted };
@@ -53,6 +56,7 @@ struct RunOutcome {
   int reconnects = 0;                 // link failures recovered
   int reopens = 0;                    // board failures recovered
   int stopped_at = -1;                // 0-based pose at which a faulted run stopped
+  std::vector<int> remeasured;        // 0-based plan poses measured again after the first solve
   // The fault is the pose's own: its spot was never found or lost, the servo did not converge,
   // or the target was refused. Measuring it again would fail again; skipping it may not.
   bool pose_at_fault = false;
@@ -70,6 +74,8 @@ class CalibrationRun {
   std::function<void(const PoseRecord&)> on_pose;
   // Called before each phase of each pose, and before the solve.
   std::function<void(int pose_index, RunPhase phase)> on_phase;
+  // Called when the solve named poses that are now measured again (0-based plan poses).
+  std::function<void(const std::vector<int>& plan_indices)> on_remeasure;
 
   // Runs the remaining poses and the solve. `abort` is polled before every move (the servo polls
   // it each cycle: an abort during a long search stops within one servo move) and during the
@@ -90,7 +96,10 @@ class CalibrationRun {
   Journal& journal_;
 };
 
-// The measured poses as the solver takes them (joints with the PSD reading); skipped ones left out.
+// The measured poses as the solver takes them (joints with the PSD reading): each plan pose's
+// latest measurement, in plan order; skipped ones left out.
 std::vector<Pose> posesOf(const std::vector<PoseRecord>& records);
+// The 0-based plan pose of each of posesOf's poses.
+std::vector<int> planIndicesOf(const std::vector<PoseRecord>& records);
 
 }  // namespace zerocal

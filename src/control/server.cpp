@@ -62,13 +62,13 @@ service::StartRequest planFileInPlanDir(service::StartRequest start, const json&
   if (plan_dir.empty())
     throw BadRequest(
         "plan_file: this daemon takes no plan files over the port "
-        "(session.plan_dir is not set)");
+        "(control.plan_dir is not set)");
   const bool plain = !name.empty() && name.size() <= 255 &&
                      name.find_first_of("/\\") == std::string::npos && name != "." &&
                      name != ".." && name[0] != '.';
   if (!plain)
     throw BadRequest(
-        "plan_file: a file name in the daemon's plan folder (session.plan_dir), "
+        "plan_file: a file name in the daemon's plan folder (control.plan_dir), "
         "without a path");
   start.plan_file = plan_dir + "/" + name;
   return start;

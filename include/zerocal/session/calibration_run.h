@@ -24,11 +24,12 @@ struct RunSettings {
   servo::ServoOptions servo;
   SolveOptions solve;
 
-  // Recovery from a lost link or board. When the controller link fails (a move throws
-  // ConnectionError, TimeoutError or ProtocolError, or the servo latches kLinkError) and
-  // `reconnect_link` is set, it is called (the daemon wires Irc5Client::reconnect, which retries
-  // with back-off of its own) and the current pose, not yet journalled, is done again from its
-  // planned move. Likewise `reopen_sensor` (Usb1408fs::reopen) when the PSD reader fails. A hook
+  // Recovery from a lost link or board. When the controller link fails with a transient
+  // LinkError (a move throws one, or the servo latches kLinkError of that kind) and
+  // `reconnect_link` is set, it is called (the daemon wires ControllerConnection::reconnect,
+  // which retries with back-off of its own) and the current pose, not yet journalled, is done
+  // again from its planned move. Likewise `reopen_sensor` (PsdReadout::reopen) when the PSD
+  // reader fails with a transient error. A refused or fatal error is never recovered. A hook
   // that throws is called again after recovery_backoff_s of cell time, up to recovery_attempts
   // calls per failure; at most recoveries_per_pose failures are recovered per pose. Unset hooks:
   // the failure faults the run.

@@ -45,6 +45,7 @@ nlohmann::json toJson(const SolveReport& r) {
   j["poses"] = r.pose_count;
   j["poses_used"] = r.poses_used;
   j["required_accuracy_deg"] = r.required_accuracy_deg;
+  j["model_tolerance"] = {{"length_mm", r.model_length_mm}, {"angle_deg", r.model_angle_deg}};
   nlohmann::json params = nlohmann::json::object();
   for (const auto& p : r.parameters) {
     nlohmann::json e;
@@ -54,6 +55,7 @@ nlohmann::json toJson(const SolveReport& r) {
     e["ci95"] =
         p.identifiable ? nlohmann::json{number(p.ci95_low), number(p.ci95_high)} : nlohmann::json();
     if (!p.identifiable) e["reason"] = p.reason;
+    if (p.identifiable && p.model_sigma > 0) e["model_sigma"] = number(p.model_sigma);
     if (p.name.rfind("delta", 0) == 0 && p.identifiable) e["value_rad"] = p.value * kDegToRad;
     params[p.name] = e;
   }

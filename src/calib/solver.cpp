@@ -119,6 +119,9 @@ std::string SolveOptions::validate() const {
   if (noise_mm && !(std::isfinite(*noise_mm) && *noise_mm > 0))
     return "the noise level must be a positive number of mm";
   if (!(loss_scale_sigmas > 0)) return "the robust loss scale must be positive";
+  if (!(model_length_mm >= 0 && model_length_mm <= 10 && model_angle_deg >= 0 &&
+        model_angle_deg <= 1))
+    return "the link tolerances must be 0..10 mm and 0..1 deg";
   if (loss != RobustLoss::kNone && !noise_mm)
     return "a robust loss needs the noise level (--noise), to know what counts as large";
   if (max_iterations < 1) return "max_iterations must be at least 1";
@@ -552,6 +555,37 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
       if (!ident.identifiable[k]) cov.row(k).setConstant(NAN), cov.col(k).setConstant(NAN);
   }
 
+  // The link lengths and twists are not identified but known only to a tolerance: each moves the
+  // estimate by S = J^+ G (G: the misses' derivatives by that link parameter) whatever the number
+  // of poses. Their consider covariance S diag(tolerance^2) S^T is added to the statistical one.
+  Eigen::MatrixXd model_cov = Eigen::MatrixXd::Zero(kUnknownCount, kUnknownCount);
+  report.model_length_mm = options.model_length_mm;
+  report.model_angle_deg = options.model_angle_deg;
+  if (options.model_length_mm > 0 || options.model_angle_deg > 0) {
+    const Eigen::VectorXd r0 = misses(cell, used, est, readings);
+    constexpr int kLinkParams = 3 * kJointCount;
+    Eigen::MatrixXd g(r0.size(), kLinkParams);
+    Eigen::VectorXd tolerance(kLinkParams);
+    for (int j = 0; j < kJointCount; ++j)
+      for (int kind = 0; kind < 3; ++kind) {
+        CellModel perturbed = cell;
+        DhRow& row = perturbed.robot.dh[j];
+        const double h = kind == 2 ? 1e-6 : 1e-3;  // rad, mm
+        (kind == 0 ? row.a_mm : kind == 1 ? row.d_mm : row.alpha_rad) += h;
+        g.col(3 * j + kind) = (misses(perturbed, used, est, readings) - r0) / h;
+        tolerance[3 * j + kind] =
+            kind == 2 ? options.model_angle_deg * kDegToRad : options.model_length_mm;
+      }
+    // A parameter the poses do not determine has no covariance (NaN) and no model part either.
+    const Eigen::MatrixXd u =
+        ident.unit_covariance.unaryExpr([](double x) { return std::isfinite(x) ? x : 0.0; });
+    const Eigen::MatrixXd s_matrix = u * jac_mm.transpose() * g;
+    if (s_matrix.allFinite()) {
+      model_cov = s_matrix * tolerance.cwiseAbs2().asDiagonal() * s_matrix.transpose();
+      cov += model_cov;
+    }
+  }
+
   // Student's t whenever the sigma in force comes from the residuals (estimated, or scaled up).
   double quantile = 1.959963984540054;
   if ((report.noise_estimated || report.noise_scale > 1) && report.dof > 0)
@@ -571,6 +605,18 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
     const double unit = k < kOffsetCount ? kRadToDeg : 1.0;
     pe.value = values[k];
     pe.sigma = std::sqrt(cov(k, k)) * unit;
+    pe.model_sigma = std::sqrt(model_cov(k, k)) * unit;
+    if (k < kOffsetCount && pe.identifiable && pe.model_sigma > 0 &&
+        !(pe.sigma <= options.required_accuracy_deg)) {
+      // Determined by the poses, but not to the accuracy the calibration is for once the
+      // model's tolerance is counted.
+      pe.identifiable = false;
+      pe.reason = "known only to " + fixed(pe.sigma, 3) + " deg (one standard deviation), " +
+                  fixed(pe.model_sigma, 3) +
+                  " deg of it from the robot's link tolerances, which these poses cannot "
+                  "separate from it; the required accuracy is " +
+                  fixed(options.required_accuracy_deg, 3) + " deg";
+    }
     pe.ci95_low = pe.value - quantile * pe.sigma;
     pe.ci95_high = pe.value + quantile * pe.sigma;
     if (!pe.identifiable) report.not_identifiable.push_back({pe.name, pe.reason});

@@ -285,6 +285,8 @@ std::vector<Field> schema(DaemonConfig& c) {
   f.push_back(vec3Field("session.psd_rpy_deg", c.session.psd_rpy_deg));
   f.push_back(realField("session.noise_mm", c.session.noise_mm));
   f.push_back(realField("session.required_accuracy_deg", c.session.required_accuracy_deg));
+  f.push_back(realField("session.model_length_mm", c.session.model_length_mm));
+  f.push_back(realField("session.model_angle_deg", c.session.model_angle_deg));
   f.push_back(pathField("session.data_dir", c.session.data_dir));
 
   f.push_back(textField("control.bind_address", c.control.bind_address));
@@ -557,6 +559,8 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
   check.positive("session.noise_mm", n.noise_mm, 10.0);
   // Beyond a degree the offsets would be mastering errors, not a calibration's business.
   check.positive("session.required_accuracy_deg", n.required_accuracy_deg, 1.0);
+  check.range("session.model_length_mm", n.model_length_mm, 0.0, 10.0);
+  check.range("session.model_angle_deg", n.model_angle_deg, 0.0, 1.0);
   if (n.data_dir.empty()) check.fail("session.data_dir", "must not be empty");
 
   boost::system::error_code ec;

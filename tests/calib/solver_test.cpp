@@ -47,6 +47,54 @@ TEST_P(NoiseFreeRoundTrip, RecoversTruthTo1e6Degrees) {
 INSTANTIATE_TEST_SUITE_P(Plans, NoiseFreeRoundTrip,
                          ::testing::Values(Pattern::kI, Pattern::kOptimal, Pattern::kMixed));
 
+// A robot whose links are not the file's: recorded on an arm with its link lengths and twists
+// off by their tolerance, solved with the file's. Without the model term the offsets are many
+// reported sigmas off; with it every offset's sigma holds the error, the model's part named.
+TEST(Solver, TheLinkTolerancesCoverWhatAWrongLinkDoesToTheOffsets) {
+  const Table2Scenario sc = table2Scenario();
+  CellModel arm = sc.cell;  // the true arm: the upper arm 0.2 mm longer, joint 3 twisted 0.02 deg
+  arm.robot.dh[1].a_mm += 0.2;
+  arm.robot.dh[2].alpha_rad += 0.02 * kDegToRad;
+  std::mt19937_64 rng(11);
+  const auto recorded = simulateRecording(arm, sc.truth, plan(sc, Pattern::kOptimal, 12), 0.0, rng);
+  SolveOptions exact;
+  exact.noise_mm = 0.005;
+  exact.required_accuracy_deg = 0.5;
+  SolveOptions tolerant = exact;
+  tolerant.model_length_mm = 0.1;
+  tolerant.model_angle_deg = 0.01;
+  const SolveReport a = solve(sc.cell, recorded, exact), b = solve(sc.cell, recorded, tolerant);
+  ASSERT_TRUE(a.converged && b.converged);
+  double worst_exact = 0, worst_tolerant = 0;
+  for (int k = 0; k < kOffsetCount; ++k) {
+    const double error = b.parameters[k].value - sc.truth.delta_rad[k] * kRadToDeg;
+    EXPECT_EQ(a.parameters[k].model_sigma, 0);
+    EXPECT_GT(b.parameters[k].model_sigma, 0) << k;
+    // The model's part is added to the statistical one, not put in its place.
+    EXPECT_NEAR(b.parameters[k].sigma * b.parameters[k].sigma,
+                a.parameters[k].sigma * a.parameters[k].sigma +
+                    b.parameters[k].model_sigma * b.parameters[k].model_sigma,
+                1e-3 * b.parameters[k].sigma * b.parameters[k].sigma)
+        << k;
+    worst_exact = std::max(worst_exact, std::abs(error) / a.parameters[k].sigma);
+    worst_tolerant = std::max(worst_tolerant, std::abs(error) / b.parameters[k].sigma);
+  }
+  EXPECT_GT(worst_exact, 3.0) << worst_exact;        // the exact model claims more than it knows
+  EXPECT_LT(worst_tolerant, 3.0) << worst_tolerant;  // the tolerances account for it
+  EXPECT_EQ(b.model_length_mm, 0.1);
+
+  // Held to 0.01 deg, an offset the link tolerances blur beyond it is not offered.
+  tolerant.required_accuracy_deg = 0.01;
+  tolerant.model_length_mm = 1.0;
+  const SolveReport c = solve(sc.cell, recorded, tolerant);
+  EXPECT_FALSE(c.verdict.usable);
+  bool named = false;
+  for (int k = 0; k < kOffsetCount; ++k)
+    named |= !c.parameters[k].identifiable &&
+             c.parameters[k].reason.find("link tolerances") != std::string::npos;
+  EXPECT_TRUE(named);
+}
+
 TEST(Solver, NoisyResultLiesWithinItsOwnIntervals) {
   // Over a few seeds the truth falls inside 3 reported sigma, and chi2/dof is plausible.
   const Table2Scenario sc = table2Scenario();

@@ -18,6 +18,8 @@ TEST(DaemonSetup, TheRunTakesTheServoSectionWholeAndTheSessionsAccuracy) {
   config.controller.limit_margin_deg = 2.5;
   config.session.noise_mm = 0.03;
   config.session.required_accuracy_deg = 0.02;
+  config.session.model_length_mm = 0.2;
+  config.session.model_angle_deg = 0.02;
   const RunSettings run = runSettingsOf(config);
   EXPECT_EQ(run.servo.stop, servo::ServoStop::kCentre);
   EXPECT_EQ(run.servo.tolerance_um, 1.5);
@@ -27,7 +29,23 @@ TEST(DaemonSetup, TheRunTakesTheServoSectionWholeAndTheSessionsAccuracy) {
   EXPECT_EQ(run.servo.limit_margin_deg, 2.5);
   EXPECT_EQ(run.solve.noise_mm, 0.03);
   EXPECT_EQ(run.solve.required_accuracy_deg, 0.02);
+  EXPECT_EQ(run.solve.model_length_mm, 0.2);
+  EXPECT_EQ(run.solve.model_angle_deg, 0.02);
   EXPECT_TRUE(run.servo.validate().empty()) << run.servo.validate();
+}
+
+// The simulated ideal world's links are exact: their tolerance is not counted there, and is
+// everywhere else.
+TEST(DaemonSetup, TheLinkTolerancesCountExceptInTheIdealWorld) {
+  DaemonConfig config;
+  config.backend.kind = BackendKind::kSim;
+  EXPECT_EQ(runSettingsOf(config).solve.model_length_mm, 0.1);
+  EXPECT_EQ(runSettingsOf(config).solve.model_angle_deg, 0.01);
+  config.backend.sim_ideal_world = true;
+  EXPECT_EQ(runSettingsOf(config).solve.model_length_mm, 0);
+  EXPECT_EQ(runSettingsOf(config).solve.model_angle_deg, 0);
+  config.backend.kind = BackendKind::kHardware;
+  EXPECT_EQ(runSettingsOf(config).solve.model_length_mm, 0.1);
 }
 
 // One set of defaults: the configuration's are the servo's and the solver's.

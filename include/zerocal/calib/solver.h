@@ -36,6 +36,12 @@ struct SolveOptions {
   // of chi-square per degree of freedom) mean the stated noise or the model is not the cell's.
   double max_offset_deg = 10.0;
   double max_noise_scale = 5.0;
+  // The model's own uncertainty: the robot's link lengths (a, d) and twists (alpha), which the
+  // method does not identify, known to these one-sigma tolerances. Their effect on each estimate
+  // is a bias no number of poses averages away; it is added to the statistical sigma as a
+  // consider covariance (ParameterEstimate::model_sigma). 0: the model is taken as exact.
+  double model_length_mm = 0;
+  double model_angle_deg = 0;
   // Deletion diagnostics (maximum-likelihood cost): a pose whose removal lowers the misfit by
   // more than chance allows at this family-wise level is named and left out of the result.
   bool find_gross_errors = true;
@@ -51,7 +57,8 @@ struct ParameterEstimate {
   bool identifiable = true;
   std::string reason;  // why not, when not
   double value = 0;    // degrees for offsets, as named otherwise
-  double sigma = 0;    // one standard deviation, same unit
+  double sigma = 0;    // one standard deviation, same unit; the model's part included
+  double model_sigma = 0;  // of sigma, the part from the link tolerances (model_length_mm, ...)
   double ci95_low = 0, ci95_high = 0;
 };
 
@@ -96,6 +103,7 @@ struct SolveReport {
   int pose_count = 0;  // as given, duplicates and left-out poses included
   int poses_used = 0;  // in the fit
   double required_accuracy_deg = 0;
+  double model_length_mm = 0, model_angle_deg = 0;  // the link tolerances counted (SolveOptions)
 
   std::vector<ParameterEstimate> parameters;  // the 8 identified, in unknownName order
   struct NotIdentifiable {

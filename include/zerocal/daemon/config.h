@@ -95,6 +95,10 @@ struct SessionConfig {
   // The accuracy the calibration is for: an offset known only worse than this (one sigma) is
   // not identified, and the result not usable (SolveOptions::required_accuracy_deg).
   double required_accuracy_deg = 0.01;
+  // One-sigma tolerances of the robot's link lengths and twists, which the method does not
+  // identify: their effect is added to every offset's sigma (SolveOptions::model_length_mm).
+  double model_length_mm = 0.1;
+  double model_angle_deg = 0.01;
   std::string data_dir = "/var/lib/zerocal/sessions";  // one folder per session (journal.h)
 };
 

@@ -471,7 +471,7 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
     report.suspect_poses.push_back(sp);
     report.remeasure.push_back(worst + 1);
     left_out.push_back(worst);
-    active = without;
+    active = std::move(without);
     fit = refit;
   }
   report.iterations = iterations;

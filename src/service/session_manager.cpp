@@ -619,26 +619,6 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
     Journal journal(store_.journalPath(id));
     if (!journal.dropped().empty())
       log->warn("session {}: {} (the pose will be measured again)", id, journal.dropped());
-    if (skip.index >= 0) {
-      // resume() checked this pose is the next one and the plan identifiable without it.
-      PoseRecord skipped;
-      skipped.index = skip.index;
-      skipped.skipped = skip.reason;
-      skipped.recorded_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                std::chrono::system_clock::now().time_since_epoch())
-                                .count();
-      journal.append(skipped);
-      log->warn("session {}: pose {} skipped ({})", id, skip.index + 1, skip.reason);
-      {
-        std::lock_guard<std::mutex> lock(mutex_);
-        status_.recorded = skip.index + 1;
-      }
-      emit({{"event", "pose"},
-            {"session", id},
-            {"pose", skip.index + 1},
-            {"pose_count", plan.size()},
-            {"skipped", skip.reason}});
-    }
     RunSettings run_settings = settings_.run;
     run_settings.solve.noise_mm = noise_mm;
     // A dropped controller connection or an unplugged board is recovered by reopening it; the
@@ -664,20 +644,27 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
     };
     run.on_pose = [this, &id](const PoseRecord& r) {
       markProgress();
-      nlohmann::json event{{"event", "pose"},
-                           {"session", id},
-                           {"pose", r.planIndex() + 1},
-                           {"servo_error_um", r.servo.final_error_um},
-                           {"servo_moves", r.servo.moves}};
+      nlohmann::json event{{"event", "pose"}, {"session", id}, {"pose", r.planIndex() + 1}};
+      if (r.measured()) {
+        event["servo_error_um"] = r.servo.final_error_um;
+        event["servo_moves"] = r.servo.moves;
+      } else {
+        event["skipped"] = r.skipped;
+      }
       if (r.remeasure_of >= 0) event["again"] = true;
       {
         std::lock_guard<std::mutex> lock(mutex_);
         status_.recorded = r.index + 1;
-        status_.last_servo_error_um = r.servo.final_error_um;
+        if (r.measured()) status_.last_servo_error_um = r.servo.final_error_um;
         event["pose_count"] = status_.pose_count;
       }
       emit(event);
     };
+    if (skip.index >= 0) {
+      // resume() checked this pose is the next one and the plan identifiable without it.
+      run.skipNextPose(skip.reason);
+      log->warn("session {}: pose {} skipped ({})", id, skip.index + 1, skip.reason);
+    }
     ObservedReader<LiveSlot> reader(cell_->psd(), *live_, progress_ns_);
     outcome = run.run(cell_->robot(), reader, cell_->clock(), abort_);
     cell_time_s = cell_->clock().nowS() - start_s;

@@ -40,10 +40,6 @@ Recovery recover(const std::function<void()>& hook, CellClock& clock,
   return Recovery::kFailed;
 }
 
-}  // namespace
-
-namespace {
-
 // For each plan pose, its latest record (null when none).
 std::vector<const PoseRecord*> latestOf(const std::vector<PoseRecord>& records) {
   std::vector<const PoseRecord*> latest;
@@ -55,6 +51,20 @@ std::vector<const PoseRecord*> latestOf(const std::vector<PoseRecord>& records) 
   return latest;
 }
 
+// Journal lines of the plan's own poses (measured or skipped), second measurements not counted.
+int planLines(const std::vector<PoseRecord>& records) {
+  return static_cast<int>(std::count_if(records.begin(), records.end(),
+                                        [](const PoseRecord& r) { return r.remeasure_of < 0; }));
+}
+
+// The 0-based plan pose of each of posesOf's poses.
+std::vector<int> planIndicesOf(const std::vector<PoseRecord>& records) {
+  std::vector<int> indices;
+  for (const PoseRecord* r : latestOf(records))
+    if (r && r->measured()) indices.push_back(r->planIndex());
+  return indices;
+}
+
 }  // namespace
 
 std::vector<Pose> posesOf(const std::vector<PoseRecord>& records) {
@@ -62,13 +72,6 @@ std::vector<Pose> posesOf(const std::vector<PoseRecord>& records) {
   for (const PoseRecord* r : latestOf(records))
     if (r && r->measured()) poses.push_back({r->joints_deg, Eigen::Vector2d(r->u_mm, r->v_mm), 0});
   return poses;
-}
-
-std::vector<int> planIndicesOf(const std::vector<PoseRecord>& records) {
-  std::vector<int> indices;
-  for (const PoseRecord* r : latestOf(records))
-    if (r && r->measured()) indices.push_back(r->planIndex());
-  return indices;
 }
 
 CalibrationRun::CalibrationRun(CellModel knowledge, Eigen::Vector3d taught_centre_mm,
@@ -83,11 +86,22 @@ CalibrationRun::CalibrationRun(CellModel knowledge, Eigen::Vector3d taught_centr
     throw InputError(
         "run settings: recovery_attempts must be at least 1, recoveries_per_pose and "
         "recovery_backoff_s not negative");
-  int plan_lines = 0;
-  for (const PoseRecord& r : journal_.records()) plan_lines += r.remeasure_of < 0;
+  const int plan_lines = planLines(journal_.records());
   if (plan_lines > static_cast<int>(plan_.size()))
     throw InputError("the journal holds " + std::to_string(plan_lines) +
                      " poses but the plan only " + std::to_string(plan_.size()));
+}
+
+void CalibrationRun::skipNextPose(const std::string& reason) {
+  const int plan_lines = planLines(journal_.records());
+  if (plan_lines >= static_cast<int>(plan_.size()) || plan_lines != journal_.nextIndex())
+    throw InputError("no plan pose is left to skip: every one is recorded");
+  PoseRecord record;
+  record.index = journal_.nextIndex();
+  record.skipped = reason;
+  record.recorded_ns = unixNanoseconds();
+  journal_.append(record);
+  if (on_pose) on_pose(record);
 }
 
 RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock& clock,

@@ -146,7 +146,9 @@ TEST(SessionManager, RunsASessionToDoneThroughEveryStateWithAResultNearTheTruth)
     EXPECT_GE(poses[i]["servo_moves"].get<int>(), 0);
   }
   ASSERT_EQ(log.of("remeasure").size(), again > 0 ? 1u : 0u);
-  if (again > 0) EXPECT_EQ(log.of("remeasure")[0]["poses"], remeasured);
+  if (again > 0) {
+    EXPECT_EQ(log.of("remeasure")[0]["poses"], remeasured);
+  }
   ASSERT_EQ(log.of("plan").size(), 1u);
   ASSERT_EQ(log.of("result").size(), 1u);
 

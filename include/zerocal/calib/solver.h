@@ -55,9 +55,9 @@ struct SolveOptions {
 struct ParameterEstimate {
   std::string name;  // "delta2_deg", "laser_slope_1", ...
   bool identifiable = true;
-  std::string reason;  // why not, when not
-  double value = 0;    // degrees for offsets, as named otherwise
-  double sigma = 0;    // one standard deviation, same unit; the model's part included
+  std::string reason;      // why not, when not
+  double value = 0;        // degrees for offsets, as named otherwise
+  double sigma = 0;        // one standard deviation, same unit; the model's part included
   double model_sigma = 0;  // of sigma, the part from the link tolerances (model_length_mm, ...)
   double ci95_low = 0, ci95_high = 0;
 };

@@ -65,9 +65,9 @@ struct SessionStatus {
   std::string session_id;  // the current or last session; empty before the first
   int pose = 0;            // 1-based pose being worked on (moving, servoing, recording)
   int pose_count = 0;
-  int recorded = 0;                // poses on disk in this session's journal
-  int resumed_from = 0;            // poses found in the journal when the run (re)started
-  std::string message;             // why it stopped, when aborted or faulted
+  int recorded = 0;      // poses on disk in this session's journal
+  int resumed_from = 0;  // poses found in the journal when the run (re)started
+  std::string message;   // why it stopped, when aborted or faulted
   // When faulted at a pose of its own fault (spot never found, say) that the plan can do
   // without: that pose, 1-based, for `resume` with skip_pose. 0 otherwise.
   int skippable_pose = 0;

@@ -89,6 +89,11 @@ class CalibrationRun {
   RunOutcome run(ControllerLink& robot, PsdReader& psd, CellClock& clock,
                  const std::atomic<bool>& abort);
 
+  // Journals the next plan pose as skipped, for `reason`, before run(): no solve uses it and no
+  // later run measures it (on_pose is called with its record). Throws InputError when every plan
+  // pose is recorded already, JournalError when the line cannot be written.
+  void skipNextPose(const std::string& reason);
+
  private:
   CellModel knowledge_;
   Eigen::Vector3d taught_centre_;
@@ -100,7 +105,5 @@ class CalibrationRun {
 // The measured poses as the solver takes them (joints with the PSD reading): each plan pose's
 // latest measurement, in plan order; skipped ones left out.
 std::vector<Pose> posesOf(const std::vector<PoseRecord>& records);
-// The 0-based plan pose of each of posesOf's poses.
-std::vector<int> planIndicesOf(const std::vector<PoseRecord>& records);
 
 }  // namespace zerocal

@@ -2,6 +2,9 @@
 
 #include <cmath>
 #include <set>
+#include <variant>
+
+#include "zerocal/calib/format.h"
 
 namespace zerocal::control {
 
@@ -141,5 +144,58 @@ json toJson(const std::vector<SessionInfo>& sessions) {
   }
   return a;
 }
+
+namespace {
+
+// Offsets by name; null where not identifiable.
+json sigmaObject(const std::vector<double>& sigma) {
+  json j = json::object();
+  for (std::size_t k = 0; k < sigma.size(); ++k)
+    j[unknownName(static_cast<int>(k))] = std::isfinite(sigma[k]) ? json(sigma[k]) : json();
+  return j;
+}
+
+struct EventJson {
+  json operator()(const service::PlanEvent& e) const {
+    return {{"event", "plan"},
+            {"session", e.session},
+            {"pose_count", e.pose_count},
+            {"description", e.description},
+            {"predicted_sigma_deg", sigmaObject(e.predicted_sigma_deg)}};
+  }
+  json operator()(const service::StateEvent& e) const {
+    json j{{"event", "state"}, {"state", service::stateName(e.state)}, {"session", e.session},
+           {"pose", e.pose},   {"pose_count", e.pose_count},           {"recorded", e.recorded}};
+    if (!e.message.empty()) j["message"] = e.message;
+    return j;
+  }
+  json operator()(const service::PoseEvent& e) const {
+    const PoseRecord& r = e.record;
+    json j{{"event", "pose"}, {"session", e.session}, {"pose", r.planIndex() + 1}};
+    if (r.measured()) {
+      j["servo_error_um"] = r.servo.final_error_um;
+      j["servo_moves"] = r.servo.moves;
+    } else {
+      j["skipped"] = r.skipped;
+    }
+    if (r.remeasure_of >= 0) j["again"] = true;
+    j["pose_count"] = e.pose_count;
+    return j;
+  }
+  json operator()(const service::RemeasureEvent& e) const {
+    return {{"event", "remeasure"}, {"session", e.session}, {"poses", e.poses}};
+  }
+  json operator()(const service::ResultEvent& e) const {
+    return {{"event", "result"},
+            {"session", e.session},
+            {"converged", e.report.converged},
+            {"achieved_sigma_deg", sigmaObject(e.achieved_sigma_deg)},
+            {"parameters", toJson(e.report).at("parameters")}};
+  }
+};
+
+}  // namespace
+
+json toJson(const service::SessionEvent& event) { return std::visit(EventJson{}, event); }
 
 }  // namespace zerocal::control

@@ -652,10 +652,11 @@ ControlServer::ControlServer(asio::io_context& io, service::SessionControl& sess
   impl_ = std::make_shared<ServerCore>(io, session, std::move(options));
   auto executor = io.get_executor();
   std::weak_ptr<ServerCore> weak = impl_;
-  // Called on the session's worker thread: only a post, never a wait.
-  session.setEventSink([executor, weak](const json& event) {
+  // Called on the session's worker thread: only a post, never a wait; the line is made on the
+  // I/O thread.
+  session.setEventSink([executor, weak](const service::SessionEvent& event) {
     asio::post(executor, [weak, event] {
-      if (auto self = weak.lock()) self->broadcast(event);
+      if (auto self = weak.lock()) self->broadcast(toJson(event));
     });
   });
 }

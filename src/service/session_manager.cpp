@@ -143,14 +143,6 @@ SessionState stateOf(RunPhase phase) {
   return SessionState::kMoving;
 }
 
-nlohmann::json sigmaObject(const std::vector<double>& sigma) {
-  nlohmann::json j = nlohmann::json::object();
-  for (std::size_t k = 0; k < sigma.size(); ++k)
-    j[unknownName(static_cast<int>(k))] =
-        std::isfinite(sigma[k]) ? nlohmann::json(sigma[k]) : nlohmann::json();
-  return j;
-}
-
 // Session ids are UTC timestamps with an optional clash suffix; anything else (a path, "..") is
 // refused before it reaches the file system.
 void checkId(const std::string& id) {
@@ -269,7 +261,7 @@ void SessionManager::setEventSink(EventSink sink) {
   sink_ = std::move(sink);
 }
 
-void SessionManager::emit(const nlohmann::json& event) {
+void SessionManager::emit(const SessionEvent& event) {
   EventSink sink;
   {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -394,7 +386,7 @@ std::string SessionManager::start(const StartRequest& request) {
   makeLogger("session")->info("session {} created in {}: {} ({} poses)", info.id, info.dir,
                               plan.description, plan.poses.size());
 
-  nlohmann::json state_event;
+  StateEvent state_event;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     SessionStatus s;
@@ -408,11 +400,8 @@ std::string SessionManager::start(const StartRequest& request) {
     state_event = stateEvent();
   }
   live_->clear();
-  emit({{"event", "plan"},
-        {"session", info.id},
-        {"pose_count", plan.poses.size()},
-        {"description", plan.description},
-        {"predicted_sigma_deg", sigmaObject(status().predicted_sigma_deg)}});
+  emit(PlanEvent{info.id, static_cast<int>(plan.poses.size()), plan.description,
+                 status().predicted_sigma_deg});
   emit(state_event);
   post([this, id = info.id, poses = plan.poses, target, noise_mm](bool cancelled) {
     if (cancelled) return finish(SessionState::kAborted, "the daemon stopped before it began");
@@ -503,7 +492,7 @@ std::string SessionManager::resume(const ResumeRequest& request) {
   }
   makeLogger("session")->info("resuming session {}: {} of {} poses recorded", id,
                               info->recorded_poses, poses.size());
-  nlohmann::json state_event;
+  StateEvent state_event;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     SessionStatus s;
@@ -546,17 +535,14 @@ bool SessionManager::abort() {
   return true;
 }
 
-nlohmann::json SessionManager::stateEvent() const {
-  nlohmann::json e{
-      {"event", "state"},     {"state", stateName(status_.state)}, {"session", status_.session_id},
-      {"pose", status_.pose}, {"pose_count", status_.pose_count},  {"recorded", status_.recorded}};
-  if (!status_.message.empty()) e["message"] = status_.message;
-  return e;
+StateEvent SessionManager::stateEvent() const {
+  return {status_.state,      status_.session_id, status_.pose,
+          status_.pose_count, status_.recorded,   status_.message};
 }
 
 void SessionManager::setPhase(SessionState state, int pose) {
   markProgress();
-  nlohmann::json event;
+  StateEvent event;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     status_.state = state;
@@ -571,7 +557,7 @@ void SessionManager::setPhase(SessionState state, int pose) {
 void SessionManager::finish(SessionState state, const std::string& message) {
   auto log = makeLogger("session");
   if (state != SessionState::kDone && cell_) cell_->stopRobot();
-  nlohmann::json event;
+  StateEvent event;
   std::string id;
   {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -636,27 +622,20 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
       setPhase(stateOf(phase), i + 1);
     };
     run.on_remeasure = [this, &id, &log](const std::vector<int>& plan_indices) {
-      nlohmann::json poses = nlohmann::json::array();
-      for (const int i : plan_indices) poses.push_back(i + 1);
+      RemeasureEvent event{id, {}};
+      for (const int i : plan_indices) event.poses.push_back(i + 1);
       log->warn("session {}: the solve named poses {} as not fitting: measuring them again", id,
-                poses.dump());
-      emit({{"event", "remeasure"}, {"session", id}, {"poses", poses}});
+                nlohmann::json(event.poses).dump());
+      emit(event);
     };
     run.on_pose = [this, &id](const PoseRecord& r) {
       markProgress();
-      nlohmann::json event{{"event", "pose"}, {"session", id}, {"pose", r.planIndex() + 1}};
-      if (r.measured()) {
-        event["servo_error_um"] = r.servo.final_error_um;
-        event["servo_moves"] = r.servo.moves;
-      } else {
-        event["skipped"] = r.skipped;
-      }
-      if (r.remeasure_of >= 0) event["again"] = true;
+      PoseEvent event{id, 0, r};
       {
         std::lock_guard<std::mutex> lock(mutex_);
         status_.recorded = r.index + 1;
         if (r.measured()) status_.last_servo_error_um = r.servo.final_error_um;
-        event["pose_count"] = status_.pose_count;
+        event.pose_count = status_.pose_count;
       }
       emit(event);
     };
@@ -783,11 +762,7 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
     std::lock_guard<std::mutex> lock(mutex_);
     status_.achieved_sigma_deg = achieved;
   }
-  emit({{"event", "result"},
-        {"session", id},
-        {"converged", report.converged},
-        {"achieved_sigma_deg", sigmaObject(achieved)},
-        {"parameters", result["parameters"]}});
+  emit(ResultEvent{id, report, achieved});
   finish(SessionState::kDone, "");
 }
 

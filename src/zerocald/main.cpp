@@ -57,19 +57,24 @@ void logUnfinished(SessionManager& manager) {
 
 // One calibration, then exit; progress on stderr, the result on stdout.
 int runOnce(SessionManager& manager, asio::io_context& io, bool json) {
-  manager.setEventSink([&io](const nlohmann::json& e) {
-    if (e["event"] == "plan") {
-      std::fprintf(stderr, "plan: %s\n", e["description"].get<std::string>().c_str());
-      for (const auto& [name, sigma] : e["predicted_sigma_deg"].items())
-        std::fprintf(stderr, "  predicted sigma %-12s %s deg\n", name.c_str(),
-                     sigma.dump().c_str());
-    } else if (e["event"] == "pose") {
-      std::fprintf(stderr, "pose %d of %d recorded: %d servo moves, %.2f um from the aim point\n",
-                   e["pose"].get<int>(), e["pose_count"].get<int>(), e["servo_moves"].get<int>(),
-                   e["servo_error_um"].get<double>());
-    } else if (e["event"] == "state" &&
-               (e["state"] == "done" || e["state"] == "aborted" || e["state"] == "faulted")) {
-      asio::post(io, [&io] { io.stop(); });
+  manager.setEventSink([&io](const service::SessionEvent& event) {
+    if (const auto* plan = std::get_if<service::PlanEvent>(&event)) {
+      std::fprintf(stderr, "plan: %s\n", plan->description.c_str());
+      for (std::size_t k = 0; k < plan->predicted_sigma_deg.size(); ++k)
+        std::fprintf(stderr, "  predicted sigma %-12s %s deg\n",
+                     unknownName(static_cast<int>(k)).c_str(),
+                     nlohmann::json(plan->predicted_sigma_deg[k]).dump().c_str());
+    } else if (const auto* pose = std::get_if<service::PoseEvent>(&event)) {
+      if (pose->record.measured())
+        std::fprintf(stderr, "pose %d of %d recorded: %d servo moves, %.2f um from the aim point\n",
+                     pose->record.planIndex() + 1, pose->pose_count, pose->record.servo.moves,
+                     pose->record.servo.final_error_um);
+      else
+        std::fprintf(stderr, "pose %d of %d skipped: %s\n", pose->record.planIndex() + 1,
+                     pose->pose_count, pose->record.skipped.c_str());
+    } else if (const auto* state = std::get_if<service::StateEvent>(&event)) {
+      if (!service::isActive(state->state) && state->state != SessionState::kIdle)
+        asio::post(io, [&io] { io.stop(); });
     }
   });
   try {

@@ -67,7 +67,7 @@ CellRun runCell(testing::FakeSession& session, int poses, double pose_s) {
     }
     next = Clock::now();
     session.setState(SessionState::kRecording, pose, poses);
-    session.emit({{"event", "pose"}, {"pose", pose}, {"servo_error_um", 1.0 + 0.1 * pose}});
+    session.emit(testing::measuredPose(pose, 1.0 + 0.1 * pose, poses));
     ++run.poses;
   }
   session.setState(SessionState::kSolving, poses, poses);

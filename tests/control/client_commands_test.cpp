@@ -230,7 +230,7 @@ TEST_F(ClientCommandsTest, WatchFollowsTheSessionToItsEnd) {
   std::thread cell([this] {
     std::this_thread::sleep_for(200ms);
     session_.setState(SessionState::kServoing, 2, 8);
-    session_.emit({{"event", "pose"}, {"pose", 2}, {"servo_error_um", 1.25}});
+    session_.emit(testing::measuredPose(2, 1.25));
     std::this_thread::sleep_for(100ms);
     session_.setState(SessionState::kDone, 8, 8);
   });

@@ -30,6 +30,14 @@ void spin(std::chrono::milliseconds time) {
 
 }  // namespace
 
+service::PoseEvent measuredPose(int pose, double servo_error_um, int pose_count) {
+  service::PoseEvent event;
+  event.pose_count = pose_count;
+  event.record.index = pose - 1;
+  event.record.servo.final_error_um = servo_error_um;
+  return event;
+}
+
 Plan FakeSession::preview(const service::StartRequest& request) const {
   if (request.poses < 6) throw Refused("bad_request", "at least 6 poses are needed");
   // Busy CPU like the planner, not a sleep: the io thread must not be the one doing it.
@@ -73,13 +81,14 @@ std::string FakeSession::resume(const service::ResumeRequest& request) {
 
 bool FakeSession::abort() {
   ++abort_calls_;
-  nlohmann::json event;
+  service::StateEvent event;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!service::isActive(status_.state)) return false;
     status_.state = SessionState::kAborted;
     status_.message = "aborted on request";
-    event = {{"event", "state"}, {"state", "aborted"}, {"session", status_.session_id}};
+    event.state = status_.state;
+    event.session = status_.session_id;
   }
   emit(event);
   return true;
@@ -117,22 +126,21 @@ void FakeSession::setEventSink(EventSink sink) {
 }
 
 void FakeSession::setState(SessionState state, int pose, int pose_count) {
-  nlohmann::json event;
+  service::StateEvent event;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     status_.state = state;
     status_.pose = pose;
     if (pose_count) status_.pose_count = pose_count;
-    event = {{"event", "state"},
-             {"state", service::stateName(state)},
-             {"session", status_.session_id},
-             {"pose", pose},
-             {"pose_count", status_.pose_count}};
+    event.state = state;
+    event.session = status_.session_id;
+    event.pose = pose;
+    event.pose_count = status_.pose_count;
   }
   emit(event);
 }
 
-void FakeSession::emit(const nlohmann::json& event) {
+void FakeSession::emit(const service::SessionEvent& event) {
   EventSink sink;
   {
     std::lock_guard<std::mutex> lock(mutex_);

@@ -14,6 +14,9 @@
 
 namespace zerocal::control::testing {
 
+// The event the manager sends when a measured pose (1-based) is on disk.
+service::PoseEvent measuredPose(int pose, double servo_error_um, int pose_count = 8);
+
 class FakeSession : public service::SessionControl {
  public:
   ~FakeSession() override;
@@ -30,7 +33,7 @@ class FakeSession : public service::SessionControl {
 
   // Test controls.
   void setState(service::SessionState state, int pose = 0, int pose_count = 0);
-  void emit(const nlohmann::json& event);
+  void emit(const service::SessionEvent& event);
   int startCalls() const { return start_calls_; }
   int abortCalls() const { return abort_calls_; }
   service::StartRequest lastRequest() const;

@@ -319,7 +319,7 @@ TEST_F(ControlServerTest, SubscribeForwardsSessionEventsAndPollsStatusWhileActiv
   auto other = connect();
   other->call("start");
   session_.setState(SessionState::kServoing, 2, 8);
-  session_.emit({{"event", "pose"}, {"pose", 2}, {"servo_error_um", 1.5}});
+  session_.emit(testing::measuredPose(2, 1.5));
   bool saw_state = false, saw_pose = false, saw_status = false;
   const auto deadline = std::chrono::steady_clock::now() + 2s;
   while (!(saw_state && saw_pose && saw_status) && std::chrono::steady_clock::now() < deadline) {
@@ -337,7 +337,7 @@ TEST_F(ControlServerTest, SubscribeForwardsSessionEventsAndPollsStatusWhileActiv
   watcher->call("unsubscribe");
   while (watcher->nextEvent(100ms)) {
   }
-  session_.emit({{"event", "pose"}, {"pose", 3}});
+  session_.emit(testing::measuredPose(3, 0));
   EXPECT_EQ(watcher->nextEvent(200ms), std::nullopt);
 }
 
@@ -530,7 +530,9 @@ TEST_F(ControlServerTest, ASubscriberThatDoesNotReadIsDropped) {
   const std::string filler(10000, 'x');
   int seen = -1;
   for (int i = 0; i < 1000; ++i) {
-    session_.emit({{"event", "pose"}, {"pose", i}, {"filler", filler}});
+    service::PoseEvent big = testing::measuredPose(i, 0);
+    big.record.skipped = filler;  // a long line
+    session_.emit(big);
     // The reading watcher keeps up (so only the slow one's queue grows).
     while (i % 20 == 19 && seen < i) {
       auto e = watcher->nextEvent(1s);

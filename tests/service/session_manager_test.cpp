@@ -52,10 +52,10 @@ ManagerSettings settingsIn(const std::string& dir) {
 // Every event the manager emits, in order.
 struct EventLog {
   std::mutex mutex;
-  std::vector<nlohmann::json> events;
-  std::function<void(const nlohmann::json&)> also;
+  std::vector<SessionEvent> events;
+  std::function<void(const SessionEvent&)> also;
   SessionControl::EventSink sink() {
-    return [this](const nlohmann::json& e) {
+    return [this](const SessionEvent& e) {
       {
         std::lock_guard<std::mutex> lock(mutex);
         events.push_back(e);
@@ -63,14 +63,21 @@ struct EventLog {
       if (also) also(e);
     };
   }
-  std::vector<nlohmann::json> of(const std::string& kind) {
+  template <class Event>
+  std::vector<Event> of() {
     std::lock_guard<std::mutex> lock(mutex);
-    std::vector<nlohmann::json> out;
+    std::vector<Event> out;
     for (const auto& e : events)
-      if (e["event"] == kind) out.push_back(e);
+      if (const auto* event = std::get_if<Event>(&e)) out.push_back(*event);
     return out;
   }
 };
+
+// The 1-based plan pose of a pose event; 0 for any other event.
+int recordedPose(const SessionEvent& e) {
+  const auto* pose = std::get_if<PoseEvent>(&e);
+  return pose ? pose->record.planIndex() + 1 : 0;
+}
 
 std::vector<int> journalIndices(const std::string& path) {
   std::vector<int> indices;
@@ -124,8 +131,8 @@ TEST(SessionManager, RunsASessionToDoneThroughEveryStateWithAResultNearTheTruth)
 
   // The states in the order a technician would see them.
   std::vector<std::string> states;
-  for (const auto& e : log.of("state")) {
-    const std::string s = e["state"];
+  for (const auto& e : log.of<StateEvent>()) {
+    const std::string s = stateName(e.state);
     if (states.empty() || states.back() != s) states.push_back(s);
   }
   ASSERT_GE(states.size(), 6u);
@@ -137,20 +144,23 @@ TEST(SessionManager, RunsASessionToDoneThroughEveryStateWithAResultNearTheTruth)
   EXPECT_EQ(states.back(), "done");
   // One pose event per pose, 1..8, each with its servo figures; then one per pose measured again,
   // announced by a remeasure event.
-  const auto poses = log.of("pose");
+  const auto poses = log.of<PoseEvent>();
   ASSERT_EQ(poses.size(), 8u + again);
   for (int i = 0; i < 8 + again; ++i) {
-    EXPECT_EQ(poses[i]["pose"], i < 8 ? nlohmann::json(i + 1) : remeasured[i - 8]);
-    EXPECT_EQ(poses[i].contains("again"), i >= 8);
-    EXPECT_EQ(poses[i]["pose_count"], 8);
-    EXPECT_GE(poses[i]["servo_moves"].get<int>(), 0);
+    EXPECT_EQ(poses[i].record.planIndex() + 1, i < 8 ? i + 1 : remeasured[i - 8].get<int>());
+    EXPECT_EQ(poses[i].record.remeasure_of >= 0, i >= 8);
+    EXPECT_EQ(poses[i].pose_count, 8);
+    EXPECT_TRUE(poses[i].record.measured());
+    EXPECT_GE(poses[i].record.servo.moves, 0);
   }
-  ASSERT_EQ(log.of("remeasure").size(), again > 0 ? 1u : 0u);
+  ASSERT_EQ(log.of<RemeasureEvent>().size(), again > 0 ? 1u : 0u);
   if (again > 0) {
-    EXPECT_EQ(log.of("remeasure")[0]["poses"], remeasured);
+    EXPECT_EQ(nlohmann::json(log.of<RemeasureEvent>()[0].poses), remeasured);
   }
-  ASSERT_EQ(log.of("plan").size(), 1u);
-  ASSERT_EQ(log.of("result").size(), 1u);
+  ASSERT_EQ(log.of<PlanEvent>().size(), 1u);
+  EXPECT_EQ(log.of<PlanEvent>()[0].predicted_sigma_deg, end.predicted_sigma_deg);
+  ASSERT_EQ(log.of<ResultEvent>().size(), 1u);
+  EXPECT_EQ(log.of<ResultEvent>()[0].achieved_sigma_deg, end.achieved_sigma_deg);
 
   const nlohmann::json result = manager.result(id);
   EXPECT_EQ(result, manager.result(""));  // the latest finished one
@@ -208,8 +218,8 @@ TEST(SessionManager, APoseTheSolveNamesIsMeasuredAgainAndBothMeasurementsStayInT
   const nlohmann::json result = manager.result(id);
   const nlohmann::json remeasured = result["remeasured"];
   ASSERT_EQ(remeasured, nlohmann::json::array({2}));
-  ASSERT_EQ(log.of("remeasure").size(), 1u);
-  EXPECT_EQ(log.of("remeasure")[0]["poses"], remeasured);
+  ASSERT_EQ(log.of<RemeasureEvent>().size(), 1u);
+  EXPECT_EQ(nlohmann::json(log.of<RemeasureEvent>()[0].poses), remeasured);
 
   const JournalContents journal = readJournal(dir.path + "/" + id + "/journal.jsonl");
   ASSERT_EQ(journal.records.size(), 10u + remeasured.size());
@@ -287,8 +297,8 @@ TEST(SessionManager, AnAbortedSessionResumesWithoutLosingOrRepeatingAPose) {
   SessionManager manager(backend, settingsIn(dir.path));
   EventLog log;
   // Abort from the event thread as soon as the third pose is on disk.
-  log.also = [&manager](const nlohmann::json& e) {
-    if (e["event"] == "pose" && e["pose"] == 3) manager.abort();
+  log.also = [&manager](const SessionEvent& e) {
+    if (recordedPose(e) == 3) manager.abort();
   };
   manager.setEventSink(log.sink());
   const std::string id = manager.start(testing::onStoredPlan(manager.defaultRequest(), "ideal-7"));
@@ -450,7 +460,8 @@ TEST(SessionManager, APoseWhoseSpotIsNeverFoundIsSkippedOnRequestWhenThePlanDoes
                 5 * result["parameters"][unknownName(k)]["sigma"].get<double>() + 1e-4)
         << unknownName(k);
   bool skip_event = false;
-  for (const auto& e : log.of("pose")) skip_event |= e.contains("skipped") && e["pose"] == 1;
+  for (const auto& e : log.of<PoseEvent>())
+    skip_event |= !e.record.measured() && e.record.planIndex() == 0;
   EXPECT_TRUE(skip_event);
   ASSERT_EQ(manager.sessions().size(), 1u);
   EXPECT_EQ(manager.sessions()[0].skipped_poses, 1);
@@ -490,8 +501,8 @@ TEST(SessionManager, ADamagedJournalIsReportedAndSkippedNeverFatalToTheOthers) {
       EventLog log;
       std::promise<void> recorded;
       bool once = false;
-      log.also = [&](const nlohmann::json& e) {
-        if (e["event"] == "pose" && !once) {
+      log.also = [&](const SessionEvent& e) {
+        if (recordedPose(e) > 0 && !once) {
           once = true;
           manager.abort();
           recorded.set_value();
@@ -568,8 +579,8 @@ TEST(SessionManager, ReadsThePsdWhenIdleAndReportsTheSessionsLatestReadingDuring
 
   std::promise<std::optional<LiveReading>> during;
   EventLog log;
-  log.also = [&](const nlohmann::json& e) {
-    if (e["event"] == "pose" && e["pose"] == 2)
+  log.also = [&](const SessionEvent& e) {
+    if (recordedPose(e) == 2)
       manager.readPsd(
           [&during](std::optional<LiveReading> r, const std::string&) { during.set_value(r); });
   };
@@ -592,8 +603,8 @@ TEST(SessionManager, DestroyedMidSessionItStopsCleanlyWithEveryRecordedPoseOnDis
   {
     SessionManager manager(backend, settingsIn(dir.path));
     EventLog log;
-    log.also = [&](const nlohmann::json& e) {
-      if (e["event"] == "pose" && e["pose"] == 2) two_recorded.set_value();
+    log.also = [&](const SessionEvent& e) {
+      if (recordedPose(e) == 2) two_recorded.set_value();
     };
     manager.setEventSink(log.sink());
     id = manager.start(testing::onStoredPlan(manager.defaultRequest(), "ideal-11"));

@@ -30,5 +30,7 @@ PlanKind parsePlanKind(const std::string& name);
 nlohmann::json toJson(const service::SessionStatus& status);
 nlohmann::json toJson(const service::LiveReading& reading);
 nlohmann::json toJson(const std::vector<SessionInfo>& sessions);
+// An event line's object: {"event": "plan" | "state" | "pose" | "remeasure" | "result", ...}.
+nlohmann::json toJson(const service::SessionEvent& event);
 
 }  // namespace zerocal::control

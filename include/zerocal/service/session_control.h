@@ -8,9 +8,11 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <variant>
 #include <vector>
 
 #include "zerocal/calib/planner.h"
+#include "zerocal/calib/solver.h"
 #include "zerocal/cell/psd_reader.h"
 #include "zerocal/daemon/journal.h"
 #include "zerocal/error.h"
@@ -86,6 +88,50 @@ struct LiveReading {
   bool during_session = false;  // taken by the running session's servo, not on request
 };
 
+// What a session tells whoever watches it, as it happens, in the service's own types; the control
+// layer alone turns them into protocol lines (docs/protocol.md, "Events"). Pose numbers are
+// 1-based, as a technician counts them; a sigma is NaN for an offset that is not identifiable.
+
+// A session was planned and created; it connects next.
+struct PlanEvent {
+  std::string session;
+  int pose_count = 0;
+  std::string description;
+  std::vector<double> predicted_sigma_deg;  // delta2..delta5
+};
+
+// The session changed state, or went on to another pose.
+struct StateEvent {
+  SessionState state = SessionState::kIdle;
+  std::string session;
+  int pose = 0;  // being worked on
+  int pose_count = 0;
+  int recorded = 0;     // journal lines on disk
+  std::string message;  // why it stopped, when aborted or faulted
+};
+
+// A pose is on disk: measured, or skipped on request.
+struct PoseEvent {
+  std::string session;
+  int pose_count = 0;
+  PoseRecord record;  // as journalled
+};
+
+// The solve named plan poses that do not fit: they are measured again next.
+struct RemeasureEvent {
+  std::string session;
+  std::vector<int> poses;
+};
+
+// The result is on disk.
+struct ResultEvent {
+  std::string session;
+  SolveReport report;
+  std::vector<double> achieved_sigma_deg;  // delta2..delta5
+};
+
+using SessionEvent = std::variant<PlanEvent, StateEvent, PoseEvent, RemeasureEvent, ResultEvent>;
+
 // What the control port needs; SessionManager implements it, protocol tests may fake it.
 class SessionControl {
  public:
@@ -111,9 +157,8 @@ class SessionControl {
   // worker thread). `done` is called exactly once, from any thread, with the reading or an error.
   using ReadingDone = std::function<void(std::optional<LiveReading>, const std::string& error)>;
   virtual void readPsd(ReadingDone done) = 0;
-  // Events: {"event": "state" | "pose" | "plan" | "result", ...}; docs/protocol.md. The sink is
-  // called on the worker thread and must not block.
-  using EventSink = std::function<void(const nlohmann::json& event)>;
+  // The sink is called on the worker thread, without a lock held, and must not block.
+  using EventSink = std::function<void(const SessionEvent& event)>;
   virtual void setEventSink(EventSink sink) = 0;
 };
 

@@ -84,8 +84,8 @@ class SessionManager final : public SessionControl {
                   const Eigen::Vector3d& target, double noise_mm, const PoseSkip& skip);
   void finish(SessionState state, const std::string& message);
   void setPhase(SessionState state, int pose);
-  void emit(const nlohmann::json& event);
-  nlohmann::json stateEvent() const;  // mutex_ held
+  void emit(const SessionEvent& event);
+  StateEvent stateEvent() const;  // mutex_ held
   void markProgress() noexcept;
   Plan makePlan(const StartRequest& request, Eigen::Vector3d& target, double& noise_mm) const;
 

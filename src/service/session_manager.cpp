@@ -90,30 +90,24 @@ namespace {
 // A simulated session's whole world, beside its result (docs/simulated-cell.md).
 constexpr const char* kTruthWorldFile = "truth-world.yaml";
 
-std::int64_t steadyNowNs() noexcept {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             std::chrono::steady_clock::now().time_since_epoch())
-      .count();
-}
-
 // The run's PSD reader, passing each reading on to the live slot, and its time to the watchdog's
 // progress mark (an atomic store: nothing that allocates or locks in the servo cycle).
 template <class Slot>
 class ObservedReader final : public PsdReader {
  public:
-  ObservedReader(PsdReader& inner, Slot& slot, std::atomic<std::int64_t>& progress_ns)
-      : inner_(inner), slot_(slot), progress_ns_(progress_ns) {}
+  ObservedReader(PsdReader& inner, Slot& slot, SessionWorker& worker)
+      : inner_(inner), slot_(slot), worker_(worker) {}
   PsdReading read() override {
     const PsdReading r = inner_.read();
     slot_.store(r);
-    progress_ns_.store(steadyNowNs(), std::memory_order_relaxed);
+    worker_.markProgress();
     return r;
   }
 
  private:
   PsdReader& inner_;
   Slot& slot_;
-  std::atomic<std::int64_t>& progress_ns_;
+  SessionWorker& worker_;
 };
 
 Pattern patternOf(PlanKind kind) {
@@ -207,75 +201,20 @@ SessionManager::SessionManager(CellBackend& backend, ManagerSettings settings)
       settings_(std::move(settings)),
       store_(settings_.data_dir),
       knowledge_(backend.knowledge()),
-      live_(std::make_unique<LiveSlot>()) {
-  status_.backend = backend_.name();
-  worker_ = std::thread([this] { workerLoop(); });
-}
+      live_(std::make_unique<LiveSlot>()),
+      board_(backend.name()) {}
 
 SessionManager::~SessionManager() {
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    stopping_ = true;
-  }
-  abort_ = true;
-  changed_.notify_all();
-  worker_.join();
-}
-
-void SessionManager::workerLoop() {
-  for (;;) {
-    Task task;
-    bool cancelled = false;
-    {
-      std::unique_lock<std::mutex> lock(mutex_);
-      changed_.wait(lock, [this] { return stopping_ || !tasks_.empty(); });
-      if (tasks_.empty()) break;  // stopping, nothing left
-      task = std::move(tasks_.front());
-      tasks_.pop_front();
-      cancelled = stopping_;
-      busy_ = true;
-    }
-    markProgress();
-    task(cancelled);
-    progress_ns_.store(0, std::memory_order_relaxed);
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      busy_ = false;
-    }
-    changed_.notify_all();
-  }
+  board_.abortAll();
+  worker_.stop();
   if (cell_) cell_->stopRobot();
   cell_.reset();
 }
 
-void SessionManager::post(Task task) {
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    tasks_.push_back(std::move(task));
-  }
-  changed_.notify_all();
-}
-
-void SessionManager::setEventSink(EventSink sink) {
-  std::lock_guard<std::mutex> lock(mutex_);
-  sink_ = std::move(sink);
-}
-
-void SessionManager::emit(const SessionEvent& event) {
-  EventSink sink;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    sink = sink_;
-  }
-  if (sink) sink(event);
-}
+void SessionManager::setEventSink(EventSink sink) { board_.setEventSink(std::move(sink)); }
 
 SessionStatus SessionManager::status() const {
-  SessionStatus s;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    s = status_;
-  }
+  SessionStatus s = board_.status();
   if (s.state == SessionState::kServoing)
     if (const std::optional<PsdReading> r = live_->load())
       s.live_servo_error_um = r->spot_present ? 1e3 * std::hypot(r->u_mm, r->v_mm) : std::nan("");
@@ -283,20 +222,16 @@ SessionStatus SessionManager::status() const {
 }
 
 SessionStatus SessionManager::waitIdle() {
-  std::unique_lock<std::mutex> lock(mutex_);
-  changed_.wait(
-      lock, [this] { return !isActive(status_.state) && !starting_ && !busy_ && tasks_.empty(); });
-  return status_;
-}
-
-void SessionManager::markProgress() noexcept {
-  progress_ns_.store(steadyNowNs(), std::memory_order_relaxed);
+  // A run ends (finish) before its task does; a task may start a run only through a claim.
+  for (;;) {
+    board_.waitInactive();
+    worker_.waitIdle();
+    if (!board_.activeOrClaimed() && worker_.idle()) return board_.status();
+  }
 }
 
 std::chrono::steady_clock::duration SessionManager::workerStalledFor() const {
-  const std::int64_t last = progress_ns_.load(std::memory_order_relaxed);
-  if (last == 0) return std::chrono::steady_clock::duration::zero();
-  return std::chrono::nanoseconds(std::max<std::int64_t>(0, steadyNowNs() - last));
+  return worker_.stalledFor();
 }
 
 StartRequest SessionManager::defaultRequest() const {
@@ -344,35 +279,8 @@ Plan SessionManager::preview(const StartRequest& request) const {
   return makePlan(request, target, noise_mm);
 }
 
-// Holds `starting_` from the busy check until the run is posted (or the request refused), so that
-// two requests cannot both pass the check while one of them plans.
-class SessionManager::Claim {
- public:
-  explicit Claim(SessionManager& m) : m_(m) {
-    std::lock_guard<std::mutex> lock(m_.mutex_);
-    if (m_.stopping_) throw Refused("busy", "the daemon is stopping");
-    if (m_.starting_ || isActive(m_.status_.state))
-      throw Refused("busy", "session " + m_.status_.session_id + " is " +
-                                stateName(m_.status_.state) +
-                                ": one session at a time (abort it first)");
-    m_.starting_ = true;
-    // From here an abort is for the session being started: it ends before it connects.
-    m_.abort_ = false;
-  }
-  ~Claim() {
-    {
-      std::lock_guard<std::mutex> lock(m_.mutex_);
-      m_.starting_ = false;
-    }
-    m_.changed_.notify_all();
-  }
-
- private:
-  SessionManager& m_;
-};
-
 std::string SessionManager::start(const StartRequest& request) {
-  const Claim claim(*this);
+  const SessionBoard::Claim claim(board_);
 
   Eigen::Vector3d target;
   double noise_mm = 0;
@@ -386,24 +294,17 @@ std::string SessionManager::start(const StartRequest& request) {
   makeLogger("session")->info("session {} created in {}: {} ({} poses)", info.id, info.dir,
                               plan.description, plan.poses.size());
 
-  StateEvent state_event;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    SessionStatus s;
-    s.state = SessionState::kConnecting;
-    s.backend = backend_.name();
-    s.session_id = info.id;
-    s.pose_count = static_cast<int>(plan.poses.size());
-    s.predicted_sigma_deg.assign(plan.prediction.sigma.begin(),
-                                 plan.prediction.sigma.begin() + kOffsetCount);
-    status_ = s;
-    state_event = stateEvent();
-  }
+  SessionStatus s;
+  s.state = SessionState::kConnecting;
+  s.session_id = info.id;
+  s.pose_count = static_cast<int>(plan.poses.size());
+  s.predicted_sigma_deg.assign(plan.prediction.sigma.begin(),
+                               plan.prediction.sigma.begin() + kOffsetCount);
+  board_.begin(s);
   live_->clear();
-  emit(PlanEvent{info.id, static_cast<int>(plan.poses.size()), plan.description,
-                 status().predicted_sigma_deg});
-  emit(state_event);
-  post([this, id = info.id, poses = plan.poses, target, noise_mm](bool cancelled) {
+  board_.emit(PlanEvent{info.id, s.pose_count, plan.description, s.predicted_sigma_deg});
+  board_.announce();
+  worker_.post([this, id = info.id, poses = plan.poses, target, noise_mm](bool cancelled) {
     if (cancelled) return finish(SessionState::kAborted, "the daemon stopped before it began");
     runSession(id, poses, target, noise_mm, {});
   });
@@ -411,7 +312,7 @@ std::string SessionManager::start(const StartRequest& request) {
 }
 
 std::string SessionManager::resume(const ResumeRequest& request) {
-  const Claim claim(*this);
+  const SessionBoard::Claim claim(board_);
 
   std::string id = request.session;
   if (id.empty()) {
@@ -485,19 +386,16 @@ std::string SessionManager::resume(const ResumeRequest& request) {
   // Why the pose is given up, for the journal: the fault that stopped the session, when known.
   std::string skip_reason;
   if (skip_index >= 0) {
-    std::lock_guard<std::mutex> lock(mutex_);
+    const SessionStatus last = board_.status();
     skip_reason = "skipped on request when the session was resumed";
-    if (status_.session_id == id && status_.state == SessionState::kFaulted)
-      skip_reason += ", after: " + status_.message;
+    if (last.session_id == id && last.state == SessionState::kFaulted)
+      skip_reason += ", after: " + last.message;
   }
   makeLogger("session")->info("resuming session {}: {} of {} poses recorded", id,
                               info->recorded_poses, poses.size());
-  StateEvent state_event;
   {
-    std::lock_guard<std::mutex> lock(mutex_);
     SessionStatus s;
     s.state = SessionState::kConnecting;
-    s.backend = backend_.name();
     s.session_id = id;
     s.pose_count = static_cast<int>(poses.size());
     s.recorded = info->recorded_poses;
@@ -511,12 +409,11 @@ std::string SessionManager::resume(const ResumeRequest& request) {
           entry.is_object() ? entry.value("sigma", nlohmann::json()) : nlohmann::json();
       s.predicted_sigma_deg.push_back(sigma.is_number() ? sigma.get<double>() : std::nan(""));
     }
-    status_ = s;
-    state_event = stateEvent();
+    board_.begin(s);
   }
   live_->clear();
-  emit(state_event);
-  post([this, id, poses, target, noise_mm, skip_index, skip_reason](bool cancelled) {
+  board_.announce();
+  worker_.post([this, id, poses, target, noise_mm, skip_index, skip_reason](bool cancelled) {
     if (cancelled) return finish(SessionState::kAborted, "the daemon stopped before it resumed");
     runSession(id, poses, target, noise_mm, {skip_index, skip_reason});
   });
@@ -524,62 +421,38 @@ std::string SessionManager::resume(const ResumeRequest& request) {
 }
 
 bool SessionManager::abort() {
-  std::lock_guard<std::mutex> lock(mutex_);
-  if (!isActive(status_.state) && !starting_) return false;
-  abort_ = true;
-  if (starting_)
-    makeLogger("session")->warn("abort requested while a session is being started");
+  if (!board_.requestAbort()) return false;
+  const SessionStatus s = board_.status();
+  if (isActive(s.state))
+    makeLogger("session")->warn("abort requested for session {} ({})", s.session_id,
+                                stateName(s.state));
   else
-    makeLogger("session")->warn("abort requested for session {} ({})", status_.session_id,
-                                stateName(status_.state));
+    makeLogger("session")->warn("abort requested while a session is being started");
   return true;
 }
 
-StateEvent SessionManager::stateEvent() const {
-  return {status_.state,      status_.session_id, status_.pose,
-          status_.pose_count, status_.recorded,   status_.message};
-}
-
 void SessionManager::setPhase(SessionState state, int pose) {
-  markProgress();
-  StateEvent event;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    status_.state = state;
-    // The run numbers the solve after the last pose; a terminal shows it as pose N of N.
-    status_.pose = std::min(pose, status_.pose_count);
-    event = stateEvent();
-  }
-  changed_.notify_all();
-  emit(event);
+  worker_.markProgress();
+  board_.setPhase(state, pose);
 }
 
 void SessionManager::finish(SessionState state, const std::string& message) {
   auto log = makeLogger("session");
   if (state != SessionState::kDone && cell_) cell_->stopRobot();
-  StateEvent event;
-  std::string id;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    status_.state = state;
-    status_.message = message;
-    id = status_.session_id;
-    event = stateEvent();
-  }
+  const std::string id = board_.status().session_id;
   if (state == SessionState::kDone)
     log->info("session {} done", id);
   else
     log->error("session {} {}: {} (every recorded pose is in {})", id, stateName(state), message,
                store_.journalPath(id));
-  changed_.notify_all();
-  emit(event);
+  board_.finish(state, message);
 }
 
 void SessionManager::runSession(const std::string& id, const std::vector<Pose>& plan,
                                 const Eigen::Vector3d& target, double noise_mm,
                                 const PoseSkip& skip) {
   auto log = makeLogger("session");
-  if (abort_) return finish(SessionState::kAborted, "aborted before connecting");
+  if (board_.abortRequested()) return finish(SessionState::kAborted, "aborted before connecting");
   try {
     if (!cell_) {
       setPhase(SessionState::kConnecting, 0);
@@ -614,11 +487,9 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
     CalibrationRun run(knowledge_.cell, target, plan, run_settings, journal);
     const double start_s = cell_->clock().nowS();
     run.on_phase = [this, start_s](int i, RunPhase phase) {
-      {
-        // The cell's clock is the worker's to read: the status gets its time at each phase.
-        std::lock_guard<std::mutex> lock(mutex_);
-        status_.cell_time_s = cell_->clock().nowS() - start_s;
-      }
+      // The cell's clock is the worker's to read: the status gets its time at each phase.
+      const double elapsed_s = cell_->clock().nowS() - start_s;
+      board_.update([elapsed_s](SessionStatus& s) { s.cell_time_s = elapsed_s; });
       setPhase(stateOf(phase), i + 1);
     };
     run.on_remeasure = [this, &id, &log](const std::vector<int>& plan_indices) {
@@ -626,36 +497,34 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
       for (const int i : plan_indices) event.poses.push_back(i + 1);
       log->warn("session {}: the solve named poses {} as not fitting: measuring them again", id,
                 nlohmann::json(event.poses).dump());
-      emit(event);
+      board_.emit(event);
     };
     run.on_pose = [this, &id](const PoseRecord& r) {
-      markProgress();
+      worker_.markProgress();
       PoseEvent event{id, 0, r};
-      {
-        std::lock_guard<std::mutex> lock(mutex_);
-        status_.recorded = r.index + 1;
-        if (r.measured()) status_.last_servo_error_um = r.servo.final_error_um;
-        event.pose_count = status_.pose_count;
-      }
-      emit(event);
+      board_.update([&](SessionStatus& s) {
+        s.recorded = r.index + 1;
+        if (r.measured()) s.last_servo_error_um = r.servo.final_error_um;
+        event.pose_count = s.pose_count;
+      });
+      board_.emit(event);
     };
     if (skip.index >= 0) {
       // resume() checked this pose is the next one and the plan identifiable without it.
       run.skipNextPose(skip.reason);
       log->warn("session {}: pose {} skipped ({})", id, skip.index + 1, skip.reason);
     }
-    ObservedReader<LiveSlot> reader(cell_->psd(), *live_, progress_ns_);
-    outcome = run.run(cell_->robot(), reader, cell_->clock(), abort_);
+    ObservedReader<LiveSlot> reader(cell_->psd(), *live_, worker_);
+    outcome = run.run(cell_->robot(), reader, cell_->clock(), board_.abortRequested());
     cell_time_s = cell_->clock().nowS() - start_s;
   } catch (const std::exception& e) {
     cell_.reset();
     return finish(SessionState::kFaulted, e.what());
   }
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    status_.cell_time_s = cell_time_s;
-    status_.resumed_from = outcome->resumed_from;
-  }
+  board_.update([&](SessionStatus& s) {
+    s.cell_time_s = cell_time_s;
+    s.resumed_from = outcome->resumed_from;
+  });
   if (outcome->state == RunState::kAborted) return finish(SessionState::kAborted, outcome->message);
   if (outcome->state == RunState::kFaulted) {
     std::string message = outcome->message;
@@ -676,8 +545,7 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
       if (skippable) {
         message += "; the plan identifies every offset without pose " + pose +
                    ": `zerocal resume " + id + " --skip-pose " + pose + "` skips it";
-        std::lock_guard<std::mutex> lock(mutex_);
-        status_.skippable_pose = outcome->stopped_at + 1;
+        board_.update([&](SessionStatus& s) { s.skippable_pose = outcome->stopped_at + 1; });
       } else {
         message += "; without pose " + pose +
                    " the plan would not identify every offset: plan a new session";
@@ -758,11 +626,8 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
   for (int k = 0; k < kOffsetCount; ++k)
     achieved.push_back(report.parameters[k].identifiable ? report.parameters[k].sigma
                                                          : std::nan(""));
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    status_.achieved_sigma_deg = achieved;
-  }
-  emit(ResultEvent{id, report, achieved});
+  board_.update([&](SessionStatus& s) { s.achieved_sigma_deg = achieved; });
+  board_.emit(ResultEvent{id, report, achieved});
   finish(SessionState::kDone, "");
 }
 
@@ -786,19 +651,14 @@ nlohmann::json SessionManager::result(const std::string& requested) const {
 }
 
 void SessionManager::readPsd(ReadingDone done) {
-  bool session_running = false;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    session_running = isActive(status_.state) || starting_;
-  }
-  if (session_running) {  // the board belongs to the session: report what it last read
+  if (board_.activeOrClaimed()) {  // the board belongs to the session: report what it last read
     if (const std::optional<PsdReading> r = live_->load())
       done(LiveReading{*r, true}, "");
     else
       done(std::nullopt, "the session has not read the PSD yet");
     return;
   }
-  post([this, done = std::move(done)](bool cancelled) {
+  worker_.post([this, done = std::move(done)](bool cancelled) {
     if (cancelled) return done(std::nullopt, "the daemon is stopping");
     try {
       if (!cell_) cell_ = backend_.connect();

@@ -1,5 +1,6 @@
-// The daemon's one calibration session at a time: planning, the run on a worker thread, its state
-// and progress, abort, resume after a restart, and the result files. The control port (and
+// The daemon's one calibration session at a time: planning, checking and starting or resuming a
+// run, the run itself on the SessionWorker, and its result files. The state machine and status
+// are the SessionBoard's; the session folders are the SessionStore's. The control port (and
 // `zerocald --once`) drive it through SessionControl; the cell comes in through CellBackend.
 //
 // Threads: every SessionControl method may be called from any thread and returns promptly (none
@@ -8,23 +9,19 @@
 #pragma once
 
 #include <Eigen/Core>
-#include <array>
 #include <atomic>
 #include <chrono>
-#include <condition_variable>
-#include <cstdint>
-#include <deque>
 #include <functional>
 #include <memory>
-#include <mutex>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "zerocal/cell/cell.h"
+#include "zerocal/service/session_board.h"
 #include "zerocal/service/session_control.h"
+#include "zerocal/service/session_worker.h"
 #include "zerocal/session/calibration_run.h"
 
 namespace zerocal::service {
@@ -72,21 +69,15 @@ class SessionManager final : public SessionControl {
 
  private:
   class LiveSlot;
-  class Claim;
-  using Task = std::function<void(bool cancelled)>;  // cancelled: the daemon is stopping
-  void workerLoop();
-  void post(Task task);
   struct PoseSkip {
     int index = -1;  // 0-based pose to journal as skipped before running; -1: none
     std::string reason;
   };
   void runSession(const std::string& id, const std::vector<Pose>& plan,
                   const Eigen::Vector3d& target, double noise_mm, const PoseSkip& skip);
+  // Ends the run (the robot stopped unless done) and logs why.
   void finish(SessionState state, const std::string& message);
   void setPhase(SessionState state, int pose);
-  void emit(const SessionEvent& event);
-  StateEvent stateEvent() const;  // mutex_ held
-  void markProgress() noexcept;
   Plan makePlan(const StartRequest& request, Eigen::Vector3d& target, double& noise_mm) const;
 
   CellBackend& backend_;
@@ -94,20 +85,9 @@ class SessionManager final : public SessionControl {
   SessionStore store_;
   CellKnowledge knowledge_;
   std::unique_ptr<LiveSlot> live_;
-
-  mutable std::mutex mutex_;  // guards everything below it but abort_ and cell_
-  std::condition_variable changed_;
-  SessionStatus status_;
-  bool starting_ = false;  // start()/resume() between the busy check and the posted run
-  bool busy_ = false;      // the worker is running a task
-  EventSink sink_;
-  std::deque<Task> tasks_;
-  bool stopping_ = false;
-  std::atomic<bool> abort_{false};
+  SessionBoard board_;
   std::unique_ptr<ConnectedCell> cell_;  // worker thread only
-  // Steady-clock nanoseconds of the worker's latest progress; 0 while it waits for work.
-  std::atomic<std::int64_t> progress_ns_{0};
-  std::thread worker_;  // last member: starts after the others exist
+  SessionWorker worker_;                 // last member: its thread starts after the others exist
 };
 
 }  // namespace zerocal::service

@@ -1,0 +1,78 @@
+// The state machine of the daemon's one session at a time, and its status: every change is made
+// here under one lock and announced as an event after the lock is released. The control side
+// reads and claims it; the worker moves it on.
+//
+//   idle/done/aborted/faulted --claim, begin--> connecting --> moving <-> servoing <-> recording
+//     ^                                                          |                       |
+//     +------------------------- finish (done, aborted, faulted) +--> solving -----------+
+#pragma once
+
+#include <atomic>
+#include <condition_variable>
+#include <functional>
+#include <mutex>
+#include <string>
+
+#include "zerocal/service/session_control.h"
+
+namespace zerocal::service {
+
+class SessionBoard {
+ public:
+  explicit SessionBoard(std::string backend_name);
+
+  SessionStatus status() const;
+  void setEventSink(SessionControl::EventSink sink);
+  // Calls the sink, if any, on the calling thread, without the lock.
+  void emit(const SessionEvent& event) const;
+
+  // Between the busy check of a start or resume and its run being posted (or its refusal): a
+  // second request is refused busy meanwhile, and an abort is for the session being claimed.
+  // Throws Refused("busy").
+  class Claim {
+   public:
+    explicit Claim(SessionBoard& board);
+    ~Claim();
+    Claim(const Claim&) = delete;
+    Claim& operator=(const Claim&) = delete;
+
+   private:
+    SessionBoard& board_;
+  };
+
+  // A new run: the status becomes `status` (its state connecting); announce() tells it.
+  void begin(SessionStatus status);
+  // Emits the current state.
+  void announce() const;
+  // The run is at `state` for 1-based `pose` (clamped to the pose count: the solve comes after the
+  // last pose).
+  void setPhase(SessionState state, int pose);
+  // The run ended in `state`; `message` says why when it did not finish.
+  void finish(SessionState state, const std::string& message);
+  // Changes the status without an event (progress figures).
+  void update(const std::function<void(SessionStatus&)>& change);
+
+  // Asks the running or claimed session to stop; false when there is none.
+  bool requestAbort();
+  // Set by requestAbort() (or abortAll()) until the next claim; the run polls it.
+  const std::atomic<bool>& abortRequested() const { return abort_; }
+  // Asks whatever runs to stop, and refuses claims from now on: the daemon is stopping.
+  void abortAll();
+
+  bool activeOrClaimed() const;
+  // Blocks until no session is active or claimed.
+  void waitInactive() const;
+
+ private:
+  StateEvent stateEvent() const;  // mutex_ held
+
+  mutable std::mutex mutex_;
+  mutable std::condition_variable changed_;
+  SessionStatus status_;
+  bool claimed_ = false;
+  bool closed_ = false;
+  std::atomic<bool> abort_{false};
+  SessionControl::EventSink sink_;
+};
+
+}  // namespace zerocal::service

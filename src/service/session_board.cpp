@@ -1,0 +1,122 @@
+#include "zerocal/service/session_board.h"
+
+#include <algorithm>
+
+namespace zerocal::service {
+
+SessionBoard::SessionBoard(std::string backend_name) { status_.backend = std::move(backend_name); }
+
+SessionStatus SessionBoard::status() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return status_;
+}
+
+void SessionBoard::setEventSink(SessionControl::EventSink sink) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  sink_ = std::move(sink);
+}
+
+void SessionBoard::emit(const SessionEvent& event) const {
+  SessionControl::EventSink sink;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    sink = sink_;
+  }
+  if (sink) sink(event);
+}
+
+SessionBoard::Claim::Claim(SessionBoard& board) : board_(board) {
+  std::lock_guard<std::mutex> lock(board_.mutex_);
+  const SessionStatus& s = board_.status_;
+  if (board_.closed_) throw Refused("busy", "the daemon is stopping");
+  if (board_.claimed_ || isActive(s.state))
+    throw Refused("busy", "session " + s.session_id + " is " + stateName(s.state) +
+                              ": one session at a time (abort it first)");
+  board_.claimed_ = true;
+  board_.abort_ = false;
+}
+
+SessionBoard::Claim::~Claim() {
+  {
+    std::lock_guard<std::mutex> lock(board_.mutex_);
+    board_.claimed_ = false;
+  }
+  board_.changed_.notify_all();
+}
+
+StateEvent SessionBoard::stateEvent() const {
+  return {status_.state,      status_.session_id, status_.pose,
+          status_.pose_count, status_.recorded,   status_.message};
+}
+
+void SessionBoard::begin(SessionStatus status) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    status.backend = status_.backend;
+    status_ = std::move(status);
+  }
+  changed_.notify_all();
+}
+
+void SessionBoard::announce() const {
+  StateEvent event;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    event = stateEvent();
+  }
+  emit(event);
+}
+
+void SessionBoard::setPhase(SessionState state, int pose) {
+  StateEvent event;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    status_.state = state;
+    status_.pose = std::min(pose, status_.pose_count);
+    event = stateEvent();
+  }
+  changed_.notify_all();
+  emit(event);
+}
+
+void SessionBoard::finish(SessionState state, const std::string& message) {
+  StateEvent event;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    status_.state = state;
+    status_.message = message;
+    event = stateEvent();
+  }
+  changed_.notify_all();
+  emit(event);
+}
+
+void SessionBoard::update(const std::function<void(SessionStatus&)>& change) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  change(status_);
+}
+
+bool SessionBoard::requestAbort() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (!claimed_ && !isActive(status_.state)) return false;
+  abort_ = true;
+  return true;
+}
+
+void SessionBoard::abortAll() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  closed_ = true;
+  abort_ = true;
+}
+
+bool SessionBoard::activeOrClaimed() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return claimed_ || isActive(status_.state);
+}
+
+void SessionBoard::waitInactive() const {
+  std::unique_lock<std::mutex> lock(mutex_);
+  changed_.wait(lock, [this] { return !claimed_ && !isActive(status_.state); });
+}
+
+}  // namespace zerocal::service

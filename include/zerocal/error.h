@@ -30,4 +30,10 @@ class InputError : public Error {
   using Error::Error;
 };
 
+// A file or folder cannot be written, synced or read back as it must be.
+class FileError : public Error {
+ public:
+  using Error::Error;
+};
+
 }  // namespace zerocal

@@ -1,9 +1,13 @@
 #include "zerocal/calib/format.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdarg>
 #include <cstdio>
 #include <sstream>
+
+#include "zerocal/error.h"
+#include "zerocal/io/json_reader.h"
 
 namespace zerocal {
 namespace {
@@ -339,6 +343,199 @@ std::string toText(const std::array<JointSensitivity, kJointCount>& s) {
     o << printf("%5d %12.4f %12.4f %14.4f %14.6f\n", i + 1, s[i].spot_mm_per_deg.x(),
                 s[i].spot_mm_per_deg.y(), s[i].magnitude_mm_per_deg, s[i].deg_per_20um);
   return o.str();
+}
+
+namespace {
+
+Eigen::Vector3d vector3(const JsonReader& j, const char* key) {
+  const std::vector<double> v = j.numbers(key, 3);
+  return {v[0], v[1], v[2]};
+}
+
+AimingError aimingErrorFromJson(const JsonReader& j) {
+  AimingError e;
+  const std::vector<double> uv = j.numbers("on_psd_mm", 2);
+  e.on_psd_mm = {uv[0], uv[1]};
+  e.on_psd_norm_mm = j.numberOrNan("on_psd_norm_mm");
+  e.miss_mm = j.numberOrNan("miss_mm");
+  return e;
+}
+
+}  // namespace
+
+SolveReport solveReportFromJson(const nlohmann::json& json, const std::string& where) {
+  const JsonReader j(json, where);
+  SolveReport r;
+  if (j.has("verdict")) {
+    const JsonReader v = j.object("verdict");
+    r.verdict.usable = v.boolean("usable");
+    for (const nlohmann::json& reason : v.array("reasons")) {
+      if (!reason.is_string()) throw InputError(v.where() + ": 'reasons' are not all text");
+      r.verdict.reasons.push_back(reason.get<std::string>());
+    }
+  }
+  if (j.has("suspect_poses"))
+    for (std::size_t i = 0; i < j.array("suspect_poses").size(); ++i) {
+      const JsonReader e = j.element("suspect_poses", i);
+      r.suspect_poses.push_back({e.integer("pose"), e.integer("line"), e.string("reason"),
+                                 e.numberOrNan("chi2_without")});
+    }
+  r.converged = j.boolean("converged");
+  r.message = j.stringOr("message", "");
+  r.cost =
+      j.stringOr("cost", "ml") == "pairwise" ? CostKind::kPairwise : CostKind::kMaximumLikelihood;
+  r.used_readings = j.stringOr("model", "") == "hit-point";
+  r.pose_count = j.integer("poses");
+  r.poses_used = j.has("poses_used") ? j.integer("poses_used") : r.pose_count;
+  r.required_accuracy_deg = j.has("required_accuracy_deg") ? j.number("required_accuracy_deg") : 0;
+  if (j.has("model_tolerance")) {
+    const JsonReader m = j.object("model_tolerance");
+    r.model_length_mm = m.number("length_mm");
+    r.model_angle_deg = m.number("angle_deg");
+  }
+  const nlohmann::json& params = j.at("parameters");
+  if (!params.is_object()) throw InputError(where + ": 'parameters' is not an object");
+  // The solver's order (offsets, then the laser), not JSON's alphabetical one; names this version
+  // does not know follow.
+  std::vector<std::string> names;
+  for (int k = 0; k < kIdentifiedCount; ++k) names.push_back(unknownName(k));
+  for (const auto& item : params.items())
+    if (std::find(names.begin(), names.end(), item.key()) == names.end())
+      names.push_back(item.key());
+  for (std::size_t k = 0; k < names.size(); ++k) {
+    const std::string& name = names[k];
+    if (!params.contains(name)) throw InputError(where + ": parameter '" + name + "' is missing");
+    const JsonReader p(params.at(name), where + " parameters." + name);
+    ParameterEstimate e;
+    e.name = name;
+    e.identifiable = p.boolean("identifiable");
+    e.reason = p.stringOr("reason", "");
+    e.value = p.numberOrNan("value");
+    e.sigma = p.numberOrNan("sigma");
+    e.model_sigma = p.has("model_sigma") ? p.number("model_sigma") : 0;
+    e.ci95_low = e.ci95_high = std::nan("");
+    if (p.present("ci95")) {
+      const std::vector<double> ci = p.numbers("ci95", 2);
+      e.ci95_low = ci[0];
+      e.ci95_high = ci[1];
+    }
+    if (k < static_cast<std::size_t>(kOffsetCount))
+      r.estimate.delta_rad[static_cast<int>(k)] = e.identifiable ? e.value * kDegToRad : 0;
+    else if (k < static_cast<std::size_t>(kIdentifiedCount))
+      r.estimate.laser[static_cast<int>(k) - kOffsetCount] = e.identifiable ? e.value : 0;
+    r.parameters.push_back(e);
+  }
+  for (std::size_t i = 0; i < j.array("not_identifiable").size(); ++i) {
+    const JsonReader e = j.element("not_identifiable", i);
+    r.not_identifiable.push_back({e.string("name"), e.string("reason")});
+  }
+  r.estimate.target_mm = vector3(j, "target_mm");
+  r.target_sigma_mm = vector3(j, "target_sigma_mm");
+  r.rank = j.integer("rank");
+  r.condition_number = j.numberOrNan("condition_number");
+  r.dof = j.integer("dof");
+  r.noise_mm = j.numberOrNan("noise_mm");
+  r.noise_estimated = j.stringOr("noise_source", "") == "estimated from the residuals";
+  r.chi2_per_dof = j.optionalNumber("chi2_per_dof");
+  r.chi2_p_value = j.optionalNumber("chi2_p_value");
+  r.noise_scale = j.has("noise_scale") ? j.number("noise_scale") : 1;
+  r.rms_miss_mm = j.numberOrNan("rms_miss_mm");
+  const nlohmann::json& residuals = j.array("pose_residuals");
+  for (std::size_t i = 0; i < residuals.size(); ++i) {
+    const JsonReader p = j.element("pose_residuals", i);
+    PoseResidual pose;
+    pose.source_line = p.integer("line");
+    pose.used = p.has("used") ? p.boolean("used") : true;
+    pose.duplicate_of = p.present("duplicate_of") ? p.integer("duplicate_of") : 0;
+    const std::vector<double> miss = p.numbers("miss_mm", 2);
+    pose.miss_mm = {miss[0], miss[1]};
+    pose.miss_norm_mm = pose.miss_mm.norm();
+    pose.normalised = p.numberOrNan("normalised");
+    pose.outlier = p.boolean("outlier");
+    pose.standoff_mm = p.numberOrNan("standoff_mm");
+    r.poses.push_back(pose);
+  }
+  // The norms as written: the list beside the residuals is what toJson gives back.
+  if (j.has("residuals_mm")) {
+    const std::vector<double> norms =
+        JsonReader::numbersOf(j.at("residuals_mm"), r.poses.size(), where + " residuals_mm");
+    for (std::size_t i = 0; i < r.poses.size(); ++i) r.poses[i].miss_norm_mm = norms[i];
+  }
+  if (j.has("correlation")) {
+    const nlohmann::json& rows = j.array("correlation");
+    r.correlation.resize(static_cast<Eigen::Index>(rows.size()),
+                         static_cast<Eigen::Index>(rows.size()));
+    for (std::size_t a = 0; a < rows.size(); ++a) {
+      const std::vector<double> row = JsonReader::numbersOf(
+          rows[a], rows.size(), where + " correlation row " + std::to_string(a + 1));
+      for (std::size_t b = 0; b < rows.size(); ++b)
+        r.correlation(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b)) = row[b];
+    }
+  }
+  r.iterations = j.has("iterations") ? j.integer("iterations") : 0;
+  r.solve_time_ms = j.has("solve_time_ms") ? j.number("solve_time_ms") : 0;
+  return r;
+}
+
+HoldoutReport holdoutReportFromJson(const nlohmann::json& json, const std::string& where) {
+  const JsonReader j(json, where);
+  HoldoutReport r;
+  for (const nlohmann::json& pose : j.array("held_out")) {
+    if (!pose.is_number_integer()) throw InputError(where + ": 'held_out' is not a pose list");
+    r.held_out.push_back(pose.get<int>());
+  }
+  r.total_poses = j.integer("total_poses");
+  r.nominal_target_mm = vector3(j, "nominal_target_mm");
+  for (std::size_t i = 0; i < j.array("poses").size(); ++i) {
+    const JsonReader p = j.element("poses", i);
+    r.poses.push_back({p.integer("pose"), p.integer("line"),
+                       aimingErrorFromJson(p.object("before")),
+                       aimingErrorFromJson(p.object("after"))});
+  }
+  r.rms_before_mm = j.numberOrNan("rms_before_mm");
+  r.rms_after_mm = j.numberOrNan("rms_after_mm");
+  return r;
+}
+
+Plan planFromJson(const nlohmann::json& json, const std::string& where) {
+  const JsonReader j(json, where);
+  Plan plan;
+  plan.description = j.stringOr("description", "");
+  plan.candidates_considered =
+      j.has("candidates_considered") ? j.integer("candidates_considered") : 0;
+  const nlohmann::json& poses = j.array("poses");
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    const std::vector<double> q =
+        JsonReader::numbersOf(poses[i], kJointCount, where + " poses[" + std::to_string(i) + "]");
+    Pose pose;
+    for (int k = 0; k < kJointCount; ++k) {
+      if (!std::isfinite(q[k]))
+        throw InputError(where + " poses[" + std::to_string(i) + "]: not six finite joint angles");
+      pose.q_deg[k] = q[k];
+    }
+    plan.poses.push_back(pose);
+  }
+  Prediction& p = plan.prediction;
+  p.sigma.assign(kIdentifiedCount, std::nan(""));
+  p.identifiable.assign(kIdentifiedCount, false);
+  p.reason.assign(kIdentifiedCount, "not predicted");
+  p.rms_offset_sigma_deg = std::nan("");
+  p.condition_number = std::nan("");
+  if (j.present("predicted")) {
+    const JsonReader predicted = j.object("predicted");
+    for (int k = 0; k < kIdentifiedCount; ++k) {
+      const std::string name = unknownName(k);
+      if (!predicted.has(name.c_str())) continue;
+      const JsonReader e = predicted.object(name.c_str());
+      p.identifiable[k] = e.boolean("identifiable");
+      p.sigma[k] = e.numberOrNan("sigma");
+      p.reason[k] = e.stringOr("reason", "");
+    }
+    p.rms_offset_sigma_deg = j.numberOrNan("predicted_rms_offset_sigma_deg");
+    p.rank = j.has("rank") ? j.integer("rank") : 0;
+    p.condition_number = j.numberOrNan("condition_number");
+  }
+  return plan;
 }
 
 }  // namespace zerocal

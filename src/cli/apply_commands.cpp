@@ -57,10 +57,10 @@ std::optional<ModelId> fromMocRobotType(const std::string& type) {
   return ModelId{m[1], std::stod(m[3]), std::stod(m[2])};
 }
 
-Robot sessionRobot(const ApplyArgs& args, const report::SessionFiles& files, std::string* source) {
+Robot sessionRobot(const ApplyArgs& args, const SessionFolder& files, std::string* source) {
   std::string robot = args.robot;
   if (robot.empty()) {
-    const auto& config = files.session.value("config", nlohmann::json::object());
+    const nlohmann::json& config = files.session.config;
     if (!config.contains("robot") || !config["robot"].is_string())
       throw InputError(args.session_dir +
                        "/session.json: no config.robot; give the robot file with --robot");
@@ -86,7 +86,7 @@ void writeAtomically(const std::string& path, const std::string& text) {
 
 int run(const ApplyArgs& args, std::ostream& out, std::ostream& err) {
   // The session: converged, every offset of joints 2..5 identified.
-  const report::SessionFiles files = report::readSessionFiles(args.session_dir);
+  const SessionFolder files = report::readSessionFiles(args.session_dir);
   const report::SessionReport session = report::parseSession(files);
   if (!session.converged) {
     err << "zerocal apply: session " << session.session_id

@@ -84,19 +84,16 @@ WorldRun runWorld(std::uint64_t seed, const ApplyExperimentArgs& args, const std
     if (end.state != service::SessionState::kDone)
       throw Error("world " + std::to_string(seed) + ": calibration " + id +
                   " ended: " + end.message);
-    const nlohmann::json r = manager.result(id);
+    const SolveReport r = manager.result(id).report;
     apply::Offsets o;
     for (int k = 0; k < 4; ++k) {
-      const auto& p = r.at("parameters").at("delta" + std::to_string(k + 2) + "_deg");
-      if (!p.value("identifiable", false))
+      const ParameterEstimate& p = r.parameters[k];  // delta2..delta5
+      if (!p.identifiable)
         throw Error("world " + std::to_string(seed) + ": delta" + std::to_string(k + 2) +
                     " not identifiable");
-      o[k] = {p.at("value").get<double>(), p.at("sigma").get<double>()};
+      o[k] = {p.value, p.sigma};
     }
-    if (!found_target) {
-      const auto t = r.at("target_mm").get<std::array<double, 3>>();
-      found_target = Eigen::Vector3d(t[0], t[1], t[2]);
-    }
+    if (!found_target) found_target = r.estimate.target_mm;
     return o;
   };
 

@@ -123,7 +123,8 @@ int runCellExperiment(const CellExperimentArgs& args) {
     const service::SessionStatus end = manager.waitIdle();
     const bool completed = message.empty() && end.state == service::SessionState::kDone;
     if (message.empty()) message = end.message;
-    const Json result = completed ? manager.result(end.session_id) : Json::object();
+    const ResultFile result = completed ? manager.result(end.session_id) : ResultFile{};
+    const Json result_json = toJson(result);
     const double cell_time_s = end.cell_time_s;
 
     Json world{{"seed", seed}, {"cell_time_s", cell_time_s}};
@@ -135,47 +136,47 @@ int runCellExperiment(const CellExperimentArgs& args) {
     max_cell_s = std::max(max_cell_s, cell_time_s);
     int moves = 0;
     if (completed) {
-      for (const Json& pose : result["pose_breakdown"]) {
-        if (pose.contains("skipped")) continue;  // never measured: no moves to count
-        const int i = pose["pose"].get<int>() - 1;
+      for (const PoseTimes& pose : result.pose_breakdown.value_or(std::vector<PoseTimes>{})) {
+        if (!pose.skipped.empty()) continue;  // never measured: no moves to count
+        const int i = pose.pose - 1;
         // Every move the controller made for the pose: the planned one and the servo's.
-        const int pose_moves = pose["servo_moves"].get<int>() + 1;
+        const int pose_moves = pose.servo.moves + 1;
         moves += pose_moves;
         most_pose_moves = std::max(most_pose_moves, pose_moves);
         if (per_pose.size() <= static_cast<std::size_t>(i)) per_pose.resize(i + 1);
         PoseSums& p = per_pose[i];
-        p.move_s += pose["move_s"].get<double>();
-        p.acquisition_s += pose["acquisition_s"].get<double>();
-        p.servo_s += pose["servo_s"].get<double>();
-        p.settle_s += pose["settle_s"].get<double>();
-        p.overhead_s += pose.value("move_overhead_s", 0.0);
-        p.fine_point_s += pose.value("fine_point_settle_s", 0.0);
+        p.move_s += pose.servo.move_s;
+        p.acquisition_s += pose.servo.acquisition_s;
+        p.servo_s += pose.servo.servo_s;
+        p.settle_s += pose.servo.settle_s;
+        p.overhead_s += pose.move_overhead_s.value_or(0.0);
+        p.fine_point_s += pose.fine_point_settle_s.value_or(0.0);
         p.moves += pose_moves;
         p.moves_max = std::max(p.moves_max, pose_moves);
-        p.search_moves_max = std::max(p.search_moves_max, pose["search_moves"].get<int>());
+        p.search_moves_max = std::max(p.search_moves_max, pose.servo.search_moves);
         ++p.count;
       }
-      world["poses"] = result["pose_breakdown"];
-      world["recoveries"] = result["recoveries"];
+      world["poses"] = result_json["pose_breakdown"];
+      world["recoveries"] = result_json["recoveries"];
     }
     world["moves"] = moves;
     most_moves = std::max(most_moves, moves);
     std::string line;
     if (completed) {
       Json offsets = Json::array();
-      const bool usable = result.value("verdict", Json::object()).value("usable", true);
+      const bool usable = !result.verdict_recorded || result.report.verdict.usable;
       if (!usable) ++refused_results;
       world["usable"] = usable;
       for (int k = 0; k < kOffsetCount; ++k) {
         const std::string name = unknownName(k);
-        const Json& e = result["parameters"][name];
-        if (!e["value"].is_number() || !e["sigma"].is_number()) {
+        const ParameterEstimate& e = result.report.parameters[k];
+        if (!e.identifiable || !std::isfinite(e.value) || !std::isfinite(e.sigma)) {
           ++withheld;
           line += "   withheld       ";
           continue;
         }
-        const double truth = result["truth"][name].get<double>();
-        const double value = e["value"].get<double>(), sigma = e["sigma"].get<double>();
+        const double truth = result.truth->offsets_deg[k];
+        const double value = e.value, sigma = e.sigma;
         const double error = value - truth;
         const double sigmas = std::abs(error) / sigma;
         sum_sq += error * error;
@@ -193,7 +194,7 @@ int runCellExperiment(const CellExperimentArgs& args) {
         line += cell;
       }
       world["offsets"] = offsets;
-      world["chi2_per_dof"] = result["chi2_per_dof"];
+      world["chi2_per_dof"] = result_json["chi2_per_dof"];
     } else {
       line = " " + message;
     }

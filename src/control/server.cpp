@@ -319,7 +319,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
     } else if (cmd == "sessions") {
       r["sessions"] = toJson(session.sessions());
     } else if (cmd == "result") {
-      r["result"] = session.result(optionalString(request, "session"));
+      r["result"] = toJson(session.result(optionalString(request, "session")));
     } else if (cmd == "subscribe") {
       subscribed_ = true;
       server_->startStatusTimer();

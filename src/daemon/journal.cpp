@@ -18,6 +18,7 @@
 #include <sstream>
 
 #include "zerocal/daemon/logging.h"
+#include "zerocal/io/durable_file.h"
 
 namespace zerocal {
 namespace {
@@ -25,79 +26,8 @@ namespace {
 namespace fs = std::filesystem;
 using Json = nlohmann::json;
 
-constexpr const char* kSessionFile = "session.json";
-constexpr const char* kJournalFile = "journal.jsonl";
-constexpr const char* kResultFile = "result.json";
-constexpr const char* kSessionFormat = "zerocal-session/1";
-
 [[noreturn]] void fail(const std::string& what, int error) {
   throw JournalError(what + ": " + std::strerror(error));
-}
-
-void writeAll(int fd, const std::string& data, const std::string& path) {
-  std::size_t done = 0;
-  while (done < data.size()) {
-    const ssize_t n = ::write(fd, data.data() + done, data.size() - done);
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      fail("cannot write " + path, errno);
-    }
-    done += static_cast<std::size_t>(n);
-  }
-}
-
-void syncFd(int fd, const std::string& path) {
-  while (::fsync(fd) != 0)
-    if (errno != EINTR) fail("cannot fsync " + path, errno);
-}
-
-// A new directory entry (file or folder) is durable only once its parent folder is synced.
-void syncDir(const fs::path& dir) {
-  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) fail("cannot open folder " + dir.string(), errno);
-  const int result = ::fsync(fd);
-  const int error = errno;
-  ::close(fd);
-  if (result != 0) fail("cannot fsync folder " + dir.string(), error);
-}
-
-// mkdir -p that syncs the parent of every folder it creates.
-void makeDirs(const fs::path& dir) {
-  if (dir.empty()) return;
-  std::error_code ec;
-  if (fs::is_directory(dir, ec)) return;
-  const fs::path parent = dir.parent_path();
-  if (!parent.empty() && parent != dir) makeDirs(parent);
-  if (::mkdir(dir.c_str(), 0755) != 0 && errno != EEXIST)
-    fail("cannot create folder " + dir.string(), errno);
-  syncDir(parent.empty() ? fs::path(".") : parent);
-}
-
-void writeFileAtomically(const fs::path& path, const std::string& text) {
-  const fs::path temporary = path.string() + ".tmp";
-  const int fd = ::open(temporary.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) fail("cannot create " + temporary.string(), errno);
-  try {
-    writeAll(fd, text, temporary.string());
-    syncFd(fd, temporary.string());
-  } catch (...) {
-    ::close(fd);
-    throw;
-  }
-  ::close(fd);
-  if (::rename(temporary.c_str(), path.c_str()) != 0)
-    fail("cannot rename to " + path.string(), errno);
-  syncDir(path.parent_path());
-}
-
-Json readJsonFile(const fs::path& path) {
-  std::ifstream in(path);
-  if (!in) throw JournalError("cannot read " + path.string());
-  try {
-    return Json::parse(in);
-  } catch (const Json::exception& e) {
-    throw JournalError(path.string() + ": " + e.what());
-  }
 }
 
 bool allFinite(const PoseRecord& r) {
@@ -111,22 +41,6 @@ bool allFinite(const PoseRecord& r) {
     for (double x : point)
       if (!std::isfinite(x)) return false;
   return true;
-}
-
-std::string newSessionId(const fs::path& data_dir) {
-  const std::time_t now = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
-  std::tm utc{};
-  ::gmtime_r(&now, &utc);
-  char stamp[32];
-  std::strftime(stamp, sizeof stamp, "%Y%m%dT%H%M%SZ", &utc);
-  std::string id = stamp;
-  // Zero-padded so that ids made within one second still sort in creation order.
-  for (int n = 2; fs::exists(data_dir / id); ++n) {
-    char suffix[16];
-    std::snprintf(suffix, sizeof suffix, "-%03d", n);
-    id = std::string(stamp) + suffix;
-  }
-  return id;
 }
 
 }  // namespace
@@ -255,21 +169,27 @@ Journal::Journal(const std::string& path) : path_(path) {
   dropped_ = std::move(contents.dropped);
 
   const fs::path file(path);
-  makeDirs(file.parent_path());
+  const std::string folder = file.parent_path().empty() ? "." : file.parent_path().string();
   std::error_code ec;
   const bool existed = fs::exists(file, ec);
-  fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
-  if (fd_ < 0) fail("cannot open journal " + path, errno);
   try {
-    if (!existed) syncDir(file.parent_path().empty() ? fs::path(".") : file.parent_path());
+    makeDirsDurably(folder);
+    fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+    if (fd_ < 0) fail("cannot open journal " + path, errno);
+    if (!existed) syncFolder(folder);
     if (!dropped_.empty()) {
       // Cut the torn tail so the next record does not continue the fragment's line.
       if (::ftruncate(fd_, static_cast<off_t>(contents.committed_bytes)) != 0)
         fail("cannot truncate journal " + path, errno);
-      syncFd(fd_, path);
+      writeAllDurably(fd_, "", path);  // the truncation, synced
     }
+  } catch (const FileError& e) {
+    if (fd_ >= 0) ::close(fd_);
+    fd_ = -1;
+    throw JournalError(e.what());
   } catch (...) {
-    ::close(fd_);
+    if (fd_ >= 0) ::close(fd_);
+    fd_ = -1;
     throw;
   }
 }
@@ -289,136 +209,13 @@ void Journal::append(const PoseRecord& record) {
   const std::string line = toJson(record).dump() + "\n";
   try {
     // One write() per line: with O_APPEND a crash leaves at most this line torn.
-    writeAll(fd_, line, path_);
-    syncFd(fd_, path_);
-  } catch (...) {
+    writeAllDurably(fd_, line, path_);
+  } catch (const FileError& e) {
     // What reached the disk is unknown; only a re-open (which re-reads) may continue.
     broken_ = true;
-    throw;
+    throw JournalError(e.what());
   }
   records_.push_back(record);
-}
-
-// What list() learnt of each session, and the journal's size and time it learnt it from.
-struct SessionStore::Cache {
-  struct Entry {
-    std::uintmax_t journal_size = 0;
-    fs::file_time_type journal_time{};
-    SessionInfo info;  // finished is not cached: result.json is checked at every listing
-  };
-  std::mutex mutex;
-  std::map<std::string, Entry> entries;
-};
-
-SessionStore::SessionStore(std::string data_dir)
-    : data_dir_(std::move(data_dir)), cache_(std::make_unique<Cache>()) {}
-
-SessionStore::~SessionStore() = default;
-
-std::string SessionStore::sessionDir(const std::string& id) const {
-  return (fs::path(data_dir_) / id).string();
-}
-
-std::string SessionStore::journalPath(const std::string& id) const {
-  return (fs::path(data_dir_) / id / kJournalFile).string();
-}
-
-SessionInfo SessionStore::create(const Json& plan, const Json& config_snapshot) {
-  makeDirs(data_dir_);
-  const std::string id = newSessionId(data_dir_);
-  const fs::path dir = sessionDir(id);
-  makeDirs(dir);
-  const std::time_t now = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
-  Json session{{"format", kSessionFormat},
-               {"id", id},
-               {"created_unix_s", static_cast<std::int64_t>(now)},
-               {"plan", plan},
-               {"config", config_snapshot}};
-  writeFileAtomically(dir / kSessionFile, session.dump(2) + "\n");
-  SessionInfo info;
-  info.id = id;
-  info.dir = dir.string();
-  if (plan.is_object() && plan.contains("poses") && plan["poses"].is_array())
-    info.planned_poses = static_cast<int>(plan["poses"].size());
-  return info;
-}
-
-Json SessionStore::readSession(const std::string& id) const {
-  return readJsonFile(fs::path(sessionDir(id)) / kSessionFile);
-}
-
-std::vector<SessionInfo> SessionStore::list() const {
-  std::vector<SessionInfo> sessions;
-  std::error_code ec;
-  if (!fs::is_directory(data_dir_, ec)) return sessions;
-  std::lock_guard<std::mutex> lock(cache_->mutex);
-  for (const auto& entry : fs::directory_iterator(data_dir_, ec)) {
-    std::error_code entry_ec;
-    if (!entry.is_directory(entry_ec) ||
-        !fs::is_regular_file(entry.path() / kSessionFile, entry_ec))
-      continue;
-    const std::string id = entry.path().filename().string();
-    const fs::path journal = journalPath(id);
-    std::error_code stat_ec;
-    const std::uintmax_t size = fs::exists(journal, stat_ec) ? fs::file_size(journal, stat_ec) : 0;
-    const fs::file_time_type time =
-        size > 0 ? fs::last_write_time(journal, stat_ec) : fs::file_time_type{};
-    const auto cached = cache_->entries.find(id);
-    if (stat_ec || cached == cache_->entries.end() || cached->second.journal_size != size ||
-        cached->second.journal_time != time) {
-      Cache::Entry fresh{size, time, {}};
-      SessionInfo& info = fresh.info;
-      info.id = id;
-      info.dir = entry.path().string();
-      try {
-        const Json session = readSession(info.id);
-        const Json plan = session.value("plan", Json());
-        if (plan.is_object() && plan.contains("poses") && plan["poses"].is_array())
-          info.planned_poses = static_cast<int>(plan["poses"].size());
-      } catch (const JournalError& e) {
-        // A session.json cut short by a crash during create(): no pose was recorded there.
-        makeLogger("journal")->warn("skipping session {}: {}", info.id, e.what());
-        continue;
-      }
-      try {
-        const JournalContents contents = readJournal(journal.string());
-        info.recorded_poses = contents.nextIndex();
-        for (const PoseRecord& r : contents.records) info.skipped_poses += !r.measured();
-      } catch (const JournalError& e) {
-        // One damaged session must not hide the others (nor stop the daemon): it is listed,
-        // named and never resumed; its files are left exactly as they are.
-        info.damaged = e.what();
-        makeLogger("journal")->error("session {} is damaged and will not be resumed: {}", id,
-                                     info.damaged);
-      }
-      cache_->entries[id] = std::move(fresh);
-    }
-    SessionInfo info = cache_->entries[id].info;
-    info.finished = fs::exists(entry.path() / kResultFile, entry_ec);
-    sessions.push_back(std::move(info));
-  }
-  if (ec) throw JournalError("cannot list " + data_dir_ + ": " + ec.message());
-  std::sort(sessions.begin(), sessions.end(),
-            [](const SessionInfo& a, const SessionInfo& b) { return a.id < b.id; });
-  return sessions;
-}
-
-std::vector<SessionInfo> SessionStore::unfinished() const {
-  auto sessions = list();
-  sessions.erase(
-      std::remove_if(sessions.begin(), sessions.end(),
-                     [](const SessionInfo& s) { return s.finished || !s.damaged.empty(); }),
-      sessions.end());
-  return sessions;
-}
-
-void SessionStore::writeFile(const std::string& id, const std::string& name,
-                             const std::string& text) {
-  writeFileAtomically(fs::path(sessionDir(id)) / name, text);
-}
-
-void SessionStore::writeResult(const std::string& id, const Json& result) {
-  writeFileAtomically(fs::path(sessionDir(id)) / kResultFile, result.dump(2) + "\n");
 }
 
 }  // namespace zerocal

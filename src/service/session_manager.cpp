@@ -2,7 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
+#include <filesystem>
 #include <limits>
 #include <regex>
 
@@ -184,16 +184,6 @@ std::vector<bool> skippedPoses(const std::vector<PoseRecord>& records, std::size
   return skipped;
 }
 
-std::vector<Pose> posesOfPlanJson(const nlohmann::json& plan) {
-  std::vector<Pose> poses;
-  for (const auto& q : plan.at("poses")) {
-    Pose p;
-    p.q_deg = q.get<Joints>();
-    poses.push_back(p);
-  }
-  return poses;
-}
-
 }  // namespace
 
 SessionManager::SessionManager(CellBackend& backend, ManagerSettings settings)
@@ -287,28 +277,30 @@ std::string SessionManager::start(const StartRequest& request) {
   const Plan plan = makePlan(request, target, noise_mm);
   refuseUnlessIdentifiable(plan.prediction);
 
-  nlohmann::json plan_json = toJson(plan);
-  plan_json["target_mm"] = {target.x(), target.y(), target.z()};
-  plan_json["noise_mm"] = noise_mm;
-  const SessionInfo info = store_.create(plan_json, settings_.config_snapshot);
-  makeLogger("session")->info("session {} created in {}: {} ({} poses)", info.id, info.dir,
-                              plan.description, plan.poses.size());
+  SessionFile draft;
+  draft.plan = plan;
+  draft.target_mm = target;
+  draft.noise_mm = noise_mm;
+  draft.config = settings_.config_snapshot;
+  const SessionFile created = store_.create(std::move(draft));
+  makeLogger("session")->info("session {} created in {}: {} ({} poses)", created.id,
+                              store_.sessionDir(created.id), plan.description, plan.poses.size());
 
   SessionStatus s;
   s.state = SessionState::kConnecting;
-  s.session_id = info.id;
+  s.session_id = created.id;
   s.pose_count = static_cast<int>(plan.poses.size());
   s.predicted_sigma_deg.assign(plan.prediction.sigma.begin(),
                                plan.prediction.sigma.begin() + kOffsetCount);
   board_.begin(s);
   live_->clear();
-  board_.emit(PlanEvent{info.id, s.pose_count, plan.description, s.predicted_sigma_deg});
+  board_.emit(PlanEvent{created.id, s.pose_count, plan.description, s.predicted_sigma_deg});
   board_.announce();
-  worker_.post([this, id = info.id, poses = plan.poses, target, noise_mm](bool cancelled) {
+  worker_.post([this, id = created.id, poses = plan.poses, target, noise_mm](bool cancelled) {
     if (cancelled) return finish(SessionState::kAborted, "the daemon stopped before it began");
     runSession(id, poses, target, noise_mm, {});
   });
-  return info.id;
+  return created.id;
 }
 
 std::string SessionManager::resume(const ResumeRequest& request) {
@@ -330,21 +322,17 @@ std::string SessionManager::resume(const ResumeRequest& request) {
     throw Refused("damaged", "session " + id + " cannot be resumed, its journal is damaged: " +
                                  info->damaged + " (the files are left as they are)");
 
-  const nlohmann::json session = store_.readSession(id);
-  std::vector<Pose> poses;
-  Eigen::Vector3d target;
-  double noise_mm = 0;
+  SessionFile session;
   try {
-    const nlohmann::json& plan = session.at("plan");
-    poses = posesOfPlanJson(plan);
-    const auto t = plan.at("target_mm").get<std::array<double, 3>>();
-    target = Eigen::Vector3d(t[0], t[1], t[2]);
-    noise_mm = plan.at("noise_mm").get<double>();
-  } catch (const nlohmann::json::exception& e) {
+    session = store_.readSession(id);
+  } catch (const Error& e) {
     throw Refused("bad_session", "session " + id + " cannot be resumed: its session.json " +
                                      "lacks the plan's poses, target_mm or noise_mm (" + e.what() +
                                      ")");
   }
+  const std::vector<Pose>& poses = session.plan.poses;
+  const Eigen::Vector3d target = session.target_mm;
+  const double noise_mm = session.noise_mm;
   // session.json is a file anyone with access may have edited: what it asks of the robot is
   // checked exactly as a new plan is.
   try {
@@ -400,15 +388,9 @@ std::string SessionManager::resume(const ResumeRequest& request) {
     s.pose_count = static_cast<int>(poses.size());
     s.recorded = info->recorded_poses;
     s.resumed_from = info->recorded_poses;
-    // A hand-edited or older session.json may lack any of these: at() throws, operator[] on a
-    // const json would be undefined behaviour.
-    const nlohmann::json predicted = session.at("plan").value("predicted", nlohmann::json());
-    for (int k = 0; k < kOffsetCount && predicted.is_object(); ++k) {
-      const nlohmann::json entry = predicted.value(unknownName(k), nlohmann::json());
-      const nlohmann::json sigma =
-          entry.is_object() ? entry.value("sigma", nlohmann::json()) : nlohmann::json();
-      s.predicted_sigma_deg.push_back(sigma.is_number() ? sigma.get<double>() : std::nan(""));
-    }
+    // NaN where a hand-edited session.json predicts nothing.
+    s.predicted_sigma_deg.assign(session.plan.prediction.sigma.begin(),
+                                 session.plan.prediction.sigma.begin() + kOffsetCount);
     board_.begin(s);
   }
   live_->clear();
@@ -557,59 +539,50 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
   }
 
   const SolveReport& report = *outcome->report;
-  nlohmann::json result = toJson(report);
-  result["session"] = id;
-  result["cell_time_s"] = cell_time_s;
-  result["resumed_from"] = outcome->resumed_from;
-  result["remeasured"] = nlohmann::json::array();
-  for (const int i : outcome->remeasured) result["remeasured"].push_back(i + 1);
-  result["cell"] = {{"controller",
-                     {{"robot_type", robot.robot_type},
-                      {"serial", robot.serial},
-                      {"software_version", robot.software_version}}},
-                    {"psd_map", knowledge_.psd_map}};
-  result["zerocal_version"] = PROJECT_VERSION;
-  result["finished_unix_s"] = std::chrono::duration_cast<std::chrono::seconds>(
-                                  std::chrono::system_clock::now().time_since_epoch())
-                                  .count();
-  result["recoveries"] = {{"reconnects", outcome->reconnects}, {"reopens", outcome->reopens}};
+  ResultFile result;
+  result.report = report;
+  result.session = id;
+  result.cell_time_s = cell_time_s;
+  result.resumed_from = outcome->resumed_from;
+  result.remeasured.emplace();
+  for (const int i : outcome->remeasured) result.remeasured->push_back(i + 1);
+  result.cell = ResultFile::Cell{robot, knowledge_.psd_map};
+  result.zerocal_version = PROJECT_VERSION;
+  result.finished_unix_s = std::chrono::duration_cast<std::chrono::seconds>(
+                               std::chrono::system_clock::now().time_since_epoch())
+                               .count();
+  result.recoveries = ResultFile::Recoveries{outcome->reconnects, outcome->reopens};
   if (const auto truth = cell_->truthDeg()) {
-    result["truth"] = nlohmann::json::object();
-    for (int k = 0; k < kOffsetCount; ++k) result["truth"][unknownName(k)] = (*truth)[k];
+    result.truth.emplace();
+    for (int k = 0; k < kOffsetCount; ++k) result.truth->offsets_deg[k] = (*truth)[k];
   }
   if (const auto world = cell_->truthWorldYaml()) {
     try {
       store_.writeFile(id, kTruthWorldFile, *world);
-      result["truth"]["world_file"] = kTruthWorldFile;
+      if (!result.truth) result.truth.emplace();
+      result.truth->world_file = kTruthWorldFile;
     } catch (const std::exception& e) {
       return finish(SessionState::kFaulted, std::string("cannot write the truth: ") + e.what());
     }
   }
-  nlohmann::json breakdown = nlohmann::json::array();
+  result.pose_breakdown.emplace();
   for (const PoseRecord& r : outcome->records) {
+    PoseTimes pose;
+    pose.pose = r.planIndex() + 1;
     if (!r.measured()) {
-      breakdown.push_back({{"pose", r.index + 1}, {"skipped", r.skipped}});
-      continue;
+      pose.skipped = r.skipped;
+    } else {
+      pose.servo = r.servo;
+      pose.again = r.remeasure_of >= 0;
+      if (settings_.move_overhead) {
+        // Included in the times above: the planned move and every servo move pay them.
+        const double moves = r.servo.moves + 1;
+        pose.move_overhead_s = moves * settings_.move_overhead->fixed_s;
+        pose.fine_point_settle_s = moves * settings_.move_overhead->settle_s;
+      }
     }
-    nlohmann::json pose{{"pose", r.planIndex() + 1},
-                        {"move_s", r.servo.move_s},
-                        {"acquisition_s", r.servo.acquisition_s},
-                        {"servo_s", r.servo.servo_s},
-                        {"settle_s", r.servo.settle_s},
-                        {"servo_moves", r.servo.moves},
-                        {"search_moves", r.servo.search_moves},
-                        {"iterations", r.servo.iterations},
-                        {"final_error_um", r.servo.final_error_um}};
-    if (r.remeasure_of >= 0) pose["again"] = true;
-    if (settings_.move_overhead) {
-      // Included in the times above: the planned move and every servo move pay them.
-      const double moves = r.servo.moves + 1;
-      pose["move_overhead_s"] = moves * settings_.move_overhead->fixed_s;
-      pose["fine_point_settle_s"] = moves * settings_.move_overhead->settle_s;
-    }
-    breakdown.push_back(pose);
+    result.pose_breakdown->push_back(pose);
   }
-  result["pose_breakdown"] = breakdown;
   try {
     store_.writeResult(id, result);
   } catch (const std::exception& e) {
@@ -633,7 +606,7 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
 
 std::vector<SessionInfo> SessionManager::sessions() const { return store_.list(); }
 
-nlohmann::json SessionManager::result(const std::string& requested) const {
+ResultFile SessionManager::result(const std::string& requested) const {
   std::string id = requested;
   if (id.empty()) {
     for (const SessionInfo& s : store_.list())
@@ -641,12 +614,12 @@ nlohmann::json SessionManager::result(const std::string& requested) const {
     if (id.empty()) throw Refused("not_found", "no finished session yet");
   }
   checkId(id);
-  std::ifstream in(store_.sessionDir(id) + "/result.json");
-  if (!in) throw Refused("not_found", "session " + id + " has no result (unknown or unfinished)");
+  if (!std::filesystem::exists(std::filesystem::path(store_.sessionDir(id)) / kResultFileName))
+    throw Refused("not_found", "session " + id + " has no result (unknown or unfinished)");
   try {
-    return nlohmann::json::parse(in);
-  } catch (const nlohmann::json::exception& e) {
-    throw Error("the result of session " + id + " does not parse: " + e.what());
+    return store_.readResult(id);
+  } catch (const Error& e) {
+    throw Error("the result of session " + id + " cannot be read: " + e.what());
   }
 }
 

@@ -90,33 +90,30 @@ int runOnce(SessionManager& manager, asio::io_context& io, bool json) {
               << status.message << "\n";
     return kStopped;
   }
-  const nlohmann::json result = manager.result(status.session_id);
+  const ResultFile result = manager.result(status.session_id);
   if (json) {
-    std::cout << result.dump(2) << "\n";
+    std::cout << toJson(result).dump(2) << "\n";
     return kOk;
   }
   std::printf("%-12s %12s %10s %24s", "offset", "identified", "sigma", "95% interval");
-  const bool sim = result.contains("truth");
-  if (sim) std::printf(" %12s %12s", "truth", "error");
+  if (result.truth) std::printf(" %12s %12s", "truth", "error");
   std::printf("\n");
   for (int k = 0; k < kOffsetCount; ++k) {
-    const std::string name = unknownName(k);
-    const auto& e = result["parameters"][name];
-    if (e["value"].is_null()) {
-      std::printf("%-12s %12s\n", name.c_str(), "not identifiable");
+    const ParameterEstimate& e = result.report.parameters[k];  // delta2..delta5
+    if (!e.identifiable) {
+      std::printf("%-12s %12s\n", e.name.c_str(), "not identifiable");
       continue;
     }
-    const double value = e["value"], sigma = e["sigma"];
-    std::printf("%-12s %12.5f %10.5f  [%10.5f, %10.5f]", name.c_str(), value, sigma,
-                e["ci95"][0].get<double>(), e["ci95"][1].get<double>());
-    if (sim) {
-      const double truth = result["truth"][name];
-      std::printf(" %12.5f %+12.5f (%.1f sigma)", truth, value - truth,
-                  std::abs(value - truth) / sigma);
+    std::printf("%-12s %12.5f %10.5f  [%10.5f, %10.5f]", e.name.c_str(), e.value, e.sigma,
+                e.ci95_low, e.ci95_high);
+    if (result.truth) {
+      const double truth = result.truth->offsets_deg[k];
+      std::printf(" %12.5f %+12.5f (%.1f sigma)", truth, e.value - truth,
+                  std::abs(e.value - truth) / e.sigma);
     }
     std::printf("\n");
   }
-  std::printf("cell time %.1f s for %d poses; session %s\n", result["cell_time_s"].get<double>(),
+  std::printf("cell time %.1f s for %d poses; session %s\n", result.cell_time_s.value_or(0),
               status.pose_count, status.session_id.c_str());
   return kOk;
 }

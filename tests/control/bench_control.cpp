@@ -105,7 +105,7 @@ SimRun runSim(service::SessionManager& manager) {
   const service::SessionStatus end = manager.waitIdle();
   run.wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
   run.state = service::stateName(end.state);
-  if (end.state == SessionState::kDone) run.result = manager.result(id);
+  if (end.state == SessionState::kDone) run.result = toJson(manager.result(id));
   return run;
 }
 

@@ -140,25 +140,33 @@ TEST_F(ClientCommandsTest, AbortResumeSessionsResult) {
   EXPECT_THAT(err_.str(), HasSubstr("not_found"));
 }
 
-nlohmann::json offsetsResult() {
-  auto offset = [](double value, double sigma) {
-    return nlohmann::json{{"identifiable", true},
-                          {"value", value},
-                          {"sigma", sigma},
-                          {"ci95", {value - 2.5 * sigma, value + 2.5 * sigma}}};
-  };
-  return {{"session", "20261122-0000"},
-          {"converged", true},
-          {"message", "converged"},
-          {"poses", 8},
-          {"cell_time_s", 84.25},
-          {"parameters",
-           {{"delta2_deg", offset(0.41203, 0.002)},
-            {"delta3_deg", offset(-0.2, 0.001)},
-            {"delta4_deg", offset(0.7, 0.003)},
-            {"delta5_deg",
-             {{"identifiable", false}, {"value", nullptr}, {"reason", "joint 5 never moved"}}}}},
-          {"truth", {{"delta2_deg", 0.412}}}};
+// A result without the solver's verdict (as written before verdicts were recorded), of a
+// simulated session whose delta5 is not identifiable.
+ResultFile offsetsResult() {
+  ResultFile r;
+  r.verdict_recorded = false;
+  r.session = "20261122-0000";
+  r.report.converged = true;
+  r.report.message = "converged";
+  r.report.pose_count = 8;
+  r.cell_time_s = 84.25;
+  const std::array<double, 3> values{0.41203, -0.2, 0.7}, sigmas{0.002, 0.001, 0.003};
+  for (int k = 0; k < 3; ++k) {
+    ParameterEstimate p;
+    p.name = "delta" + std::to_string(k + 2) + "_deg";
+    p.value = values[k];
+    p.sigma = sigmas[k];
+    p.ci95_low = values[k] - 2.5 * sigmas[k];
+    p.ci95_high = values[k] + 2.5 * sigmas[k];
+    r.report.parameters.push_back(p);
+  }
+  ParameterEstimate delta5;
+  delta5.name = "delta5_deg";
+  delta5.identifiable = false;
+  delta5.reason = "joint 5 never moved";
+  r.report.parameters.push_back(delta5);
+  r.truth = ResultFile::Truth{{0.412, NAN, NAN, NAN}, ""};
+  return r;
 }
 
 TEST_F(ClientCommandsTest, ResultOpensWithTheVerdictThenTheOffsetsAndWhatToDo) {
@@ -177,23 +185,20 @@ TEST_F(ClientCommandsTest, ResultOpensWithTheVerdictThenTheOffsetsAndWhatToDo) {
   EXPECT_LT(text.find("verdict:"), text.find("delta2 "));
 
   // The solver's own verdict, when result.json carries one, is the one shown.
-  session_.result_value["verdict"] = {{"usable", true}, {"reasons", nlohmann::json::array()}};
+  session_.result_value.verdict_recorded = true;
+  session_.result_value.report.verdict = {true, {}};
   EXPECT_EQ(run(args("result")), 0);
   EXPECT_THAT(out_.str(), HasSubstr("verdict: USABLE\n"));
   EXPECT_THAT(
       out_.str(),
       HasSubstr("joint 2: the reading grows by +0.41203 deg (its zero moves -0.41203 deg)"));
-  session_.result_value["verdict"] = {{"usable", false},
-                                      {"reasons", {"chi-square per dof 7.1: the poses miss"}}};
+  session_.result_value.report.verdict = {false, {"chi-square per dof 7.1: the poses miss"}};
   EXPECT_EQ(run(args("result")), 0);
   EXPECT_THAT(out_.str(),
               HasSubstr("verdict: NOT USABLE\n  - chi-square per dof 7.1: the poses miss\n"));
   EXPECT_THAT(out_.str(), Not(HasSubstr("robot:")));  // not recorded: nothing made up
   // The robot as its controller named itself, right after the verdict.
-  session_.result_value["cell"] = {{"controller",
-                                    {{"robot_type", "IRB 1600-10/1.45"},
-                                     {"serial", "1600-504321"},
-                                     {"software_version", "6.15"}}}};
+  session_.result_value.cell = ResultFile::Cell{{"1600-504321", "6.15", "IRB 1600-10/1.45"}, ""};
   EXPECT_EQ(run(args("result")), 0);
   EXPECT_THAT(out_.str(), HasSubstr("the poses miss\nrobot: IRB 1600-10/1.45, serial 1600-504321, "
                                     "RobotWare 6.15\n"));
@@ -252,7 +257,8 @@ TEST_F(ClientCommandsTest, WatchEndsWithTheVerdictAndTheOffsets) {
   session_.start({});
   session_.result_session = "20261122-0001";
   session_.result_value = offsetsResult();
-  session_.result_value["verdict"] = {{"usable", true}, {"reasons", nlohmann::json::array()}};
+  session_.result_value.verdict_recorded = true;
+  session_.result_value.report.verdict = {true, {}};
   std::thread cell([this] {
     std::this_thread::sleep_for(100ms);
     session_.setState(SessionState::kDone, 8, 8);

@@ -99,7 +99,7 @@ std::vector<SessionInfo> FakeSession::sessions() const {
           SessionInfo{"20261122-0001", "/tmp/s1", false, 8, 3, 1, ""}};
 }
 
-nlohmann::json FakeSession::result(const std::string& id) const {
+ResultFile FakeSession::result(const std::string& id) const {
   if (!id.empty() && id != result_session) throw Refused("not_found", "no result for " + id);
   return result_value;
 }

@@ -27,7 +27,7 @@ class FakeSession : public service::SessionControl {
   std::string resume(const service::ResumeRequest& request) override;
   bool abort() override;
   std::vector<SessionInfo> sessions() const override;
-  nlohmann::json result(const std::string& id) const override;
+  ResultFile result(const std::string& id) const override;
   void readPsd(ReadingDone done) override;
   void setEventSink(EventSink sink) override;
 
@@ -43,7 +43,13 @@ class FakeSession : public service::SessionControl {
   bool psd_fails = false;
   // What result() answers for the session `result_session` (and for an empty id).
   std::string result_session = "20261122-0000";
-  nlohmann::json result_value = {{"session", "20261122-0000"}, {"converged", true}};
+  ResultFile result_value = [] {
+    ResultFile r;  // as written before verdicts were recorded, with no parameters
+    r.verdict_recorded = false;
+    r.session = "20261122-0000";
+    r.report.converged = true;
+    return r;
+  }();
 
  private:
   mutable std::mutex mutex_;

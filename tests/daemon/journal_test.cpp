@@ -9,10 +9,30 @@
 #include <fstream>
 #include <sstream>
 
+#include "zerocal/store/session_store.h"
+
 namespace zerocal {
 namespace {
 
 namespace fs = std::filesystem;
+
+// A session of three poses, as the daemon creates one.
+SessionFile threePoses(const nlohmann::json& config = nlohmann::json::object()) {
+  SessionFile s;
+  for (int i = 0; i < 3; ++i) {
+    Pose p;
+    p.q_deg = {1.0 * i, 2, 3, 4, 5, 6};
+    s.plan.poses.push_back(p);
+  }
+  s.plan.description = "three poses";
+  s.plan.prediction.sigma.assign(8, 0.001);
+  s.plan.prediction.identifiable.assign(8, true);
+  s.plan.prediction.reason.assign(8, "");
+  s.target_mm = {900, -50, 400};
+  s.noise_mm = 0.02;
+  s.config = config;
+  return s;
+}
 
 class JournalTest : public ::testing::Test {
  protected:
@@ -233,12 +253,12 @@ TEST_F(JournalTest, UnwritableFolderIsAnError) {
   // A path through a regular file fails even for root, unlike a chmod'ed folder.
   EXPECT_THROW(Journal((dir_ / "file" / "s" / "journal.jsonl").string()), JournalError);
   SessionStore store((dir_ / "file" / "sessions").string());
-  EXPECT_THROW(store.create({}, {}), JournalError);
+  EXPECT_THROW(store.create(SessionFile{}), FileError);
   if (::geteuid() != 0) {
     fs::create_directories(dir_ / "ro");
     fs::permissions(dir_ / "ro", fs::perms::owner_read | fs::perms::owner_exec);
     EXPECT_THROW(Journal((dir_ / "ro" / "journal.jsonl").string()), JournalError);
-    EXPECT_THROW(SessionStore((dir_ / "ro").string()).create({}, {}), JournalError);
+    EXPECT_THROW(SessionStore((dir_ / "ro").string()).create(SessionFile{}), FileError);
     fs::permissions(dir_ / "ro", fs::perms::owner_all);
   }
 }
@@ -289,25 +309,27 @@ TEST_F(JournalTest, KillNineMidSessionLosesAndDuplicatesNothing) {
 TEST_F(JournalTest, SessionStoreLayoutListAndUnfinished) {
   SessionStore store((dir_ / "sessions").string());
   EXPECT_TRUE(store.list().empty());  // no folder yet
-  const nlohmann::json plan = {{"pattern", "optimal"}, {"poses", {{1, 2}, {3, 4}, {5, 6}}}};
-  const SessionInfo first = store.create(plan, {{"servo", {{"tolerance_um", 2}}}});
-  const SessionInfo second = store.create(plan, {});
+  const SessionFile draft = threePoses({{"servo", {{"tolerance_um", 2}}}});
+  const SessionFile first = store.create(draft);
+  const SessionFile second = store.create(threePoses());
   EXPECT_NE(first.id, second.id);
   EXPECT_LT(first.id, second.id);  // ids sort by creation
-  EXPECT_EQ(first.planned_poses, 3);
-  EXPECT_TRUE(fs::is_regular_file(fs::path(first.dir) / "session.json"));
+  EXPECT_GT(first.created_unix_s, 1700000000);
+  EXPECT_TRUE(fs::is_regular_file(fs::path(store.sessionDir(first.id)) / "session.json"));
 
-  const nlohmann::json session = store.readSession(first.id);
-  EXPECT_EQ(session["plan"], plan);
-  EXPECT_EQ(session["config"]["servo"]["tolerance_um"], 2);
-  EXPECT_EQ(session["id"], first.id);
+  const SessionFile session = store.readSession(first.id);
+  EXPECT_EQ(toJson(session), toJson(first));
+  EXPECT_EQ(session.plan.poses.size(), 3u);
+  EXPECT_EQ(session.plan.poses[2].q_deg, draft.plan.poses[2].q_deg);
+  EXPECT_EQ(session.config["servo"]["tolerance_um"], 2);
+  EXPECT_EQ(session.id, first.id);
 
   {
     Journal journal(store.journalPath(first.id));
     journal.append(sample(0));
     journal.append(sample(1));
   }
-  store.writeResult(second.id, {{"status", "done"}});
+  store.writeResult(second.id, ResultFile{});
   fs::create_directories(dir_ / "sessions" / "not-a-session");
 
   const auto all = store.list();
@@ -320,14 +342,13 @@ TEST_F(JournalTest, SessionStoreLayoutListAndUnfinished) {
   const auto open = store.unfinished();
   ASSERT_EQ(open.size(), 1u);
   EXPECT_EQ(open[0].id, first.id);
-  EXPECT_FALSE(fs::exists(fs::path(second.dir) / "result.json.tmp"));
+  EXPECT_FALSE(fs::exists(fs::path(store.sessionDir(second.id)) / "result.json.tmp"));
 }
 
 TEST_F(JournalTest, SessionStoreListsADamagedJournalAndSeesEveryChangeToAJournal) {
   SessionStore store((dir_ / "sessions").string());
-  const nlohmann::json plan = {{"poses", {{1, 2}, {3, 4}}}};
-  const SessionInfo good = store.create(plan, {});
-  const SessionInfo bad = store.create(plan, {});
+  const SessionFile good = store.create(threePoses());
+  const SessionFile bad = store.create(threePoses());
   {
     Journal journal(store.journalPath(good.id));
     journal.append(sample(0));

@@ -269,16 +269,15 @@ TEST(Summary, ValidationWhenPosesWereHeldOutAndSaysSoWhenNot) {
 }
 
 TEST(Summary, AnUnidentifiableOffsetHasNoNumberAndNoCorrection) {
-  SessionFiles files = test::sessionFiles();
-  auto& d2 = files.result["parameters"]["delta2_deg"];
-  d2 = {{"identifiable", false},
-        {"value", nullptr},
-        {"sigma", nullptr},
-        {"ci95", nullptr},
-        {"reason", "joint 1 spans 0.0 deg over the poses"}};
-  files.result["not_identifiable"].push_back(
-      {{"name", "delta2_deg"}, {"reason", "joint 1 spans 0.0 deg over the poses"}});
-  files.result["converged"] = false;
+  SessionFolder files = test::sessionFiles();
+  ParameterEstimate& d2 = files.result.report.parameters[0];
+  ASSERT_EQ(d2.name, "delta2_deg");
+  d2.identifiable = false;
+  d2.value = d2.sigma = d2.ci95_low = d2.ci95_high = std::nan("");
+  d2.reason = "joint 1 spans 0.0 deg over the poses";
+  files.result.report.not_identifiable.push_back(
+      {"delta2_deg", "joint 1 spans 0.0 deg over the poses"});
+  files.result.report.converged = false;
   const SessionReport r = parseSession(files);
   const std::string s = summaryText(r);
   EXPECT_TRUE(contains(s, "THE SOLVE DID NOT CONVERGE")) << s;
@@ -424,22 +423,30 @@ TEST(Files, JournalWithAPoseMissingIsInconsistent) {
 }
 
 TEST(Files, ResultOfAnotherSessionOrWithoutAKey) {
-  SessionFiles files = test::sessionFiles();
-  files.result["session"] = "20200101T000000Z";
+  SessionFolder files = test::sessionFiles();
+  files.result.session = "20200101T000000Z";
   EXPECT_THROW(parseSession(files), ReportError);
-  files = test::sessionFiles();
-  files.result.erase("converged");
+  // What is on disk is read by the store's codecs, which name the file and the member.
+  const std::string dir = test::makeSession("without-a-key");
+  nlohmann::json result = nlohmann::json::parse(readFile(fs::path(dir) / "result.json"));
+  result.erase("converged");
+  std::ofstream(fs::path(dir) / "result.json") << result.dump();
   try {
-    parseSession(files);
+    readSessionFiles(dir);
     FAIL() << "expected ReportError";
   } catch (const ReportError& e) {
     EXPECT_EQ(std::string(e.what()), "result.json: 'converged' is missing");
   }
-  files = test::sessionFiles();
-  files.result["written_by_a_newer_version"] = 1;  // unknown keys are tolerated
-  EXPECT_NO_THROW(parseSession(files));
-  files.journal[2]["servo_path"] = {{0.0, 1.0}};
-  EXPECT_THROW(parseSession(files), ReportError);
+  result["converged"] = true;
+  result["written_by_a_newer_version"] = 1;  // unknown keys are tolerated
+  std::ofstream(fs::path(dir) / "result.json") << result.dump();
+  EXPECT_NO_THROW(parseSession(readSessionFiles(dir)));
+  std::string journal = readFile(fs::path(dir) / "journal.jsonl");
+  const std::size_t path = journal.find("\"servo_path\":[[");
+  ASSERT_NE(path, std::string::npos);
+  journal.insert(path + 14, "[0.0,1.0],");  // a sample of two numbers, not the last line
+  std::ofstream(fs::path(dir) / "journal.jsonl") << journal;
+  EXPECT_THROW(readSessionFiles(dir), JournalError);
 }
 
 TEST(Files, InvalidJsonNamesTheFile) {

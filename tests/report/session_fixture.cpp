@@ -13,7 +13,7 @@
 
 namespace zerocal::test {
 
-report::SessionFiles sessionFiles(const FixtureOptions& options) {
+SessionFolder sessionFiles(const FixtureOptions& options) {
   const Table2Scenario sc = table2Scenario();
   // The optimal planner's plan, stored (tests/data/plans), with its prediction as the planner
   // makes it: what is tested here is the report, not the planner.
@@ -22,28 +22,29 @@ report::SessionFiles sessionFiles(const FixtureOptions& options) {
   CalibrationParameters nominal;
   nominal.target_mm = sc.truth.target_mm;
   plan.prediction = predictUncertainty(sc.cell, plan.poses, nominal, PlanOptions{}.noise_mm);
-  plan.description = "optimal: the " + std::to_string(options.poses) +
-                     " poses that minimise the predicted variance of delta2..delta5";
+  plan.description = options.plan_description.empty()
+                         ? "optimal: the " + std::to_string(options.poses) +
+                               " poses that minimise the predicted variance of delta2..delta5"
+                         : options.plan_description;
   std::mt19937_64 rng(5);
   const auto recorded = simulateRecording(sc.cell, sc.truth, plan.poses, sc.half_width_mm, rng);
   SolveOptions so;
   so.noise_mm = sc.half_width_mm / std::sqrt(3.0);
 
-  report::SessionFiles files;
+  SessionFolder files;
   files.dir = "(in memory)";
-  nlohmann::json plan_json = toJson(plan);
-  if (!options.plan_description.empty()) plan_json["description"] = options.plan_description;
-  files.session = {{"format", "zerocal-session/1"},
-                   {"id", options.id},
-                   {"plan", plan_json},
-                   {"config", nlohmann::json::object()}};
+  files.session.id = options.id;
+  files.session.plan = plan;
+  files.session.target_mm = sc.truth.target_mm;
+  files.session.noise_mm = *so.noise_mm;
+  files.session.config = nlohmann::json::object();
   std::vector<Pose> measured;
   for (std::size_t i = 0; i < recorded.size(); ++i) {
     PoseRecord r;
     r.index = static_cast<int>(i);
     if (std::count(options.skipped.begin(), options.skipped.end(), r.index + 1)) {
       r.skipped = "spot not found";
-      files.journal.push_back(toJson(r));
+      files.journal.push_back(r);
       continue;
     }
     measured.push_back(recorded[i]);
@@ -52,50 +53,45 @@ report::SessionFiles sessionFiles(const FixtureOptions& options) {
     r.v_mm = -0.002;
     r.u_se_mm = r.v_se_mm = 0.0005;
     r.servo.moves = 3;
-    nlohmann::json line = toJson(r);
     const int pose = static_cast<int>(i) + 1;
     if (std::find(options.poses_without_path.begin(), options.poses_without_path.end(), pose) ==
         options.poses_without_path.end()) {
       // A spot found 2 mm off and servoed in: a decaying spiral to the recorded reading.
-      nlohmann::json path = nlohmann::json::array();
       for (int k = 0; k <= 20; ++k) {
         const double a = 0.6 * k + pose, rad = 2.0 * std::exp(-0.3 * k);
-        path.push_back({0.05 * k, r.u_mm + rad * std::cos(a), r.v_mm + rad * std::sin(a)});
+        r.servo_path.push_back({0.05 * k, r.u_mm + rad * std::cos(a), r.v_mm + rad * std::sin(a)});
       }
-      line["servo_path"] = path;
     }
-    files.journal.push_back(line);
+    files.journal.push_back(r);
   }
   // A second measurement of a pose: a line after the plan's, the same pose recorded again.
   for (const int pose : options.remeasured) {
-    PoseRecord r = poseRecordFromJson(files.journal[pose - 1]);
+    PoseRecord r = files.journal[pose - 1];
     r.index = static_cast<int>(files.journal.size());
     r.remeasure_of = pose - 1;
     r.servo_path.clear();
-    files.journal.push_back(toJson(r));
+    files.journal.push_back(r);
   }
+  ResultFile& result = files.result;
   if (options.held_out.empty()) {
-    files.result = toJson(solve(sc.cell, measured, so));
+    result.report = solve(sc.cell, measured, so);
   } else {
-    const HoldoutReport h = validateHoldout(sc.cell, recorded, options.held_out, so);
-    files.result = toJson(h.fit);
-    files.result["validation"] = toJson(h);
+    HoldoutReport h = validateHoldout(sc.cell, recorded, options.held_out, so);
+    result.report = h.fit;
+    result.validation = std::move(h);
   }
-  files.result["session"] = options.id;
-  files.result["cell_time_s"] = 123.4;
-  if (!options.remeasured.empty()) files.result["remeasured"] = options.remeasured;
+  result.session = options.id;
+  result.cell_time_s = 123.4;
+  if (!options.remeasured.empty()) result.remeasured = options.remeasured;
   if (options.identity) {
-    files.result["cell"] = {{"controller",
-                             {{"robot_type", "IRB 1600-10/1.45"},
-                              {"serial", "1600-504321"},
-                              {"software_version", "6.15.01.00"}}},
-                            {"psd_map", "/etc/zerocal/psd-map.txt, fingerprint 0123456789abcdef"}};
-    files.result["zerocal_version"] = "0.1.0";
-    files.result["finished_unix_s"] = 1796137200;  // 2026-12-01 15:00 UTC
+    result.cell = ResultFile::Cell{{"1600-504321", "6.15.01.00", "IRB 1600-10/1.45"},
+                                   "/etc/zerocal/psd-map.txt, fingerprint 0123456789abcdef"};
+    result.zerocal_version = "0.1.0";
+    result.finished_unix_s = 1796137200;  // 2026-12-01 15:00 UTC
   }
-  files.result["truth"] = nlohmann::json::object();
+  result.truth.emplace();
   for (int k = 0; k < kOffsetCount; ++k)
-    files.result["truth"][unknownName(k)] = sc.truth.delta_rad[k] * kRadToDeg;
+    result.truth->offsets_deg[k] = sc.truth.delta_rad[k] * kRadToDeg;
   return files;
 }
 
@@ -106,12 +102,12 @@ std::string makeSession(const std::string& name, const FixtureOptions& options) 
   const fs::path dir = fs::path(ZEROCAL_REPORT_FIXTURE_DIR) / name;
   fs::remove_all(dir);
   fs::create_directories(dir);
-  report::SessionFiles files = sessionFiles(options);
-  std::ofstream(dir / "session.json") << files.session.dump(2) << "\n";
-  std::ofstream journal(dir / "journal.jsonl");
-  for (const auto& line : files.journal) journal << line.dump() << "\n";
+  const SessionFolder files = sessionFiles(options);
+  std::ofstream(dir / kSessionFileName) << toJson(files.session).dump(2) << "\n";
+  std::ofstream journal(dir / kJournalFileName);
+  for (const PoseRecord& line : files.journal) journal << toJson(line).dump() << "\n";
   journal.close();
-  std::ofstream(dir / "result.json") << files.result.dump(2) << "\n";
+  std::ofstream(dir / kResultFileName) << toJson(files.result).dump(2) << "\n";
   return dir.string();
 }
 

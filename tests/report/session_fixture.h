@@ -1,6 +1,6 @@
-// A finished session folder made the way zerocald makes one (session.json from toJson(Plan),
-// journal lines from toJson(PoseRecord), result.json from toJson(SolveReport)), from a simulated
-// recording, so that the report tests read real files without running the simulated cell.
+// A finished session folder made the way zerocald makes one (the store's SessionFile, the
+// journal's PoseRecords, a ResultFile around the solve), from a simulated recording, so that the
+// report tests read real files without running the simulated cell.
 #pragma once
 
 #include <string>
@@ -26,6 +26,6 @@ struct FixtureOptions {
 std::string makeSession(const std::string& name, const FixtureOptions& options = {});
 
 // The same session's files in memory (what readSessionFiles would return).
-report::SessionFiles sessionFiles(const FixtureOptions& options = {});
+SessionFolder sessionFiles(const FixtureOptions& options = {});
 
 }  // namespace zerocal::test

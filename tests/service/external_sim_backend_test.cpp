@@ -84,7 +84,7 @@ TEST(ExternalSim, SessionRunsToTheWorldsTruth) {
   ASSERT_EQ(end.state, SessionState::kDone) << end.message;
   // The servo's link and the board's spot link, both to the external simulator.
   EXPECT_GE(sim.connectionCount(), 2);
-  const nlohmann::json result = manager.result(id);
+  const nlohmann::json result = toJson(manager.result(id));
   const World truth = randomWorld(kSeed, WorldKind::kIdeal);
   for (int k = 0; k < kOffsetCount; ++k) {
     const std::string name = unknownName(k);

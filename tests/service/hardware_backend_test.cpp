@@ -122,7 +122,7 @@ TEST_F(HardwareBackendOnSimulatedCell, ConnectsReadsAndCalibratesThroughLibusbAn
   const std::string id = manager.start(testing::onStoredPlan(manager.defaultRequest(), "ideal-13"));
   const SessionStatus end = manager.waitIdle();
   ASSERT_EQ(end.state, SessionState::kDone) << end.message;
-  const nlohmann::json result = manager.result(id);
+  const nlohmann::json result = toJson(manager.result(id));
   EXPECT_FALSE(result.contains("truth"));  // a real cell does not know it
   for (int k = 0; k < kOffsetCount; ++k) {
     const std::string name = unknownName(k);

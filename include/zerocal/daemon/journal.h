@@ -1,13 +1,9 @@
-// Sessions on disk, so that a calibration survives a crash or kill -9 without losing or
-// duplicating a pose. Layout of one session, <data_dir>/<id>/:
-//   session.json   written once at creation: format, id, creation time, plan, config snapshot
-//   journal.jsonl  one JSON object per recorded pose, appended and fsync()ed before the caller
-//                  moves on; a pose is committed when its line, newline included, is on disk
-//   result.json    written (atomically) when the solve is done; a session without it is
-//                  unfinished and may be resumed
-// Ids are UTC creation times (20261122T050102Z, with a -002, -003... suffix on a clash), so they
-// sort by age. Units: joints in degrees, PSD coordinates and their standard errors in millimetres,
-// timestamps in nanoseconds since the Unix epoch (system clock), durations in seconds.
+// The journal of a session (journal.jsonl in its folder; zerocal/store/session_store.h), so that a
+// calibration survives a crash or kill -9 without losing or duplicating a pose: one JSON object
+// per recorded pose, appended and fsync()ed before the caller moves on; a pose is committed when
+// its line, newline included, is on disk. A session without result.json is unfinished and may be
+// resumed from its journal. Units: joints in degrees, PSD coordinates and their standard errors in
+// millimetres, timestamps in nanoseconds since the Unix epoch (system clock), durations in seconds.
 #pragma once
 
 #include <array>
@@ -116,50 +112,6 @@ class Journal {
   bool broken_ = false;
   std::vector<PoseRecord> records_;
   std::string dropped_;
-};
-
-struct SessionInfo {
-  std::string id;
-  std::string dir;
-  bool finished = false;   // result.json present
-  int planned_poses = 0;   // from session.json's plan.poses when present, else 0
-  int recorded_poses = 0;  // committed journal lines: poses measured or skipped
-  int skipped_poses = 0;   // of those, skipped
-  // Why the journal cannot be read back (a bad line before the last, indices out of order);
-  // empty when it can. A damaged session is listed but never resumed.
-  std::string damaged;
-};
-
-class SessionStore {
- public:
-  // Does not touch the disk.
-  explicit SessionStore(std::string data_dir);
-  ~SessionStore();
-
-  // Creates <data_dir>/<id>/ (and data_dir if needed) and session.json with the plan and config
-  // snapshot given, durably. Throws JournalError when the folder or file cannot be written.
-  SessionInfo create(const nlohmann::json& plan, const nlohmann::json& config_snapshot);
-  // Every folder of data_dir with a readable session.json, oldest first; others are skipped. A
-  // missing data_dir has none. A journal that cannot be read back marks its session `damaged`
-  // (warned about once) and never fails the listing. Thread-safe. A session's journal is parsed
-  // again only when its size or time changed, so listing a large archive costs a few stat()s a
-  // session. Throws JournalError only when data_dir itself cannot be listed.
-  std::vector<SessionInfo> list() const;
-  // The sessions that may be resumed: not finished, not damaged.
-  std::vector<SessionInfo> unfinished() const;
-  // session.json of that session. Throws JournalError.
-  nlohmann::json readSession(const std::string& id) const;
-  // Writes result.json atomically (temporary file, fsync, rename, fsync of the folder).
-  void writeResult(const std::string& id, const nlohmann::json& result);
-  // Writes another file of the session's folder atomically, as writeResult.
-  void writeFile(const std::string& id, const std::string& name, const std::string& text);
-  std::string journalPath(const std::string& id) const;
-  std::string sessionDir(const std::string& id) const;
-
- private:
-  struct Cache;
-  std::string data_dir_;
-  std::unique_ptr<Cache> cache_;
 };
 
 }  // namespace zerocal

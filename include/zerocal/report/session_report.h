@@ -14,6 +14,7 @@
 
 #include "zerocal/cell/controller_link.h"
 #include "zerocal/error.h"
+#include "zerocal/store/session_files.h"
 
 namespace zerocal::report {
 
@@ -22,14 +23,6 @@ namespace zerocal::report {
 class ReportError : public Error {
  public:
   using Error::Error;
-};
-
-// The three files of a session as parsed JSON, before any interpretation.
-struct SessionFiles {
-  std::string dir;
-  nlohmann::json session;               // session.json
-  std::vector<nlohmann::json> journal;  // journal.jsonl, one object per committed pose
-  nlohmann::json result;                // result.json
 };
 
 struct ParameterRow {
@@ -115,13 +108,13 @@ struct SessionReport {
 };
 
 // Reads session.json, journal.jsonl (committed lines, through readJournal's checks) and
-// result.json of a session folder. Throws ReportError naming the missing or unreadable file, or
-// JournalError for an inconsistent journal.
-SessionFiles readSessionFiles(const std::string& session_dir);
+// result.json of a session folder (readSessionFolder). Throws ReportError naming the missing or
+// unreadable file or the member missing or of the wrong type, or JournalError for an
+// inconsistent journal.
+SessionFolder readSessionFiles(const std::string& session_dir);
 
-// Interprets the files. Throws ReportError when a key is missing or of the wrong type, or the
-// files disagree (session id, number of poses).
-SessionReport parseSession(const SessionFiles& files);
+// Interprets the files. Throws ReportError when they disagree (session id, number of poses).
+SessionReport parseSession(const SessionFolder& files);
 
 // The plain-text summary (summary.txt) and the self-contained HTML report (report.html: inline
 // CSS and SVG, no script, no external resource). Pure functions of the parsed session.

@@ -17,6 +17,7 @@
 #include "zerocal/daemon/journal.h"
 #include "zerocal/error.h"
 #include "zerocal/service/plan_kind.h"
+#include "zerocal/store/session_store.h"
 
 namespace zerocal::service {
 
@@ -152,7 +153,7 @@ class SessionControl {
   virtual std::vector<SessionInfo> sessions() const = 0;
   // result.json of a finished session (the latest one when `id` is empty). Throws
   // Refused("not_found").
-  virtual nlohmann::json result(const std::string& id) const = 0;
+  virtual ResultFile result(const std::string& id) const = 0;
   // One PSD reading: the running session's latest, or one taken now when no session runs (on the
   // worker thread). `done` is called exactly once, from any thread, with the reading or an error.
   using ReadingDone = std::function<void(std::optional<LiveReading>, const std::string& error)>;

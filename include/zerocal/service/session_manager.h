@@ -54,7 +54,7 @@ class SessionManager final : public SessionControl {
   std::string resume(const ResumeRequest& request) override;
   bool abort() override;
   std::vector<SessionInfo> sessions() const override;
-  nlohmann::json result(const std::string& id) const override;
+  ResultFile result(const std::string& id) const override;
   void readPsd(ReadingDone done) override;
   void setEventSink(EventSink sink) override;
 

@@ -1,0 +1,201 @@
+#include "zerocal/store/session_files.h"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "zerocal/calib/format.h"
+#include "zerocal/error.h"
+#include "zerocal/io/json_reader.h"
+
+namespace zerocal {
+namespace {
+
+namespace fs = std::filesystem;
+using Json = nlohmann::json;
+
+constexpr const char* kSessionWhere = "session.json";
+constexpr const char* kResultWhere = "result.json";
+
+Json toJson(const PoseTimes& p) {
+  if (!p.skipped.empty()) return {{"pose", p.pose}, {"skipped", p.skipped}};
+  Json j{{"pose", p.pose},
+         {"move_s", p.servo.move_s},
+         {"acquisition_s", p.servo.acquisition_s},
+         {"servo_s", p.servo.servo_s},
+         {"settle_s", p.servo.settle_s},
+         {"servo_moves", p.servo.moves},
+         {"search_moves", p.servo.search_moves},
+         {"iterations", p.servo.iterations},
+         {"final_error_um", p.servo.final_error_um}};
+  if (p.again) j["again"] = true;
+  if (p.move_overhead_s) j["move_overhead_s"] = *p.move_overhead_s;
+  if (p.fine_point_settle_s) j["fine_point_settle_s"] = *p.fine_point_settle_s;
+  return j;
+}
+
+PoseTimes poseTimesFromJson(const JsonReader& j) {
+  PoseTimes p;
+  p.pose = j.integer("pose");
+  if (j.has("skipped")) {
+    p.skipped = j.string("skipped");
+    return p;
+  }
+  p.servo.move_s = j.number("move_s");
+  p.servo.acquisition_s = j.number("acquisition_s");
+  p.servo.servo_s = j.number("servo_s");
+  p.servo.settle_s = j.number("settle_s");
+  p.servo.moves = j.integer("servo_moves");
+  p.servo.search_moves = j.has("search_moves") ? j.integer("search_moves") : 0;
+  p.servo.iterations = j.integer("iterations");
+  p.servo.final_error_um = j.number("final_error_um");
+  p.again = j.has("again") && j.boolean("again");
+  p.move_overhead_s = j.optionalNumber("move_overhead_s");
+  p.fine_point_settle_s = j.optionalNumber("fine_point_settle_s");
+  return p;
+}
+
+}  // namespace
+
+Json toJson(const SessionFile& s) {
+  Json plan = toJson(s.plan);
+  plan["target_mm"] = {s.target_mm.x(), s.target_mm.y(), s.target_mm.z()};
+  plan["noise_mm"] = s.noise_mm;
+  return {{"format", s.format},
+          {"id", s.id},
+          {"created_unix_s", s.created_unix_s},
+          {"plan", plan},
+          {"config", s.config}};
+}
+
+SessionFile sessionFileFromJson(const Json& json) {
+  const JsonReader j(json, kSessionWhere);
+  SessionFile s;
+  s.format = j.string("format");
+  s.id = j.string("id");
+  s.created_unix_s = j.has("created_unix_s") ? j.integer64("created_unix_s") : 0;
+  const JsonReader plan = j.object("plan");
+  s.plan = planFromJson(plan.json(), plan.where());
+  const std::vector<double> target = plan.numbers("target_mm", 3);
+  s.target_mm = {target[0], target[1], target[2]};
+  s.noise_mm = plan.number("noise_mm");
+  s.config = j.has("config") ? j.at("config") : Json::object();
+  return s;
+}
+
+Json toJson(const ResultFile& r) {
+  Json j = toJson(r.report);
+  if (!r.verdict_recorded) j.erase("verdict");
+  if (r.validation) j["validation"] = toJson(*r.validation);
+  if (!r.session.empty()) j["session"] = r.session;
+  if (r.cell_time_s) j["cell_time_s"] = *r.cell_time_s;
+  if (r.resumed_from) j["resumed_from"] = *r.resumed_from;
+  if (r.remeasured) j["remeasured"] = *r.remeasured;
+  if (r.cell)
+    j["cell"] = {{"controller",
+                  {{"robot_type", r.cell->controller.robot_type},
+                   {"serial", r.cell->controller.serial},
+                   {"software_version", r.cell->controller.software_version}}},
+                 {"psd_map", r.cell->psd_map}};
+  if (!r.zerocal_version.empty()) j["zerocal_version"] = r.zerocal_version;
+  if (r.finished_unix_s) j["finished_unix_s"] = *r.finished_unix_s;
+  if (r.recoveries)
+    j["recoveries"] = {{"reconnects", r.recoveries->reconnects},
+                       {"reopens", r.recoveries->reopens}};
+  if (r.truth) {
+    Json truth = Json::object();
+    for (int k = 0; k < kOffsetCount; ++k) truth[unknownName(k)] = r.truth->offsets_deg[k];
+    if (!r.truth->world_file.empty()) truth["world_file"] = r.truth->world_file;
+    j["truth"] = truth;
+  }
+  if (r.pose_breakdown) {
+    j["pose_breakdown"] = Json::array();
+    for (const PoseTimes& p : *r.pose_breakdown) j["pose_breakdown"].push_back(toJson(p));
+  }
+  return j;
+}
+
+ResultFile resultFileFromJson(const Json& json) {
+  const JsonReader j(json, kResultWhere);
+  ResultFile r;
+  r.report = solveReportFromJson(json, kResultWhere);
+  r.verdict_recorded = j.has("verdict");
+  if (j.has("validation"))
+    r.validation = holdoutReportFromJson(j.at("validation"), "result.json validation");
+  r.session = j.has("session") ? j.string("session") : "";
+  r.cell_time_s = j.optionalNumber("cell_time_s");
+  if (j.has("resumed_from")) r.resumed_from = j.integer("resumed_from");
+  if (j.has("remeasured")) {
+    r.remeasured.emplace();
+    for (const Json& pose : j.array("remeasured")) {
+      if (!pose.is_number_integer())
+        throw InputError("result.json remeasured: not a list of pose numbers");
+      r.remeasured->push_back(pose.get<int>());
+    }
+  }
+  if (j.has("cell")) {
+    const JsonReader cell = j.object("cell");
+    ResultFile::Cell c;
+    if (cell.has("controller")) {
+      const JsonReader controller = cell.object("controller");
+      c.controller.robot_type = controller.stringOr("robot_type", "");
+      c.controller.serial = controller.stringOr("serial", "");
+      c.controller.software_version = controller.stringOr("software_version", "");
+    }
+    c.psd_map = cell.stringOr("psd_map", "");
+    r.cell = c;
+  }
+  r.zerocal_version = j.stringOr("zerocal_version", "");
+  if (j.has("finished_unix_s")) r.finished_unix_s = j.integer64("finished_unix_s");
+  if (j.has("recoveries")) {
+    const JsonReader rec = j.object("recoveries");
+    r.recoveries = ResultFile::Recoveries{rec.integer("reconnects"), rec.integer("reopens")};
+  }
+  if (j.present("truth")) {
+    const JsonReader truth = j.object("truth");
+    ResultFile::Truth t;
+    for (int k = 0; k < kOffsetCount; ++k)
+      t.offsets_deg[k] = truth.numberOrNan(unknownName(k).c_str());
+    t.world_file = truth.stringOr("world_file", "");
+    r.truth = t;
+  }
+  if (j.has("pose_breakdown")) {
+    r.pose_breakdown.emplace();
+    for (std::size_t i = 0; i < j.array("pose_breakdown").size(); ++i)
+      r.pose_breakdown->push_back(poseTimesFromJson(j.element("pose_breakdown", i)));
+  }
+  return r;
+}
+
+Json readJsonFile(const std::string& path, const std::string& what) {
+  std::ifstream in(path);
+  if (!in)
+    throw FileError(path + ": cannot open " + what + (fs::exists(path) ? "" : " (no such file)"));
+  try {
+    return Json::parse(in);
+  } catch (const Json::exception& e) {
+    throw FileError(path + ": " + what + " is not valid JSON: " + e.what());
+  }
+}
+
+SessionFolder readSessionFolder(const std::string& session_dir) {
+  const fs::path dir(session_dir);
+  if (!fs::is_directory(dir)) throw FileError(session_dir + ": not a session folder");
+  SessionFolder folder;
+  folder.dir = session_dir;
+  folder.session =
+      sessionFileFromJson(readJsonFile((dir / kSessionFileName).string(), "the session file"));
+  const fs::path result = dir / kResultFileName;
+  if (!fs::exists(result))
+    throw FileError(result.string() +
+                    ": no result: the session is unfinished or its solve failed, so there is "
+                    "nothing to report yet");
+  folder.result = resultFileFromJson(readJsonFile(result.string(), "the result"));
+  const fs::path journal = dir / kJournalFileName;
+  if (!fs::exists(journal))
+    throw FileError(journal.string() + ": no journal: the recorded poses are missing");
+  folder.journal = readJournal(journal.string()).records;
+  return folder;
+}
+
+}  // namespace zerocal

@@ -1,0 +1,111 @@
+// The store's codecs are the only code that reads and writes session.json and result.json: every
+// member written must come back, so a file read and written again is the same file.
+#include "zerocal/store/session_files.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "session_fixture.h"
+#include "zerocal/error.h"
+
+namespace zerocal {
+namespace {
+
+using nlohmann::json;
+
+void expectRoundTrip(const SessionFolder& files) {
+  const json session = toJson(files.session);
+  EXPECT_EQ(toJson(sessionFileFromJson(session)), session);
+  const json result = toJson(files.result);
+  EXPECT_EQ(toJson(resultFileFromJson(result)), result);
+}
+
+TEST(SessionFiles, EveryMemberOfAFinishedSessionComesBack) {
+  expectRoundTrip(test::sessionFiles());
+  test::FixtureOptions held_out;
+  held_out.held_out = {3, 7};
+  expectRoundTrip(test::sessionFiles(held_out));
+  test::FixtureOptions resumed;
+  resumed.skipped = {2};
+  resumed.remeasured = {4};
+  resumed.identity = false;
+  expectRoundTrip(test::sessionFiles(resumed));
+}
+
+TEST(SessionFiles, TheDaemonsMembersComeBack) {
+  SessionFolder files = test::sessionFiles();
+  ResultFile& r = files.result;
+  r.resumed_from = 3;
+  r.remeasured = std::vector<int>{2, 5};
+  r.recoveries = ResultFile::Recoveries{1, 2};
+  r.truth->world_file = "truth-world.yaml";
+  PoseTimes measured;
+  measured.pose = 1;
+  measured.servo.move_s = 1.25;
+  measured.servo.moves = 7;
+  measured.servo.search_moves = 2;
+  measured.again = true;
+  measured.move_overhead_s = 2.4;
+  measured.fine_point_settle_s = 0.8;
+  PoseTimes skipped;
+  skipped.pose = 2;
+  skipped.skipped = "servo spot not found";
+  r.pose_breakdown = std::vector<PoseTimes>{measured, skipped};
+  const json j = toJson(r);
+  EXPECT_EQ(j["pose_breakdown"][0]["servo_moves"], 7);
+  EXPECT_EQ(j["pose_breakdown"][1], json::parse(R"({"pose":2,"skipped":"servo spot not found"})"));
+  const ResultFile back = resultFileFromJson(j);
+  EXPECT_EQ(toJson(back), j);
+  ASSERT_TRUE(back.pose_breakdown);
+  EXPECT_EQ(back.pose_breakdown->at(0).servo.search_moves, 2);
+  EXPECT_EQ(back.pose_breakdown->at(1).skipped, "servo spot not found");
+  EXPECT_EQ(back.truth->world_file, "truth-world.yaml");
+  // The solve itself, typed: what a reader uses.
+  EXPECT_EQ(back.report.parameters.size(), r.report.parameters.size());
+  EXPECT_EQ(back.report.parameters[0].value, r.report.parameters[0].value);
+  EXPECT_EQ(back.report.estimate.target_mm, r.report.estimate.target_mm);
+  EXPECT_NEAR(back.report.estimate.delta_rad[1], r.report.estimate.delta_rad[1], 1e-15);
+}
+
+TEST(SessionFiles, AMissingMemberIsNamedWithItsFile) {
+  json result = toJson(test::sessionFiles().result);
+  result.erase("converged");
+  try {
+    resultFileFromJson(result);
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), "result.json: 'converged' is missing");
+  }
+  json session = toJson(test::sessionFiles().session);
+  session["plan"].erase("noise_mm");
+  try {
+    sessionFileFromJson(session);
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), "session.json plan: 'noise_mm' is missing");
+  }
+  session = toJson(test::sessionFiles().session);
+  session["plan"]["poses"][1] = {1, 2, 3};
+  EXPECT_THROW(sessionFileFromJson(session), InputError);
+}
+
+TEST(SessionFiles, AResultWrittenBeforeVerdictsStaysWithoutOne) {
+  json result = toJson(test::sessionFiles().result);
+  result.erase("verdict");
+  const ResultFile r = resultFileFromJson(result);
+  EXPECT_FALSE(r.verdict_recorded);
+  EXPECT_EQ(toJson(r), result);
+}
+
+TEST(SessionFiles, AHandEditedPlanWithoutAPredictionPredictsNothing) {
+  json session = toJson(test::sessionFiles().session);
+  session["plan"].erase("predicted");
+  const SessionFile s = sessionFileFromJson(session);
+  ASSERT_EQ(s.plan.prediction.sigma.size(), 8u);
+  EXPECT_TRUE(std::isnan(s.plan.prediction.sigma[0]));
+  EXPECT_FALSE(s.plan.prediction.identifiable[0]);
+}
+
+}  // namespace
+}  // namespace zerocal

@@ -63,12 +63,8 @@ std::unique_ptr<CellBackend> makeBackend(const DaemonConfig& cfg) {
 
 ManagerSettings managerSettingsOf(const DaemonConfig& cfg) {
   ManagerSettings s;
-  s.data_dir = cfg.session.data_dir;
+  s.session = cfg.session;
   s.run = runSettingsOf(cfg);
-  s.noise_mm = cfg.session.noise_mm;
-  s.plan = cfg.session.plan;
-  s.poses = cfg.session.poses;
-  s.plan_file = cfg.session.plan_file;
   if (cfg.backend.kind == BackendKind::kHardware) {
     const auto& t = cfg.session.target_mm;
     s.target_mm = Eigen::Vector3d(t[0], t[1], t[2]);

@@ -203,7 +203,9 @@ int main(int argc, char** argv) {
   std::vector<double> standoff{plan_options.standoff_min_mm, plan_options.standoff_max_mm};
   std::vector<double> psd_normal{0, 0, 1};
   bool plan_json = false;
-  double plan_noise = 0.05 / std::sqrt(3.0);
+  // A plan made here predicts with the planner's own sigma (the PSD's +-0.05 mm read as uniform);
+  // on the daemon (no --robot) a plan left without --noise gets session.noise_mm instead.
+  double plan_noise = plan_options.noise_mm;
   auto* target_option =
       plan_cmd->add_option("--target", target, "nominal target (PSD centre) in the base frame, mm")
           ->expected(3);

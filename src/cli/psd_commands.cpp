@@ -10,6 +10,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "zerocal/daemon/config.h"
 #include "zerocal/error.h"
 #include "zerocal/psd/psd.h"
 #include "zerocal/psd/psd_config.h"
@@ -55,7 +56,7 @@ void addPsdCommands(CLI::App& app, PsdCommands& c) {
   c.map->add_option("sweep", c.map_args.sweep_file, "sweep CSV: u_mm,v_mm,x_v,y_v,sum_v")
       ->required();
   c.map->add_option("--out", c.map_args.out_file,
-                    "write the map as YAML for the configuration (map_file in psd.yaml)");
+                    "write the map as YAML for the configuration (daq.map_file)");
   c.map->add_flag("--json", c.map_args.json, "print one JSON object instead of text");
   c.map->add_option("--degree", c.map_args.degree, "total degree of the polynomial")
       ->default_val(c.map_args.degree)
@@ -70,8 +71,9 @@ void addPsdCommands(CLI::App& app, PsdCommands& c) {
   c.live->add_flag("--sim", c.live_args.sim,
                    "simulated PSD and board through the same USB-1408FS protocol code");
   c.live->add_option("--config", c.live_args.config_file,
-                     "YAML with a psd: section (config/psd.yaml); default: channels 0, 1, 2 "
-                     "differential +-5 V, 64 samples at 16 kHz, no map (volts only)");
+                     "YAML with a daq: section: zerocald's configuration file, or config/psd.yaml; "
+                     "default: zerocald's daq defaults (channels 0, 1, 2 differential +-5 V, 100 "
+                     "samples at 1 kHz, no map: volts only)");
   c.live->add_option("--count", c.live_args.count, "number of readings")
       ->default_val(c.live_args.count)
       ->check(CLI::Range(1, 1000000));
@@ -157,15 +159,15 @@ int runPsdMap(const PsdMapArgs& args) {
 }
 
 int runPsd(const PsdArgs& args) {
-  psd::PsdConfig config;
-  if (!args.config_file.empty()) {
-    config = psd::loadPsdConfig(args.config_file);
-  } else {
-    config.validate("default PSD configuration");
-  }
-  if (!config.map && args.sim) {
+  // The daemon's daq section, read and checked as the daemon reads it; without a file, its
+  // defaults.
+  const psd::PsdConfig config =
+      args.config_file.empty() ? psd::PsdConfig{} : loadDaqSection(args.config_file);
+  std::optional<psd::PsdMap> map;
+  if (!config.map_file.empty()) map = psd::loadPsdMap(config.map_file);
+  if (!map && args.sim) {
     std::cerr << "zerocal: no map configured; using one fitted from a simulated sweep\n";
-    config.map = mapFromSimulatedSweep(config, args.seed);
+    map = mapFromSimulatedSweep(config, args.seed);
   }
 
   // The simulated rig and the real board meet at the same Usb1408fs: only the transport differs.
@@ -187,15 +189,16 @@ int runPsd(const PsdArgs& args) {
     daq = board.get();
   }
   // Said once the board is open, so that a missing board is the only message when it is absent.
-  if (!config.map) {
-    std::cerr << "zerocal: no map configured (map_file in the psd: section): volts only\n";
+  if (!map) {
+    std::cerr << "zerocal: no map configured (map_file in the daq: section): volts only\n";
   }
 
-  psd::PsdStream stream(*daq, config.channels, config.samples, config.rate_hz);
-  psd::SpotDetector detector(config.sum_threshold_v, config.sum_off_threshold_v);
+  const auto samples = static_cast<std::size_t>(config.samples_per_reading);
+  psd::PsdStream stream(*daq, config.channels, samples, config.scan_rate_hz);
+  psd::SpotDetector detector(config.sum_threshold_v, config.sumOffThresholdV());
   // Twice a block's acquisition plus USB latency: a missing reading means the board stalled.
   const auto timeout = std::chrono::milliseconds(
-      100 + static_cast<long>(2000.0 * static_cast<double>(config.samples) / config.rate_hz));
+      100 + static_cast<long>(2000.0 * static_cast<double>(samples) / config.scan_rate_hz));
   for (std::size_t k = 0; k < args.count; ++k) {
     psd::VoltageReading r;
     if (!stream.next(r, timeout)) {
@@ -204,8 +207,8 @@ int runPsd(const PsdArgs& args) {
     }
     const bool present = detector.update(r);
     psd::SpotPosition p;
-    if (config.map) p = config.map->apply(r);
-    const bool have_uv = config.map && present && p.present;
+    if (map) p = map->apply(r);
+    const bool have_uv = map && present && p.present;
     const bool valid = have_uv && p.valid;
     if (args.json) {
       nlohmann::json j;
@@ -233,7 +236,7 @@ int runPsd(const PsdArgs& args) {
     line += format("SUM %.4f V  ", r.sum);
     if (!present) {
       line += "no spot";
-    } else if (!config.map) {
+    } else if (!map) {
       line += "spot present";
     } else if (!p.present) {
       line += "spot present, too little light for the map (SUM below its min_sum_v)";

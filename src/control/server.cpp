@@ -84,10 +84,12 @@ class Connection;
 
 class ServerCore : public std::enable_shared_from_this<ServerCore> {
  public:
-  ServerCore(asio::io_context& io, service::SessionControl& session, ServerOptions options)
+  ServerCore(asio::io_context& io, service::SessionControl& session, ServerOptions options,
+             service::StartRequest default_request)
       : io_(io),
         session_(session),
         options_(std::move(options)),
+        default_request_(std::move(default_request)),
         acceptor_(io),
         accept_retry_(io),
         status_timer_(io),
@@ -102,6 +104,7 @@ class ServerCore : public std::enable_shared_from_this<ServerCore> {
   asio::io_context& io_;
   service::SessionControl& session_;
   const ServerOptions options_;
+  const service::StartRequest default_request_;
   tcp::acceptor acceptor_;
   asio::steady_timer accept_retry_;
   asio::steady_timer status_timer_;
@@ -296,7 +299,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
     } else if (cmd == "status") {
       r["status"] = toJson(session.status());
     } else if (cmd == "start") {
-      const auto start = planFileInPlanDir(parseStartRequest(request, options.default_request),
+      const auto start = planFileInPlanDir(parseStartRequest(request, server_->default_request_),
                                            request, options.plan_dir);
       return answerAside(id, [&session, start, log = server_->log_, peer = peer_] {
         const auto session_id = session.start(start);
@@ -330,7 +333,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
       readPsd(id);
       return false;
     } else if (cmd == "plan") {
-      const auto plan = planFileInPlanDir(parseStartRequest(request, options.default_request),
+      const auto plan = planFileInPlanDir(parseStartRequest(request, server_->default_request_),
                                           request, options.plan_dir);
       return answerAside(id, [&session, plan] {
         return json{{"plan", toJson(session.preview(plan))}};
@@ -621,35 +624,13 @@ void ServerCore::startStatusTimer() {
   });
 }
 
-ServerOptions serverOptions(const ControlConfig& config, std::string token,
-                            std::string daemon_version) {
-  using std::chrono::duration;
-  using std::chrono::duration_cast;
-  using std::chrono::milliseconds;
-  ServerOptions o;
-  o.bind_address = config.bind_address;
-  o.port = config.port;
-  o.token = std::move(token);
-  o.daemon_version = std::move(daemon_version);
-  o.max_clients = static_cast<std::size_t>(config.max_clients);
-  o.max_line_bytes = static_cast<std::size_t>(config.max_line_bytes);
-  o.idle_timeout = duration_cast<milliseconds>(duration<double>(config.idle_timeout_s));
-  o.write_timeout = duration_cast<milliseconds>(duration<double>(config.write_timeout_s));
-  o.max_queued_bytes = static_cast<std::size_t>(config.max_queued_kib) * 1024;
-  o.max_auth_failures = config.max_auth_failures;
-  o.max_clients_per_peer = static_cast<std::size_t>(config.max_clients_per_peer);
-  o.auth_timeout = duration_cast<milliseconds>(duration<double>(config.auth_timeout_s));
-  o.plan_dir = config.plan_dir;
-  return o;
-}
-
 ControlServer::ControlServer(asio::io_context& io, service::SessionControl& session,
-                             ServerOptions options) {
+                             ServerOptions options, service::StartRequest default_request) {
   if (options.token.empty()) throw Error("the control port needs a token (control.token_file)");
   if (options.max_clients < 1 || options.max_line_bytes < 64 || options.max_auth_failures < 1 ||
       options.max_clients_per_peer < 1 || options.auth_timeout.count() < 1)
     throw Error("control options out of range");
-  impl_ = std::make_shared<ServerCore>(io, session, std::move(options));
+  impl_ = std::make_shared<ServerCore>(io, session, std::move(options), std::move(default_request));
   auto executor = io.get_executor();
   std::weak_ptr<ServerCore> weak = impl_;
   // Called on the session's worker thread: only a post, never a wait; the line is made on the

@@ -75,11 +75,16 @@ Field integerField(std::string path, T& target) {
           [&target](const YAML::Node& node, const std::string&) -> std::string {
             long long value = 0;
             if (!parseInteger(node, value)) return "expected an integer, got " + describe(node);
-            if (value < static_cast<long long>(std::numeric_limits<T>::min()) ||
-                value > static_cast<long long>(std::numeric_limits<T>::max()))
-              return node.Scalar() + " does not fit (" +
-                     std::to_string(std::numeric_limits<T>::min()) + ".." +
-                     std::to_string(std::numeric_limits<T>::max()) + ")";
+            // Compared as long long: the widest member types (std::size_t) are capped there.
+            constexpr long long lo = static_cast<long long>(std::numeric_limits<T>::min());
+            constexpr long long hi =
+                std::numeric_limits<T>::max() >
+                        static_cast<unsigned long long>(std::numeric_limits<long long>::max())
+                    ? std::numeric_limits<long long>::max()
+                    : static_cast<long long>(std::numeric_limits<T>::max());
+            if (value < lo || value > hi)
+              return node.Scalar() + " does not fit (" + std::to_string(lo) + ".." +
+                     std::to_string(hi) + ")";
             target = static_cast<T>(value);
             return {};
           },
@@ -96,6 +101,38 @@ Field millisField(std::string path, std::chrono::milliseconds& target) {
             return {};
           },
           [&target] { return Json(target.count()); }};
+}
+
+// A key in seconds (a number) for a member in milliseconds; fractions of a millisecond are cut
+// off, as the timers that use the member count whole milliseconds.
+Field secondsField(std::string path, std::chrono::milliseconds& target) {
+  return {std::move(path),
+          [&target](const YAML::Node& node, const std::string&) -> std::string {
+            double value = 0;
+            if (!parseReal(node, value))
+              return "expected a number (seconds), got " + describe(node);
+            if (!std::isfinite(value) || std::abs(value) > 1e9)
+              return "expected a finite number of seconds, got " + describe(node);
+            target = std::chrono::duration_cast<std::chrono::milliseconds>(
+                std::chrono::duration<double>(value));
+            return {};
+          },
+          [&target] { return Json(std::chrono::duration<double>(target).count()); }};
+}
+
+// A key in KiB for a member in bytes.
+Field kibField(std::string path, std::size_t& target_bytes) {
+  return {std::move(path),
+          [&target_bytes](const YAML::Node& node, const std::string&) -> std::string {
+            long long value = 0;
+            if (!parseInteger(node, value))
+              return "expected an integer (KiB), got " + describe(node);
+            if (value < 0 || value > (1LL << 40))
+              return node.Scalar() + " does not fit (0.." + std::to_string(1LL << 40) + ")";
+            target_bytes = static_cast<std::size_t>(value) * 1024;
+            return {};
+          },
+          [&target_bytes] { return Json(static_cast<long long>(target_bytes / 1024)); }};
 }
 
 Field realField(std::string path, double& target) {
@@ -236,18 +273,20 @@ std::vector<Field> schema(DaemonConfig& c) {
   f.push_back(
       choiceField<ControllerKind>("controller.kind", k.kind, {{"irc5", ControllerKind::kIrc5}}));
   f.push_back(pathField("controller.robot", k.robot, "builtin"));
-  f.push_back(textField("controller.host", k.host));
-  f.push_back(integerField("controller.port", k.port));
-  f.push_back(millisField("controller.connect_timeout_ms", k.connect_timeout));
-  f.push_back(millisField("controller.request_timeout_ms", k.request_timeout));
-  f.push_back(realField("controller.move_timeout_factor", k.move_timeout_factor));
-  f.push_back(millisField("controller.move_timeout_margin_ms", k.move_timeout_margin));
-  f.push_back(realField("controller.speed_tcp_mm_s", k.speed_tcp_mm_s));
-  f.push_back(realField("controller.speed_ori_deg_s", k.speed_ori_deg_s));
-  f.push_back(realField("controller.limit_margin_deg", k.limit_margin_deg));
+  auto& l = k.irc5;
+  f.push_back(textField("controller.host", l.host));
+  f.push_back(integerField("controller.port", l.port));
+  f.push_back(millisField("controller.connect_timeout_ms", l.connect_timeout));
+  f.push_back(millisField("controller.request_timeout_ms", l.request_timeout));
+  f.push_back(realField("controller.move_timeout_factor", l.move_timeout_factor));
+  f.push_back(millisField("controller.move_timeout_margin_ms", l.move_timeout_margin));
+  f.push_back(realField("controller.speed_tcp_mm_s", l.speed_tcp_mm_s));
+  f.push_back(realField("controller.speed_ori_deg_s", l.speed_ori_deg_s));
+  f.push_back(realField("controller.limit_margin_deg", l.limit_margin_deg));
   f.push_back(realField("controller.max_step_deg", k.max_step_deg));
-  f.push_back(integerField("controller.reconnect_attempts", k.reconnect_attempts));
+  f.push_back(integerField("controller.reconnect_attempts", l.reconnect_attempts));
 
+  using psd::DaqKind;
   f.push_back(choiceField<DaqKind>("daq.kind", c.daq.kind, {{"usb-1408fs", DaqKind::kUsb1408fs}}));
   f.push_back(textField("daq.serial", c.daq.serial));
   addChannel(f, "x", c.daq.channels.x);
@@ -289,18 +328,19 @@ std::vector<Field> schema(DaemonConfig& c) {
   f.push_back(realField("session.model_angle_deg", c.session.model_angle_deg));
   f.push_back(pathField("session.data_dir", c.session.data_dir));
 
-  f.push_back(textField("control.bind_address", c.control.bind_address));
-  f.push_back(integerField("control.port", c.control.port));
-  f.push_back(pathField("control.token_file", c.control.token_file));
-  f.push_back(integerField("control.max_clients", c.control.max_clients));
-  f.push_back(integerField("control.max_line_bytes", c.control.max_line_bytes));
-  f.push_back(realField("control.idle_timeout_s", c.control.idle_timeout_s));
-  f.push_back(realField("control.write_timeout_s", c.control.write_timeout_s));
-  f.push_back(integerField("control.max_queued_kib", c.control.max_queued_kib));
-  f.push_back(integerField("control.max_auth_failures", c.control.max_auth_failures));
-  f.push_back(integerField("control.max_clients_per_peer", c.control.max_clients_per_peer));
-  f.push_back(realField("control.auth_timeout_s", c.control.auth_timeout_s));
-  f.push_back(pathField("control.plan_dir", c.control.plan_dir));
+  auto& o = c.control;
+  f.push_back(textField("control.bind_address", o.bind_address));
+  f.push_back(integerField("control.port", o.port));
+  f.push_back(pathField("control.token_file", o.token_file));
+  f.push_back(integerField("control.max_clients", o.max_clients));
+  f.push_back(integerField("control.max_line_bytes", o.max_line_bytes));
+  f.push_back(secondsField("control.idle_timeout_s", o.idle_timeout));
+  f.push_back(secondsField("control.write_timeout_s", o.write_timeout));
+  f.push_back(kibField("control.max_queued_kib", o.max_queued_bytes));
+  f.push_back(integerField("control.max_auth_failures", o.max_auth_failures));
+  f.push_back(integerField("control.max_clients_per_peer", o.max_clients_per_peer));
+  f.push_back(secondsField("control.auth_timeout_s", o.auth_timeout));
+  f.push_back(pathField("control.plan_dir", o.plan_dir));
 
   f.push_back(choiceField("logging.level", c.logging.level, kLevels));
   f.push_back(pathField("logging.directory", c.logging.directory));
@@ -402,6 +442,41 @@ class Checker {
   std::vector<std::string>& problems_;
 };
 
+// The daq section's checks, shared by zerocald and `zerocal psd` (loadDaqSection).
+void checkDaq(const psd::PsdConfig& d, Checker& check) {
+  // An empty map_file is refused by the hardware backend when it starts, not here: the
+  // compiled-in defaults stay a valid configuration for the simulated cell.
+  if (!d.map_file.empty()) check.fileExists("daq.map_file", d.map_file);
+
+  const std::pair<const char*, const usb1408fs::Channel*> channels[] = {
+      {"x", &d.channels.x}, {"y", &d.channels.y}, {"sum", &d.channels.sum}};
+  bool channels_valid = true;
+  for (const auto& [name, channel] : channels) {
+    const int highest = channel->mode == usb1408fs::InputMode::kDifferential ? 3 : 7;
+    check.range(std::string("daq.channels.") + name + ".number", channel->number, 0, highest);
+    channels_valid = channels_valid && channel->number >= 0 && channel->number <= highest;
+  }
+  for (std::size_t i = 0; i < 3; ++i)
+    for (std::size_t j = i + 1; j < 3; ++j) {
+      const bool shared = usb1408fs::sharesTerminal(*channels[i].second, *channels[j].second);
+      if (shared)
+        check.fail(std::string("daq.channels.") + channels[j].first,
+                   std::string("uses the same input as daq.channels.") + channels[i].first);
+      channels_valid = channels_valid && !shared;
+    }
+  // The board scans consecutive inputs, lowest first (docs/usb1408fs.md): x, y, sum in that order.
+  if (channels_valid &&
+      (usb1408fs::wireChannel(d.channels.y) != usb1408fs::wireChannel(d.channels.x) + 1 ||
+       usb1408fs::wireChannel(d.channels.sum) != usb1408fs::wireChannel(d.channels.y) + 1))
+    check.fail("daq.channels",
+               "x, y and sum must be consecutive inputs of one mode in that order (e.g. "
+               "differential 0, 1, 2): the USB-1408FS scans a range of inputs");
+  // The board converts at most 48 kS/s in all, shared by the three channels of a scan.
+  check.positive("daq.scan_rate_hz", d.scan_rate_hz, 16000.0);
+  check.range("daq.samples_per_reading", d.samples_per_reading, 1, 1000000);
+  check.range("daq.sum_threshold_v", d.sum_threshold_v, 0.0, 20.0);
+}
+
 std::string readFile(const fs::path& path, std::string& error) {
   std::ifstream in(path, std::ios::binary);
   if (!in) {
@@ -475,55 +550,25 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
                  "an external zerocal-sim needs both backend.sim_host and backend.sim_port");
   }
 
-  // An empty map_file is refused by the hardware backend when it starts, not here: the
-  // compiled-in defaults stay a valid configuration for the simulated cell.
-  if (!c.daq.map_file.empty()) check.fileExists("daq.map_file", c.daq.map_file);
-
   const auto& k = c.controller;
+  const auto& l = k.irc5;
   if (k.robot != "builtin") check.fileExists("controller.robot", k.robot);
-  if (b.kind == BackendKind::kHardware && k.host.empty())
+  if (b.kind == BackendKind::kHardware && l.host.empty())
     check.fail("controller.host", "must not be empty with backend.kind: hardware");
-  if (k.port == 0) check.fail("controller.port", "must be 1..65535");
-  check.positive("controller.connect_timeout_ms", k.connect_timeout.count(), 600000);
-  check.positive("controller.request_timeout_ms", k.request_timeout.count(), 600000);
-  check.range("controller.move_timeout_factor", k.move_timeout_factor, 1.0, 100.0);
-  check.range("controller.move_timeout_margin_ms", k.move_timeout_margin.count(), 0, 600000);
+  if (l.port == 0) check.fail("controller.port", "must be 1..65535");
+  check.positive("controller.connect_timeout_ms", l.connect_timeout.count(), 600000);
+  check.positive("controller.request_timeout_ms", l.request_timeout.count(), 600000);
+  check.range("controller.move_timeout_factor", l.move_timeout_factor, 1.0, 100.0);
+  check.range("controller.move_timeout_margin_ms", l.move_timeout_margin.count(), 0, 600000);
   // 7000 mm/s and 1000 deg/s are above any IRC5 robot's maximum: beyond them a value is a typo.
-  check.positive("controller.speed_tcp_mm_s", k.speed_tcp_mm_s, 7000.0);
-  check.positive("controller.speed_ori_deg_s", k.speed_ori_deg_s, 1000.0);
-  check.range("controller.limit_margin_deg", k.limit_margin_deg, 0.0, 30.0);
+  check.positive("controller.speed_tcp_mm_s", l.speed_tcp_mm_s, 7000.0);
+  check.positive("controller.speed_ori_deg_s", l.speed_ori_deg_s, 1000.0);
+  check.range("controller.limit_margin_deg", l.limit_margin_deg, 0.0, 30.0);
   // A calibration never needs one move larger than this; a larger step is a typing error.
   check.positive("controller.max_step_deg", k.max_step_deg, 45.0);
-  check.range("controller.reconnect_attempts", k.reconnect_attempts, 0, 1000);
+  check.range("controller.reconnect_attempts", l.reconnect_attempts, 0, 1000);
 
-  const auto& d = c.daq;
-  const std::pair<const char*, const usb1408fs::Channel*> channels[] = {
-      {"x", &d.channels.x}, {"y", &d.channels.y}, {"sum", &d.channels.sum}};
-  bool channels_valid = true;
-  for (const auto& [name, channel] : channels) {
-    const int highest = channel->mode == usb1408fs::InputMode::kDifferential ? 3 : 7;
-    check.range(std::string("daq.channels.") + name + ".number", channel->number, 0, highest);
-    channels_valid = channels_valid && channel->number >= 0 && channel->number <= highest;
-  }
-  for (std::size_t i = 0; i < 3; ++i)
-    for (std::size_t j = i + 1; j < 3; ++j) {
-      const bool shared = usb1408fs::sharesTerminal(*channels[i].second, *channels[j].second);
-      if (shared)
-        check.fail(std::string("daq.channels.") + channels[j].first,
-                   std::string("uses the same input as daq.channels.") + channels[i].first);
-      channels_valid = channels_valid && !shared;
-    }
-  // The board scans consecutive inputs, lowest first (docs/usb1408fs.md): x, y, sum in that order.
-  if (channels_valid &&
-      (usb1408fs::wireChannel(d.channels.y) != usb1408fs::wireChannel(d.channels.x) + 1 ||
-       usb1408fs::wireChannel(d.channels.sum) != usb1408fs::wireChannel(d.channels.y) + 1))
-    check.fail("daq.channels",
-               "x, y and sum must be consecutive inputs of one mode in that order (e.g. "
-               "differential 0, 1, 2): the USB-1408FS scans a range of inputs");
-  // The board converts at most 48 kS/s in all, shared by the three channels of a scan.
-  check.positive("daq.scan_rate_hz", d.scan_rate_hz, 16000.0);
-  check.range("daq.samples_per_reading", d.samples_per_reading, 1, 1000000);
-  check.range("daq.sum_threshold_v", d.sum_threshold_v, 0.0, 20.0);
+  checkDaq(c.daq, check);
 
   const auto& s = c.servo;
   check.positive("servo.tolerance_um", s.tolerance_um, 1000.0);
@@ -563,26 +608,30 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
   check.range("session.model_angle_deg", n.model_angle_deg, 0.0, 1.0);
   if (n.data_dir.empty()) check.fail("session.data_dir", "must not be empty");
 
+  const auto& o = c.control;
+  const auto seconds = [](std::chrono::milliseconds ms) {
+    return std::chrono::duration<double>(ms).count();
+  };
   boost::system::error_code ec;
-  const auto address = boost::asio::ip::make_address(c.control.bind_address, ec);
+  const auto address = boost::asio::ip::make_address(o.bind_address, ec);
   if (ec) {
-    check.fail("control.bind_address", "'" + c.control.bind_address + "' is not an IP address");
-  } else if (!address.is_loopback() && c.control.token_file.empty()) {
-    check.fail("control.token_file", "required when control.bind_address (" +
-                                         c.control.bind_address +
+    check.fail("control.bind_address", "'" + o.bind_address + "' is not an IP address");
+  } else if (!address.is_loopback() && o.token_file.empty()) {
+    check.fail("control.token_file", "required when control.bind_address (" + o.bind_address +
                                          ") is reachable from other machines");
   }
-  check.range("control.max_clients", c.control.max_clients, 1, 10000);
-  check.range("control.max_line_bytes", c.control.max_line_bytes, 1024, 16 << 20);
+  check.range("control.max_clients", static_cast<double>(o.max_clients), 1, 10000);
+  check.range("control.max_line_bytes", static_cast<double>(o.max_line_bytes), 1024, 16 << 20);
   // Below a second a terminal could not send its next line in time.
-  check.range("control.idle_timeout_s", c.control.idle_timeout_s, 1.0, 86400.0);
-  check.positive("control.write_timeout_s", c.control.write_timeout_s, 3600.0);
-  check.range("control.max_queued_kib", c.control.max_queued_kib, 64, 1 << 20);
-  check.range("control.max_auth_failures", c.control.max_auth_failures, 1, 100);
-  check.range("control.max_clients_per_peer", c.control.max_clients_per_peer, 1,
-              c.control.max_clients);
-  check.range("control.auth_timeout_s", c.control.auth_timeout_s, 0.5, 600.0);
-  if (!c.control.token_file.empty()) check.fileExists("control.token_file", c.control.token_file);
+  check.range("control.idle_timeout_s", seconds(o.idle_timeout), 1.0, 86400.0);
+  check.positive("control.write_timeout_s", seconds(o.write_timeout), 3600.0);
+  check.range("control.max_queued_kib", static_cast<double>(o.max_queued_bytes / 1024), 64,
+              1 << 20);
+  check.range("control.max_auth_failures", o.max_auth_failures, 1, 100);
+  check.range("control.max_clients_per_peer", static_cast<double>(o.max_clients_per_peer), 1,
+              static_cast<double>(o.max_clients));
+  check.range("control.auth_timeout_s", seconds(o.auth_timeout), 0.5, 600.0);
+  if (!o.token_file.empty()) check.fileExists("control.token_file", o.token_file);
 
   // The diagnostic log and the measured data are kept apart (house style).
   if (!c.logging.directory.empty() && !n.data_dir.empty() &&
@@ -656,6 +705,39 @@ std::vector<std::string> configKeys() {
   std::vector<std::string> keys;
   for (const auto& field : schema(scratch)) keys.push_back(field.path);
   return keys;
+}
+
+psd::PsdConfig loadDaqSection(const std::string& path) {
+  std::vector<std::string> problems;
+  std::string error;
+  const std::string text = readFile(path, error);
+  if (!error.empty()) throw ConfigError(path, {error});
+  YAML::Node root;
+  try {
+    root = YAML::Load(text);
+  } catch (const YAML::Exception& e) {
+    throw ConfigError(path,
+                      {(e.mark.is_null() ? "" : "line " + std::to_string(e.mark.line + 1) + ": ") +
+                       "not valid YAML: " + e.msg});
+  }
+  if (!root.IsMap() || !root["daq"]) {
+    if (root.IsMap() && root["psd"])
+      throw ConfigError(
+          path, {"the psd: section of earlier versions is now the daq: section of zerocald's "
+                 "configuration (docs/configuration.md): samples is samples_per_reading, rate_hz "
+                 "scan_rate_hz, a channel's input its number, range_v: 5 range: 5V; "
+                 "sum_off_threshold_v is 0.8 x sum_threshold_v, and the map is named by map_file"});
+    throw ConfigError(path, {"the file must hold a 'daq:' section at its top level"});
+  }
+  DaemonConfig config;
+  ConfigOrigins origins;
+  const auto fields = schema(config);
+  const std::string base_dir = fs::absolute(path).parent_path().string();
+  Layer{fields, path, base_dir, origins, problems}.walk(root["daq"], "daq");
+  Checker check(origins, problems);
+  checkDaq(config.daq, check);
+  if (!problems.empty()) throw ConfigError(path, std::move(problems));
+  return config.daq;
 }
 
 std::string logLevelName(LogLevel level) {

@@ -11,7 +11,7 @@ namespace zerocal::service {
 RunSettings runSettingsOf(const DaemonConfig& config) {
   RunSettings s;
   s.servo = config.servo;
-  s.servo.limit_margin_deg = config.controller.limit_margin_deg;
+  s.servo.limit_margin_deg = config.controller.irc5.limit_margin_deg;
   s.solve.noise_mm = config.session.noise_mm;
   s.solve.required_accuracy_deg = config.session.required_accuracy_deg;
   s.solve.model_length_mm = config.session.model_length_mm;
@@ -49,21 +49,22 @@ std::unique_ptr<CellBackend> makeBackend(const DaemonConfig& cfg) {
   }
   o.pace = cfg.backend.sim_pace;
   o.motion.overhead_s = cfg.backend.sim_move_overhead_s;
-  // The controller section applies to the simulated controller as to a real one.
+  // The controller section applies to the simulated controller as to a real one; only where the
+  // controller listens and how quickly to retry come from the simulated cell.
   return std::make_unique<sim::SimBackend>(std::move(o),
                                            [controller = cfg.controller](Irc5Options& client) {
-                                             client = irc5OptionsOf(controller, client);
+                                             Irc5Options link = irc5OptionsOf(controller);
+                                             link.host = client.host;
+                                             link.port = client.port;
+                                             link.backoff_initial = client.backoff_initial;
+                                             client = std::move(link);
                                            });
 }
 
 ManagerSettings managerSettingsOf(const DaemonConfig& cfg) {
   ManagerSettings s;
-  s.data_dir = cfg.session.data_dir;
+  s.session = cfg.session;
   s.run = runSettingsOf(cfg);
-  s.noise_mm = cfg.session.noise_mm;
-  s.plan = cfg.session.plan;
-  s.poses = cfg.session.poses;
-  s.plan_file = cfg.session.plan_file;
   if (cfg.backend.kind == BackendKind::kHardware) {
     const auto& t = cfg.session.target_mm;
     s.target_mm = Eigen::Vector3d(t[0], t[1], t[2]);

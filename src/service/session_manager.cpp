@@ -189,7 +189,7 @@ std::vector<bool> skippedPoses(const std::vector<PoseRecord>& records, std::size
 SessionManager::SessionManager(CellBackend& backend, ManagerSettings settings)
     : backend_(backend),
       settings_(std::move(settings)),
-      store_(settings_.data_dir),
+      store_(settings_.session.data_dir),
       knowledge_(backend.knowledge()),
       live_(std::make_unique<LiveSlot>()),
       board_(backend.name()) {}
@@ -226,18 +226,18 @@ std::chrono::steady_clock::duration SessionManager::workerStalledFor() const {
 
 StartRequest SessionManager::defaultRequest() const {
   StartRequest r;
-  r.plan = settings_.plan;
-  r.poses = settings_.poses;
-  r.plan_file = settings_.plan_file;
+  r.plan = settings_.session.plan;
+  r.poses = settings_.session.poses;
+  r.plan_file = settings_.session.plan_file;
   r.target_mm = settings_.target_mm;
-  r.noise_mm = settings_.noise_mm;
+  r.noise_mm = settings_.session.noise_mm;
   return r;
 }
 
 Plan SessionManager::makePlan(const StartRequest& request, Eigen::Vector3d& target,
                               double& noise_mm) const {
   target = request.target_mm.value_or(settings_.target_mm.value_or(knowledge_.taught_centre_mm));
-  noise_mm = request.noise_mm.value_or(settings_.noise_mm);
+  noise_mm = request.noise_mm.value_or(settings_.session.noise_mm);
   try {
     checkPlanInput(target, noise_mm);
     if (request.plan == PlanKind::kFile) {
@@ -316,7 +316,7 @@ std::string SessionManager::resume(const ResumeRequest& request) {
   std::optional<SessionInfo> info;
   for (const SessionInfo& s : store_.list())
     if (s.id == id) info = s;
-  if (!info) throw Refused("not_found", "no session " + id + " in " + settings_.data_dir);
+  if (!info) throw Refused("not_found", "no session " + id + " in " + settings_.session.data_dir);
   if (info->finished) throw Refused("finished", "session " + id + " is finished: see its result");
   if (!info->damaged.empty())
     throw Refused("damaged", "session " + id + " cannot be resumed, its journal is damaged: " +

@@ -180,15 +180,15 @@ int main(int argc, char** argv) {
       return runOnce(manager, io, json);
     }
 
-    std::string token;
+    control::ServerOptions options = cfg.control;  // the control section is the server's options
     try {
-      token = control::loadToken(cfg.control.token_file);
+      options.token = control::loadToken(options.token_file);
     } catch (const Error& e) {
       throw ConfigError("zerocald", {std::string("control.token_file: ") + e.what()});
     }
-    control::ServerOptions options = control::serverOptions(cfg.control, token, PROJECT_VERSION);
-    options.default_request = manager.defaultRequest();  // what `start` leaves out: session.*
-    control::ControlServer server(io, manager, std::move(options));
+    options.daemon_version = PROJECT_VERSION;
+    // What `start` leaves out comes from the session section.
+    control::ControlServer server(io, manager, std::move(options), manager.defaultRequest());
     try {
       server.start();
     } catch (const std::exception& e) {  // address in use, not an address of this machine

@@ -22,6 +22,7 @@
 #include "zerocal/control/client.h"
 #include "zerocal/control/protocol.h"
 #include "zerocal/control/token.h"
+#include "zerocal/daemon/config.h"
 #include "zerocal/daemon/logging.h"
 
 namespace zerocal::control {
@@ -110,17 +111,22 @@ TEST(ControlServerSetup, RefusesToStartWithoutAToken) {
   EXPECT_THROW(ControlServer(io, session, ServerOptions{}), Error);
 }
 
-TEST(ControlServerSetup, OptionsFromTheConfiguration) {
-  ControlConfig config;
-  config.idle_timeout_s = 1.5;
-  config.max_queued_kib = 64;
-  const auto o = serverOptions(config, "t", "1.0");
+TEST(ControlServerSetup, TheControlSectionIsTheServersOptions) {
+  DaemonConfig config;
+  ConfigOrigins origins;
+  std::vector<std::string> problems;
+  for (const char* assignment : {"control.idle_timeout_s=1.5", "control.max_queued_kib=64"})
+    applyConfigOverride(config, assignment, origins, problems);
+  EXPECT_TRUE(problems.empty());
+  const ServerOptions& o = config.control;
   EXPECT_EQ(o.bind_address, "127.0.0.1");
   EXPECT_EQ(o.port, 7450);
   EXPECT_EQ(o.max_line_bytes, 65536u);
   EXPECT_EQ(o.idle_timeout, 1500ms);
   EXPECT_EQ(o.max_queued_bytes, 65536u);
   EXPECT_EQ(o.max_auth_failures, 3);
+  EXPECT_EQ(configToJson(config)["control"]["idle_timeout_s"], 1.5);
+  EXPECT_EQ(configToJson(config)["control"]["max_queued_kib"], 64);
 }
 
 TEST(ControlServerSetup, ReportsAPortInUse) {

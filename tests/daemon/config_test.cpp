@@ -206,7 +206,7 @@ TEST_F(ConfigTest, DeviceKindsAreTheOnesZerocalCanDrive) {
   write("main.yaml", "controller: {kind: irc5}\ndaq: {kind: usb-1408fs}\n");
   const DaemonConfig accepted = loadDaemonConfig(sources());
   EXPECT_EQ(accepted.controller.kind, ControllerKind::kIrc5);
-  EXPECT_EQ(accepted.daq.kind, DaqKind::kUsb1408fs);
+  EXPECT_EQ(accepted.daq.kind, psd::DaqKind::kUsb1408fs);
 }
 
 TEST_F(ConfigTest, OutOfRangeValuesNameWhereTheyWereSet) {
@@ -316,6 +316,58 @@ TEST_F(ConfigTest, ShippedExampleIsCompleteAndEqualsTheDefaults) {
   EXPECT_TRUE(p.empty()) << joined(p);
   for (const auto& key : configKeys()) EXPECT_TRUE(origins.count(key)) << key << " not in example";
   EXPECT_EQ(configToJson(c), configToJson(DaemonConfig{}));
+}
+
+// `zerocal psd` reads the PSD chain's configuration as zerocald does: the daq section of a file.
+TEST_F(ConfigTest, TheDaqSectionAloneIsThePsdChainsConfiguration) {
+  const psd::PsdConfig rig = loadDaqSection(ZEROCAL_SOURCE_DIR "/config/psd.yaml");
+  EXPECT_EQ(rig.channels.sum.number, 2);
+  EXPECT_EQ(rig.channels.sum.range, usb1408fs::Range::kBip5V);
+  EXPECT_EQ(rig.samples_per_reading, 64);
+  EXPECT_DOUBLE_EQ(rig.scan_rate_hz, 16000);
+  EXPECT_EQ(rig.map_file,
+            fs::path(ZEROCAL_SOURCE_DIR "/config/psd-map.yaml").lexically_normal().string());
+  // zerocald's own file: its daq section; the other sections are zerocald's to check.
+  const std::string daemon =
+      write("zerocald.yaml",
+            "servo: {bogus: 1}\ndaq:\n  samples_per_reading: 32\n  map_file: map.yaml\n");
+  write("map.yaml", "psd_map: {}\n");
+  const psd::PsdConfig read = loadDaqSection(daemon);
+  EXPECT_EQ(read.samples_per_reading, 32);
+  EXPECT_DOUBLE_EQ(read.scan_rate_hz, psd::PsdConfig{}.scan_rate_hz);  // the one default
+  EXPECT_EQ(read.map_file, (dir_ / "map.yaml").string());
+  EXPECT_DOUBLE_EQ(read.sumOffThresholdV(), 0.4);
+}
+
+TEST_F(ConfigTest, TheDaqSectionAloneReportsEveryProblem) {
+  const auto problemsOf = [&](const std::string& text) {
+    try {
+      loadDaqSection(write("psd.yaml", text));
+    } catch (const ConfigError& e) {
+      return e.problems();
+    }
+    ADD_FAILURE() << "accepted: " << text;
+    return std::vector<std::string>{};
+  };
+  const auto p = problemsOf(
+      "daq:\n"
+      "  channels:\n"
+      "    x: {number: 7}\n"  // 3
+      "  samples_per_reading: 0\n"
+      "  scan_rate_hz: 20000\n"
+      "  smaples: 64\n"  // 6
+      "  map_file: /nonexistent/map.yaml\n");
+  EXPECT_EQ(p.size(), 5u) << joined(p);
+  EXPECT_TRUE(reported(p, {"psd.yaml:6", "unknown key 'daq.smaples'"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"psd.yaml:3", "daq.channels.x.number", "at most 3"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"daq.samples_per_reading", "at least 1"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"daq.scan_rate_hz", "at most 16000"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"daq.map_file", "no such file"})) << joined(p);
+  EXPECT_TRUE(reported(problemsOf("psd:\n  samples: 64\n"),
+                       {"the psd: section of earlier versions", "samples_per_reading"}));
+  EXPECT_TRUE(reported(problemsOf("servo: {}\n"), {"'daq:' section"}));
+  EXPECT_TRUE(reported(problemsOf("daq: [1\n"), {"not valid YAML"}));
+  EXPECT_THROW(loadDaqSection((dir_ / "none.yaml").string()), ConfigError);
 }
 
 TEST_F(ConfigTest, ReferenceDocumentNamesEveryKey) {

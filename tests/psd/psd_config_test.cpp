@@ -1,6 +1,6 @@
-// The PSD configuration section (every problem at once), the map in YAML, and the map fitted from
-// a sweep recorded through the simulated rig (board, FakeTransport, Usb1408fs) recovering
-// positions in its valid zone to 2 um.
+// The map in YAML (every problem at once), and the map fitted from a sweep recorded through the
+// simulated rig (board, FakeTransport, Usb1408fs) recovering positions in its valid zone to 2 um.
+// The PSD chain's configuration (the daq section) is tested with the daemon's configuration.
 #include "zerocal/psd/psd_config.h"
 
 #include <gtest/gtest.h>
@@ -17,18 +17,6 @@
 
 namespace zerocal::psd {
 namespace {
-
-using usb1408fs::InputMode;
-using usb1408fs::Range;
-
-std::vector<std::string> problemsOf(const std::string& yaml) {
-  try {
-    parsePsdConfig(YAML::Load(yaml), "test.yaml", ".");
-  } catch (const ConfigError& e) {
-    return e.problems();
-  }
-  return {};
-}
 
 bool mentions(const std::vector<std::string>& problems, const std::string& text) {
   return std::any_of(problems.begin(), problems.end(),
@@ -57,110 +45,6 @@ std::vector<SweepPoint>* FittedMap::sweep_ = nullptr;
 MapFitReport* FittedMap::report_ = nullptr;
 PsdMap* FittedMap::map_ = nullptr;
 
-TEST(PsdConfig, DefaultsAreValid) {
-  const PsdConfig config;
-  EXPECT_TRUE(config.problems().empty());
-  EXPECT_NO_THROW(config.validate("defaults"));
-}
-
-TEST(PsdConfig, ShippedExampleLoadsWithItsMap) {
-  const PsdConfig config = loadPsdConfig(ZEROCAL_SOURCE_DIR "/config/psd.yaml");
-  EXPECT_EQ(config.channels.x.number, 0);
-  EXPECT_EQ(config.channels.sum.number, 2);
-  EXPECT_EQ(config.channels.sum.range, Range::kBip5V);
-  EXPECT_EQ(config.samples, 64u);
-  ASSERT_TRUE(config.map.has_value());
-  EXPECT_EQ(config.map->degree(), 7);
-}
-
-TEST(PsdConfig, ReadsEveryKey) {
-  const PsdConfig config = parsePsdConfig(YAML::Load(R"(
-serial: "01A2B3C4"
-channels:
-  x: {mode: single_ended, input: 5}
-  y: {mode: single_ended, input: 6}
-  sum: {mode: differential, input: 0, range_v: 2.5}
-samples: 128
-rate_hz: 8000
-sum_threshold_v: 1.0
-)"),
-                                          "test.yaml", ".");
-  EXPECT_EQ(config.serial, "01A2B3C4");
-  EXPECT_EQ(config.channels.x.mode, InputMode::kSingleEnded);
-  EXPECT_EQ(config.channels.y.number, 6);
-  EXPECT_EQ(config.channels.sum.range, Range::kBip2_5V);
-  EXPECT_EQ(config.samples, 128u);
-  EXPECT_DOUBLE_EQ(config.rate_hz, 8000);
-  EXPECT_DOUBLE_EQ(config.sum_off_threshold_v, 0.8);  // hysteresis follows the threshold
-  EXPECT_FALSE(config.map.has_value());
-}
-
-TEST(PsdConfig, ReportsEveryProblemAtOnce) {
-  const auto problems = problemsOf(R"(
-channels:
-  x: {mode: differential, input: 5, range_v: 5}
-  y: {mode: diff, input: 1, range_v: 3}
-  sum: {mode: single_ended, input: 2, range_v: 5}
-samples: 1
-rate_hz: 20000
-sum_threshold_v: 0
-smaples: 64
-)");
-  EXPECT_TRUE(mentions(problems, "channels.x.input: 5 is outside 0..3")) << problems.size();
-  EXPECT_TRUE(mentions(problems, "channels.y.mode: 'diff'"));
-  EXPECT_TRUE(mentions(problems, "channels.y.range_v: 3 is not a range"));
-  EXPECT_TRUE(mentions(problems, "channels.sum.range_v: single-ended inputs are +-10 V only"));
-  EXPECT_TRUE(mentions(problems, "samples: 1 per reading"));
-  EXPECT_TRUE(mentions(problems, "rate_hz: 20000"));
-  EXPECT_TRUE(mentions(problems, "sum_threshold_v: 0 must be above 0"));
-  EXPECT_TRUE(mentions(problems, "unknown key 'smaples'"));
-  EXPECT_EQ(problems.size(), 8u);
-}
-
-TEST(PsdConfig, ChannelsSharingTerminalsAreRejected) {
-  // Differential pair 1 uses the terminals of single-ended 1 and 5.
-  const auto problems = problemsOf(R"(
-channels:
-  x: {mode: differential, input: 1}
-  y: {mode: single_ended, input: 5}
-  sum: {mode: differential, input: 1}
-)");
-  EXPECT_TRUE(mentions(problems, "channels.x and channels.y use the same input terminals"));
-  EXPECT_TRUE(mentions(problems, "channels.x and channels.sum use the same input terminals"));
-  EXPECT_TRUE(mentions(problems, "channels.y and channels.sum use the same input terminals"));
-  EXPECT_EQ(problems.size(), 3u);
-  EXPECT_TRUE(problemsOf(R"(
-channels:
-  x: {mode: single_ended, input: 0}
-  y: {mode: single_ended, input: 1}
-  sum: {mode: differential, input: 2}
-)")
-                  .empty());
-}
-
-TEST(PsdConfig, MapFileProblemsAreReported) {
-  EXPECT_TRUE(
-      mentions(problemsOf("map_file: a.yaml\nmap: {degree: 1}\n"), "give one of them, not both"));
-  EXPECT_TRUE(mentions(problemsOf("map_file: /nonexistent/map.yaml\n"),
-                       "map_file /nonexistent/map.yaml: cannot open the file"));
-  EXPECT_TRUE(mentions(problemsOf("samples: many\n"), "samples: must be a whole number"));
-  EXPECT_THROW(loadPsdConfig("/nonexistent/psd.yaml"), ConfigError);
-}
-
-TEST(PsdConfig, BrokenYamlIsAConfigError) {
-  const std::string path = ::testing::TempDir() + "/broken-psd.yaml";
-  std::ofstream(path) << "psd:\n  samples: [64\n";
-  try {
-    loadPsdConfig(path);
-    FAIL() << "no ConfigError";
-  } catch (const ConfigError& e) {
-    EXPECT_NE(std::string(e.what()).find("not valid YAML"), std::string::npos) << e.what();
-  }
-  std::ofstream(path) << "other: 1\n";
-  EXPECT_THROW(loadPsdConfig(path), ConfigError);
-  EXPECT_THROW(parsePsdConfig(YAML::Load("{[1, 2]: 3}"), "odd.yaml", "."), ConfigError);
-}
-
 TEST(PsdMapYaml, FromPartsRefusesWhatIsNotAMap) {
   const std::vector<double> three(3, 0.0);
   EXPECT_THROW(PsdMap::fromParts(0, three, three, {-1, 1, -1, 1}, 0.5), std::invalid_argument);
@@ -177,20 +61,36 @@ TEST(PsdMapYaml, FromPartsRefusesWhatIsNotAMap) {
   EXPECT_TRUE(map.apply(r).valid);
 }
 
-TEST(PsdMapYaml, InlineMapProblemsAreReported) {
-  const auto problems = problemsOf(R"(
-map:
-  degree: 2
-  zone_mm: {u: [0.6, -0.6], v: [-0.6]}
-  u: [1, 2, 3]
-  v: [1, 2, 3, 4, 5, x]
-)");
+TEST(PsdMapYaml, MapProblemsAreReported) {
+  std::vector<std::string> problems;
+  EXPECT_FALSE(psdMapFromYaml(YAML::Load(R"(
+degree: 2
+zone_mm: {u: [0.6, -0.6], v: [-0.6]}
+u: [1, 2, 3]
+v: [1, 2, 3, 4, 5, x]
+)"),
+                              "map", problems));
   EXPECT_TRUE(mentions(problems, "map.zone_mm.u: min must be below max"));
   EXPECT_TRUE(mentions(problems, "map.zone_mm.v: must be [min, max]"));
   EXPECT_TRUE(mentions(problems, "map.u: 3 coefficients; degree 2 needs 6"));
   EXPECT_TRUE(mentions(problems, "map.v[5]: must be a number"));
-  EXPECT_TRUE(
-      mentions(problemsOf("map: {zone_mm: {u: [0, 1], v: [0, 1]}}\n"), "map: missing 'degree'"));
+  problems.clear();
+  EXPECT_FALSE(psdMapFromYaml(YAML::Load("{zone_mm: {u: [0, 1], v: [0, 1]}}"), "map", problems));
+  EXPECT_TRUE(mentions(problems, "map: missing 'degree'"));
+}
+
+TEST(PsdMapYaml, MapFileProblemsAreConfigErrors) {
+  EXPECT_THROW(loadPsdMap("/nonexistent/map.yaml"), ConfigError);
+  const std::string path = ::testing::TempDir() + "/broken-map.yaml";
+  std::ofstream(path) << "psd_map:\n  degree: [7\n";
+  try {
+    loadPsdMap(path);
+    FAIL() << "no ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("not valid YAML"), std::string::npos) << e.what();
+  }
+  std::ofstream(path) << "other: 1\n";
+  EXPECT_THROW(loadPsdMap(path), ConfigError);
 }
 
 TEST_F(FittedMap, SurvivesTheYamlRoundTripExactly) {
@@ -203,13 +103,10 @@ TEST_F(FittedMap, SurvivesTheYamlRoundTripExactly) {
   EXPECT_EQ(back->uCoefficients(), map_->uCoefficients());
   EXPECT_EQ(back->vCoefficients(), map_->vCoefficients());
 
-  // The same YAML as a file, then as the config's map_file.
-  const std::string dir = ::testing::TempDir();
-  std::ofstream(dir + "/psd-map.yaml") << yaml;
-  std::ofstream(dir + "/psd.yaml") << "psd:\n  map_file: psd-map.yaml\n";
-  const PsdConfig config = loadPsdConfig(dir + "/psd.yaml");
-  ASSERT_TRUE(config.map.has_value());
-  EXPECT_EQ(config.map->uCoefficients(), map_->uCoefficients());
+  // The same YAML as a file, as daq.map_file names it.
+  const std::string path = ::testing::TempDir() + "/psd-map.yaml";
+  std::ofstream(path) << yaml;
+  EXPECT_EQ(loadPsdMap(path).uCoefficients(), map_->uCoefficients());
 }
 
 TEST_F(FittedMap, RecoversPositionsInTheValidZoneToTwoMicrometres) {

@@ -15,7 +15,7 @@ TEST(DaemonSetup, TheRunTakesTheServoSectionWholeAndTheSessionsAccuracy) {
   config.servo.gain = 0.7;
   config.servo.damping_mm = 0.01;
   config.servo.search_step_mm = 3.0;
-  config.controller.limit_margin_deg = 2.5;
+  config.controller.irc5.limit_margin_deg = 2.5;
   config.session.noise_mm = 0.03;
   config.session.required_accuracy_deg = 0.02;
   config.session.model_length_mm = 0.2;

@@ -59,8 +59,8 @@ class HardwareBackendOnSimulatedCell : public ::testing::Test {
     // the PSD rig, the taught PSD centre and its orientation.
     const World& world = cell_.world();
     config_.backend.kind = BackendKind::kHardware;
-    config_.controller.host = "127.0.0.1";
-    config_.controller.port = cell_.controller().port();
+    config_.controller.irc5.host = "127.0.0.1";
+    config_.controller.irc5.port = cell_.controller().port();
     config_.daq.serial = "01A2B3C4";
     config_.daq.samples_per_reading = 32;
     config_.daq.scan_rate_hz = 16000;

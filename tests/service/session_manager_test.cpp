@@ -43,9 +43,9 @@ sim::SimulatedCellOptions cellFor(std::uint64_t seed) {
 
 ManagerSettings settingsIn(const std::string& dir) {
   ManagerSettings s;
-  s.data_dir = dir;
+  s.session.data_dir = dir;
   s.run.servo.stop = servo::ServoStop::kZone;
-  s.noise_mm = 0.010;
+  s.session.noise_mm = 0.010;
   return s;
 }
 

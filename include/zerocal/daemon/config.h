@@ -18,8 +18,10 @@
 #include <string>
 #include <vector>
 
+#include "zerocal/control/server_options.h"
+#include "zerocal/irc5/irc5_client.h"
 #include "zerocal/paths.h"
-#include "zerocal/psd/psd.h"
+#include "zerocal/psd/psd_config.h"
 #include "zerocal/service/plan_kind.h"
 #include "zerocal/servo/servo.h"
 
@@ -53,35 +55,29 @@ struct BackendConfig {
 // (zerocal/service/cell_factory.h): ABB's IRC5 through zerocal's RAPID socket server.
 enum class ControllerKind { kIrc5 };
 
-// The controller link (for the IRC5 mapped onto Irc5Options by the cell factory).
+// The IRC5 link's own defaults (Irc5Options) suit a bench that talks to a controller by hand;
+// the daemon's cell is closed and its calibration moves are short, so it moves faster and keeps a
+// degree clear of the joint limits. Named once here: these are the controller section's defaults.
+inline Irc5Options configuredIrc5Defaults() {
+  Irc5Options o;
+  o.speed_tcp_mm_s = 250.0;
+  o.speed_ori_deg_s = 100.0;
+  o.limit_margin_deg = 1.0;
+  return o;
+}
+
+// The controller section: which controller, which robot, and that controller's link options
+// themselves (for kind irc5 the IRC5 client's Irc5Options; its keys sit directly under
+// controller:, and Irc5Options says what each means). The cell factory loads `robot` into the
+// link's robot model; members of the link options without a key keep the link's own defaults.
 struct ControllerConfig {
   ControllerKind kind = ControllerKind::kIrc5;
   std::string robot = "builtin";  // robot file, or the compiled-in IRB 1600-10/1.45
-  std::string host = "192.168.125.1";
-  std::uint16_t port = 5000;
-  std::chrono::milliseconds connect_timeout{2000};
-  std::chrono::milliseconds request_timeout{1000};
-  double move_timeout_factor = 2.0;  // a move's deadline: estimated duration * factor + margin
-  std::chrono::milliseconds move_timeout_margin{2000};
-  double speed_tcp_mm_s = 250.0;  // calibration moves are short and the cell is closed
-  double speed_ori_deg_s = 100.0;
-  double limit_margin_deg = 1.0;  // joint targets closer than this to a limit are refused
-  double max_step_deg = 10.0;     // largest joint step of any one move
-  int reconnect_attempts = 5;
-};
-
-// Which acquisition board reads the PSD, hence which readout the cell factory makes: the
-// Measurement Computing USB-1408FS through zerocal's libusb driver.
-enum class DaqKind { kUsb1408fs };
-
-struct DaqConfig {
-  DaqKind kind = DaqKind::kUsb1408fs;
-  std::string serial;  // USB serial-number string; empty = the first USB-1408FS found
-  psd::PsdChannels channels;
-  double scan_rate_hz = 1000.0;   // scans per second (each scan converts x, y and sum once)
-  int samples_per_reading = 100;  // scans averaged into one reading
-  double sum_threshold_v = 0.5;   // SUM below this: no spot on the detector
-  std::string map_file;  // the PSD's volts-to-mm map (zerocal psd-map); required by hardware
+  // Ceiling of servo.max_step_deg (deg). Not the link's own step limit (Irc5Options::max_step_deg
+  // stays 0 = none): the moves between planned poses span up to ~240 deg of wrist rotation by
+  // design, and are checked against the limits and previewed instead.
+  double max_step_deg = 10.0;
+  Irc5Options irc5 = configuredIrc5Defaults();  // kind irc5
 };
 
 struct SessionConfig {
@@ -102,22 +98,6 @@ struct SessionConfig {
   std::string data_dir = "/var/lib/zerocal/sessions";  // one folder per session (journal.h)
 };
 
-struct ControlConfig {
-  std::string bind_address = "127.0.0.1";
-  std::uint16_t port = 7450;
-  std::string token_file;  // required to serve the port; checked when bind_address is not loopback
-  int max_clients = 64;    // connections at once; more are refused politely
-  int max_line_bytes = 65536;     // longest request line; a longer one is refused and closed
-  double idle_timeout_s = 600;    // a connection that sends no request this long is closed
-  double write_timeout_s = 30;    // a client whose write is stuck this long is dropped
-  int max_queued_kib = 1024;      // output queued for one client before it is dropped
-  int max_auth_failures = 3;      // failed auth attempts before a connection is closed
-  int max_clients_per_peer = 16;  // connections from one address at once
-  double auth_timeout_s = 10;     // a connection not authenticated this long is closed
-  // Plan files named in `start`/`plan` requests are file names in this folder; empty: none.
-  std::string plan_dir = "/var/lib/zerocal/plans";
-};
-
 enum class LogLevel { kTrace, kDebug, kInfo, kWarn, kError, kCritical, kOff };
 
 struct LoggingConfig {
@@ -128,10 +108,10 @@ struct LoggingConfig {
 struct DaemonConfig {
   BackendConfig backend;
   ControllerConfig controller;
-  DaqConfig daq;
+  psd::PsdConfig daq;         // the PSD chain's one configuration (psd_config.h)
   servo::ServoOptions servo;  // the servo section is the servo's own options (servo.h)
   SessionConfig session;
-  ControlConfig control;
+  control::ServerOptions control;  // the control section is the server's own options
   LoggingConfig logging;
 };
 
@@ -171,6 +151,12 @@ nlohmann::json configToJson(const DaemonConfig& config);
 
 // Every key path the files accept ("servo.tolerance_um", "daq.channels.x.number", ...).
 std::vector<std::string> configKeys();
+
+// The daq section alone, for `zerocal psd`: the defaults, then the `daq:` section of the file at
+// `path` (zerocald's own configuration file, or any file with a daq: section; its other sections
+// are zerocald's to check), validated as zerocald validates it. Throws ConfigError carrying every
+// problem; a file with the `psd:` section of earlier versions is refused with the renamed keys.
+psd::PsdConfig loadDaqSection(const std::string& path);
 
 std::string logLevelName(LogLevel level);
 

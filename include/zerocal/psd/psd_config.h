@@ -1,20 +1,10 @@
-// The PSD chain's section of the configuration (YAML), and the voltage->mm map in YAML.
+// The PSD chain's configuration, and the voltage->mm map in YAML.
 //
-//   psd:
-//     serial: ""                 # USB-1408FS serial number; empty: the first board found
-//     channels:                  # which inputs carry the conditioning board's outputs
-//       x:   {mode: differential, input: 0, range_v: 5}
-//       y:   {mode: differential, input: 1, range_v: 5}
-//       sum: {mode: differential, input: 2, range_v: 5}
-//     samples: 64                # per channel, averaged into one reading
-//     rate_hz: 16000             # scans per second (x, y and sum each converted once per scan)
-//     sum_threshold_v: 0.5       # spot present when SUM rises above this ...
-//     sum_off_threshold_v: 0.4   # ... and absent again when it falls below this
-//     map_file: psd-map.yaml     # from `zerocal psd-map`, relative to this file; or inline:
-//     map: {degree: .., zone_mm: {u: [..], v: [..]}, min_sum_v: .., u: [..], v: [..]}
-//
-// Every key is optional except that a map needs one of map_file / map (or neither: readings are
-// then volts only, which is what a sweep on the rig records). The daemon embeds this section.
+// PsdConfig is the `daq` section of zerocald's configuration and the only configuration of the
+// PSD chain: zerocald reads it from its configuration files, `zerocal psd --config FILE` reads the
+// `daq:` section of FILE (zerocald's own file, or config/psd.yaml). Both parse and validate it
+// with zerocald's configuration code (zerocal/daemon/config.h: loadDaqSection);
+// docs/configuration.md describes every key.
 #pragma once
 
 #include <optional>
@@ -29,29 +19,23 @@ class Node;
 
 namespace zerocal::psd {
 
+// Which acquisition board reads the PSD, hence which readout the cell factory makes: the
+// Measurement Computing USB-1408FS through zerocal's libusb driver.
+enum class DaqKind { kUsb1408fs };
+
 struct PsdConfig {
-  std::string serial;
+  DaqKind kind = DaqKind::kUsb1408fs;
+  std::string serial;  // USB serial-number string; empty = the first USB-1408FS found
   PsdChannels channels;
-  std::size_t samples = 64;
-  double rate_hz = 16000.0;
-  double sum_threshold_v = 0.5;
-  double sum_off_threshold_v = 0.4;
-  std::string map_file;       // as written (relative to the configuration file)
-  std::optional<PsdMap> map;  // loaded from map_file, or inline
+  double scan_rate_hz = 1000.0;   // scans per second (each scan converts x, y and sum once)
+  int samples_per_reading = 100;  // scans averaged into one reading
+  double sum_threshold_v = 0.5;   // SUM below this: no spot on the detector
+  std::string map_file;  // the PSD's volts-to-mm map (zerocal psd-map); required by hardware
 
-  // Every problem with the values, worded for the person editing the file; empty if none.
-  std::vector<std::string> problems() const;
-  // Throws ConfigError(origin, problems()) if there are any.
-  void validate(const std::string& origin) const;
+  // A present spot counts as gone only when SUM falls below this (V): the hysteresis keeps a spot
+  // on the detector's rim from flickering.
+  double sumOffThresholdV() const { return 0.8 * sum_threshold_v; }
 };
-
-// Reads the `psd` section (the node under the `psd:` key). `base_dir` resolves a relative
-// map_file. Reports unknown keys, wrong types and every validate() problem together in one
-// ConfigError.
-PsdConfig parsePsdConfig(const YAML::Node& section, const std::string& origin,
-                         const std::string& base_dir);
-// A file whose top level holds a `psd:` section (config/psd.yaml). Throws ConfigError.
-PsdConfig loadPsdConfig(const std::string& path);
 
 // The map as YAML: a `psd_map:` document, as `zerocal psd-map --out` writes it. `comment` lines
 // go first, prefixed with '#'.

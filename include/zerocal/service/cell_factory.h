@@ -1,6 +1,6 @@
 // The devices of a real cell by kind: the one place that names the vendors. A new controller is
 // a folder of its own (its link implementing ControllerConnection), a ControllerKind, and a line
-// here; a new PSD readout likewise with PsdReadout and a DaqKind.
+// here; a new PSD readout likewise with PsdReadout and a psd::DaqKind.
 #pragma once
 
 #include <memory>
@@ -16,10 +16,9 @@ namespace zerocal::service {
 // Throws ConfigError when the file does not load.
 Robot robotOf(const ControllerConfig& config);
 
-// The IRC5 client's options the controller section describes (robot, timeouts, speeds, margins;
-// not the address, which `base` keeps). Used for the simulated controller too, so that both obey
-// the same configuration.
-Irc5Options irc5OptionsOf(const ControllerConfig& config, Irc5Options base = {});
+// The IRC5 link's options: the controller section's own (controller.irc5), with the robot model
+// controller.robot names loaded into them. Throws ConfigError when the robot file does not load.
+Irc5Options irc5OptionsOf(const ControllerConfig& config);
 
 // The link to the controller controller.kind names, not connected. Throws ConfigError for
 // options the link refuses (a robot file that does not load, say).
@@ -27,7 +26,7 @@ std::unique_ptr<ControllerConnection> makeControllerConnection(const ControllerC
 
 // The PSD readout daq.kind names, its board opened (daq.serial), reading through `map` on
 // `clock`. Throws the board's error when it cannot be opened.
-std::unique_ptr<PsdReadout> makePsdReadout(const DaqConfig& config, const psd::PsdMap& map,
+std::unique_ptr<PsdReadout> makePsdReadout(const psd::PsdConfig& config, const psd::PsdMap& map,
                                            CellClock& clock);
 
 }  // namespace zerocal::service

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "zerocal/cell/cell.h"
+#include "zerocal/daemon/config.h"
 #include "zerocal/service/session_board.h"
 #include "zerocal/service/session_control.h"
 #include "zerocal/service/session_worker.h"
@@ -27,12 +28,11 @@
 namespace zerocal::service {
 
 struct ManagerSettings {
-  std::string data_dir;
+  // The configuration's session section: the data folder, what a request leaves out (plan, poses,
+  // plan_file, noise_mm: the measurement sigma for plans and solves). Its target_mm is not used
+  // here: target_mm below is the default target, set only on a real cell.
+  SessionConfig session;
   RunSettings run;
-  double noise_mm = 0.010;  // default measurement sigma for plans and solves
-  PlanKind plan = PlanKind::kOptimal;
-  int poses = 8;
-  std::string plan_file;
   std::optional<Eigen::Vector3d> target_mm;  // default nominal target; else the backend's
   nlohmann::json config_snapshot;            // written into each session.json
   // What every move costs the controller beyond its motion, when known (the simulated one's

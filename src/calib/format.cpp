@@ -398,13 +398,12 @@ SolveReport solveReportFromJson(const nlohmann::json& json, const std::string& w
   // The solver's order (offsets, then the laser), not JSON's alphabetical one; names this version
   // does not know follow.
   std::vector<std::string> names;
-  for (int k = 0; k < kIdentifiedCount; ++k) names.push_back(unknownName(k));
+  for (int k = 0; k < kIdentifiedCount; ++k)
+    if (params.contains(unknownName(k))) names.push_back(unknownName(k));
   for (const auto& item : params.items())
     if (std::find(names.begin(), names.end(), item.key()) == names.end())
       names.push_back(item.key());
-  for (std::size_t k = 0; k < names.size(); ++k) {
-    const std::string& name = names[k];
-    if (!params.contains(name)) throw InputError(where + ": parameter '" + name + "' is missing");
+  for (const std::string& name : names) {
     const JsonReader p(params.at(name), where + " parameters." + name);
     ParameterEstimate e;
     e.name = name;
@@ -419,10 +418,13 @@ SolveReport solveReportFromJson(const nlohmann::json& json, const std::string& w
       e.ci95_low = ci[0];
       e.ci95_high = ci[1];
     }
-    if (k < static_cast<std::size_t>(kOffsetCount))
-      r.estimate.delta_rad[static_cast<int>(k)] = e.identifiable ? e.value * kDegToRad : 0;
-    else if (k < static_cast<std::size_t>(kIdentifiedCount))
-      r.estimate.laser[static_cast<int>(k) - kOffsetCount] = e.identifiable ? e.value : 0;
+    for (int k = 0; k < kIdentifiedCount; ++k) {
+      if (unknownName(k) != name || !e.identifiable) continue;
+      if (k < kOffsetCount)
+        r.estimate.delta_rad[k] = e.value * kDegToRad;
+      else
+        r.estimate.laser[k - kOffsetCount] = e.value;
+    }
     r.parameters.push_back(e);
   }
   for (std::size_t i = 0; i < j.array("not_identifiable").size(); ++i) {

@@ -9,7 +9,9 @@
 #include "zerocal/calib/pose_count.h"
 #include "zerocal/control/client.h"
 #include "zerocal/control/token.h"
+#include "zerocal/error.h"
 #include "zerocal/paths.h"
+#include "zerocal/store/session_files.h"
 
 namespace zerocal::cli {
 
@@ -76,91 +78,89 @@ void printStatus(const json& s, std::ostream& out) {
   if (s.contains("message")) out << "message:    " << s["message"].get<std::string>() << "\n";
 }
 
-// The verdict of a result: the solver's own (`verdict: {usable, reasons}`) when result.json has
-// one, else what convergence and identifiability alone say.
-std::pair<bool, std::vector<std::string>> verdictOf(const json& r) {
+// The verdict of a result: the solver's own when result.json has one, else what convergence and
+// identifiability alone say.
+std::pair<bool, std::vector<std::string>> verdictOf(const ResultFile& r) {
+  if (r.verdict_recorded) return {r.report.verdict.usable, r.report.verdict.reasons};
   std::vector<std::string> reasons;
-  if (r.contains("verdict") && r["verdict"].is_object()) {
-    for (const auto& why : r["verdict"].value("reasons", json::array()))
-      reasons.push_back(why.is_string() ? why.get<std::string>() : why.dump());
-    return {r["verdict"].value("usable", false), reasons};
-  }
-  if (!r.value("converged", false))
-    reasons.push_back("the solve did not converge (" + r.value("message", std::string("-")) + ")");
-  const json params = r.value("parameters", json::object());
-  for (const char* name : {"delta2_deg", "delta3_deg", "delta4_deg", "delta5_deg"})
-    if (params.contains(name) && !params[name].value("identifiable", false))
-      reasons.push_back(std::string(name).substr(0, 6) + " is not identifiable from these poses");
-  if (!params.contains("delta2_deg")) reasons.push_back("the result carries no offsets");
+  if (!r.report.converged)
+    reasons.push_back("the solve did not converge (" + r.report.message + ")");
+  for (const ParameterEstimate& p : r.report.parameters)
+    if (p.name.rfind("delta", 0) == 0 && !p.identifiable)
+      reasons.push_back(p.name.substr(0, 6) + " is not identifiable from these poses");
+  if (r.report.parameters.empty()) reasons.push_back("the result carries no offsets");
   return {reasons.empty(), reasons};
 }
 
-double numberOr(const json& j, double fallback) {
-  return j.is_number() ? j.get<double>() : fallback;
-}
-
 // What a technician reads: the verdict first, then the offsets and what to do with them.
-void printResult(const json& r, std::ostream& out) {
+void printResult(const ResultFile& r, std::ostream& out) {
   const auto [usable, reasons] = verdictOf(r);
-  const bool simulated = r.contains("truth");
-  out << "session " << r.value("session", std::string("-"))
+  const bool simulated = r.truth.has_value();
+  out << "session " << (r.session.empty() ? "-" : r.session)
       << (simulated ? " (SIMULATED cell: the truth is known)" : "") << "\n";
   out << "verdict: " << (usable ? "USABLE" : "NOT USABLE");
-  if (!r.contains("verdict")) out << " (convergence and identifiability only)";
+  if (!r.verdict_recorded) out << " (convergence and identifiability only)";
   out << "\n";
   for (const auto& why : reasons) out << "  - " << why << "\n";
   // Whose offsets these are: a value entered on the wrong robot is worse than none.
-  const json controller = r.value("cell", json::object()).value("controller", json::object());
-  if (!controller.value("serial", std::string()).empty())
-    out << "robot: " << controller.value("robot_type", std::string("?")) << ", serial "
-        << controller.value("serial", std::string()) << ", RobotWare "
-        << controller.value("software_version", std::string("?")) << "\n";
-  const json params = r.value("parameters", json::object());
-  if (params.contains("delta2_deg")) {
+  if (r.cell && !r.cell->controller.serial.empty())
+    out << "robot: " << r.cell->controller.robot_type << ", serial " << r.cell->controller.serial
+        << ", RobotWare " << r.cell->controller.software_version << "\n";
+  // Joints 2..5, the first four parameters, in the solver's order.
+  std::vector<const ParameterEstimate*> offsets;
+  for (const ParameterEstimate& p : r.report.parameters)
+    if (p.name.rfind("delta", 0) == 0) offsets.push_back(&p);
+  if (!offsets.empty()) {
     char line[200];
     std::snprintf(line, sizeof line, "%-7s %12s %11s   %-26s", "offset", "value deg", "sigma deg",
                   "95% interval deg");
     out << "\n" << line << (simulated ? "  truth deg      error" : "") << "\n";
-    for (const char* name : {"delta2_deg", "delta3_deg", "delta4_deg", "delta5_deg"}) {
-      const json p = params.value(name, json::object());
-      const std::string offset = std::string(name).substr(0, 6);
-      if (!p.value("identifiable", false) || !p["value"].is_number()) {
-        out << offset << "  not identifiable: " << p.value("reason", std::string("-")) << "\n";
+    for (std::size_t k = 0; k < offsets.size(); ++k) {
+      const ParameterEstimate& p = *offsets[k];
+      const std::string offset = p.name.substr(0, 6);
+      if (!p.identifiable || !std::isfinite(p.value)) {
+        out << offset << "  not identifiable: " << (p.reason.empty() ? "-" : p.reason) << "\n";
         continue;
       }
-      const double value = p["value"], sigma = numberOr(p["sigma"], NAN);
-      const json ci = p.value("ci95", json::array());
       std::snprintf(line, sizeof line, "%-7s %+12.5f %11.5f   [%+.5f, %+.5f]", offset.c_str(),
-                    value, sigma, ci.size() == 2 ? numberOr(ci[0], NAN) : NAN,
-                    ci.size() == 2 ? numberOr(ci[1], NAN) : NAN);
+                    p.value, p.sigma, p.ci95_low, p.ci95_high);
       out << line;
-      if (simulated && r["truth"].contains(name)) {
-        const double truth = numberOr(r["truth"][name], NAN);
-        std::snprintf(line, sizeof line, "  %+9.5f  %+9.5f", truth, value - truth);
+      if (simulated && k < r.truth->offsets_deg.size()) {
+        const double truth = r.truth->offsets_deg[k];
+        std::snprintf(line, sizeof line, "  %+9.5f  %+9.5f", truth, p.value - truth);
         out << line;
       }
       out << "\n";
     }
     out << "\nOn the controller (arm side, joint angles; nothing was written to it):\n";
     if (!usable) out << "  change nothing: the verdict is not usable.\n";
-    for (int joint = 2; usable && joint <= 5; ++joint) {
-      const json p = params.value("delta" + std::to_string(joint) + "_deg", json::object());
-      if (!p.value("identifiable", false) || !p["value"].is_number()) continue;
-      const double delta = p["value"];
+    for (std::size_t k = 0; usable && k < offsets.size(); ++k) {
+      const ParameterEstimate& p = *offsets[k];
+      if (!p.identifiable || !std::isfinite(p.value)) continue;
       std::snprintf(line, sizeof line,
-                    "  joint %d: the reading grows by %+.5f deg (its zero moves %+.5f deg)\n",
-                    joint, delta, -delta);
+                    "  joint %c: the reading grows by %+.5f deg (its zero moves %+.5f deg)\n",
+                    p.name[5], p.value, -p.value);
       out << line;
     }
     if (usable) out << "  joints 1 and 6: unchanged (this method cannot determine them).\n";
     out << "summary.txt and report.html in the session folder say where the IRC5 keeps the\n"
            "calibration and how to enter it (zerocal report DIR).\n";
   }
-  if (r.contains("cell_time_s") && r["cell_time_s"].is_number()) {
+  if (r.cell_time_s) {
     char line[80];
-    std::snprintf(line, sizeof line, "cell time %.1f s, %d poses\n", r["cell_time_s"].get<double>(),
-                  r.value("poses", 0));
+    std::snprintf(line, sizeof line, "cell time %.1f s, %d poses\n", *r.cell_time_s,
+                  r.report.pose_count);
     out << line;
+  }
+}
+
+// A result as the port sends it: result.json, read by the store's codec.
+ResultFile resultOf(const json& answer) {
+  try {
+    return resultFileFromJson(answer);
+  } catch (const InputError& e) {
+    throw CommandError("bad_result",
+                       std::string("the daemon's result cannot be read: ") + e.what());
   }
 }
 
@@ -223,8 +223,8 @@ int watch(control::ControlClient& client, const ClientArgs& args, std::ostream& 
     if (status.value("state", "") == "done") {  // the outcome: the verdict and the offsets
       out << "\n";
       try {
-        printResult(client.call("result", json{{"session", status.value("session", "")}},
-                                timeout)["result"],
+        printResult(resultOf(client.call("result", json{{"session", status.value("session", "")}},
+                                         timeout)["result"]),
                     out);
       } catch (const CommandError& e) {  // done, but its result cannot be read: say so, exit 0
         out << "the result of session " << status.value("session", "")
@@ -385,7 +385,7 @@ int run(const ClientArgs& args, std::ostream& out, std::ostream& err, bool tty) 
     if (args.json)
       out << r.dump(2) << "\n";
     else
-      printResult(r, out);
+      printResult(resultOf(r), out);
     return kClientOk;
   }
   if (cmd == "plan") {

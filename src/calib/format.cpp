@@ -31,6 +31,14 @@ std::string costName(CostKind cost) {
   return cost == CostKind::kMaximumLikelihood ? "ml" : "pairwise";
 }
 
+std::string modelName(const SolveReport& r) {
+  return r.used_readings ? "hit-point" : "point-to-line";
+}
+
+std::string noiseSourceName(const SolveReport& r) {
+  return r.noise_estimated ? "estimated from the residuals" : "given";
+}
+
 nlohmann::json toJson(const Verdict& v) { return {{"usable", v.usable}, {"reasons", v.reasons}}; }
 
 nlohmann::json toJson(const SolveReport& r) {
@@ -45,7 +53,7 @@ nlohmann::json toJson(const SolveReport& r) {
   j["converged"] = r.converged;
   j["message"] = r.message;
   j["cost"] = costName(r.cost);
-  j["model"] = r.used_readings ? "hit-point" : "point-to-line";
+  j["model"] = modelName(r);
   j["poses"] = r.pose_count;
   j["poses_used"] = r.poses_used;
   j["required_accuracy_deg"] = r.required_accuracy_deg;
@@ -74,7 +82,7 @@ nlohmann::json toJson(const SolveReport& r) {
   j["condition_number"] = number(r.condition_number);
   j["dof"] = r.dof;
   j["noise_mm"] = number(r.noise_mm);
-  j["noise_source"] = r.noise_estimated ? "estimated from the residuals" : "given";
+  j["noise_source"] = noiseSourceName(r);
   j["chi2_per_dof"] = r.chi2_per_dof ? number(*r.chi2_per_dof) : nlohmann::json();
   j["chi2_p_value"] = r.chi2_p_value ? number(*r.chi2_p_value) : nlohmann::json();
   j["noise_scale"] = r.noise_scale;

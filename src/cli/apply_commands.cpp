@@ -88,8 +88,8 @@ int run(const ApplyArgs& args, std::ostream& out, std::ostream& err) {
   // The session: converged, every offset of joints 2..5 identified.
   const SessionFolder files = report::readSessionFiles(args.session_dir);
   const report::SessionReport session = report::parseSession(files);
-  if (!session.converged) {
-    err << "zerocal apply: session " << session.session_id
+  if (!session.solve().converged) {
+    err << "zerocal apply: session " << session.session.id
         << ": the solve did not converge; there is nothing to apply\n";
     return kApplyNotConverged;
   }
@@ -169,8 +169,8 @@ int run(const ApplyArgs& args, std::ostream& out, std::ostream& err) {
   std::vector<apply::MocChange> moc_changes;
   const std::string text = apply::withCalOffsets(moc, edits, &moc_changes);
 
-  out << "zerocal apply: session " << session.session_id
-      << (session.simulated ? " (simulated)" : "") << ", robot " << robot.name << ", backup "
+  out << "zerocal apply: session " << session.session.id
+      << (session.simulated() ? " (simulated)" : "") << ", robot " << robot.name << ", backup "
       << args.moc_file << " (" << *moc_type << ")\n";
   out << "Transmission k (motor angle per joint angle, signed) from " << robot_source
       << (robot.transmission_confirmed ? ""

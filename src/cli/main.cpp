@@ -426,10 +426,10 @@ int main(int argc, char** argv) {
         std::cout << report::summaryText(r);
         return kOk;
       }
-      nlohmann::json j{{"session", r.session_id},
+      nlohmann::json j{{"session", r.session.id},
                        {"summary", session_dir + "/summary.txt"},
                        {"report", session_dir + "/report.html"},
-                       {"converged", r.converged},
+                       {"converged", r.solve().converged},
                        {"offsets", nlohmann::json::object()}};
       for (const auto& p : r.parameters) {
         if (p.name.rfind("delta", 0) != 0) continue;

@@ -51,63 +51,65 @@ std::vector<const PoseRow*> worstPoses(const SessionReport& r, std::size_t count
 std::vector<std::string> identity(const SessionReport& r) {
   const auto known = [](const std::string& s) { return s.empty() ? "not recorded" : s; };
   std::vector<std::string> lines;
-  lines.push_back("Robot: " + known(r.robot.robot_type) + ", serial " + known(r.robot.serial) +
-                  ", controller software (RobotWare) " + known(r.robot.software_version) +
-                  (r.robot.serial.empty() ? "" : ", as the controller reported them") + ".");
-  lines.push_back("PSD map: " + known(r.psd_map) + ".");
+  lines.push_back("Robot: " + known(r.cell().controller.robot_type) + ", serial " +
+                  known(r.cell().controller.serial) + ", controller software (RobotWare) " +
+                  known(r.cell().controller.software_version) +
+                  (r.cell().controller.serial.empty() ? "" : ", as the controller reported them") +
+                  ".");
+  lines.push_back("PSD map: " + known(r.cell().psd_map) + ".");
   std::string when = "not recorded";
-  if (r.finished_unix_s) {
-    const std::time_t t = static_cast<std::time_t>(*r.finished_unix_s);
+  if (r.result.finished_unix_s) {
+    const std::time_t t = static_cast<std::time_t>(*r.result.finished_unix_s);
     std::tm local{};
     char text[64];
     if (::localtime_r(&t, &local) &&
         std::strftime(text, sizeof text, "%Y-%m-%d %H:%M %Z (UTC%z)", &local))
       when = text;
   }
-  lines.push_back("Calibrated " + when + " by zerocal " + known(r.zerocal_version) + ".");
+  lines.push_back("Calibrated " + when + " by zerocal " + known(r.result.zerocal_version) + ".");
   return lines;
 }
 
 std::string remeasuredNote(const SessionReport& r) {
-  if (r.remeasured.empty()) return "";
+  if (r.remeasured().empty()) return "";
   std::string poses;
-  for (std::size_t i = 0; i < r.remeasured.size(); ++i)
-    poses += (i == 0                         ? ""
-              : i + 1 == r.remeasured.size() ? " and "
-                                             : ", ") +
-             std::to_string(r.remeasured[i]);
-  return std::string(r.remeasured.size() == 1 ? "Pose " : "Poses ") + poses +
-         " did not fit the others at first and " + (r.remeasured.size() == 1 ? "was" : "were") +
+  for (std::size_t i = 0; i < r.remeasured().size(); ++i)
+    poses += (i == 0                           ? ""
+              : i + 1 == r.remeasured().size() ? " and "
+                                               : ", ") +
+             std::to_string(r.remeasured()[i]);
+  return std::string(r.remeasured().size() == 1 ? "Pose " : "Poses ") + poses +
+         " did not fit the others at first and " + (r.remeasured().size() == 1 ? "was" : "were") +
          " measured again; the result rests on the new measurement, and both are in the journal.";
 }
 
-bool refused(const SessionReport& r) { return r.usable && !*r.usable; }
+bool refused(const SessionReport& r) { return r.usable() && !*r.usable(); }
 
 std::string verdict(const SessionReport& r) {
   std::string v;
-  if (r.usable) {
-    v = *r.usable ? "VERDICT: usable. "
-                  : "VERDICT: NOT USABLE, no correction is offered; do not change the robot. ";
-    for (const std::string& reason : r.refusal_reasons) v += "Why: " + reason + ". ";
+  if (r.usable()) {
+    v = *r.usable() ? "VERDICT: usable. "
+                    : "VERDICT: NOT USABLE, no correction is offered; do not change the robot. ";
+    for (const std::string& reason : r.solve().verdict.reasons) v += "Why: " + reason + ". ";
   }
-  v += r.converged ? "The solve converged" : "THE SOLVE DID NOT CONVERGE: do not use";
-  v += " (" + r.message + ").";
+  v += r.solve().converged ? "The solve converged" : "THE SOLVE DID NOT CONVERGE: do not use";
+  v += " (" + r.solve().message + ").";
   bool all = true;
   for (const ParameterRow& p : r.parameters)
     if (isOffset(p) && !p.identifiable) all = false;
   v += all ? " delta2..delta5 are all identified."
            : " Some of delta2..delta5 are NOT identifiable from these poses (see below).";
-  if (r.chi2_per_dof) {
+  if (r.solve().chi2_per_dof) {
     // Judged by the chi-square distribution with the result's degrees of freedom (its p-value),
     // not by a fixed ratio (docs/reading-a-result.md).
-    const double c = *r.chi2_per_dof;
-    v += format(" Chi-square per degree of freedom %.2f (dof %d):", c, r.dof);
-    v += r.chi2_p_value && *r.chi2_p_value < 0.001
+    const double c = *r.solve().chi2_per_dof;
+    v += format(" Chi-square per degree of freedom %.2f (dof %d):", c, r.solve().dof);
+    v += r.solve().chi2_p_value && *r.solve().chi2_p_value < 0.001
              ? format(
                    " the poses miss by more than the stated noise (p = %.2g); the "
                    "uncertainties are scaled up by sqrt(chi2/dof).",
-                   *r.chi2_p_value)
-         : r.chi2_p_value && *r.chi2_p_value > 0.999
+                   *r.solve().chi2_p_value)
+         : r.solve().chi2_p_value && *r.solve().chi2_p_value > 0.999
              ? " far below 1: the stated noise is too pessimistic."
              : " consistent with the stated noise.";
   }

@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "zerocal/calib/format.h"
 #include "zerocal/report/session_report.h"
 
 namespace zerocal::report::detail {

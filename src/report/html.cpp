@@ -253,34 +253,39 @@ svg .start { fill: #2a2; } svg .end { fill: #c22; }
 std::string reportHtml(const SessionReport& r) {
   std::ostringstream o;
   o << "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>"
-    << esc("zerocal report " + r.session_id) << "</title>\n<style>" << kStyle
+    << esc("zerocal report " + r.session.id) << "</title>\n<style>" << kStyle
     << "</style>\n</head>\n<body>\n";
   // The result (verdict, identity, offsets) is one section, printed on a page of its own.
   o << "<section class=\"result\">\n";
-  o << "<h1>" << esc("Calibration report, session " + r.session_id) << "</h1>\n";
-  if (r.simulated) o << "<p class=\"bad\">Simulated cell: the truth is known and shown.</p>\n";
-  if (!r.plan_description.empty()) o << "<p>Plan: " << esc(r.plan_description) << "</p>\n";
-  o << "<p class=\"verdict" << (r.converged && !detail::refused(r) ? "" : " fail") << "\">"
+  o << "<h1>" << esc("Calibration report, session " + r.session.id) << "</h1>\n";
+  if (r.simulated()) o << "<p class=\"bad\">Simulated cell: the truth is known and shown.</p>\n";
+  if (!r.session.plan.description.empty())
+    o << "<p>Plan: " << esc(r.session.plan.description) << "</p>\n";
+  o << "<p class=\"verdict" << (r.solve().converged && !detail::refused(r) ? "" : " fail") << "\">"
     << esc(detail::verdict(r)) << "</p>\n";
-  if (!r.remeasured.empty()) o << "<p>" << esc(detail::remeasuredNote(r)) << "</p>\n";
+  if (!r.remeasured().empty()) o << "<p>" << esc(detail::remeasuredNote(r)) << "</p>\n";
   o << "<p class=\"identity\">";
   const std::vector<std::string> identity = detail::identity(r);
   for (std::size_t i = 0; i < identity.size(); ++i) o << (i ? "<br>" : "") << esc(identity[i]);
   o << "</p>\n";
-  if (!r.suspect_poses.empty()) {
+  if (!r.solve().suspect_poses.empty()) {
     o << "<p>Suspect poses (the result does not rest on them):</p>\n<ul>\n";
-    for (const SuspectRow& sp : r.suspect_poses)
-      o << "<li>" << esc(format("pose %d (line %d): ", sp.pose, sp.line) + sp.reason) << "</li>\n";
+    for (const SuspectPose& sp : r.solve().suspect_poses)
+      o << "<li>" << esc(format("pose %d (line %d): ", sp.pose, sp.source_line) + sp.reason)
+        << "</li>\n";
     o << "</ul>\n";
   }
   o << "<p>"
-    << esc(format("Solved from %d poses (%s model, %s cost); noise %s mm (%s); ", r.solved_poses,
-                  r.model.c_str(), r.cost.c_str(), num("%.4f", r.noise_mm).c_str(),
-                  r.noise_source.c_str()));
-  if (r.chi2_per_dof)
-    o << esc(format("chi-square per degree of freedom %.2f (dof %d); ", *r.chi2_per_dof, r.dof));
-  o << esc(format("RMS miss %.1f um; rank %d of 11, condition number %s.", r.rms_miss_mm * 1000,
-                  r.rank, num("%.1f", r.condition_number).c_str()))
+    << esc(format("Solved from %d poses (%s model, %s cost); noise %s mm (%s); ",
+                  r.solve().pose_count, modelName(r.solve()).c_str(),
+                  costName(r.solve().cost).c_str(), num("%.4f", r.solve().noise_mm).c_str(),
+                  noiseSourceName(r.solve()).c_str()));
+  if (r.solve().chi2_per_dof)
+    o << esc(format("chi-square per degree of freedom %.2f (dof %d); ", *r.solve().chi2_per_dof,
+                    r.solve().dof));
+  o << esc(format("RMS miss %.1f um; rank %d of 11, condition number %s.",
+                  r.solve().rms_miss_mm * 1000, r.solve().rank,
+                  num("%.1f", r.solve().condition_number).c_str()))
     << "</p>\n";
 
   // Offsets.
@@ -288,7 +293,7 @@ std::string reportHtml(const SessionReport& r) {
        "<p>The true joint angle is the controller's angle plus delta. The 95% interval contains "
        "the true offset 19 times in 20.</p>\n<table>\n<tr><th>offset</th><th>value (deg)</th>"
        "<th>value (rad)</th><th>sigma (deg)</th><th>sigma (rad)</th><th>95% interval (deg)</th>";
-  if (r.simulated) o << "<th>truth (deg)</th>";
+  if (r.simulated()) o << "<th>truth (deg)</th>";
   o << "</tr>\n";
   for (const ParameterRow& p : r.parameters) {
     if (!detail::isOffset(p)) continue;
@@ -296,18 +301,18 @@ std::string reportHtml(const SessionReport& r) {
     if (!p.identifiable || detail::refused(r)) {
       o << "<td colspan=\"5\" class=\"bad\">"
         << (p.identifiable ? "withheld: the result is not usable" : "not identifiable (see below)")
-        << "</td>" << (r.simulated ? td(p.truth ? format("%+.5f", *p.truth) : "", "n") : "")
+        << "</td>" << (r.simulated() ? td(p.truth ? format("%+.5f", *p.truth) : "", "n") : "")
         << "</tr>\n";
       continue;
     }
     o << td(format("%+.5f", p.value), "n") << td(format("%+.7f", p.value * kDegToRad), "n")
       << td(format("%.5f", p.sigma), "n") << td(format("%.7f", p.sigma * kDegToRad), "n")
       << td(format("[%+.5f, %+.5f]", p.ci95_low, p.ci95_high), "n");
-    if (r.simulated) o << td(p.truth ? format("%+.5f", *p.truth) : "", "n");
+    if (r.simulated()) o << td(p.truth ? format("%+.5f", *p.truth) : "", "n");
     o << "</tr>\n";
   }
   o << "</table>\n<h2>Not identifiable, and why</h2>\n<ul>\n";
-  for (const auto& n : r.not_identifiable)
+  for (const auto& n : r.solve().not_identifiable)
     o << "<li><b>" << esc(n.name) << "</b>: " << esc(n.reason) << "</li>\n";
   o << "</ul>\n</section>\n";
 
@@ -388,29 +393,30 @@ std::string reportHtml(const SessionReport& r) {
 
   // Validation.
   o << "<h2>Validation on held-out poses</h2>\n";
-  if (!r.validation) {
+  if (!r.result.validation) {
     o << "<p>No poses were held out of this solve (<code>zerocal solve --holdout K</code> does "
          "it).</p>\n";
   } else {
     std::vector<std::string> vc;
     Series before{"before (nominal)", "#c77c2a", {}}, after{"after calibration", "#2a5db0", {}};
-    for (const HeldOutRow& h : r.validation->poses) {
+    for (const HeldOutPose& h : r.result.validation->poses) {
       vc.push_back("pose " + std::to_string(h.pose));
-      before.values.push_back(h.before_mm);
-      after.values.push_back(h.after_mm);
+      before.values.push_back(h.before.on_psd_norm_mm);
+      after.values.push_back(h.after.on_psd_norm_mm);
     }
     o << barChart("validation", "Aiming error at the PSD on poses the solve did not see", vc,
                   {before, after}, "held-out pose", "spot distance on the PSD (mm, log)", true);
     o << "<table>\n<tr><th>pose</th><th>before (mm)</th><th>after (mm)</th><th>after u, v (mm)"
          "</th><th>after, line miss (mm)</th></tr>\n";
-    for (const HeldOutRow& h : r.validation->poses)
-      o << "<tr>" << td(std::to_string(h.pose), "n") << td(format("%.4f", h.before_mm), "n")
-        << td(format("%.4f", h.after_mm), "n")
-        << td(format("%+.4f, %+.4f", h.after_uv_mm[0], h.after_uv_mm[1]), "n")
-        << td(format("%.4f", h.after_miss_mm), "n") << "</tr>\n";
+    for (const HeldOutPose& h : r.result.validation->poses)
+      o << "<tr>" << td(std::to_string(h.pose), "n")
+        << td(format("%.4f", h.before.on_psd_norm_mm), "n")
+        << td(format("%.4f", h.after.on_psd_norm_mm), "n")
+        << td(format("%+.4f, %+.4f", h.after.on_psd_mm[0], h.after.on_psd_mm[1]), "n")
+        << td(format("%.4f", h.after.miss_mm), "n") << "</tr>\n";
     o << "</table>\n<p>"
       << esc(format("RMS before (nominal model) %.4f mm, after calibration %.4f mm.",
-                    r.validation->rms_before_mm, r.validation->rms_after_mm))
+                    r.result.validation->rms_before_mm, r.result.validation->rms_after_mm))
       << "</p>\n";
   }
 
@@ -440,9 +446,10 @@ std::string reportHtml(const SessionReport& r) {
   }
   o << "</table>\n";
   o << "<p>"
-    << esc(format("PSD centre in the base frame: %.3f %.3f %.3f mm.", r.target_mm[0],
-                  r.target_mm[1], r.target_mm[2]));
-  if (r.cell_time_s) o << esc(format(" Cell time %.1f s.", *r.cell_time_s));
+    << esc(format("PSD centre in the base frame: %.3f %.3f %.3f mm.",
+                  r.solve().estimate.target_mm[0], r.solve().estimate.target_mm[1],
+                  r.solve().estimate.target_mm[2]));
+  if (r.result.cell_time_s) o << esc(format(" Cell time %.1f s.", *r.result.cell_time_s));
   o << " Written by zerocal from " << esc(r.dir) << ".</p>\n</body>\n</html>\n";
   return o.str();
 }

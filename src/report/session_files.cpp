@@ -48,90 +48,49 @@ SessionFolder readSessionFiles(const std::string& session_dir) {
   }
 }
 
+std::optional<bool> SessionReport::usable() const {
+  if (!result.verdict_recorded) return std::nullopt;
+  return result.report.verdict.usable;
+}
+
+const ResultFile::Cell& SessionReport::cell() const {
+  static const ResultFile::Cell kUnknown;
+  return result.cell ? *result.cell : kUnknown;
+}
+
+const std::vector<int>& SessionReport::remeasured() const {
+  static const std::vector<int> kNone;
+  return result.remeasured ? *result.remeasured : kNone;
+}
+
 SessionReport parseSession(const SessionFolder& files) {
   SessionReport r;
   r.dir = files.dir;
-  const SessionFile& session = files.session;
-  const ResultFile& result = files.result;
-  const SolveReport& solve = result.report;
-  r.session_id = session.id;
-  if (!result.session.empty() && result.session != r.session_id)
-    throw ReportError("result.json belongs to session '" + result.session + "', session.json to '" +
-                      r.session_id + "'");
-  r.plan_description = session.plan.description;
-
-  if (result.verdict_recorded) {
-    r.usable = solve.verdict.usable;
-    r.refusal_reasons = solve.verdict.reasons;
-  }
-  for (const SuspectPose& s : solve.suspect_poses)
-    r.suspect_poses.push_back({s.pose, s.source_line, s.reason, s.chi2_without});
-  r.converged = solve.converged;
-  r.message = solve.message;
-  r.cost = costName(solve.cost);
-  r.model = solve.used_readings ? "hit-point" : "point-to-line";
-  r.noise_source = solve.noise_estimated ? "estimated from the residuals" : "given";
-  r.solved_poses = solve.pose_count;
-  r.rank = solve.rank;
-  r.dof = solve.dof;
-  r.condition_number = solve.condition_number;
-  r.noise_mm = solve.noise_mm;
-  r.rms_miss_mm = solve.rms_miss_mm;
-  r.chi2_per_dof = solve.chi2_per_dof;
-  r.chi2_p_value = solve.chi2_p_value;
-  r.cell_time_s = result.cell_time_s;
-  r.simulated = result.truth.has_value();
-  if (result.cell) {
-    r.robot = result.cell->controller;
-    r.psd_map = result.cell->psd_map;
-  }
-  r.zerocal_version = result.zerocal_version;
-  r.finished_unix_s = result.finished_unix_s;
-
+  r.session = files.session;
+  r.result = files.result;
+  const SolveReport& solve = r.result.report;
+  if (!r.result.session.empty() && r.result.session != r.session.id)
+    throw ReportError("result.json belongs to session '" + r.result.session +
+                      "', session.json to '" + r.session.id + "'");
+  const Prediction& prediction = r.session.plan.prediction;
   for (const ParameterEstimate& p : solve.parameters) {
     ParameterRow row;
-    row.name = p.name;
-    row.identifiable = p.identifiable;
-    row.reason = p.reason;
-    row.value = p.value;
-    row.sigma = p.sigma;
-    row.ci95_low = p.ci95_low;
-    row.ci95_high = p.ci95_high;
-    for (int k = 0; k < kIdentifiedCount; ++k)
-      if (unknownName(k) == p.name && k < static_cast<int>(session.plan.prediction.sigma.size()) &&
-          std::isfinite(session.plan.prediction.sigma[k]))
-        row.predicted_sigma = session.plan.prediction.sigma[k];
-    if (result.truth)
-      for (int k = 0; k < kOffsetCount; ++k)
-        if (unknownName(k) == p.name && std::isfinite(result.truth->offsets_deg[k]))
-          row.truth = result.truth->offsets_deg[k];
+    static_cast<ParameterEstimate&>(row) = p;
+    for (int k = 0; k < kIdentifiedCount; ++k) {
+      if (unknownName(k) != p.name) continue;
+      if (k < static_cast<int>(prediction.sigma.size()) && std::isfinite(prediction.sigma[k]))
+        row.predicted_sigma = prediction.sigma[k];
+      if (r.result.truth && k < kOffsetCount && std::isfinite(r.result.truth->offsets_deg[k]))
+        row.truth = r.result.truth->offsets_deg[k];
+    }
     r.parameters.push_back(row);
-  }
-  for (const auto& n : solve.not_identifiable) r.not_identifiable.push_back({n.name, n.reason});
-  for (int k = 0; k < 3; ++k) {
-    r.target_mm[k] = solve.estimate.target_mm[k];
-    r.target_sigma_mm[k] = solve.target_sigma_mm[k];
   }
 
   // Poses: every journal line, with the solve's residual where the pose was solved. Held-out
   // poses (validation) are not in the solve, so the residual list skips them.
   std::vector<int> held_out;
-  if (result.validation) {
-    Validation validation;
-    validation.rms_before_mm = result.validation->rms_before_mm;
-    validation.rms_after_mm = result.validation->rms_after_mm;
-    for (const HeldOutPose& p : result.validation->poses) {
-      HeldOutRow row;
-      row.pose = p.pose;
-      row.before_mm = p.before.on_psd_norm_mm;
-      row.after_mm = p.after.on_psd_norm_mm;
-      row.after_miss_mm = p.after.miss_mm;
-      row.after_uv_mm = {p.after.on_psd_mm.x(), p.after.on_psd_mm.y()};
-      held_out.push_back(row.pose);
-      validation.poses.push_back(row);
-    }
-    r.validation = validation;
-  }
+  if (r.result.validation)
+    for (const HeldOutPose& p : r.result.validation->poses) held_out.push_back(p.pose);
   const std::vector<PoseRecord>& records = files.journal;
   const int journal_poses = static_cast<int>(records.size());
   // Each plan pose's latest line is the one solved (a pose measured again replaces its first
@@ -146,15 +105,15 @@ SessionReport parseSession(const SessionFolder& files) {
     if (std::find(held_out.begin(), held_out.end(), plan_index + 1) == held_out.end())
       residual_of[line] = static_cast<int>(residual_of.size());
   }
-  if (r.solved_poses + static_cast<int>(held_out.size()) != measured_poses)
-    throw ReportError("result.json solved " + std::to_string(r.solved_poses) + " poses" +
+  const int solved_poses = solve.pose_count;
+  if (solved_poses + static_cast<int>(held_out.size()) != measured_poses)
+    throw ReportError("result.json solved " + std::to_string(solved_poses) + " poses" +
                       (held_out.empty() ? "" : " and held out " + std::to_string(held_out.size())) +
                       ", but journal.jsonl has " + std::to_string(measured_poses) +
                       " measured ones: the files do not belong together");
-  if (static_cast<int>(solve.poses.size()) != r.solved_poses)
+  if (static_cast<int>(solve.poses.size()) != solved_poses)
     throw ReportError("result.json: " + std::to_string(solve.poses.size()) +
-                      " pose_residuals for " + std::to_string(r.solved_poses) + " poses");
-  if (result.remeasured) r.remeasured = *result.remeasured;
+                      " pose_residuals for " + std::to_string(solved_poses) + " poses");
   for (int i = 0; i < journal_poses; ++i) {
     const PoseRecord& record = records[i];
     PoseRow row;

@@ -12,30 +12,35 @@ using detail::num;
 std::string summaryText(const SessionReport& r) {
   constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
   std::ostringstream o;
-  o << "zerocal calibration summary, session " << r.session_id
-    << (r.simulated ? " (SIMULATED cell: the truth is known)" : "") << "\n";
+  o << "zerocal calibration summary, session " << r.session.id
+    << (r.simulated() ? " (SIMULATED cell: the truth is known)" : "") << "\n";
   o << detail::wrap(detail::verdict(r), 100, 0);
-  for (const SuspectRow& sp : r.suspect_poses)
-    o << detail::wrap(format("Suspect pose %d (line %d): ", sp.pose, sp.line) + sp.reason, 100, 2);
-  if (!r.remeasured.empty()) o << detail::wrap(detail::remeasuredNote(r), 100, 0);
+  for (const SuspectPose& sp : r.solve().suspect_poses)
+    o << detail::wrap(format("Suspect pose %d (line %d): ", sp.pose, sp.source_line) + sp.reason,
+                      100, 2);
+  if (!r.remeasured().empty()) o << detail::wrap(detail::remeasuredNote(r), 100, 0);
   for (const std::string& line : detail::identity(r)) o << detail::wrap(line, 100, 0);
-  if (!r.plan_description.empty()) o << detail::wrap("plan: " + r.plan_description, 100, 0);
-  std::string fit = format("Solved from %d poses (%s model, %s cost); noise %s mm (%s); ",
-                           r.solved_poses, r.model.c_str(), r.cost.c_str(),
-                           num("%.4f", r.noise_mm).c_str(), r.noise_source.c_str());
-  if (r.chi2_per_dof)
-    fit += format("chi-square per degree of freedom %.2f, dof %d; ", *r.chi2_per_dof, r.dof);
+  if (!r.session.plan.description.empty())
+    o << detail::wrap("plan: " + r.session.plan.description, 100, 0);
+  std::string fit =
+      format("Solved from %d poses (%s model, %s cost); noise %s mm (%s); ", r.solve().pose_count,
+             modelName(r.solve()).c_str(), costName(r.solve().cost).c_str(),
+             num("%.4f", r.solve().noise_mm).c_str(), noiseSourceName(r.solve()).c_str());
+  if (r.solve().chi2_per_dof)
+    fit += format("chi-square per degree of freedom %.2f, dof %d; ", *r.solve().chi2_per_dof,
+                  r.solve().dof);
   else
-    fit += format("dof %d (chi-square needs a given noise level); ", r.dof);
-  fit += format("RMS miss %.1f um; rank %d of 11, condition number %s.", r.rms_miss_mm * 1000,
-                r.rank, num("%.1f", r.condition_number).c_str());
+    fit += format("dof %d (chi-square needs a given noise level); ", r.solve().dof);
+  fit +=
+      format("RMS miss %.1f um; rank %d of 11, condition number %s.", r.solve().rms_miss_mm * 1000,
+             r.solve().rank, num("%.1f", r.solve().condition_number).c_str());
   o << detail::wrap(fit, 100, 0);
 
   o << "\nJoint offsets, ARM side (joint angle, not motor angle): the true joint angle is the\n"
        "controller's angle plus delta. 95% interval = value +- t * sigma.\n";
   o << format("%-7s %12s %13s %11s %12s   %-25s", "offset", "value deg", "value rad", "sigma deg",
               "sigma rad", "95% interval deg");
-  if (r.simulated) o << format(" %10s", "truth deg");
+  if (r.simulated()) o << format(" %10s", "truth deg");
   o << "\n";
   for (const ParameterRow& p : r.parameters) {
     if (!detail::isOffset(p)) continue;
@@ -53,7 +58,7 @@ std::string summaryText(const SessionReport& r) {
   }
 
   o << "\nNot identifiable, and why:\n";
-  for (const auto& n : r.not_identifiable) {
+  for (const auto& n : r.solve().not_identifiable) {
     o << "  " << n.name << ":\n" << detail::wrap(n.reason, 100, 4);
   }
 
@@ -68,9 +73,10 @@ std::string summaryText(const SessionReport& r) {
                   p.sigma);
   }
   o << format("PSD centre in the base frame: %.3f %.3f %.3f mm (sigma %s %s %s mm)\n",
-              r.target_mm[0], r.target_mm[1], r.target_mm[2],
-              num("%.3f", r.target_sigma_mm[0]).c_str(), num("%.3f", r.target_sigma_mm[1]).c_str(),
-              num("%.3f", r.target_sigma_mm[2]).c_str());
+              r.solve().estimate.target_mm[0], r.solve().estimate.target_mm[1],
+              r.solve().estimate.target_mm[2], num("%.3f", r.solve().target_sigma_mm[0]).c_str(),
+              num("%.3f", r.solve().target_sigma_mm[1]).c_str(),
+              num("%.3f", r.solve().target_sigma_mm[2]).c_str());
 
   o << "\nWorst poses (normalised residual = miss / noise sigma; SUSPECT: did not fit the "
        "others):\n";
@@ -91,20 +97,21 @@ std::string summaryText(const SessionReport& r) {
   }
 
   o << "\nValidation on held-out poses (aiming error at the PSD, spot distance on its plane):\n";
-  if (!r.validation) {
+  if (!r.result.validation) {
     o << "  no poses were held out of this solve (zerocal solve --holdout K does it).\n";
   } else {
     o << format("  %5s %14s %14s %16s\n", "pose", "before mm", "after mm", "after miss mm");
-    for (const HeldOutRow& h : r.validation->poses)
-      o << format("  %5d %14.4f %14.4f %16.4f\n", h.pose, h.before_mm, h.after_mm, h.after_miss_mm);
+    for (const HeldOutPose& h : r.result.validation->poses)
+      o << format("  %5d %14.4f %14.4f %16.4f\n", h.pose, h.before.on_psd_norm_mm,
+                  h.after.on_psd_norm_mm, h.after.miss_mm);
     o << format("  RMS: before (nominal model) %.4f mm, after calibration %.4f mm\n",
-                r.validation->rms_before_mm, r.validation->rms_after_mm);
+                r.result.validation->rms_before_mm, r.result.validation->rms_after_mm);
   }
 
   const detail::Section abb = detail::abbSection(r);
   o << "\n" << abb.heading << "\n";
   for (const std::string& p : abb.paragraphs) o << detail::wrap(p, 100, 2) << "\n";
-  if (r.cell_time_s) o << format("cell time %.1f s\n", *r.cell_time_s);
+  if (r.result.cell_time_s) o << format("cell time %.1f s\n", *r.result.cell_time_s);
   o << "report.html beside this file has the plots.\n";
   return o.str();
 }

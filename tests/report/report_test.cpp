@@ -75,9 +75,9 @@ const SessionReport& heldOutSession() {
 
 TEST(Parse, TakesOffsetsInTheSolverOrderWithPlanAndTruth) {
   const SessionReport& r = plainSession();
-  EXPECT_EQ(r.session_id, "20261122T070000Z");
-  EXPECT_TRUE(r.simulated);
-  EXPECT_TRUE(r.converged);
+  EXPECT_EQ(r.session.id, "20261122T070000Z");
+  EXPECT_TRUE(r.simulated());
+  EXPECT_TRUE(r.solve().converged);
   ASSERT_EQ(r.parameters.size(), 8u);
   EXPECT_EQ(r.parameters[0].name, "delta2_deg");
   EXPECT_EQ(r.parameters[3].name, "delta5_deg");
@@ -93,27 +93,27 @@ TEST(Parse, TakesOffsetsInTheSolverOrderWithPlanAndTruth) {
   EXPECT_FALSE(r.poses[3].servo_path);
   ASSERT_TRUE(r.poses[0].servo_path);
   EXPECT_EQ(r.poses[0].servo_path->size(), 21u);
-  EXPECT_GE(r.not_identifiable.size(), 2u);
+  EXPECT_GE(r.solve().not_identifiable.size(), 2u);
 }
 
 TEST(Parse, HeldOutPosesAreNotGivenSomeoneElsesResidual) {
   const SessionReport& r = heldOutSession();
-  ASSERT_TRUE(r.validation);
-  EXPECT_EQ(r.solved_poses, 10);
+  ASSERT_TRUE(r.result.validation);
+  EXPECT_EQ(r.solve().pose_count, 10);
   ASSERT_EQ(r.poses.size(), 12u);
   EXPECT_FALSE(r.poses[2].solved);
   EXPECT_FALSE(r.poses[7].solved);
   EXPECT_TRUE(r.poses[3].solved);
-  ASSERT_EQ(r.validation->poses.size(), 2u);
-  EXPECT_EQ(r.validation->poses[0].pose, 3);
-  EXPECT_GT(r.validation->rms_before_mm, 30 * r.validation->rms_after_mm);
+  ASSERT_EQ(r.result.validation->poses.size(), 2u);
+  EXPECT_EQ(r.result.validation->poses[0].pose, 3);
+  EXPECT_GT(r.result.validation->rms_before_mm, 30 * r.result.validation->rms_after_mm);
 }
 
 TEST(Parse, ASkippedPoseIsListedWithItsReasonAndTheSolvedOnesKeepTheirResiduals) {
   test::FixtureOptions o;
   o.skipped = {2};
   const SessionReport r = parseSession(test::sessionFiles(o));
-  EXPECT_EQ(r.solved_poses, 9);
+  EXPECT_EQ(r.solve().pose_count, 9);
   ASSERT_EQ(r.poses.size(), 10u);
   EXPECT_FALSE(r.poses[1].solved);
   EXPECT_EQ(r.poses[1].skipped, "spot not found");
@@ -130,7 +130,7 @@ TEST(Parse, APoseMeasuredAgainIsSolvedFromItsLatestLineAndSaidSo) {
   test::FixtureOptions o;
   o.remeasured = {3};
   const SessionReport r = parseSession(test::sessionFiles(o));
-  EXPECT_EQ(r.solved_poses, 10);
+  EXPECT_EQ(r.solve().pose_count, 10);
   ASSERT_EQ(r.poses.size(), 11u);
   EXPECT_EQ(r.poses[2].pose, 3);
   EXPECT_TRUE(r.poses[2].superseded);
@@ -139,7 +139,7 @@ TEST(Parse, APoseMeasuredAgainIsSolvedFromItsLatestLineAndSaidSo) {
   EXPECT_TRUE(r.poses[10].again);
   EXPECT_TRUE(r.poses[10].solved);
   EXPECT_FALSE(r.poses[10].superseded);
-  EXPECT_EQ(r.remeasured, std::vector<int>{3});
+  EXPECT_EQ(r.remeasured(), std::vector<int>{3});
   const std::string summary = summaryText(r), html = reportHtml(r);
   for (const std::string& text : {summary, html})
     EXPECT_TRUE(contains(text, "Pose 3 did not fit the others at first and was measured again"))
@@ -168,8 +168,8 @@ TEST(Summary, GivesEachOffsetInDegreesAndRadiansWithSigmaAndInterval) {
   std::string flowed = s;  // the fit line is wrapped at 100 columns
   std::replace(flowed.begin(), flowed.end(), '\n', ' ');
   char chi2[96];
-  std::snprintf(chi2, sizeof chi2, "chi-square per degree of freedom %.2f, dof %d", *r.chi2_per_dof,
-                r.dof);
+  std::snprintf(chi2, sizeof chi2, "chi-square per degree of freedom %.2f, dof %d",
+                *r.solve().chi2_per_dof, r.solve().dof);
   EXPECT_TRUE(contains(flowed, chi2)) << chi2;
   for (std::istringstream lines(s); std::getline(lines, flowed);)
     EXPECT_LE(flowed.size(), 100u) << flowed;
@@ -178,7 +178,7 @@ TEST(Summary, GivesEachOffsetInDegreesAndRadiansWithSigmaAndInterval) {
 TEST(Summary, SaysWhatIsNotIdentifiableAndWhy) {
   const std::string s = summaryText(plainSession());
   EXPECT_TRUE(contains(s, "Not identifiable, and why:"));
-  for (const auto& n : plainSession().not_identifiable) {
+  for (const auto& n : plainSession().solve().not_identifiable) {
     EXPECT_TRUE(contains(s, n.name + ":")) << n.name;
     EXPECT_TRUE(contains(s, n.reason.substr(0, 30))) << n.reason;
   }
@@ -264,7 +264,7 @@ TEST(Summary, ValidationWhenPosesWereHeldOutAndSaysSoWhenNot) {
   const std::string s = summaryText(r);
   char rms[128];
   std::snprintf(rms, sizeof rms, "RMS: before (nominal model) %.4f mm, after calibration %.4f mm",
-                r.validation->rms_before_mm, r.validation->rms_after_mm);
+                r.result.validation->rms_before_mm, r.result.validation->rms_after_mm);
   EXPECT_TRUE(contains(s, rms)) << s;
 }
 

@@ -45,5 +45,9 @@ nlohmann::json toJson(const std::array<JointSensitivity, kJointCount>& s);
 std::string toText(const std::array<JointSensitivity, kJointCount>& s);
 
 std::string costName(CostKind cost);
+// How a solve modelled the readings ("hit-point", "point-to-line") and where its noise came from
+// ("given", "estimated from the residuals"): result.json's "model" and "noise_source".
+std::string modelName(const SolveReport& report);
+std::string noiseSourceName(const SolveReport& report);
 
 }  // namespace zerocal

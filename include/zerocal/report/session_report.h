@@ -12,7 +12,6 @@
 #include <string>
 #include <vector>
 
-#include "zerocal/cell/controller_link.h"
 #include "zerocal/error.h"
 #include "zerocal/store/session_files.h"
 
@@ -25,12 +24,9 @@ class ReportError : public Error {
   using Error::Error;
 };
 
-struct ParameterRow {
-  std::string name;  // "delta2_deg", "laser_slope_1", ... as in result.json
-  bool identifiable = false;
-  std::string reason;                     // why not, when not
-  double value = 0, sigma = 0;            // the parameter's unit (deg for offsets)
-  double ci95_low = 0, ci95_high = 0;     // same unit
+// A parameter of the solve as the report shows it: the estimate, with the plan's prediction and,
+// on the simulated cell, the truth beside it.
+struct ParameterRow : ParameterEstimate {
   std::optional<double> predicted_sigma;  // the plan's prediction, same unit
   std::optional<double> truth;            // simulated sessions only
 };
@@ -54,57 +50,24 @@ struct PoseRow {
   std::optional<std::vector<ServoSample>> servo_path;  // absent: not recorded
 };
 
-struct HeldOutRow {
-  int pose = 0;              // 1-based
-  double before_mm = 0;      // nominal model: spot distance on the PSD plane
-  double after_mm = 0;       // calibrated model
-  double after_miss_mm = 0;  // calibrated line's perpendicular miss
-  std::array<double, 2> after_uv_mm{};
-};
-
-struct Validation {
-  std::vector<HeldOutRow> poses;
-  double rms_before_mm = 0, rms_after_mm = 0;
-};
-
-// A pose the result does not rest on (result.json suspect_poses).
-struct SuspectRow {
-  int pose = 0;  // 1-based
-  int line = 0;
-  std::string reason;
-  double chi2_without = 0;
-};
-
-// Everything the summary and the report show, taken from the session's files.
+// Everything the summary and the report show: the session's files as the store reads them, and
+// the rows that join them (parameters with their prediction, journal lines with their residual).
 struct SessionReport {
-  // The solve's verdict (result.json "verdict"); unset in results written before verdicts.
-  std::optional<bool> usable;
-  std::vector<std::string> refusal_reasons;
-  std::vector<SuspectRow> suspect_poses;
-  std::string session_id;
   std::string dir;
-  bool simulated = false;  // result.json carries the simulated truth
-  std::string plan_description;
-  bool converged = false;
-  std::string message, cost, model, noise_source;
-  int solved_poses = 0, rank = 0, dof = 0;
-  double condition_number = 0, noise_mm = 0, rms_miss_mm = 0;
-  std::optional<double> chi2_per_dof, chi2_p_value, cell_time_s;
-  std::vector<ParameterRow> parameters;  // the 8 identified, offsets first
-  struct NotIdentifiable {
-    std::string name, reason;
-  };
-  std::vector<NotIdentifiable> not_identifiable;
-  std::array<double, 3> target_mm{}, target_sigma_mm{};
-  std::vector<PoseRow> poses;   // every journal line, in order
-  std::vector<int> remeasured;  // plan poses (1-based) measured again after the first solve
-  std::optional<Validation> validation;
-  // Whose calibration this is, from result.json's "cell", "zerocal_version" and
-  // "finished_unix_s": the robot as its controller identified itself, the PSD map, the zerocal
-  // that made the result, and when. Empty or unset in results written before they were recorded.
-  RobotInfo robot;
-  std::string psd_map, zerocal_version;
-  std::optional<std::int64_t> finished_unix_s;
+  SessionFile session;                   // session.json
+  ResultFile result;                     // result.json
+  std::vector<ParameterRow> parameters;  // the solve's, offsets first
+  std::vector<PoseRow> poses;            // every journal line, in order
+
+  const SolveReport& solve() const { return result.report; }
+  // The solve's verdict; unset in results written before verdicts.
+  std::optional<bool> usable() const;
+  bool simulated() const { return result.truth.has_value(); }  // the truth is known
+  // Whose calibration this is: the robot as its controller named itself, the PSD map. Empty in
+  // results written before they were recorded.
+  const ResultFile::Cell& cell() const;
+  // Plan poses (1-based) measured again after the first solve.
+  const std::vector<int>& remeasured() const;
 };
 
 // Reads session.json, journal.jsonl (committed lines, through readJournal's checks) and

@@ -134,9 +134,7 @@ BENCHMARK(BM_DriverDecode48k)->Unit(benchmark::kMicrosecond);
 void BM_AveragedReading64(benchmark::State& state) {
   sim::PsdModel psd;
   sim::Usb1408fsModel board;
-  board.setAnalogSource(sim::psdAnalogSource(psd, [](double) {
-    return sim::SpotPosition{0.1, -0.2};
-  }));
+  board.setAnalogSource(sim::psdAnalogSource(psd, [](double) { return PsdSpot{0.1, -0.2}; }));
   usb1408fs::Usb1408fs daq(sim::FakeTransport::opener(board));
   double simulated = 0;
   for (auto _ : state) {
@@ -153,9 +151,7 @@ BENCHMARK(BM_AveragedReading64)->Unit(benchmark::kMicrosecond);
 void BM_StreamReading64(benchmark::State& state) {
   sim::PsdModel psd;
   sim::Usb1408fsModel board;
-  board.setAnalogSource(sim::psdAnalogSource(psd, [](double) {
-    return sim::SpotPosition{0.1, -0.2};
-  }));
+  board.setAnalogSource(sim::psdAnalogSource(psd, [](double) { return PsdSpot{0.1, -0.2}; }));
   usb1408fs::Usb1408fs daq(sim::FakeTransport::opener(board));
   psd::PsdStream stream(daq, psd::PsdChannels{}, 64, 16000.0);
   psd::VoltageReading r;
@@ -186,7 +182,7 @@ void BM_ChainPsdReading(benchmark::State& state) {
   sim::SweepOptions sweep;
   sweep.step_mm = 0.1;
   const psd::PsdMap map = psd::PsdMap::fit(sim::simulateSweep(rig, sweep), psd::MapFitOptions{});
-  rig.setSpot(sim::SpotPosition{0.1, -0.2});
+  rig.setSpot(PsdSpot{0.1, -0.2});
   BoardClock clock(rig.board());
   servo::ChainPsdReaderOptions o;
   o.samples = static_cast<std::size_t>(state.range(0));
@@ -197,7 +193,7 @@ void BM_ChainPsdReading(benchmark::State& state) {
     const auto t0 = rig.board().now();
     const PsdReading r = reader.read();
     simulated += std::chrono::duration<double>(rig.board().now() - t0).count();
-    benchmark::DoNotOptimize(r.u_mm);
+    benchmark::DoNotOptimize(r.spot.u_mm);
   }
   state.counters["simulated_latency_ms"] =
       1e3 * simulated / static_cast<double>(state.iterations());

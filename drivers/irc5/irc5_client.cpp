@@ -556,11 +556,11 @@ std::array<JointLimit, kJointCount> Irc5Client::readJointBounds() {
   return out;
 }
 
-std::optional<std::array<double, 2>> Irc5Client::readSimBeamSpot() {
+std::optional<PsdSpot> Irc5Client::readSimBeamSpot() {
   const irc5::ReplyView r =
       transact(request(irc5::kSimBeamSpot), irc5::kSimBeamSpot, 3, options_.request_timeout);
   if (parseNumber(r.fields[0], r.code) == 0) return std::nullopt;
-  return std::array<double, 2>{parseNumber(r.fields[1], r.code), parseNumber(r.fields[2], r.code)};
+  return PsdSpot{parseNumber(r.fields[1], r.code), parseNumber(r.fields[2], r.code)};
 }
 
 SimWorldId Irc5Client::readSimWorldId() {

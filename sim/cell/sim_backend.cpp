@@ -87,14 +87,12 @@ ExternalSimBackend::ExternalSimBackend(ExternalSimOptions options)
       psd_(options_.psd),
       board_(options_.board_seed),
       map_(simulatedPsdMap(options_.psd, options_.sweep_half_width_mm, options_.sweep_step_mm)) {
-  board_.setAnalogSource(psdAnalogSource(psd_, [this](double) -> std::optional<SpotPosition> {
+  board_.setAnalogSource(psdAnalogSource(psd_, [this](double) -> std::optional<PsdSpot> {
     // Called on the session's thread, between the servo's requests on the other link. A lost
     // spot link reads as no light; the session then fails or reconnects both links.
     if (spot_link_ == nullptr) return std::nullopt;
     try {
-      const auto spot = spot_link_->readSimBeamSpot();
-      if (!spot) return std::nullopt;
-      return SpotPosition{(*spot)[0], (*spot)[1]};
+      return spot_link_->readSimBeamSpot();
     } catch (const std::exception&) {
       return std::nullopt;
     }

@@ -15,8 +15,8 @@ std::vector<psd::SweepPoint> stageSweep(PsdModel& psd, double half_width, double
   constexpr int kSamples = 64;
   for (int i = 0; i <= n; ++i) {
     for (int j = 0; j <= n; ++j) {
-      const SpotPosition p{-half_width + i * step, -half_width + j * step};
-      psd::SweepPoint s{p.u_mm, p.v_mm, 0, 0, 0};
+      const PsdSpot p{-half_width + i * step, -half_width + j * step};
+      psd::SweepPoint s{p, 0, 0, 0};
       for (int k = 0; k < kSamples; ++k) {
         const PsdVoltages v = psd.measure(p);
         s.x_v += v.x / kSamples;
@@ -68,10 +68,10 @@ SimulatedCell::SimulatedCell(SimulatedCellOptions options)
       board_(options_.board_seed),
       map_(simulatedPsdMap(options_.psd, options_.sweep_half_width_mm, options_.sweep_step_mm)) {
   SimController* controller = controller_.get();
-  board_.setAnalogSource(psdAnalogSource(psd_, [controller](double) -> std::optional<SpotPosition> {
+  board_.setAnalogSource(psdAnalogSource(psd_, [controller](double) -> std::optional<PsdSpot> {
     const std::optional<BeamHit> hit = controller->beamHitNow();
     if (!hit) return std::nullopt;
-    return SpotPosition{hit->u_mm, hit->v_mm};
+    return hit->spot;
   }));
   controller_->start();
 }

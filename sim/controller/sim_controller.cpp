@@ -443,8 +443,8 @@ std::string SimController::Impl::moveTo(const Joints& target, int code, millisec
 std::optional<BeamHit> SimController::Impl::spotNow() const {
   std::optional<BeamHit> hit = beamHit(options.world, commanded, trueExtraDeg(), sim_time_s);
   if (hit) {
-    hit->u_mm += gross.stray_light_mm.x();
-    hit->v_mm += gross.stray_light_mm.y();
+    hit->spot.u_mm += gross.stray_light_mm.x();
+    hit->spot.v_mm += gross.stray_light_mm.y();
   }
   return hit;
 }
@@ -557,10 +557,10 @@ std::optional<std::string> SimController::Impl::respond(const irc5::ParsedReques
       // simulated board asks this over its own connection).
       if (n != 0) return bad;
       const std::optional<BeamHit> hit = spotNow();
-      if (!hit || !std::isfinite(hit->u_mm) || !std::isfinite(hit->v_mm) ||
-          std::abs(hit->u_mm) > 1e6 || std::abs(hit->v_mm) > 1e6)
+      if (!hit || !hit->spot.finite() || std::abs(hit->spot.u_mm) > 1e6 ||
+          std::abs(hit->spot.v_mm) > 1e6)
         return done + "0 0 0";
-      return done + "1 " + fmt(hit->u_mm, 5) + " " + fmt(hit->v_mm, 5);
+      return done + "1 " + fmt(hit->spot.u_mm, 5) + " " + fmt(hit->spot.v_mm, 5);
     }
     case irc5::kSimWorldId:
       return n == 0 ? done + worldHash(options.world) + " " + std::to_string(options.seed) : bad;

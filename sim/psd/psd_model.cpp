@@ -21,11 +21,11 @@ PsdModel::PsdModel(PsdModelOptions options)
   gain_v_ = options_.sensitivity_v_per_mm * sigma / std::sqrt(2.0 / M_PI);
   // The gaps and the dark term lower the slope a little; measure it and correct the gain.
   const double h = 1e-3;
-  const double slope = (ideal(SpotPosition{h, 0}).x - ideal(SpotPosition{-h, 0}).x) / (2 * h);
+  const double slope = (ideal(PsdSpot{h, 0}).x - ideal(PsdSpot{-h, 0}).x) / (2 * h);
   gain_v_ *= options_.sensitivity_v_per_mm / slope;
 }
 
-PsdVoltages PsdModel::ideal(const std::optional<SpotPosition>& spot) const {
+PsdVoltages PsdModel::ideal(const std::optional<PsdSpot>& spot) const {
   if (!spot) return {0.0, 0.0, 0.0};
   const double s = std::sqrt(2.0) * options_.spot_diameter_mm / 4.0;  // sqrt(2) sigma
   const double radius = options_.active_diameter_mm / 2.0;
@@ -52,7 +52,7 @@ PsdVoltages PsdModel::ideal(const std::optional<SpotPosition>& spot) const {
           options_.full_sum_v * on};
 }
 
-PsdVoltages PsdModel::measure(const std::optional<SpotPosition>& spot) {
+PsdVoltages PsdModel::measure(const std::optional<PsdSpot>& spot) {
   PsdVoltages v = ideal(spot);
   v.x += noise_(rng_);
   v.y += noise_(rng_);
@@ -61,7 +61,7 @@ PsdVoltages PsdModel::measure(const std::optional<SpotPosition>& spot) {
 }
 
 Usb1408fsModel::AnalogSource psdAnalogSource(
-    PsdModel& psd, std::function<std::optional<SpotPosition>(double t)> spot_at, PsdWiring wiring) {
+    PsdModel& psd, std::function<std::optional<PsdSpot>(double t)> spot_at, PsdWiring wiring) {
   struct Cache {
     double t = std::nan("");
     PsdVoltages v;

@@ -44,12 +44,12 @@ std::vector<psd::SweepPoint> simulateSweep(SimulatedPsdRig& rig, const SweepOpti
   sweep.reserve(static_cast<std::size_t>((n + 1) * (n + 1)));
   for (int i = 0; i <= n; ++i) {
     for (int j = 0; j <= n; ++j) {
-      const SpotPosition p{-options.extent_mm + j * options.step_mm,
-                           -options.extent_mm + i * options.step_mm};
+      const PsdSpot p{-options.extent_mm + j * options.step_mm,
+                      -options.extent_mm + i * options.step_mm};
       rig.setSpot(p);
       const psd::VoltageReading r =
           psd::readAveraged(rig.daq(), rig.channels(), options.samples, options.rate_hz);
-      sweep.push_back({p.u_mm, p.v_mm, r.x, r.y, r.sum});
+      sweep.push_back({p, r.x, r.y, r.sum});
     }
   }
   return sweep;

@@ -105,7 +105,7 @@ std::optional<BeamHit> beamHit(const World& world, const Joints& q_deg, const Jo
   if (!(t > 0)) return std::nullopt;
   const Eigen::Vector3d local =
       world.psd_rotation.transpose() * (p + t * d - world.psd_position_mm);
-  return BeamHit{local.x(), local.y(), t};
+  return BeamHit{{local.x(), local.y()}, t};
 }
 
 void updateGross(const GrossErrors& gross, const Joints& q_deg, std::mt19937_64& rng,

@@ -45,9 +45,8 @@ Eigen::Vector3d closestPointToLines(const std::vector<Line>& lines) {
 }
 
 Eigen::Vector3d hitPointOffset(const CellModel& cell, const Pose& pose, bool use_readings) {
-  if (!use_readings || !pose.psd_uv_mm) return Eigen::Vector3d::Zero();
-  return cell.psd_rotation.col(0) * pose.psd_uv_mm->x() +
-         cell.psd_rotation.col(1) * pose.psd_uv_mm->y();
+  if (!use_readings || !pose.spot) return Eigen::Vector3d::Zero();
+  return cell.psd_rotation.col(0) * pose.spot->u_mm + cell.psd_rotation.col(1) * pose.spot->v_mm;
 }
 
 }  // namespace zerocal

@@ -361,7 +361,7 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
   const auto start = std::chrono::steady_clock::now();
   const int n = static_cast<int>(poses.size());
   bool readings = options.use_readings;
-  for (const auto& p : poses) readings = readings && p.psd_uv_mm.has_value();
+  for (const auto& p : poses) readings = readings && p.spot.has_value();
 
   SolveReport report;
   report.cost = options.cost;
@@ -374,8 +374,7 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
   std::vector<int> duplicate_of(n, -1), active;
   for (int i = 0; i < n; ++i) {
     for (int j = 0; j < i && duplicate_of[i] < 0; ++j)
-      if (duplicate_of[j] < 0 && poses[i].q_deg == poses[j].q_deg &&
-          poses[i].psd_uv_mm == poses[j].psd_uv_mm)
+      if (duplicate_of[j] < 0 && poses[i].q_deg == poses[j].q_deg && poses[i].spot == poses[j].spot)
         duplicate_of[i] = j;
     if (duplicate_of[i] < 0) active.push_back(i);
   }

@@ -341,7 +341,7 @@ int main(int argc, char** argv) {
       options.loss_scale_sigmas = loss_scale;
       options.required_accuracy_deg = required_accuracy;
       options.max_offset_deg = max_offset;
-      bool has_readings = !poses.empty() && poses.front().psd_uv_mm.has_value();
+      bool has_readings = !poses.empty() && poses.front().spot.has_value();
       options.use_readings = has_readings && !ignore_readings;
       if (options.use_readings) {
         if (psd_rpy.empty())

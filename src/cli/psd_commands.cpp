@@ -179,7 +179,7 @@ int runPsd(const PsdArgs& args) {
     if (args.sim_dark) {
       rig->setSpot(std::nullopt);
     } else {
-      rig->setSpot(sim::SpotPosition{args.sim_spot[0], args.sim_spot[1]});
+      rig->setSpot(PsdSpot{args.sim_spot[0], args.sim_spot[1]});
     }
     daq = &rig->daq();
   } else {
@@ -213,10 +213,10 @@ int runPsd(const PsdArgs& args) {
     if (args.json) {
       nlohmann::json j;
       j["reading"] = k;
-      j["u_mm"] = orNull(have_uv, p.u_mm);
-      j["u_se_mm"] = orNull(have_uv, p.u_se_mm);
-      j["v_mm"] = orNull(have_uv, p.v_mm);
-      j["v_se_mm"] = orNull(have_uv, p.v_se_mm);
+      j["u_mm"] = orNull(have_uv, p.spot.u_mm);
+      j["u_se_mm"] = orNull(have_uv, p.se.u_mm);
+      j["v_mm"] = orNull(have_uv, p.spot.v_mm);
+      j["v_se_mm"] = orNull(have_uv, p.se.v_mm);
       j["x_v"] = r.x;
       j["y_v"] = r.y;
       j["sum_v"] = r.sum;
@@ -229,7 +229,8 @@ int runPsd(const PsdArgs& args) {
     }
     std::string line;
     if (have_uv) {
-      line = format("u %+.5f mm +-%.5f  v %+.5f mm +-%.5f  ", p.u_mm, p.u_se_mm, p.v_mm, p.v_se_mm);
+      line = format("u %+.5f mm +-%.5f  v %+.5f mm +-%.5f  ", p.spot.u_mm, p.se.u_mm, p.spot.v_mm,
+                    p.se.v_mm);
     } else {
       line = format("X %+.5f V  Y %+.5f V  ", r.x, r.y);
     }

@@ -120,10 +120,10 @@ json toJson(const service::SessionStatus& s) {
 
 json toJson(const service::LiveReading& live) {
   const auto& r = live.reading;
-  return {{"u_mm", r.u_mm},
-          {"v_mm", r.v_mm},
-          {"u_se_mm", r.u_se_mm},
-          {"v_se_mm", r.v_se_mm},
+  return {{"u_mm", r.spot.u_mm},
+          {"v_mm", r.spot.v_mm},
+          {"u_se_mm", r.se.u_mm},
+          {"v_se_mm", r.se.v_mm},
           {"sum_v", r.sum_v},
           {"spot_present", r.spot_present},
           {"in_valid_zone", r.in_valid_zone},

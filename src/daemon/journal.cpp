@@ -34,12 +34,11 @@ bool allFinite(const PoseRecord& r) {
   for (double q : r.joints_deg)
     if (!std::isfinite(q)) return false;
   const auto& s = r.servo;
-  for (double x : {r.u_mm, r.v_mm, r.u_se_mm, r.v_se_mm, s.move_s, s.acquisition_s, s.servo_s,
-                   s.settle_s, s.final_error_um})
+  if (!r.reading.spot.finite() || !r.reading.se.finite()) return false;
+  for (double x : {s.move_s, s.acquisition_s, s.servo_s, s.settle_s, s.final_error_um})
     if (!std::isfinite(x)) return false;
-  for (const auto& point : r.servo_path)
-    for (double x : point)
-      if (!std::isfinite(x)) return false;
+  for (const SpotPathPoint& point : r.servo_path)
+    if (!std::isfinite(point.t_s) || !point.spot.finite()) return false;
   return true;
 }
 
@@ -51,10 +50,10 @@ Json toJson(const PoseRecord& r) {
   // nlohmann writes doubles in the shortest form that reads back to the same bits.
   Json line{{"index", r.index},
             {"joints_deg", r.joints_deg},
-            {"u_mm", r.u_mm},
-            {"v_mm", r.v_mm},
-            {"u_se_mm", r.u_se_mm},
-            {"v_se_mm", r.v_se_mm},
+            {"u_mm", r.reading.spot.u_mm},
+            {"v_mm", r.reading.spot.v_mm},
+            {"u_se_mm", r.reading.se.u_mm},
+            {"v_se_mm", r.reading.se.v_mm},
             {"move_started_ns", r.move_started_ns},
             {"recorded_ns", r.recorded_ns},
             {"servo",
@@ -67,7 +66,11 @@ Json toJson(const PoseRecord& r) {
               {"settle_s", r.servo.settle_s},
               {"final_error_um", r.servo.final_error_um}}}};
   // No path recorded (a record made without the servo) is no key, as in older journals.
-  if (!r.servo_path.empty()) line["servo_path"] = r.servo_path;
+  if (!r.servo_path.empty()) {
+    Json& path = line["servo_path"] = Json::array();
+    for (const SpotPathPoint& p : r.servo_path)
+      path.push_back(Json::array({p.t_s, p.spot.u_mm, p.spot.v_mm}));
+  }
   if (r.remeasure_of >= 0) line["remeasure_of"] = r.remeasure_of;
   return line;
 }
@@ -83,10 +86,11 @@ PoseRecord poseRecordFromJson(const Json& j) {
       return r;
     }
     j.at("joints_deg").get_to(r.joints_deg);
-    j.at("u_mm").get_to(r.u_mm);
-    j.at("v_mm").get_to(r.v_mm);
-    j.at("u_se_mm").get_to(r.u_se_mm);
-    j.at("v_se_mm").get_to(r.v_se_mm);
+    j.at("u_mm").get_to(r.reading.spot.u_mm);
+    j.at("v_mm").get_to(r.reading.spot.v_mm);
+    j.at("u_se_mm").get_to(r.reading.se.u_mm);
+    j.at("v_se_mm").get_to(r.reading.se.v_mm);
+    r.reading.spot_present = r.reading.in_valid_zone = true;
     j.at("move_started_ns").get_to(r.move_started_ns);
     j.at("recorded_ns").get_to(r.recorded_ns);
     const Json& s = j.at("servo");
@@ -99,7 +103,9 @@ PoseRecord poseRecordFromJson(const Json& j) {
     s.at("final_error_um").get_to(r.servo.final_error_um);
     // Added later: journals written before have neither.
     if (s.contains("search_moves")) s.at("search_moves").get_to(r.servo.search_moves);
-    if (j.contains("servo_path")) j.at("servo_path").get_to(r.servo_path);
+    if (j.contains("servo_path"))
+      for (const auto& point : j.at("servo_path").get<std::vector<std::array<double, 3>>>())
+        r.servo_path.push_back({point[0], {point[1], point[2]}});
     if (j.contains("remeasure_of")) {
       j.at("remeasure_of").get_to(r.remeasure_of);
       if (r.remeasure_of < 0 || r.remeasure_of >= r.index)

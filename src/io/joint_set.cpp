@@ -89,7 +89,7 @@ std::vector<Pose> parseJointSet(const std::string& text, const std::string& orig
     Pose pose;
     pose.source_line = line_no;
     for (int k = 0; k < 6; ++k) pose.q_deg[k] = value(k);
-    if (column[6] >= 0) pose.psd_uv_mm = Eigen::Vector2d(value(6), value(7));
+    if (column[6] >= 0) pose.spot = PsdSpot{value(6), value(7)};
     if (poses.size() >= kMaxJointSetPoses)
       fail("more than " + std::to_string(kMaxJointSetPoses) + " poses: not a joint set");
     poses.push_back(pose);
@@ -132,7 +132,7 @@ std::string formatJointSet(const std::vector<Pose>& poses, const std::string& co
     while (std::getline(lines, l)) out << "# " << l << "\n";
   }
   bool with_uv = !poses.empty();
-  for (const auto& p : poses) with_uv = with_uv && p.psd_uv_mm.has_value();
+  for (const auto& p : poses) with_uv = with_uv && p.spot.has_value();
   out << "q1,q2,q3,q4,q5,q6" << (with_uv ? ",u,v" : "") << "\n";
   char buf[64];
   for (const auto& p : poses) {
@@ -141,7 +141,7 @@ std::string formatJointSet(const std::vector<Pose>& poses, const std::string& co
       out << buf;
     }
     if (with_uv) {
-      std::snprintf(buf, sizeof buf, ",%.5f,%.5f", p.psd_uv_mm->x(), p.psd_uv_mm->y());
+      std::snprintf(buf, sizeof buf, ",%.5f,%.5f", p.spot->u_mm, p.spot->v_mm);
       out << buf;
     }
     out << "\n";

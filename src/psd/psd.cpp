@@ -187,7 +187,7 @@ std::vector<SweepPoint> readSweepCsv(std::istream& in, const std::string& origin
         problems.push_back("line " + std::to_string(number) + ": " + names[k] + " is not a number");
       }
     }
-    if (ok) sweep.push_back({values[0], values[1], values[2], values[3], values[4]});
+    if (ok) sweep.push_back({{values[0], values[1]}, values[2], values[3], values[4]});
   }
   if (!problems.empty()) {
     std::string message = origin + ": the sweep cannot be used:";
@@ -201,8 +201,8 @@ void writeSweepCsv(std::ostream& out, const std::vector<SweepPoint>& sweep) {
   // 0.1 um stage positions and microvolt readings: finer than the stage and the board resolve.
   out << "u_mm,v_mm,x_v,y_v,sum_v\n" << std::fixed;
   for (const SweepPoint& p : sweep) {
-    out << std::setprecision(4) << p.u_mm << ',' << p.v_mm << ',' << std::setprecision(6) << p.x_v
-        << ',' << p.y_v << ',' << p.sum_v << '\n';
+    out << std::setprecision(4) << p.spot.u_mm << ',' << p.spot.v_mm << ',' << std::setprecision(6)
+        << p.x_v << ',' << p.y_v << ',' << p.sum_v << '\n';
   }
   out.unsetf(std::ios::floatfield);
 }
@@ -224,7 +224,8 @@ PsdMap PsdMap::fit(const std::vector<SweepPoint>& sweep, const MapFitOptions& op
   std::vector<const SweepPoint*> used;
   const double half = options.zone_half_width_mm + 1e-9;  // stage grids land on the limit
   for (const SweepPoint& p : sweep) {
-    if (std::abs(p.u_mm) <= half && std::abs(p.v_mm) <= half && p.sum_v >= options.min_sum_v) {
+    if (std::abs(p.spot.u_mm) <= half && std::abs(p.spot.v_mm) <= half &&
+        p.sum_v >= options.min_sum_v) {
       used.push_back(&p);
     }
   }
@@ -243,8 +244,8 @@ PsdMap PsdMap::fit(const std::vector<SweepPoint>& sweep, const MapFitOptions& op
       a(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(k)) =
           std::pow(x, i) * std::pow(y, j);
     });
-    bu(static_cast<Eigen::Index>(r)) = used[r]->u_mm;
-    bv(static_cast<Eigen::Index>(r)) = used[r]->v_mm;
+    bu(static_cast<Eigen::Index>(r)) = used[r]->spot.u_mm;
+    bv(static_cast<Eigen::Index>(r)) = used[r]->spot.v_mm;
   }
   const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(a);
   const Eigen::VectorXd cu = qr.solve(bu), cv = qr.solve(bv);
@@ -262,10 +263,10 @@ PsdMap PsdMap::fit(const std::vector<SweepPoint>& sweep, const MapFitOptions& op
     const double e = std::hypot(ru(static_cast<Eigen::Index>(r)), rv(static_cast<Eigen::Index>(r)));
     sum2 += e * e;
     worst = std::max(worst, e);
-    map.u_min_ = std::min(map.u_min_, used[r]->u_mm);
-    map.u_max_ = std::max(map.u_max_, used[r]->u_mm);
-    map.v_min_ = std::min(map.v_min_, used[r]->v_mm);
-    map.v_max_ = std::max(map.v_max_, used[r]->v_mm);
+    map.u_min_ = std::min(map.u_min_, used[r]->spot.u_mm);
+    map.u_max_ = std::max(map.u_max_, used[r]->spot.u_mm);
+    map.v_min_ = std::min(map.v_min_, used[r]->spot.v_mm);
+    map.v_max_ = std::max(map.v_max_, used[r]->spot.v_mm);
   }
   if (report) {
     report->points_used = used.size();
@@ -351,10 +352,11 @@ SpotPosition PsdMap::apply(const VoltageReading& reading) const {
   p.present = reading.sum >= min_sum_v_;
   if (!p.present) return p;
   double du_dx, du_dy, dv_dx, dv_dy;
-  evaluate(reading.x, reading.y, p.u_mm, p.v_mm, du_dx, du_dy, dv_dx, dv_dy);
-  p.u_se_mm = std::hypot(du_dx * reading.x_se, du_dy * reading.y_se);
-  p.v_se_mm = std::hypot(dv_dx * reading.x_se, dv_dy * reading.y_se);
-  p.valid = p.u_mm >= u_min_ && p.u_mm <= u_max_ && p.v_mm >= v_min_ && p.v_mm <= v_max_;
+  evaluate(reading.x, reading.y, p.spot.u_mm, p.spot.v_mm, du_dx, du_dy, dv_dx, dv_dy);
+  p.se.u_mm = std::hypot(du_dx * reading.x_se, du_dy * reading.y_se);
+  p.se.v_mm = std::hypot(dv_dx * reading.x_se, dv_dy * reading.y_se);
+  const PsdSpot& s = p.spot;
+  p.valid = s.u_mm >= u_min_ && s.u_mm <= u_max_ && s.v_mm >= v_min_ && s.v_mm <= v_max_;
   return p;
 }
 

@@ -186,9 +186,9 @@ std::string servoPaths(const std::vector<PoseRow>& poses) {
       continue;
     }
     double extent = 0;
-    for (const ServoSample& s : *p.servo_path)
-      if (std::isfinite(s.u_mm) && std::isfinite(s.v_mm))
-        extent = std::max({extent, std::abs(s.u_mm), std::abs(s.v_mm)});
+    for (const SpotPathPoint& s : *p.servo_path)
+      if (s.spot.finite())
+        extent = std::max({extent, std::abs(s.spot.u_mm), std::abs(s.spot.v_mm)});
     extent = extent > 0 ? niceCeil(extent * 1.05) : 1e-3;
     const double scale = (cell / 2 - 10) / extent;
     o << format("<line x1=\"%.1f\" x2=\"%.1f\" y1=\"%.1f\" y2=\"%.1f\" class=\"grid\"/>", x0,
@@ -196,19 +196,19 @@ std::string servoPaths(const std::vector<PoseRow>& poses) {
       << format("<line x1=\"%.1f\" x2=\"%.1f\" y1=\"%.1f\" y2=\"%.1f\" class=\"grid\"/>\n", cx, cx,
                 y0, y0 + cell);
     o << "<polyline class=\"path\" points=\"";
-    for (const ServoSample& s : *p.servo_path)
-      if (std::isfinite(s.u_mm) && std::isfinite(s.v_mm))
-        o << format("%.2f,%.2f ", cx + s.u_mm * scale, cy - s.v_mm * scale);
+    for (const SpotPathPoint& s : *p.servo_path)
+      if (s.spot.finite())
+        o << format("%.2f,%.2f ", cx + s.spot.u_mm * scale, cy - s.spot.v_mm * scale);
     o << "\"/>\n";
-    const ServoSample& first = p.servo_path->front();
-    const ServoSample& last = p.servo_path->back();
+    const PsdSpot& first = p.servo_path->front().spot;
+    const PsdSpot& last = p.servo_path->back().spot;
     o << format("<circle cx=\"%.2f\" cy=\"%.2f\" r=\"4\" class=\"start\"/>",
                 cx + first.u_mm * scale, cy - first.v_mm * scale)
       << format("<circle cx=\"%.2f\" cy=\"%.2f\" r=\"4\" class=\"end\"/>\n", cx + last.u_mm * scale,
                 cy - last.v_mm * scale);
     o << format("<text x=\"%.1f\" y=\"%.1f\" class=\"tick\">+-%s mm, %zu points, %.2f s</text>\n",
                 x0, y0 + cell + 13, tickLabel(extent).c_str(), p.servo_path->size(),
-                last.t_s - first.t_s);
+                p.servo_path->back().t_s - p.servo_path->front().t_s);
   }
   o << "</svg>\n";
   return o.str();
@@ -437,7 +437,8 @@ std::string reportHtml(const SessionReport& r) {
     std::string q;
     for (const double v : p.joints_deg) q += format("%.4f ", v);
     const std::string pose = std::to_string(p.pose) + (p.again ? " (again)" : "");
-    o << "<tr>" << td(pose, "n") << td(q, "n") << td(format("%+.4f, %+.4f", p.u_mm, p.v_mm), "n")
+    o << "<tr>" << td(pose, "n") << td(q, "n")
+      << td(format("%+.4f, %+.4f", p.spot.u_mm, p.spot.v_mm), "n")
       << td(p.solved       ? format("%.1f", p.miss_um)
             : p.superseded ? "measured again"
                            : "held out",

@@ -126,13 +126,9 @@ SessionReport parseSession(const SessionFolder& files) {
       continue;
     }
     for (int j = 0; j < 6; ++j) row.joints_deg[j] = record.joints_deg[j];
-    row.u_mm = record.u_mm;
-    row.v_mm = record.v_mm;
-    if (!record.servo_path.empty()) {  // the journal leaves out a path it did not record
-      row.servo_path.emplace();
-      for (const auto& point : record.servo_path)
-        row.servo_path->push_back({point[0], point[1], point[2]});
-    }
+    row.spot = record.reading.spot;
+    // The journal leaves out a path it did not record.
+    if (!record.servo_path.empty()) row.servo_path = record.servo_path;
     row.superseded = latest[record.planIndex()] != i;
     const auto residual = residual_of.find(i);
     row.solved = residual != residual_of.end();

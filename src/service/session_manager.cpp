@@ -49,10 +49,10 @@ class SessionManager::LiveSlot {
  public:
   void store(const PsdReading& r) noexcept {
     seq_.fetch_add(1, std::memory_order_acq_rel);  // odd: writing
-    u_.store(r.u_mm, std::memory_order_relaxed);
-    v_.store(r.v_mm, std::memory_order_relaxed);
-    u_se_.store(r.u_se_mm, std::memory_order_relaxed);
-    v_se_.store(r.v_se_mm, std::memory_order_relaxed);
+    u_.store(r.spot.u_mm, std::memory_order_relaxed);
+    v_.store(r.spot.v_mm, std::memory_order_relaxed);
+    u_se_.store(r.se.u_mm, std::memory_order_relaxed);
+    v_se_.store(r.se.v_mm, std::memory_order_relaxed);
     sum_.store(r.sum_v, std::memory_order_relaxed);
     time_.store(r.time_s, std::memory_order_relaxed);
     flags_.store((r.spot_present ? 1 : 0) | (r.in_valid_zone ? 2 : 0), std::memory_order_relaxed);
@@ -64,10 +64,10 @@ class SessionManager::LiveSlot {
       if (before == 0) return std::nullopt;
       if (before & 1u) continue;
       PsdReading r;
-      r.u_mm = u_.load(std::memory_order_relaxed);
-      r.v_mm = v_.load(std::memory_order_relaxed);
-      r.u_se_mm = u_se_.load(std::memory_order_relaxed);
-      r.v_se_mm = v_se_.load(std::memory_order_relaxed);
+      r.spot.u_mm = u_.load(std::memory_order_relaxed);
+      r.spot.v_mm = v_.load(std::memory_order_relaxed);
+      r.se.u_mm = u_se_.load(std::memory_order_relaxed);
+      r.se.v_mm = v_se_.load(std::memory_order_relaxed);
       r.sum_v = sum_.load(std::memory_order_relaxed);
       r.time_s = time_.load(std::memory_order_relaxed);
       const int flags = flags_.load(std::memory_order_relaxed);
@@ -207,7 +207,7 @@ SessionStatus SessionManager::status() const {
   SessionStatus s = board_.status();
   if (s.state == SessionState::kServoing)
     if (const std::optional<PsdReading> r = live_->load())
-      s.live_servo_error_um = r->spot_present ? 1e3 * std::hypot(r->u_mm, r->v_mm) : std::nan("");
+      s.live_servo_error_um = r->spot_present ? 1e3 * r->spot.norm() : std::nan("");
   return s;
 }
 

@@ -39,17 +39,13 @@ PsdReading ChainPsdReader::read() {
   r.spot_present = present;
   r.in_valid_zone = present && p.valid;
   if (r.in_valid_zone) {
-    r.u_mm = p.u_mm;
-    r.v_mm = p.v_mm;
-    r.u_se_mm = p.u_se_mm;
-    r.v_se_mm = p.v_se_mm;
+    r.spot = p.spot;
+    r.se = p.se;
   } else {
     // The map extrapolates wildly outside its zone; the saturating voltages over the centre slope
     // still point the right way, which is all the servo needs to get back into the zone.
-    r.u_mm = v.x / options_.coarse_v_per_mm;
-    r.v_mm = v.y / options_.coarse_v_per_mm;
-    r.u_se_mm = v.x_se / options_.coarse_v_per_mm;
-    r.v_se_mm = v.y_se / options_.coarse_v_per_mm;
+    r.spot = {v.x / options_.coarse_v_per_mm, v.y / options_.coarse_v_per_mm};
+    r.se = {v.x_se / options_.coarse_v_per_mm, v.y_se / options_.coarse_v_per_mm};
   }
   r.time_s = clock_.nowS();
   return r;

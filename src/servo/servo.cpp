@@ -15,6 +15,8 @@ using JointVector = Eigen::Matrix<double, kJointCount, 1>;
 
 JointVector toVector(const Joints& q) { return Eigen::Map<const JointVector>(q.data()); }
 
+Eigen::Vector2d toVector(const PsdSpot& spot) { return {spot.u_mm, spot.v_mm}; }
+
 Joints toJoints(const JointVector& v) {
   Joints q;
   for (int i = 0; i < kJointCount; ++i) q[i] = v[i];
@@ -215,7 +217,7 @@ PsdServo::Step PsdServo::settledRead(PsdReader& psd, ServoResult& result) noexce
 }
 
 void PsdServo::keepPathPoint(const PsdReading& reading, ServoResult& result) noexcept {
-  const PathPoint p{reading.time_s - result.start_s, reading.u_mm, reading.v_mm};
+  const SpotPathPoint p{reading.time_s - result.start_s, reading.spot};
   if (result.path_count < kPathCapacity) {
     result.path[result.path_count++] = p;
     return;
@@ -233,7 +235,8 @@ void PsdServo::orderPath(ServoResult& result) const noexcept {
 }
 
 bool PsdServo::acquire(ControllerLink& robot, PsdReader& psd, const Joints& planned,
-                       const Eigen::Vector2d& expected_uv, ServoResult& result) noexcept {
+                       const PsdSpot& expected, ServoResult& result) noexcept {
+  const Eigen::Vector2d expected_uv = toVector(expected);
   const Eigen::Matrix<double, kJointCount, 2> pinv =
       pseudoInverse(imageJacobian(cell_, psd_centre_, planned), options_.damping_mm);
   const JointVector base = toVector(planned);
@@ -288,7 +291,7 @@ void PsdServo::fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& res
   Eigen::Matrix2d motion_moments = prior * Eigen::Matrix2d::Identity();
   Eigen::Matrix2d observed_moments = motion_moments;
   Eigen::Matrix2d correction = Eigen::Matrix2d::Identity();
-  const Eigen::Vector2d target(options_.target_u_mm, options_.target_v_mm);
+  const Eigen::Vector2d target = toVector(options_.target);
   bool have_previous = false;  // a move between the previous reading and this one
   Eigen::Vector2d e_previous = Eigen::Vector2d::Zero();
   bool previous_valid = false;
@@ -298,7 +301,7 @@ void PsdServo::fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& res
 
   for (;;) {
     const PsdReading& r = result.reading;
-    const Eigen::Vector2d uv(r.u_mm, r.v_mm);
+    const Eigen::Vector2d uv = toVector(r.spot);
     const Eigen::Vector2d e = uv - target;
     result.final_error_um = e.norm() * 1e3;
     if (!r.spot_present) {
@@ -349,29 +352,28 @@ void PsdServo::fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& res
 }
 
 ServoResult PsdServo::run(ControllerLink& robot, PsdReader& psd, CellClock& clock,
-                          const Joints& planned_deg,
-                          const Eigen::Vector2d& expected_uv_mm) noexcept {
+                          const Joints& planned_deg, const PsdSpot& expected) noexcept {
   ServoResult result;
   clock_ = &clock;
-  runCycle(robot, psd, planned_deg, expected_uv_mm, result);
+  runCycle(robot, psd, planned_deg, expected, result);
   clock_ = nullptr;
   orderPath(result);
   return result;
 }
 
 ServoResult PsdServo::run(ControllerLink& robot, PsdReader& psd, const Joints& planned_deg,
-                          const Eigen::Vector2d& expected_uv_mm) noexcept {
+                          const PsdSpot& expected) noexcept {
   ServoResult result;
   ring_count_ = ring_next_ = 0;
   if (options_.settle_s > 0)
     return latch(result, ServoStatus::kBadStart, "settle_s needs the clock overload of run()");
-  runCycle(robot, psd, planned_deg, expected_uv_mm, result);
+  runCycle(robot, psd, planned_deg, expected, result);
   orderPath(result);
   return result;
 }
 
 void PsdServo::runCycle(ControllerLink& robot, PsdReader& psd, const Joints& planned_deg,
-                        const Eigen::Vector2d& expected_uv_mm, ServoResult& result) noexcept {
+                        const PsdSpot& expected, ServoResult& result) noexcept {
   ring_count_ = ring_next_ = 0;
   path_tail_next_ = 0;
   faulted_ = false;
@@ -397,7 +399,7 @@ void PsdServo::runCycle(ControllerLink& robot, PsdReader& psd, const Joints& pla
   result.start_s = clock_ != nullptr ? t0 : result.reading.time_s;
   result.settle_acquisition_s = result.settle_s;
   if (result.path_count > 0) result.path[0].t_s = result.reading.time_s - result.start_s;
-  if (!result.reading.spot_present && !acquire(robot, psd, planned_deg, expected_uv_mm, result)) {
+  if (!result.reading.spot_present && !acquire(robot, psd, planned_deg, expected, result)) {
     result.acquired_s = result.end_s;
     return;
   }

@@ -38,15 +38,18 @@ Eigen::Vector2d SpotPredictor::spot(const PredictorState& x, const Joints& q) co
   return (cell_.psd_rotation.transpose() * (p + t * d - c)).head<2>();
 }
 
-void SpotPredictor::addPose(const Joints& q_deg, const Eigen::Vector2d& uv_mm) {
-  poses_.emplace_back(q_deg, uv_mm);
+void SpotPredictor::addPose(const Joints& q_deg, const PsdSpot& spot) {
+  poses_.emplace_back(q_deg, Eigen::Vector2d(spot.u_mm, spot.v_mm));
   refit();
 }
 
-Eigen::Vector2d SpotPredictor::predict(const Joints& q_deg) const { return spot(x_, q_deg); }
+PsdSpot SpotPredictor::predict(const Joints& q_deg) const {
+  const Eigen::Vector2d uv = spot(x_, q_deg);
+  return {uv.x(), uv.y()};
+}
 
-Eigen::Vector2d SpotPredictor::searchCentre(const Joints& q_deg) const {
-  return poseCount() >= kConfidentPoses ? predict(q_deg) : Eigen::Vector2d::Zero();
+PsdSpot SpotPredictor::searchCentre(const Joints& q_deg) const {
+  return poseCount() >= kConfidentPoses ? predict(q_deg) : PsdSpot{};
 }
 
 void SpotPredictor::refit() {

@@ -70,7 +70,7 @@ std::vector<int> planIndicesOf(const std::vector<PoseRecord>& records) {
 std::vector<Pose> posesOf(const std::vector<PoseRecord>& records) {
   std::vector<Pose> poses;
   for (const PoseRecord* r : latestOf(records))
-    if (r && r->measured()) poses.push_back({r->joints_deg, Eigen::Vector2d(r->u_mm, r->v_mm), 0});
+    if (r && r->measured()) poses.push_back({r->joints_deg, r->reading.spot, 0});
   return poses;
 }
 
@@ -115,7 +115,7 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
   servo::SpotPredictor predictor(knowledge_, taught_centre_);
   // Resumed poses teach the predictor where the spot falls, as if they had just been servoed.
   for (const PoseRecord& r : out.records)
-    if (r.measured()) predictor.addPose(r.joints_deg, Eigen::Vector2d(r.u_mm, r.v_mm));
+    if (r.measured()) predictor.addPose(r.joints_deg, r.reading.spot);
   const int n = static_cast<int>(plan_.size());
   const auto phase = [&](int i, RunPhase p) {
     if (on_phase) on_phase(i, p);
@@ -217,10 +217,7 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
       record.index = journal_.nextIndex();
       if (again) record.remeasure_of = i;
       record.joints_deg = r.q_deg;
-      record.u_mm = r.reading.u_mm;
-      record.v_mm = r.reading.v_mm;
-      record.u_se_mm = r.reading.u_se_mm;
-      record.v_se_mm = r.reading.v_se_mm;
+      record.reading = r.reading;
       record.move_started_ns = move_started_ns;
       record.recorded_ns = unixNanoseconds();
       record.servo.moves = r.moves;
@@ -231,11 +228,11 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
       record.servo.servo_s = r.servoS();
       record.servo.settle_s = r.settle_s;
       record.servo.final_error_um = r.final_error_um;
-      for (std::size_t k = 0; k < r.path_count; ++k)
-        record.servo_path.push_back({r.path[k].t_s, r.path[k].u_mm, r.path[k].v_mm});
+      record.servo_path.assign(r.path.begin(),
+                               r.path.begin() + static_cast<std::ptrdiff_t>(r.path_count));
       journal_.append(record);  // on disk before the robot moves again
       out.records.push_back(record);
-      predictor.addPose(record.joints_deg, Eigen::Vector2d(record.u_mm, record.v_mm));
+      predictor.addPose(record.joints_deg, record.reading.spot);
       if (on_pose) on_pose(record);
       return true;
     }

@@ -81,8 +81,8 @@ TEST(SimulatedMotorCalibration, AppliedValuesMoveTheTrueZeroOnTenWorlds) {
     const auto expected = beamHit(corrected, sim.commandedJoints(), sim.moveErrorDeg());
     ASSERT_EQ(now.has_value(), expected.has_value());
     if (now) {
-      EXPECT_NEAR(now->u_mm, expected->u_mm, 1e-3);
-      EXPECT_NEAR(now->v_mm, expected->v_mm, 1e-3);
+      EXPECT_NEAR(now->spot.u_mm, expected->spot.u_mm, 1e-3);
+      EXPECT_NEAR(now->spot.v_mm, expected->spot.v_mm, 1e-3);
     }
   }
   // Offsets of up to 1 deg at a transmission of 120 are up to 2 rad on the motor side: some of

@@ -370,10 +370,9 @@ TEST(Solver, HitPointModelUsesTheReadings) {
   std::uniform_real_distribution<double> uv(-0.5, 0.5);
   for (const auto& p : planned) {
     Pose rec;
-    rec.psd_uv_mm = Eigen::Vector2d(uv(rng), uv(rng));
-    const Eigen::Vector3d hit = sc.truth.target_mm +
-                                sc.cell.psd_rotation.col(0) * rec.psd_uv_mm->x() +
-                                sc.cell.psd_rotation.col(1) * rec.psd_uv_mm->y();
+    rec.spot = PsdSpot{uv(rng), uv(rng)};
+    const Eigen::Vector3d hit = sc.truth.target_mm + sc.cell.psd_rotation.col(0) * rec.spot->u_mm +
+                                sc.cell.psd_rotation.col(1) * rec.spot->v_mm;
     rec.q_deg = *servoOnto(sc.cell, sc.truth, hit, p.q_deg);
     recorded.push_back(rec);
   }

@@ -111,8 +111,8 @@ void FakeSession::readPsd(ReadingDone done) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
     if (fail) return done(std::nullopt, "no USB-1408FS found");
     service::LiveReading r;
-    r.reading.u_mm = 0.012;
-    r.reading.v_mm = -0.034;
+    r.reading.spot.u_mm = 0.012;
+    r.reading.spot.v_mm = -0.034;
     r.reading.sum_v = 3.2;
     r.reading.spot_present = true;
     r.reading.in_valid_zone = true;

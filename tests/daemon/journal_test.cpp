@@ -52,10 +52,10 @@ PoseRecord sample(int index) {
   PoseRecord r;
   r.index = index;
   for (int j = 0; j < 6; ++j) r.joints_deg[j] = (0.1 + 0.2) * (j + 1) + index / 3.0 - 1e-13;
-  r.u_mm = 1.0 / 3.0 + index;
-  r.v_mm = -2.0 / 7.0;
-  r.u_se_mm = 1e-4 / 3.0;
-  r.v_se_mm = 5e-300;
+  r.reading.spot.u_mm = 1.0 / 3.0 + index;
+  r.reading.spot.v_mm = -2.0 / 7.0;
+  r.reading.se.u_mm = 1e-4 / 3.0;
+  r.reading.se.v_mm = 5e-300;
   r.move_started_ns = 1795000000123456789 + index;
   r.recorded_ns = 1795000001987654321 + index;
   r.servo = {7, 5, 2.25, 0.5, 1.0 / 3.0, 0.2, 1.2345678901234567, 3};
@@ -66,10 +66,10 @@ PoseRecord sample(int index) {
 void expectSame(const PoseRecord& a, const PoseRecord& b) {
   EXPECT_EQ(a.index, b.index);
   EXPECT_EQ(a.joints_deg, b.joints_deg);  // bit-exact, not near
-  EXPECT_EQ(a.u_mm, b.u_mm);
-  EXPECT_EQ(a.v_mm, b.v_mm);
-  EXPECT_EQ(a.u_se_mm, b.u_se_mm);
-  EXPECT_EQ(a.v_se_mm, b.v_se_mm);
+  EXPECT_EQ(a.reading.spot.u_mm, b.reading.spot.u_mm);
+  EXPECT_EQ(a.reading.spot.v_mm, b.reading.spot.v_mm);
+  EXPECT_EQ(a.reading.se.u_mm, b.reading.se.u_mm);
+  EXPECT_EQ(a.reading.se.v_mm, b.reading.se.v_mm);
   EXPECT_EQ(a.move_started_ns, b.move_started_ns);
   EXPECT_EQ(a.recorded_ns, b.recorded_ns);
   EXPECT_EQ(a.servo.moves, b.servo.moves);
@@ -190,7 +190,7 @@ TEST_F(JournalTest, RefusesOutOfOrderDuplicateAndNonFiniteRecords) {
   journal.append(sample(0));
   EXPECT_THROW(journal.append(sample(0)), JournalError);
   PoseRecord bad = sample(1);
-  bad.u_mm = std::numeric_limits<double>::quiet_NaN();
+  bad.reading.spot.u_mm = std::numeric_limits<double>::quiet_NaN();
   EXPECT_THROW(journal.append(bad), JournalError);
   journal.append(sample(1));
   EXPECT_EQ(readJournal((dir_ / "journal.jsonl").string()).records.size(), 2u);

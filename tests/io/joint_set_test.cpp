@@ -31,9 +31,9 @@ TEST(JointSetCsv, ReadsColumnsInAnyOrderWithCommentsAndExtras) {
       "p.csv");
   ASSERT_EQ(poses.size(), 2u);
   EXPECT_EQ(poses[0].q_deg, (Joints{1, 2, 3, 4, 5, 6}));
-  ASSERT_TRUE(poses[0].psd_uv_mm.has_value());
-  EXPECT_DOUBLE_EQ(poses[0].psd_uv_mm->x(), 0.1);
-  EXPECT_DOUBLE_EQ(poses[0].psd_uv_mm->y(), -0.2);
+  ASSERT_TRUE(poses[0].spot.has_value());
+  EXPECT_DOUBLE_EQ(poses[0].spot->u_mm, 0.1);
+  EXPECT_DOUBLE_EQ(poses[0].spot->v_mm, -0.2);
   EXPECT_EQ(poses[0].source_line, 4);
   EXPECT_DOUBLE_EQ(poses[1].q_deg[0], 1.25);
   EXPECT_DOUBLE_EQ(poses[1].q_deg[5], 6.5);
@@ -105,14 +105,14 @@ TEST(JointSetCsv, OnlyABoundedRegularFileIsRead) {
 }
 
 TEST(JointSetCsv, FormatRoundTripsWithFiveDecimals) {
-  std::vector<Pose> poses{{Joints{1.123456, -2, 3, 4, 5, 6}, Eigen::Vector2d(0.1, 0.2), 0},
-                          {Joints{7, 8, 9, 10, 11, 12}, Eigen::Vector2d(-0.1, 0), 0}};
+  std::vector<Pose> poses{{Joints{1.123456, -2, 3, 4, 5, 6}, PsdSpot{0.1, 0.2}, 0},
+                          {Joints{7, 8, 9, 10, 11, 12}, PsdSpot{-0.1, 0}, 0}};
   const std::string text = formatJointSet(poses, "two poses");
   EXPECT_EQ(text.rfind("# two poses\nq1,q2,q3,q4,q5,q6,u,v\n1.12346,", 0), 0u) << text;
   const auto back = parseJointSet(text, "x");
   ASSERT_EQ(back.size(), 2u);
   EXPECT_NEAR(back[0].q_deg[0], 1.12346, 1e-12);
-  EXPECT_NEAR(back[1].psd_uv_mm->x(), -0.1, 1e-12);
+  EXPECT_NEAR(back[1].spot->u_mm, -0.1, 1e-12);
 }
 
 }  // namespace

@@ -595,8 +595,8 @@ TEST_F(ClientSim, RepeatabilityNoiseMovesTheTruePoseNotTheReportedJoints) {
   const auto hit = sim_->beamHitNow();
   const auto ideal = beamHit(sim_->world(), sim_->commandedJoints());
   ASSERT_TRUE(hit && ideal);
-  EXPECT_NE(hit->u_mm, ideal->u_mm);
-  EXPECT_NEAR(hit->u_mm, ideal->u_mm, 1.0);
+  EXPECT_NE(hit->spot.u_mm, ideal->spot.u_mm);
+  EXPECT_NEAR(hit->spot.u_mm, ideal->spot.u_mm, 1.0);
 }
 
 TEST(Irc5Options, InconsistentOptionsAreAConfigError) {

@@ -79,8 +79,8 @@ TEST(RealisticWorld, IsTheSameForTheSameSeedAndDiffersBetweenSeeds) {
   const Joints q{10, 20, -10, 30, 40, 50};
   const auto ha = beamHit(a, q, {}, 100), hb = beamHit(b, q, {}, 100);
   ASSERT_TRUE(ha && hb);
-  EXPECT_EQ(ha->u_mm, hb->u_mm);
-  EXPECT_EQ(ha->v_mm, hb->v_mm);
+  EXPECT_EQ(ha->spot.u_mm, hb->spot.u_mm);
+  EXPECT_EQ(ha->spot.v_mm, hb->spot.v_mm);
 }
 
 // An uncalibrated IRB 1600 is within 0.65 mm (Slamani, Nubiola and Bonev 2012) with its joint
@@ -166,8 +166,8 @@ TEST(IdealWorld, ReproducesTheNominalArmExactly) {
     ASSERT_TRUE(hit);
     const double t = n.dot(w.psd_position_mm - p) / n.dot(d);
     const Eigen::Vector3d local = w.psd_rotation.transpose() * (p + t * d - w.psd_position_mm);
-    EXPECT_EQ(hit->u_mm, local.x());
-    EXPECT_EQ(hit->v_mm, local.y());
+    EXPECT_EQ(hit->spot.u_mm, local.x());
+    EXPECT_EQ(hit->spot.v_mm, local.y());
   }
   EXPECT_EQ(w.psd_rotation_configured, w.psd_rotation);
   EXPECT_EQ(w.psd_centre_taught_mm, w.psd_position_mm + Eigen::Vector3d(3, -3, 3));
@@ -237,13 +237,13 @@ TEST(GrossErrors, TheSimulatedControllerShowsThemToTheDetector) {
   const auto seen = sim.beamHitNow();
   const auto arm = beamHit(sim.world(), sim.commandedJoints(), error, sim.simTimeS());
   ASSERT_TRUE(seen && arm);
-  EXPECT_NEAR(std::hypot(seen->u_mm - arm->u_mm, seen->v_mm - arm->v_mm),
+  EXPECT_NEAR(std::hypot(seen->spot.u_mm - arm->spot.u_mm, seen->spot.v_mm - arm->spot.v_mm),
               o.world.gross.stray_light_mm, 1e-9);
   // The same request the external backend's detector asks.
   const auto spot = client.readSimBeamSpot();
   ASSERT_TRUE(spot);
-  EXPECT_NEAR((*spot)[0], seen->u_mm, 1e-5);
-  EXPECT_NEAR((*spot)[1], seen->v_mm, 1e-5);
+  EXPECT_NEAR(spot->u_mm, seen->spot.u_mm, 1e-5);
+  EXPECT_NEAR(spot->v_mm, seen->spot.v_mm, 1e-5);
 }
 
 TEST(WorldFile, TheTruthFileReadsBackToTheSameWorld) {
@@ -264,8 +264,8 @@ TEST(WorldFile, TheTruthFileReadsBackToTheSameWorld) {
   const Joints q{5, 25, -15, 20, 50, 10};
   const auto a = beamHit(w, q, {}, 60), b = beamHit(back, q, {}, 60);
   ASSERT_TRUE(a && b);
-  EXPECT_NEAR(a->u_mm, b->u_mm, 1e-9);
-  EXPECT_NEAR(a->v_mm, b->v_mm, 1e-9);
+  EXPECT_NEAR(a->spot.u_mm, b->spot.u_mm, 1e-9);
+  EXPECT_NEAR(a->spot.v_mm, b->spot.v_mm, 1e-9);
 }
 
 TEST(WorldFile, RejectsUnknownKeysAndImpossibleRatesAllAtOnce) {

@@ -26,8 +26,8 @@ World downwardBeam() {
 TEST(World, BeamStraightDownHitsTheHorizontalPsdBelowTheFlange) {
   const auto hit = beamHit(downwardBeam(), Joints{});
   ASSERT_TRUE(hit);
-  EXPECT_NEAR(hit->u_mm, -10, 1e-9);
-  EXPECT_NEAR(hit->v_mm, 20, 1e-9);
+  EXPECT_NEAR(hit->spot.u_mm, -10, 1e-9);
+  EXPECT_NEAR(hit->spot.v_mm, 20, 1e-9);
   EXPECT_NEAR(hit->range_mm, 786.5, 1e-9);
 }
 
@@ -37,8 +37,8 @@ TEST(World, PsdRotationMapsIntoItsOwnFrame) {
   w.psd_rotation = Eigen::AngleAxisd(kPi / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   const auto hit = beamHit(w, Joints{});
   ASSERT_TRUE(hit);
-  EXPECT_NEAR(hit->u_mm, 20, 1e-9);
-  EXPECT_NEAR(hit->v_mm, 10, 1e-9);
+  EXPECT_NEAR(hit->spot.u_mm, 20, 1e-9);
+  EXPECT_NEAR(hit->spot.v_mm, 10, 1e-9);
 }
 
 TEST(World, TrueOffsetsAndExtraErrorAddToTheControllerJoints) {
@@ -51,10 +51,12 @@ TEST(World, TrueOffsetsAndExtraErrorAddToTheControllerJoints) {
   for (int i = 0; i < kJointCount; ++i) shifted[i] = q[i] + w.true_offsets_deg[i] + extra[i];
   const auto a = beamHit(w, q, extra), b = beamHit(zero, shifted);
   ASSERT_TRUE(a && b);
-  EXPECT_NEAR(a->u_mm, b->u_mm, 1e-9);
-  EXPECT_NEAR(a->v_mm, b->v_mm, 1e-9);
+  EXPECT_NEAR(a->spot.u_mm, b->spot.u_mm, 1e-9);
+  EXPECT_NEAR(a->spot.v_mm, b->spot.v_mm, 1e-9);
   const auto nominal = beamHit(zero, q);
-  EXPECT_GT(std::abs(a->u_mm - nominal->u_mm) + std::abs(a->v_mm - nominal->v_mm), 1.0);
+  EXPECT_GT(
+      std::abs(a->spot.u_mm - nominal->spot.u_mm) + std::abs(a->spot.v_mm - nominal->spot.v_mm),
+      1.0);
 }
 
 TEST(World, ParallelOrBackwardBeamMisses) {

@@ -57,7 +57,7 @@ TEST(PsdMapYaml, FromPartsRefusesWhatIsNotAMap) {
   VoltageReading r;
   r.x = 2.5;  // scaled by 5 V: u = 0.5
   r.sum = 1;
-  EXPECT_DOUBLE_EQ(map.apply(r).u_mm, 0.5);
+  EXPECT_DOUBLE_EQ(map.apply(r).spot.u_mm, 0.5);
   EXPECT_TRUE(map.apply(r).valid);
 }
 
@@ -119,10 +119,10 @@ TEST_F(FittedMap, RecoversPositionsInTheValidZoneToTwoMicrometres) {
   int n = 0;
   for (double u = -0.59; u <= 0.59; u += 0.0737) {
     for (double v = -0.59; v <= 0.59; v += 0.0737) {
-      rig.setSpot(sim::SpotPosition{u, v});
+      rig.setSpot(PsdSpot{u, v});
       const SpotPosition p = map_->apply(readAveraged(rig.daq(), rig.channels(), 64, 16000.0));
       ASSERT_TRUE(p.valid) << u << " " << v;
-      const double e = std::hypot(p.u_mm - u, p.v_mm - v);
+      const double e = std::hypot(p.spot.u_mm - u, p.spot.v_mm - v);
       worst = std::max(worst, e);
       sum2 += e * e;
       ++n;
@@ -138,7 +138,7 @@ TEST_F(FittedMap, RecoversPositionsInTheValidZoneToTwoMicrometres) {
 
 TEST_F(FittedMap, OutsideTheZoneIsMarked) {
   sim::SimulatedPsdRig rig(5);
-  rig.setSpot(sim::SpotPosition{0.75, 0.0});
+  rig.setSpot(PsdSpot{0.75, 0.0});
   const SpotPosition p = map_->apply(readAveraged(rig.daq(), rig.channels(), 64, 16000.0));
   EXPECT_TRUE(p.present);
   EXPECT_FALSE(p.valid);
@@ -151,14 +151,14 @@ TEST(SimulatedSweep, GridAndCsvRoundTrip) {
   options.step_mm = 0.1;
   const auto sweep = sim::simulateSweep(rig, options);
   ASSERT_EQ(sweep.size(), 25u);
-  EXPECT_DOUBLE_EQ(sweep.front().u_mm, -0.2);
-  EXPECT_NEAR(sweep.back().v_mm, 0.2, 1e-12);
+  EXPECT_DOUBLE_EQ(sweep.front().spot.u_mm, -0.2);
+  EXPECT_NEAR(sweep.back().spot.v_mm, 0.2, 1e-12);
   std::stringstream csv;
   writeSweepCsv(csv, sweep);
   const auto back = readSweepCsv(csv, "csv");
   ASSERT_EQ(back.size(), sweep.size());
   EXPECT_NEAR(back[7].x_v, sweep[7].x_v, 1e-6);
-  EXPECT_NEAR(back[7].u_mm, sweep[7].u_mm, 1e-4);
+  EXPECT_NEAR(back[7].spot.u_mm, sweep[7].spot.u_mm, 1e-4);
   options.step_mm = 0;
   EXPECT_THROW(sim::simulateSweep(rig, options), std::invalid_argument);
 }

@@ -69,7 +69,7 @@ TEST(SpotDetector, HysteresisOnSum) {
 
 TEST(ReadAveraged, SixtyFourSamplesThroughTheSimulatedBoard) {
   PsdModel psd;
-  const sim::SpotPosition spot{0.12, -0.05};
+  const PsdSpot spot{0.12, -0.05};
   sim::Usb1408fsModel board;
   board.setAnalogSource(sim::psdAnalogSource(psd, [&](double) { return spot; }));
   usb1408fs::Usb1408fs daq(sim::FakeTransport::opener(board));
@@ -86,11 +86,9 @@ TEST(ReadAveraged, SixtyFourSamplesThroughTheSimulatedBoard) {
 TEST(PsdStream, AReadingEveryFourMillisecondsAtSixteenKilohertz) {
   PsdModel psd;
   sim::Usb1408fsModel board;
-  board.setAnalogSource(sim::psdAnalogSource(psd, [](double) {
-    return sim::SpotPosition{-0.3, 0.2};
-  }));
+  board.setAnalogSource(sim::psdAnalogSource(psd, [](double) { return PsdSpot{-0.3, 0.2}; }));
   usb1408fs::Usb1408fs daq(sim::FakeTransport::opener(board));
-  const sim::PsdVoltages ideal = PsdModel().ideal(sim::SpotPosition{-0.3, 0.2});
+  const sim::PsdVoltages ideal = PsdModel().ideal(PsdSpot{-0.3, 0.2});
   {
     PsdStream stream(daq, PsdChannels{}, 64, 16000.0);
     VoltageReading r;
@@ -114,7 +112,7 @@ TEST(SweepCsv, ReadsNamedColumnsAndReportsEveryBadLine) {
       "x_v, y_v,sum_v,u_mm,v_mm,note\n1,2,3,0.1,0.2,a\n\n-1,-2,3.5,-0.1,-0.2,b\n");
   const auto sweep = readSweepCsv(good, "good.csv");
   ASSERT_EQ(sweep.size(), 2u);
-  EXPECT_DOUBLE_EQ(sweep[0].u_mm, 0.1);
+  EXPECT_DOUBLE_EQ(sweep[0].spot.u_mm, 0.1);
   EXPECT_DOUBLE_EQ(sweep[1].x_v, -1);
   EXPECT_DOUBLE_EQ(sweep[1].sum_v, 3.5);
   std::istringstream bad("u_mm,v_mm,x_v,y_v,sum_v\n1,2,x,4,5\n1,2,3,4\n");
@@ -135,8 +133,8 @@ std::vector<SweepPoint> simulatedSweep(PsdModel& psd, double half_width, double 
   const int n = static_cast<int>(std::lround(2 * half_width / step));
   for (int i = 0; i <= n; ++i) {
     for (int j = 0; j <= n; ++j) {
-      const sim::SpotPosition p{-half_width + i * step, -half_width + j * step};
-      SweepPoint s{p.u_mm, p.v_mm, 0, 0, 0};
+      const PsdSpot p{-half_width + i * step, -half_width + j * step};
+      SweepPoint s{p, 0, 0, 0};
       for (int k = 0; k < 64; ++k) {
         const sim::PsdVoltages v = psd.measure(p);
         s.x_v += v.x / 64;
@@ -150,7 +148,7 @@ std::vector<SweepPoint> simulatedSweep(PsdModel& psd, double half_width, double 
 }
 
 VoltageReading readingAt(const PsdModel& psd, double u, double v) {
-  const sim::PsdVoltages ideal = psd.ideal(sim::SpotPosition{u, v});
+  const sim::PsdVoltages ideal = psd.ideal(PsdSpot{u, v});
   VoltageReading r;
   r.x = ideal.x;
   r.y = ideal.y;
@@ -184,13 +182,13 @@ TEST_F(PsdMapTest, RecoversPositionsInTheValidZoneToTwoMicrometres) {
     const SpotPosition p = map_.apply(readingAt(psd_, u, v));
     ASSERT_TRUE(p.present);
     ASSERT_TRUE(p.valid) << u << " " << v;
-    worst = std::max(worst, std::hypot(p.u_mm - u, p.v_mm - v));
+    worst = std::max(worst, std::hypot(p.spot.u_mm - u, p.spot.v_mm - v));
   }
   EXPECT_LT(worst, 0.002);
   std::printf("map: %zu points, rms residual %.3f um, worst recovery error %.3f um\n",
               report_.points_used, report_.rms_residual_mm * 1e3, worst * 1e3);
   const SpotPosition centre = map_.apply(readingAt(psd_, 0, 0));
-  EXPECT_NEAR(centre.u_se_mm, 0.005 / 8 / 5.0, 0.00005);  // noise / sqrt(64) / (5 V/mm)
+  EXPECT_NEAR(centre.se.u_mm, 0.005 / 8 / 5.0, 0.00005);  // noise / sqrt(64) / (5 V/mm)
 }
 
 TEST_F(PsdMapTest, OutsideTheZoneOrWithoutLightIsMarked) {
@@ -207,8 +205,8 @@ TEST_F(PsdMapTest, OutsideTheZoneOrWithoutLightIsMarked) {
 TEST_F(PsdMapTest, SerialisesAndParsesBack) {
   const PsdMap copy = PsdMap::parse(map_.serialize());
   const VoltageReading r = readingAt(psd_, 0.31, -0.22);
-  EXPECT_DOUBLE_EQ(copy.apply(r).u_mm, map_.apply(r).u_mm);
-  EXPECT_DOUBLE_EQ(copy.apply(r).v_mm, map_.apply(r).v_mm);
+  EXPECT_DOUBLE_EQ(copy.apply(r).spot.u_mm, map_.apply(r).spot.u_mm);
+  EXPECT_DOUBLE_EQ(copy.apply(r).spot.v_mm, map_.apply(r).spot.v_mm);
   EXPECT_THROW(PsdMap::parse("zerocal-psd-map 1\ndegree 3\n"), InputError);
   EXPECT_THROW(PsdMap::parse("nonsense"), InputError);
 }

@@ -49,9 +49,9 @@ SessionFolder sessionFiles(const FixtureOptions& options) {
     }
     measured.push_back(recorded[i]);
     r.joints_deg = recorded[i].q_deg;
-    r.u_mm = 0.001 * static_cast<double>(i);
-    r.v_mm = -0.002;
-    r.u_se_mm = r.v_se_mm = 0.0005;
+    r.reading.spot.u_mm = 0.001 * static_cast<double>(i);
+    r.reading.spot.v_mm = -0.002;
+    r.reading.se.u_mm = r.reading.se.v_mm = 0.0005;
     r.servo.moves = 3;
     const int pose = static_cast<int>(i) + 1;
     if (std::find(options.poses_without_path.begin(), options.poses_without_path.end(), pose) ==
@@ -59,7 +59,8 @@ SessionFolder sessionFiles(const FixtureOptions& options) {
       // A spot found 2 mm off and servoed in: a decaying spiral to the recorded reading.
       for (int k = 0; k <= 20; ++k) {
         const double a = 0.6 * k + pose, rad = 2.0 * std::exp(-0.3 * k);
-        r.servo_path.push_back({0.05 * k, r.u_mm + rad * std::cos(a), r.v_mm + rad * std::sin(a)});
+        r.servo_path.push_back({0.05 * k, r.reading.spot.u_mm + rad * std::cos(a),
+                                r.reading.spot.v_mm + rad * std::sin(a)});
       }
     }
     files.journal.push_back(r);

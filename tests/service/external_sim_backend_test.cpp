@@ -64,8 +64,8 @@ TEST(ExternalSim, ProtocolExtensionsAnswerTheSpotAndTheWorld) {
   const std::optional<BeamHit> hit = sim.beamHitNow();
   ASSERT_EQ(spot.has_value(), hit.has_value());
   if (hit) {
-    EXPECT_NEAR((*spot)[0], hit->u_mm, 1e-5);
-    EXPECT_NEAR((*spot)[1], hit->v_mm, 1e-5);
+    EXPECT_NEAR(spot->u_mm, hit->spot.u_mm, 1e-5);
+    EXPECT_NEAR(spot->v_mm, hit->spot.v_mm, 1e-5);
   }
 }
 

@@ -48,9 +48,8 @@ class HardwareBackendOnSimulatedCell : public ::testing::Test {
     SimController* controller = &cell_.controller();
     board_.withModel([&](sim::Usb1408fsModel& m) {
       m.setAnalogSource(sim::psdAnalogSource(psd_, [controller](double) {
-        std::optional<sim::SpotPosition> spot;
-        if (const std::optional<BeamHit> hit = controller->beamHitNow())
-          spot = sim::SpotPosition{hit->u_mm, hit->v_mm};
+        std::optional<PsdSpot> spot;
+        if (const std::optional<BeamHit> hit = controller->beamHitNow()) spot = hit->spot;
         return spot;
       }));
       return 0;

@@ -590,7 +590,7 @@ TEST(SessionManager, ReadsThePsdWhenIdleAndReportsTheSessionsLatestReadingDuring
   ASSERT_TRUE(live);
   EXPECT_TRUE(live->during_session);
   EXPECT_TRUE(live->reading.spot_present);  // the servo just recorded it on the detector
-  EXPECT_LT(std::hypot(live->reading.u_mm, live->reading.v_mm), 1.0);
+  EXPECT_LT(std::hypot(live->reading.spot.u_mm, live->reading.spot.v_mm), 1.0);
   manager.abort();
   manager.waitIdle();
 }

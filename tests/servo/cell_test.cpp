@@ -63,9 +63,9 @@ std::vector<Pose> record(Rig& rig, const Knowledge& k, const std::vector<Pose>& 
     if (!r.ok()) break;
     Pose p;
     p.q_deg = r.q_deg;
-    p.psd_uv_mm = Eigen::Vector2d(r.reading.u_mm, r.reading.v_mm);
+    p.spot = r.reading.spot;
     poses.push_back(p);
-    predictor.addPose(p.q_deg, *p.psd_uv_mm);
+    predictor.addPose(p.q_deg, *p.spot);
     if (figures)
       figures->push_back(
           {t1 - t0, r.acquired_s - t1, rig.cell.nowS() - r.acquired_s, r.moves, r.search_moves});
@@ -89,10 +89,10 @@ TEST(SimulatedCell, ServoConvergesToTwoMicrometresOfTheCentre) {
     const auto hit = rig.cell.controller().beamHitNow();
     ASSERT_TRUE(hit);
     // The map's own error (under 2 um) adds to the servo's tolerance.
-    EXPECT_LE(std::hypot(hit->u_mm, hit->v_mm), 0.004);
+    EXPECT_LE(std::hypot(hit->spot.u_mm, hit->spot.v_mm), 0.004);
     std::printf("pose %zu: %d moves (%d searching), %d iterations, %.2f um, %.2f s\n", i, r.moves,
                 r.search_moves, r.iterations, r.final_error_um, r.end_s - r.start_s);
-    predictor.addPose(r.q_deg, Eigen::Vector2d(r.reading.u_mm, r.reading.v_mm));
+    predictor.addPose(r.q_deg, r.reading.spot);
   }
 }
 

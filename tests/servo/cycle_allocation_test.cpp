@@ -176,11 +176,11 @@ TEST(ServoCycleAllocation, ASteadyStateServoRunAllocatesNothingOnItsThread) {
   const ServoResult warm =
       servo.run(rig.client, rig.psd, rig.clock, first, predictor.searchCentre(first));
   ASSERT_TRUE(warm.ok()) << statusName(warm.status) << ": " << servo.fault().message;
-  predictor.addPose(warm.q_deg, Eigen::Vector2d(warm.reading.u_mm, warm.reading.v_mm));
+  predictor.addPose(warm.q_deg, warm.reading.spot);
 
   const Joints& next = plan[1].q_deg;
   rig.client.moveJoints(next);
-  const Eigen::Vector2d expected = predictor.searchCentre(next);
+  const PsdSpot expected = predictor.searchCentre(next);
   ServoResult r;
   long allocations = 0;
   {

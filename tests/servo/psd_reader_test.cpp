@@ -34,39 +34,39 @@ class ChainReader : public ::testing::Test {
   }
   sim::PsdModel psd_;
   sim::Usb1408fsModel board_;
-  std::optional<sim::SpotPosition> spot_;
+  std::optional<PsdSpot> spot_;
   FixedClock clock_;
 };
 
 TEST_F(ChainReader, InsideTheZoneGivesMappedMillimetres) {
   usb1408fs::Usb1408fs daq(sim::FakeTransport::opener(board_));
   ChainPsdReader reader(daq, map(), clock_);
-  spot_ = sim::SpotPosition{0.2, -0.3};
+  spot_ = PsdSpot{0.2, -0.3};
   const PsdReading r = reader.read();
   EXPECT_TRUE(r.spot_present);
   EXPECT_TRUE(r.in_valid_zone);
-  EXPECT_NEAR(r.u_mm, 0.2, 0.002);
-  EXPECT_NEAR(r.v_mm, -0.3, 0.002);
-  EXPECT_GT(r.u_se_mm, 0);
+  EXPECT_NEAR(r.spot.u_mm, 0.2, 0.002);
+  EXPECT_NEAR(r.spot.v_mm, -0.3, 0.002);
+  EXPECT_GT(r.se.u_mm, 0);
   EXPECT_EQ(r.time_s, 1);
 }
 
 TEST_F(ChainReader, OutsideTheZoneGivesACoarseEstimateOfTheRightSign) {
   usb1408fs::Usb1408fs daq(sim::FakeTransport::opener(board_));
   ChainPsdReader reader(daq, map(), clock_);
-  spot_ = sim::SpotPosition{2.5, -3.0};
+  spot_ = PsdSpot{2.5, -3.0};
   const PsdReading r = reader.read();
   EXPECT_TRUE(r.spot_present);
   EXPECT_FALSE(r.in_valid_zone);
-  EXPECT_GT(r.u_mm, 0.1);
-  EXPECT_LT(r.v_mm, -0.1);
-  EXPECT_LT(r.u_mm, 2.5);  // saturated: an underestimate, so the servo cannot overshoot on it
+  EXPECT_GT(r.spot.u_mm, 0.1);
+  EXPECT_LT(r.spot.v_mm, -0.1);
+  EXPECT_LT(r.spot.u_mm, 2.5);  // saturated: an underestimate, so the servo cannot overshoot on it
 }
 
 TEST_F(ChainReader, NoLightIsNoSpot) {
   usb1408fs::Usb1408fs daq(sim::FakeTransport::opener(board_));
   ChainPsdReader reader(daq, map(), clock_);
-  spot_ = sim::SpotPosition{20, 0};
+  spot_ = PsdSpot{20, 0};
   EXPECT_FALSE(reader.read().spot_present);
   spot_.reset();
   EXPECT_FALSE(reader.read().spot_present);

@@ -66,13 +66,13 @@ class ExactPsd final : public PsdReader {
     clock_s_ += 0.004;
     r.time_s = link_.time_s + clock_s_;
     const auto hit = beamHit(world_, link_.q);
-    if (!hit || std::hypot(hit->u_mm, hit->v_mm) > 5.0) return r;
+    if (!hit || std::hypot(hit->spot.u_mm, hit->spot.v_mm) > 5.0) return r;
     r.spot_present = true;
     r.sum_v = 4;
-    r.in_valid_zone = std::abs(hit->u_mm) <= 0.6 && std::abs(hit->v_mm) <= 0.6;
+    r.in_valid_zone = std::abs(hit->spot.u_mm) <= 0.6 && std::abs(hit->spot.v_mm) <= 0.6;
     // Outside the zone a saturating estimate, as the real chain gives.
-    r.u_mm = r.in_valid_zone ? hit->u_mm : std::tanh(hit->u_mm);
-    r.v_mm = r.in_valid_zone ? hit->v_mm : std::tanh(hit->v_mm);
+    r.spot.u_mm = r.in_valid_zone ? hit->spot.u_mm : std::tanh(hit->spot.u_mm);
+    r.spot.v_mm = r.in_valid_zone ? hit->spot.v_mm : std::tanh(hit->spot.v_mm);
     return r;
   }
 
@@ -137,8 +137,8 @@ TEST(ImageJacobian, MatchesTheExactSpotMotionOfANominalWorld) {
     minus[i] -= 1e-3;
     const auto a = beamHit(nominal, plus), b = beamHit(nominal, minus);
     ASSERT_TRUE(a && b);
-    EXPECT_NEAR(j(0, i), (a->u_mm - b->u_mm) / 2e-3, 1e-3 * (1 + std::abs(j(0, i))));
-    EXPECT_NEAR(j(1, i), (a->v_mm - b->v_mm) / 2e-3, 1e-3 * (1 + std::abs(j(1, i))));
+    EXPECT_NEAR(j(0, i), (a->spot.u_mm - b->spot.u_mm) / 2e-3, 1e-3 * (1 + std::abs(j(0, i))));
+    EXPECT_NEAR(j(1, i), (a->spot.v_mm - b->spot.v_mm) / 2e-3, 1e-3 * (1 + std::abs(j(1, i))));
   }
   // About 10 mm per degree at 600 mm for the wrist (calibration-math.md section 6).
   EXPECT_GT(j.col(4).norm(), 5.0);
@@ -157,7 +157,7 @@ TEST(PsdServo, AcquiresAndConvergesToTwoMicrometresWithOneDegreeOffsets) {
     EXPECT_FALSE(servo.faulted());
     EXPECT_LE(r.final_error_um, 2.0);
     const auto hit = beamHit(s.world, link.q);
-    EXPECT_LE(std::hypot(hit->u_mm, hit->v_mm), 0.002);
+    EXPECT_LE(std::hypot(hit->spot.u_mm, hit->spot.v_mm), 0.002);
     EXPECT_EQ(r.moves, static_cast<int>(link.moves.size()));
     expectMovesWithinBounds(s.cell.robot, s.planned, link.moves, o);
     std::printf("seed %d: %d moves (%d searching), %d iterations, %.2f um, %.2f s\n",
@@ -190,7 +190,7 @@ TEST(PsdServo, CorrectsAJacobianRotatedBySixtyDegreesFromTheObservedMotion) {
       if (correct) {
         ASSERT_TRUE(r.ok()) << "seed " << seed << ": " << servo.fault().message;
         const auto hit = beamHit(s.world, link.q);
-        EXPECT_LE(std::hypot(hit->u_mm, hit->v_mm), 0.002);
+        EXPECT_LE(std::hypot(hit->spot.u_mm, hit->spot.v_mm), 0.002);
       }
     }
     std::printf("seed %d, model rotated 60 deg: %d iterations corrected, %d uncorrected (%s)\n",
@@ -274,7 +274,7 @@ TEST(PsdServo, SettlesBeforeEveryReadingThatCountsWithoutAllocating) {
   ASSERT_GT(r.path_count, 0u);
   EXPECT_LE(r.path_count, kPathCapacity);
   for (std::size_t k = 1; k < r.path_count; ++k) EXPECT_GT(r.path[k].t_s, r.path[k - 1].t_s) << k;
-  EXPECT_DOUBLE_EQ(r.path[r.path_count - 1].u_mm, r.reading.u_mm);
+  EXPECT_DOUBLE_EQ(r.path[r.path_count - 1].spot.u_mm, r.reading.spot.u_mm);
   EXPECT_DOUBLE_EQ(r.path[r.path_count - 1].t_s, r.reading.time_s - r.start_s);
 }
 
@@ -386,7 +386,8 @@ TEST(PsdServo, SpotNeverFoundFaultsWithTheRobotBackAtThePlannedPose) {
   for (std::size_t i = 1; i < 100; ++i) {
     const auto a = beamHit(s.world, link.moves[i - 1]), b = beamHit(s.world, link.moves[i]);
     ASSERT_TRUE(a && b);
-    EXPECT_LT(std::hypot(a->u_mm - b->u_mm, a->v_mm - b->v_mm), 1.2 * o.search_step_mm)
+    EXPECT_LT(std::hypot(a->spot.u_mm - b->spot.u_mm, a->spot.v_mm - b->spot.v_mm),
+              1.2 * o.search_step_mm)
         << "move " << i;
   }
   // The latched samples are the last ones, in order.
@@ -420,7 +421,7 @@ TEST(PsdServo, RobotNotAtThePlannedPoseIsABadStart) {
 TEST(SpotPredictor, PredictsTheMissAfterAFewServoedPoses) {
   Scenario s = scenario(4);
   SpotPredictor predictor(s.cell, s.world.psd_position_mm);
-  EXPECT_EQ(predictor.searchCentre(s.planned), Eigen::Vector2d::Zero());
+  EXPECT_EQ(predictor.searchCentre(s.planned), PsdSpot{});
   // Servoed poses: beams of the true world through the PSD centre from several directions.
   const Eigen::Matrix3d r = s.world.psd_rotation;
   int added = 0;
@@ -437,15 +438,17 @@ TEST(SpotPredictor, PredictsTheMissAfterAFewServoedPoses) {
     PsdServo servo(s.cell, s.world.psd_position_mm, centreOptions());
     const ServoResult res = servo.run(link, psd, *q);
     if (!res.ok()) continue;
-    predictor.addPose(res.q_deg, Eigen::Vector2d(res.reading.u_mm, res.reading.v_mm));
+    predictor.addPose(res.q_deg, res.reading.spot);
     ++added;
   }
   ASSERT_GE(added, SpotPredictor::kConfidentPoses);
   const auto truth = beamHit(s.world, s.planned);
   ASSERT_TRUE(truth);
-  const Eigen::Vector2d predicted = predictor.searchCentre(s.planned);
-  const double miss = std::hypot(truth->u_mm, truth->v_mm);
-  const double error = std::hypot(predicted.x() - truth->u_mm, predicted.y() - truth->v_mm);
+  const PsdSpot centre = predictor.searchCentre(s.planned);
+  const Eigen::Vector2d predicted(centre.u_mm, centre.v_mm);
+  const double miss = std::hypot(truth->spot.u_mm, truth->spot.v_mm);
+  const double error =
+      std::hypot(predicted.x() - truth->spot.u_mm, predicted.y() - truth->spot.v_mm);
   std::printf("miss at the planned pose %.1f mm, predicted within %.2f mm\n", miss, error);
   EXPECT_LT(error, std::max(2.0, 0.2 * miss));
 }

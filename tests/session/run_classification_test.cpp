@@ -58,7 +58,7 @@ LinkError failure(LinkError::Kind kind) {
 // The spot on the detector, in the map's zone, `u_mm` from its centre.
 PsdReading spotAt(double u_mm) {
   PsdReading r;
-  r.u_mm = u_mm;
+  r.spot.u_mm = u_mm;
   r.spot_present = r.in_valid_zone = true;
   return r;
 }

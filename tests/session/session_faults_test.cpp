@@ -346,10 +346,10 @@ TEST(SessionFaults, JournalKeepsTheServoPathAndTheBreakdownAddsUp) {
     ASSERT_FALSE(r.servo_path.empty()) << "pose " << i;
     EXPECT_LE(r.servo_path.size(), servo::kPathCapacity);
     for (std::size_t k = 1; k < r.servo_path.size(); ++k)
-      EXPECT_GT(r.servo_path[k][0], r.servo_path[k - 1][0]);
+      EXPECT_GT(r.servo_path[k].t_s, r.servo_path[k - 1].t_s);
     // The last point is the recorded reading.
-    EXPECT_DOUBLE_EQ(r.servo_path.back()[1], r.u_mm);
-    EXPECT_DOUBLE_EQ(r.servo_path.back()[2], r.v_mm);
+    EXPECT_DOUBLE_EQ(r.servo_path.back().spot.u_mm, r.reading.spot.u_mm);
+    EXPECT_DOUBLE_EQ(r.servo_path.back().spot.v_mm, r.reading.spot.v_mm);
   }
 }
 

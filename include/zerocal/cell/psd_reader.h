@@ -6,6 +6,8 @@
 
 #include <chrono>
 
+#include "zerocal/psd/spot.h"
+
 namespace zerocal {
 
 // The cell's time in seconds. On a real cell a steady clock; on the simulated cell the simulated
@@ -29,8 +31,8 @@ class SteadyCellClock final : public CellClock {
 
 // One PSD reading in the PSD frame (origin at the detector centre), millimetres.
 struct PsdReading {
-  double u_mm = 0, v_mm = 0;
-  double u_se_mm = 0, v_se_mm = 0;  // standard errors of the averaged reading
+  PsdSpot spot;
+  PsdSpot se;  // standard errors of the averaged reading, per axis
   double sum_v = 0;
   // SUM above the detector's threshold: some light is on the detector.
   bool spot_present = false;

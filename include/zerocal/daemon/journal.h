@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "zerocal/cell/psd_reader.h"
 #include "zerocal/error.h"
 #include "zerocal/model/robot.h"
 
@@ -49,8 +50,10 @@ struct PoseRecord {
   // pose's latest measurement; the earlier one stays in the journal.
   int remeasure_of = -1;
   Joints joints_deg{};  // controller joint angles at the recorded reading
-  double u_mm = 0, v_mm = 0;
-  double u_se_mm = 0, v_se_mm = 0;  // standard errors of u and v
+  // The recorded reading: the servo's converged one. The line keeps its spot and standard errors
+  // (JSON u_mm, v_mm, u_se_mm, v_se_mm); a measured line read back is present and in the valid
+  // zone, as every recorded reading is, with sum_v and time_s 0 (not journalled).
+  PsdReading reading;
   std::int64_t move_started_ns = 0;
   std::int64_t recorded_ns = 0;
   ServoStats servo;
@@ -59,7 +62,7 @@ struct PoseRecord {
   // in time order: the first 16 and the last 48 of them when there were more (servo.h,
   // kPathCapacity); outside the map's zone u and v are the chain's coarse estimate. Absent from
   // older journals: empty.
-  std::vector<std::array<double, 3>> servo_path;
+  std::vector<SpotPathPoint> servo_path;
   // Why the pose was skipped, on the technician's request at a resume (its spot was never found,
   // say); empty for a measured pose. A skipped pose's line holds only index, skipped and
   // recorded_ns: it keeps the indices consecutive and says on disk that the pose was given up on

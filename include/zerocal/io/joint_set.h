@@ -8,19 +8,19 @@
 // recorded (optional, both or neither). Column order is free; the header names them.
 #pragma once
 
-#include <Eigen/Core>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "zerocal/model/robot.h"
+#include "zerocal/psd/spot.h"
 
 namespace zerocal {
 
 struct Pose {
   Joints q_deg{};
-  std::optional<Eigen::Vector2d> psd_uv_mm;  // where the spot was on the PSD, if recorded
-  int source_line = 0;                       // 1-based line in the file, 0 when not from a file
+  std::optional<PsdSpot> spot;  // where the spot was on the PSD (the reading), if recorded
+  int source_line = 0;          // 1-based line in the file, 0 when not from a file
 };
 
 // A joint set is a plan or a recording: far below these. Larger input is refused, not read.

@@ -18,6 +18,7 @@
 #include "zerocal/irc5/errors.h"
 #include "zerocal/irc5/protocol.h"
 #include "zerocal/model/robot.h"
+#include "zerocal/psd/spot.h"
 
 namespace zerocal {
 
@@ -111,9 +112,8 @@ class Irc5Client final : public ControllerConnection {
   // The controller's own joint bounds, degrees.
   std::array<JointLimit, kJointCount> readJointBounds();
   // Simulator only (zerocal-sim; the RAPID module replies ok = 0, thrown as BadMessageError):
-  // where the true beam meets the PSD plane now, {u, v} in mm in the PSD frame; nullopt when
-  // it does not meet it.
-  std::optional<std::array<double, 2>> readSimBeamSpot();
+  // where the true beam meets the PSD plane now; nullopt when it does not meet it.
+  std::optional<PsdSpot> readSimBeamSpot();
   SimWorldId readSimWorldId();
 
   // Sends one raw request (checked by checkRequest) and returns the reply, verified to answer

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "zerocal/psd/spot.h"
 #include "zerocal/usb1408fs/usb1408fs.h"
 
 namespace zerocal::psd {
@@ -103,7 +104,7 @@ class SpotDetector {
 
 // One point of a sweep: a known stage position (mm) and the averaged voltages there.
 struct SweepPoint {
-  double u_mm = 0, v_mm = 0;
+  PsdSpot spot;  // where the stage put the spot
   double x_v = 0, y_v = 0, sum_v = 0;
 };
 
@@ -127,8 +128,8 @@ struct MapFitReport {
 };
 
 struct SpotPosition {
-  double u_mm = 0, v_mm = 0;
-  double u_se_mm = 0, v_se_mm = 0;  // from the voltage standard errors through the map
+  PsdSpot spot;
+  PsdSpot se;                       // from the voltage standard errors through the map
   bool present = false;             // enough light (SpotDetector threshold)
   bool valid = false;               // present and inside the zone the map was fitted on
 };

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "zerocal/error.h"
+#include "zerocal/psd/spot.h"
 #include "zerocal/store/session_files.h"
 
 namespace zerocal::report {
@@ -31,23 +32,21 @@ struct ParameterRow : ParameterEstimate {
   std::optional<double> truth;            // simulated sessions only
 };
 
-struct ServoSample {
-  double t_s = 0, u_mm = 0, v_mm = 0;
-};
-
 struct PoseRow {
   int pose = 0;  // 1-based, as in the journal (index + 1)
   std::array<double, 6> joints_deg{};
-  double u_mm = 0, v_mm = 0;  // PSD reading at the recorded moment
-  bool solved = true;         // false: held out of the solve (validation), or skipped
-  std::string skipped;        // why the pose was skipped at a resume; empty when measured
-  bool again = false;         // a second measurement, made because the first solve named the pose
-  bool superseded = false;    // measured again later: the solve took the later measurement
-  double miss_um = 0;         // line's miss of the hit point (solved poses)
-  double normalised = 0;      // miss / noise sigma
+  PsdSpot spot;             // PSD reading at the recorded moment
+  bool solved = true;       // false: held out of the solve (validation), or skipped
+  std::string skipped;      // why the pose was skipped at a resume; empty when measured
+  bool again = false;       // a second measurement, made because the first solve named the pose
+  bool superseded = false;  // measured again later: the solve took the later measurement
+  double miss_um = 0;       // line's miss of the hit point (solved poses)
+  double normalised = 0;    // miss / noise sigma
   bool outlier = false;
   double standoff_mm = 0;
-  std::optional<std::vector<ServoSample>> servo_path;  // absent: not recorded
+  // The spot's path during the servo (journal.jsonl servo_path); absent: not recorded. A
+  // coordinate the file leaves null is NaN.
+  std::optional<std::vector<SpotPathPoint>> servo_path;
 };
 
 // Everything the summary and the report show: the session's files as the store reads them, and

@@ -54,6 +54,7 @@
 #include "zerocal/calib/cell_model.h"
 #include "zerocal/cell/controller_link.h"
 #include "zerocal/cell/link_error.h"
+#include "zerocal/psd/spot.h"
 #include "zerocal/servo/psd_reader.h"
 
 namespace zerocal::servo {
@@ -90,7 +91,7 @@ struct ServoOptions {
   double gain = 0.9;           // below 1: no overshoot from a slightly wrong Jacobian
   double damping_mm = 1e-3;    // Tikhonov term of the pseudo-inverse (mm/deg)^2 scale
 
-  double target_u_mm = 0, target_v_mm = 0;
+  PsdSpot target;             // where the fine servo brings the spot, PSD frame (mm)
   double hit_zone_mm = 0.05;  // kZone
   // kZone: two readings at the same pose agreeing within this are settled.
   double settle_mm = 0.005;
@@ -138,14 +139,9 @@ struct ServoFault {
   std::size_t sample_count = 0;
 };
 
-// One reading of the spot's path on the detector, for the report.
-struct PathPoint {
-  double t_s = 0;  // cell time since the servo's start
-  double u_mm = 0, v_mm = 0;
-};
-
-// Readings kept per run: the first kPathHead and the last kPathCapacity - kPathHead with the spot
-// on the detector (outside the map's zone u, v are the chain's coarse estimate).
+// The spot's path kept per run, for the report (t_s: cell time since the servo's start): the
+// first kPathHead and the last kPathCapacity - kPathHead readings with the spot on the detector
+// (outside the map's zone u, v are the chain's coarse estimate).
 constexpr std::size_t kPathCapacity = 64;
 constexpr std::size_t kPathHead = 16;
 
@@ -163,7 +159,7 @@ struct ServoResult {
   double settle_s = 0, settle_acquisition_s = 0;
   // Spot path: path[0, path_count) in time order; path_skipped readings between the head and the
   // tail were not kept.
-  std::array<PathPoint, kPathCapacity> path{};
+  std::array<SpotPathPoint, kPathCapacity> path{};
   std::size_t path_count = 0;
   int path_skipped = 0;
   // Search and fine servo, settling excluded: move + acquisition + servo + settle is the whole.
@@ -178,16 +174,15 @@ class PsdServo {
   // sets the plane of the predicted Jacobian). Copies what it needs; run() allocates nothing.
   PsdServo(const CellModel& cell, const Eigen::Vector3d& psd_centre_mm, ServoOptions options);
 
-  // The robot must stand at `planned_deg` (what the caller last moved it to). `expected_uv_mm`:
+  // The robot must stand at `planned_deg` (what the caller last moved it to). `expected`:
   // where the spot is expected at the planned pose (PSD frame, e.g. from SpotPredictor); the
   // search is centred on it when the spot is not seen at once. Never throws. On anything but
   // kConverged the fault is latched (fault()) until the next run(). `clock` waits settle_s; the
   // overload without one returns kBadStart when settle_s is not 0.
   ServoResult run(ControllerLink& robot, PsdReader& psd, CellClock& clock,
-                  const Joints& planned_deg,
-                  const Eigen::Vector2d& expected_uv_mm = Eigen::Vector2d::Zero()) noexcept;
+                  const Joints& planned_deg, const PsdSpot& expected = {}) noexcept;
   ServoResult run(ControllerLink& robot, PsdReader& psd, const Joints& planned_deg,
-                  const Eigen::Vector2d& expected_uv_mm = Eigen::Vector2d::Zero()) noexcept;
+                  const PsdSpot& expected = {}) noexcept;
 
   bool faulted() const noexcept { return faulted_; }
   const ServoFault& fault() const noexcept { return fault_; }
@@ -202,11 +197,11 @@ class PsdServo {
   Step settledRead(PsdReader& psd, ServoResult& result) noexcept;
   bool aborted(ServoResult& result) noexcept;
   void runCycle(ControllerLink& robot, PsdReader& psd, const Joints& planned,
-                const Eigen::Vector2d& expected_uv, ServoResult& result) noexcept;
+                const PsdSpot& expected, ServoResult& result) noexcept;
   void keepPathPoint(const PsdReading& reading, ServoResult& result) noexcept;
   void orderPath(ServoResult& result) const noexcept;
   bool acquire(ControllerLink& robot, PsdReader& psd, const Joints& planned,
-               const Eigen::Vector2d& expected_uv, ServoResult& result) noexcept;
+               const PsdSpot& expected, ServoResult& result) noexcept;
   void fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& result) noexcept;
   ServoResult& latch(ServoResult& result, ServoStatus status, const char* message) noexcept;
   // latch() from inside a catch handler, keeping the LinkError's kind of the exception in flight.

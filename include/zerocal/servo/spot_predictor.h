@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "zerocal/calib/cell_model.h"
+#include "zerocal/psd/spot.h"
 
 namespace zerocal::servo {
 
@@ -27,14 +28,14 @@ class SpotPredictor {
   SpotPredictor(const CellModel& cell, const Eigen::Vector3d& taught_centre_mm);
 
   // A servoed pose: controller joints and the reading there (PSD frame, mm).
-  void addPose(const Joints& q_deg, const Eigen::Vector2d& uv_mm);
+  void addPose(const Joints& q_deg, const PsdSpot& spot);
   // Where the spot is expected on the PSD (PSD frame, mm) at controller joints q.
-  Eigen::Vector2d predict(const Joints& q_deg) const;
+  PsdSpot predict(const Joints& q_deg) const;
   // Where a search should start: predict() once kConfidentPoses poses are in, else (0, 0). One
   // pose helped on average with 5e-4 deg of repeatability, but with 0.02 mm (1.5e-3 deg) it sent
   // seed 40's second search more than 60 mm from the spot (spot not found); from two poses on,
   // 30 of 30 worlds (seeds 11..40) and 10 of 10 (1..10) complete (`zerocal experiment cell`).
-  Eigen::Vector2d searchCentre(const Joints& q_deg) const;
+  PsdSpot searchCentre(const Joints& q_deg) const;
   static constexpr int kConfidentPoses = 2;
   int poseCount() const { return static_cast<int>(poses_.size()); }
 

@@ -16,14 +16,10 @@
 #include <optional>
 #include <random>
 
+#include "zerocal/psd/spot.h"
 #include "zerocal/sim/usb1408fs_model.h"
 
 namespace zerocal::sim {
-
-struct SpotPosition {
-  double u_mm = 0.0;
-  double v_mm = 0.0;
-};
 
 struct PsdVoltages {
   double x = 0.0;    // V
@@ -47,9 +43,9 @@ class PsdModel {
   explicit PsdModel(PsdModelOptions options = {});
 
   // Noise-free outputs; nullopt spot = no light on the detector.
-  PsdVoltages ideal(const std::optional<SpotPosition>& spot) const;
+  PsdVoltages ideal(const std::optional<PsdSpot>& spot) const;
   // With the board's noise (advances the seeded generator).
-  PsdVoltages measure(const std::optional<SpotPosition>& spot);
+  PsdVoltages measure(const std::optional<PsdSpot>& spot);
 
   const PsdModelOptions& options() const noexcept { return options_; }
 
@@ -71,7 +67,6 @@ struct PsdWiring {
 // time t seconds. The model is evaluated once per time point and shared by the three channels;
 // channels not wired to the PSD read 0 V. `psd` must outlive the returned source.
 Usb1408fsModel::AnalogSource psdAnalogSource(
-    PsdModel& psd, std::function<std::optional<SpotPosition>(double t)> spot_at,
-    PsdWiring wiring = {});
+    PsdModel& psd, std::function<std::optional<PsdSpot>(double t)> spot_at, PsdWiring wiring = {});
 
 }  // namespace zerocal::sim

@@ -25,7 +25,7 @@ class SimulatedPsdRig {
   SimulatedPsdRig& operator=(const SimulatedPsdRig&) = delete;
 
   // Where the beam meets the PSD (mm); nullopt: no light on the detector.
-  void setSpot(std::optional<SpotPosition> spot) { spot_ = spot; }
+  void setSpot(std::optional<PsdSpot> spot) { spot_ = spot; }
   usb1408fs::Usb1408fs& daq() { return *daq_; }
   Usb1408fsModel& board() { return board_; }
   const PsdModel& psd() const { return psd_; }
@@ -35,7 +35,7 @@ class SimulatedPsdRig {
   psd::PsdChannels channels_;
   Usb1408fsModel board_;
   PsdModel psd_;
-  std::optional<SpotPosition> spot_ = SpotPosition{};
+  std::optional<PsdSpot> spot_ = PsdSpot{};
   std::unique_ptr<usb1408fs::Usb1408fs> daq_;
 };
 

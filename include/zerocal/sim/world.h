@@ -15,6 +15,7 @@
 #include <string>
 
 #include "zerocal/model/robot.h"
+#include "zerocal/psd/spot.h"
 
 namespace zerocal {
 
@@ -99,8 +100,7 @@ struct World {
 
 // Where the beam crosses the PSD plane.
 struct BeamHit {
-  double u_mm = 0;      // PSD frame x
-  double v_mm = 0;      // PSD frame y
+  PsdSpot spot;         // in the true PSD frame
   double range_mm = 0;  // from the laser point to the hit, along the beam
 };
 

@@ -11,7 +11,7 @@
 namespace zerocal::servo {
 namespace {
 
-using JointVector = Eigen::Matrix<double, kJointCount, 1>;
+using JointVector = JointStep;
 
 JointVector toVector(const Joints& q) { return Eigen::Map<const JointVector>(q.data()); }
 
@@ -34,12 +34,6 @@ bool spotOnPlane(const CellModel& cell, const Eigen::Vector3d& centre, const Joi
   const Eigen::Vector3d hit = line.point + t * line.direction;
   uv = (cell.psd_rotation.transpose() * (hit - centre)).head<2>();
   return true;
-}
-
-// Minimum-norm (damped) pseudo-inverse of a 2 x 6 Jacobian.
-Eigen::Matrix<double, kJointCount, 2> pseudoInverse(const ImageJacobian& j, double damping) {
-  const Eigen::Matrix2d jjt = j * j.transpose() + damping * Eigen::Matrix2d::Identity();
-  return j.transpose() * jjt.inverse();
 }
 
 double maxAbs(const JointVector& v) { return v.cwiseAbs().maxCoeff(); }
@@ -107,7 +101,16 @@ const char* statusName(ServoStatus status) noexcept {
 
 PsdServo::PsdServo(const CellModel& cell, const Eigen::Vector3d& psd_centre_mm,
                    ServoOptions options)
-    : cell_(cell), psd_centre_(psd_centre_mm), options_(options) {
+    : PsdServo(cell, psd_centre_mm, options, default_law_) {}
+
+PsdServo::PsdServo(const CellModel& cell, const Eigen::Vector3d& psd_centre_mm,
+                   ServoOptions options, ServoLaw& law)
+    : cell_(cell),
+      psd_centre_(psd_centre_mm),
+      options_(options),
+      default_law_(
+          {options.gain, options.damping_mm, options.correct_jacobian, options.jacobian_prior_mm}),
+      law_(&law) {
   const std::string problem = options_.validate();
   if (!problem.empty()) throw ConfigError("servo options", {problem});
 }
@@ -238,7 +241,7 @@ bool PsdServo::acquire(ControllerLink& robot, PsdReader& psd, const Joints& plan
                        const PsdSpot& expected, ServoResult& result) noexcept {
   const Eigen::Vector2d expected_uv = toVector(expected);
   const Eigen::Matrix<double, kJointCount, 2> pinv =
-      pseudoInverse(imageJacobian(cell_, psd_centre_, planned), options_.damping_mm);
+      dampedPseudoInverse(imageJacobian(cell_, psd_centre_, planned), options_.damping_mm);
   const JointVector base = toVector(planned);
   // Archimedean spiral r = b theta, b = step / 2 pi: turns step apart, points step apart along it.
   const double b = options_.search_step_mm / (2 * kPi);
@@ -277,25 +280,9 @@ bool PsdServo::acquire(ControllerLink& robot, PsdReader& psd, const Joints& plan
   return false;
 }
 
-Joints PsdServo::solveStep(const ImageJacobian& j, const Eigen::Vector2d& e) const noexcept {
-  JointVector dq = -options_.gain * (pseudoInverse(j, options_.damping_mm) * e);
-  const double largest = maxAbs(dq);
-  if (largest > options_.max_step_deg) dq *= options_.max_step_deg / largest;
-  return toJoints(toVector(q_) + dq);
-}
-
 void PsdServo::fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& result) noexcept {
-  const ImageJacobian j = imageJacobian(cell_, psd_centre_, q_);
-  // The online correction A of the header: A = observed_moments * motion_moments^-1.
-  const double prior = options_.jacobian_prior_mm * options_.jacobian_prior_mm;
-  Eigen::Matrix2d motion_moments = prior * Eigen::Matrix2d::Identity();
-  Eigen::Matrix2d observed_moments = motion_moments;
-  Eigen::Matrix2d correction = Eigen::Matrix2d::Identity();
+  law_->start(imageJacobian(cell_, psd_centre_, q_));
   const Eigen::Vector2d target = toVector(options_.target);
-  bool have_previous = false;  // a move between the previous reading and this one
-  Eigen::Vector2d e_previous = Eigen::Vector2d::Zero();
-  bool previous_valid = false;
-  JointVector dq_previous = JointVector::Zero();
   bool settling = false;
   Eigen::Vector2d settle_uv = Eigen::Vector2d::Zero();
 
@@ -315,7 +302,7 @@ void PsdServo::fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& res
         // Read again without moving: a reading is only recorded once it repeats.
         settling = true;
         settle_uv = uv;
-        have_previous = false;
+        law_->held();
         if (result.iterations >= options_.max_iterations ||
             r.time_s - result.acquired_s > options_.timeout_s) {
           latch(result, ServoStatus::kNotConverged, "the reading did not settle in time");
@@ -327,23 +314,19 @@ void PsdServo::fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& res
       }
     }
     settling = false;
-    if (options_.correct_jacobian && have_previous && previous_valid && r.in_valid_zone) {
-      const Eigen::Vector2d predicted = j * dq_previous;
-      motion_moments += predicted * predicted.transpose();
-      observed_moments += (e - e_previous) * predicted.transpose();
-      correction = observed_moments * motion_moments.inverse();  // both start at w^2 I
-    }
     if (result.iterations >= options_.max_iterations ||
         r.time_s - result.acquired_s > options_.timeout_s) {
       latch(result, ServoStatus::kNotConverged, "iterations or time exhausted");
       return;
     }
-    const Joints next = solveStep(correction * j, e);
-    dq_previous = toVector(next) - toVector(q_);
-    e_previous = e;
-    previous_valid = r.in_valid_zone;
+    // The law's correction, held to the step limit whatever law computed it.
+    JointVector dq = law_->correction(e, r.in_valid_zone);
+    const double largest = maxAbs(dq);
+    if (largest > options_.max_step_deg) dq *= options_.max_step_deg / largest;
+    const Joints next = toJoints(toVector(q_) + dq);
+    const JointVector sent = toVector(next) - toVector(q_);
     if (move(robot, next, result) != Step::kOk) return;
-    have_previous = true;
+    law_->moved(sent);
     if (settledRead(psd, result) != Step::kOk) return;
     ++result.iterations;
   }

@@ -418,6 +418,78 @@ TEST(PsdServo, RobotNotAtThePlannedPoseIsABadStart) {
   EXPECT_TRUE(link.moves.empty());
 }
 
+// The default law handed in explicitly steers exactly as the servo's own: the same moves, bit for
+// bit.
+TEST(ServoLaw, TheCorrectedJacobianLawGivenExplicitlyStepsAsTheDefault) {
+  Scenario s = scenario(2);
+  const ServoOptions o = centreOptions();
+  RecordingLink link_a(s.planned), link_b(s.planned);
+  ExactPsd psd_a(s.world, link_a), psd_b(s.world, link_b);
+  PsdServo own(s.cell, s.world.psd_position_mm, o);
+  CorrectedJacobianLaw law({o.gain, o.damping_mm, o.correct_jacobian, o.jacobian_prior_mm});
+  PsdServo given(s.cell, s.world.psd_position_mm, o, law);
+  const ServoResult a = own.run(link_a, psd_a, s.planned);
+  const ServoResult b = given.run(link_b, psd_b, s.planned);
+  ASSERT_TRUE(a.ok() && b.ok());
+  EXPECT_EQ(link_a.moves, link_b.moves);
+  EXPECT_EQ(a.final_error_um, b.final_error_um);
+  EXPECT_NE(law.correctionMatrix(), Eigen::Matrix2d::Identity());  // it did fit A
+}
+
+// A law that wants far too much: the loop calls it once per fine-servo move, holds every step to
+// max_step_deg and tells the law the move it actually sent.
+class GreedyLaw final : public ServoLaw {
+ public:
+  explicit GreedyLaw(const ServoOptions& o)
+      : inner_({o.gain, o.damping_mm, o.correct_jacobian, o.jacobian_prior_mm}) {}
+  void start(const ImageJacobian& j) noexcept override {
+    ++starts;
+    inner_.start(j);
+  }
+  JointStep correction(const Eigen::Vector2d& e, bool valid) noexcept override {
+    ++corrections;
+    return 50 * inner_.correction(e, valid);
+  }
+  void moved(const JointStep& dq) noexcept override {
+    sent.push_back(dq);
+    inner_.moved(dq);
+  }
+  void held() noexcept override { inner_.held(); }
+
+  int starts = 0, corrections = 0;
+  std::vector<JointStep> sent;
+
+ private:
+  CorrectedJacobianLaw inner_;
+};
+
+TEST(ServoLaw, TheLoopCallsItsLawAndHoldsItsStepsToTheLimit) {
+  Scenario s = scenario(5);
+  ServoOptions o = centreOptions();
+  o.max_step_deg = 0.01;
+  o.max_iterations = 400;
+  RecordingLink link(s.planned);
+  ExactPsd psd(s.world, link);
+  GreedyLaw law(o);
+  PsdServo servo(s.cell, s.world.psd_position_mm, o, law);
+  const ServoResult r = servo.run(link, psd, s.planned);
+  expectMovesWithinBounds(s.cell.robot, s.planned, link.moves, o);
+  EXPECT_EQ(law.starts, 1);
+  ASSERT_GT(law.corrections, 0);
+  // Every correction became a move (the fine servo's are the last ones sent) and the law heard
+  // of each as sent.
+  ASSERT_EQ(law.sent.size(), static_cast<std::size_t>(law.corrections));
+  ASSERT_GE(link.moves.size(), law.sent.size());
+  const std::size_t first = link.moves.size() - law.sent.size();
+  for (std::size_t k = 0; k < law.sent.size(); ++k) {
+    const Joints& before = first + k == 0 ? s.planned : link.moves[first + k - 1];
+    for (int i = 0; i < kJointCount; ++i)
+      EXPECT_EQ(law.sent[k][i], link.moves[first + k][i] - before[i]) << k << " joint " << i;
+    EXPECT_NEAR(law.sent[k].cwiseAbs().maxCoeff(), o.max_step_deg, 1e-12) << k;
+  }
+  EXPECT_EQ(r.iterations, law.corrections);
+}
+
 TEST(SpotPredictor, PredictsTheMissAfterAFewServoedPoses) {
   Scenario s = scenario(4);
   SpotPredictor predictor(s.cell, s.world.psd_position_mm);

@@ -12,12 +12,13 @@
 // spiral is mapped to joints through the model's image Jacobian at the planned pose. Not found
 // within the bounds: the robot is walked back to the planned pose and the fault latched.
 //
-// Fine servo: e = (u, v) - target; dq = -gain J^+ e, with J = d(u, v)/dq the image Jacobian
-// predicted by the nominal kinematics and laser through the PSD's known orientation, and J^+ its
-// minimum-norm pseudo-inverse (damped). The model is a little wrong (the PSD's orientation and
-// distance as taught, the laser's mounting, the offsets being calibrated), mostly as a rotation
-// and scale of the spot's motion; so the servo steers with A J, where the 2 x 2 A is fitted online
-// to every observed motion de of a move dq, p = J dq:
+// Fine servo: a ServoLaw (servo_law.h) turns each steering reading into a joint correction; the
+// default, CorrectedJacobianLaw, is this: e = (u, v) - target; dq = -gain J^+ e, with J = d(u,
+// v)/dq the image Jacobian predicted by the nominal kinematics and laser through the PSD's known
+// orientation, and J^+ its minimum-norm pseudo-inverse (damped). The model is a little wrong (the
+// PSD's orientation and distance as taught, the laser's mounting, the offsets being calibrated),
+// mostly as a rotation and scale of the spot's motion; so the servo steers with A J, where the 2 x
+// 2 A is fitted online to every observed motion de of a move dq, p = J dq:
 //
 //   A = (sum de p^T + w^2 I) (sum p p^T + w^2 I)^-1,  w = jacobian_prior_mm,
 //
@@ -56,10 +57,9 @@
 #include "zerocal/cell/link_error.h"
 #include "zerocal/psd/spot.h"
 #include "zerocal/servo/psd_reader.h"
+#include "zerocal/servo/servo_law.h"
 
 namespace zerocal::servo {
-
-using ImageJacobian = Eigen::Matrix<double, 2, kJointCount>;  // mm per deg
 
 // d(u, v)/dq of the nominal laser (cell.laser, zero offsets) on the plane through psd_centre_mm
 // (base frame) with the cell's PSD orientation, by central differences.
@@ -172,7 +172,15 @@ class PsdServo {
  public:
   // `psd_centre_mm`: the PSD's centre in the base frame as taught (a few mm off is fine; it only
   // sets the plane of the predicted Jacobian). Copies what it needs; run() allocates nothing.
+  // The fine servo steers with CorrectedJacobianLaw over the options' gain, damping_mm,
+  // correct_jacobian and jacobian_prior_mm. Throws ConfigError for invalid options.
   PsdServo(const CellModel& cell, const Eigen::Vector3d& psd_centre_mm, ServoOptions options);
+  // The same loop steering with `law`, which must outlive the servo.
+  PsdServo(const CellModel& cell, const Eigen::Vector3d& psd_centre_mm, ServoOptions options,
+           ServoLaw& law);
+  // The law is referred to by address (the servo's own, or the caller's).
+  PsdServo(const PsdServo&) = delete;
+  PsdServo& operator=(const PsdServo&) = delete;
 
   // The robot must stand at `planned_deg` (what the caller last moved it to). `expected`:
   // where the spot is expected at the planned pose (PSD frame, e.g. from SpotPredictor); the
@@ -207,11 +215,12 @@ class PsdServo {
   // latch() from inside a catch handler, keeping the LinkError's kind of the exception in flight.
   void latchLinkError(ServoResult& result, ServoStatus status, const char* message) noexcept;
   void record(const PsdReading& reading) noexcept;
-  Joints solveStep(const ImageJacobian& j, const Eigen::Vector2d& e) const noexcept;
 
   CellModel cell_;
   Eigen::Vector3d psd_centre_;
   ServoOptions options_;
+  CorrectedJacobianLaw default_law_;
+  ServoLaw* law_;
   CellClock* clock_ = nullptr;      // during run() only
   std::size_t path_tail_next_ = 0;  // where the next tail point goes once the path is full
   Joints q_{};                      // commanded joints

@@ -13,6 +13,7 @@
 #include <ctime>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <mutex>
 #include <sstream>
@@ -26,8 +27,28 @@ namespace {
 namespace fs = std::filesystem;
 using Json = nlohmann::json;
 
+constexpr const char* kFaultsFile = "faults.jsonl";
+
 [[noreturn]] void fail(const std::string& what, int error) {
   throw JournalError(what + ": " + std::strerror(error));
+}
+
+// The whole file; nullopt when it does not exist. Throws JournalError when it cannot be read.
+std::optional<std::string> readWholeFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    std::error_code ec;
+    if (!fs::exists(path, ec)) return std::nullopt;
+    throw JournalError("cannot read " + path);
+  }
+  std::ostringstream buffer;
+  buffer << in.rdbuf();
+  return buffer.str();
+}
+
+// nlohmann writes a NaN as null; read back, null is NaN again.
+double numberOrNan(const Json& j) {
+  return j.is_null() ? std::numeric_limits<double>::quiet_NaN() : j.get<double>();
 }
 
 bool allFinite(const PoseRecord& r) {
@@ -120,15 +141,9 @@ PoseRecord poseRecordFromJson(const Json& j) {
 
 JournalContents readJournal(const std::string& path) {
   JournalContents out;
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    std::error_code ec;
-    if (!fs::exists(path, ec)) return out;
-    throw JournalError("cannot read " + path);
-  }
-  std::ostringstream buffer;
-  buffer << in.rdbuf();
-  const std::string text = buffer.str();
+  const std::optional<std::string> file = readWholeFile(path);
+  if (!file) return out;
+  const std::string& text = *file;
 
   std::size_t start = 0;
   int line_number = 0;
@@ -222,6 +237,109 @@ void Journal::append(const PoseRecord& record) {
     throw JournalError(e.what());
   }
   records_.push_back(record);
+}
+
+Json toJson(const FaultRecord& r) {
+  Json samples = Json::array();
+  for (const FaultSample& s : r.samples) {
+    Json row = Json::array({s.time_s});
+    for (double q : s.q_deg) row.push_back(q);
+    row.push_back(s.reading.spot.u_mm);
+    row.push_back(s.reading.spot.v_mm);
+    row.push_back(s.reading.sum_v);
+    row.push_back(s.reading.spot_present);
+    row.push_back(s.reading.in_valid_zone);
+    samples.push_back(std::move(row));
+  }
+  Json line{{"plan_index", r.plan_index},
+            {"status", r.status},
+            {"message", r.message},
+            {"recorded_ns", r.recorded_ns},
+            {"samples", std::move(samples)}};
+  if (r.remeasure) line["remeasure"] = true;
+  return line;
+}
+
+FaultRecord faultRecordFromJson(const Json& j) {
+  try {
+    FaultRecord r;
+    j.at("plan_index").get_to(r.plan_index);
+    j.at("status").get_to(r.status);
+    j.at("message").get_to(r.message);
+    j.at("recorded_ns").get_to(r.recorded_ns);
+    if (j.contains("remeasure")) j.at("remeasure").get_to(r.remeasure);
+    for (const Json& row : j.at("samples")) {
+      if (!row.is_array() || row.size() != 12)
+        throw JournalError("fault record: a sample is not a list of 12 values");
+      FaultSample s;
+      s.time_s = numberOrNan(row[0]);
+      for (int i = 0; i < kJointCount; ++i) s.q_deg[i] = numberOrNan(row[1 + i]);
+      s.reading.spot = {numberOrNan(row[7]), numberOrNan(row[8])};
+      s.reading.sum_v = numberOrNan(row[9]);
+      row[10].get_to(s.reading.spot_present);
+      row[11].get_to(s.reading.in_valid_zone);
+      s.reading.time_s = s.time_s;
+      r.samples.push_back(s);
+    }
+    return r;
+  } catch (const Json::exception& e) {
+    throw JournalError(std::string("fault record: ") + e.what());
+  }
+}
+
+std::string faultLogPath(const std::string& journal_path) {
+  return (fs::path(journal_path).parent_path() / kFaultsFile).string();
+}
+
+void appendFault(const std::string& path, const FaultRecord& record) {
+  const std::string line = toJson(record).dump() + "\n";
+  const fs::path file(path);
+  const std::string folder = file.parent_path().empty() ? "." : file.parent_path().string();
+  // A line torn by a crash is cut first, so that this one starts a line of its own.
+  const std::optional<std::string> before = readWholeFile(path);
+  std::size_t committed = 0;
+  if (before) {
+    const std::size_t last_newline = before->rfind('\n');
+    committed = last_newline == std::string::npos ? 0 : last_newline + 1;
+  }
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+  if (fd < 0) fail("cannot open " + path, errno);
+  try {
+    if (before && committed != before->size() &&
+        ::ftruncate(fd, static_cast<off_t>(committed)) != 0)
+      fail("cannot truncate " + path, errno);
+    // One write() per line, as in the journal: a crash leaves at most this line torn.
+    writeAllDurably(fd, line, path);
+    if (!before) syncFolder(folder);
+  } catch (const FileError& e) {
+    ::close(fd);
+    throw JournalError(e.what());
+  } catch (...) {
+    ::close(fd);
+    throw;
+  }
+  ::close(fd);
+}
+
+std::vector<FaultRecord> readFaults(const std::string& path) {
+  std::vector<FaultRecord> out;
+  const std::optional<std::string> file = readWholeFile(path);
+  if (!file) return out;
+  const std::string& text = *file;
+  std::size_t start = 0;
+  for (int line_number = 1; start < text.size(); ++line_number) {
+    const std::size_t newline = text.find('\n', start);
+    if (newline == std::string::npos) break;  // never acknowledged: a torn last line
+    const bool last = newline + 1 == text.size();
+    try {
+      out.push_back(faultRecordFromJson(Json::parse(text.substr(start, newline - start))));
+    } catch (const std::exception& e) {
+      if (!last) throw JournalError(path + ":" + std::to_string(line_number) + ": " + e.what());
+      break;
+    }
+    start = newline + 1;
+  }
+  return out;
 }
 
 }  // namespace zerocal

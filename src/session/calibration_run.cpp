@@ -67,6 +67,22 @@ std::vector<int> planIndicesOf(const std::vector<PoseRecord>& records) {
 
 }  // namespace
 
+void CalibrationRun::journalFault(const servo::ServoFault& fault, int plan_index,
+                                  bool again) const {
+  FaultRecord record;
+  record.plan_index = plan_index;
+  record.remeasure = again;
+  record.status = servo::statusName(fault.status);
+  record.message = fault.message;
+  record.recorded_ns = unixNanoseconds();
+  record.samples.reserve(fault.sample_count);
+  for (std::size_t k = 0; k < fault.sample_count; ++k) {
+    const servo::ServoSample& s = fault.samples[k];
+    record.samples.push_back({s.time_s, s.q_deg, s.reading});
+  }
+  appendFault(faultLogPath(journal_.path()), record);
+}
+
 std::vector<Pose> posesOf(const std::vector<PoseRecord>& records) {
   std::vector<Pose> poses;
   for (const PoseRecord* r : latestOf(records))
@@ -160,6 +176,7 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
         phase(i, RunPhase::kServoing);
         r = servo.run(robot, psd, clock, target, predictor.searchCentre(target));
         if (!r.ok()) {
+          if (r.status != servo::ServoStatus::kAborted) journalFault(servo.fault(), i, again);
           why = std::string("servo ") + servo::statusName(r.status) + ": " + servo.fault().message;
           const bool transient = servo.fault().link_kind == LinkError::Kind::kTransient;
           pose_at_fault = r.status == servo::ServoStatus::kSpotNotFound ||

@@ -5,8 +5,10 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 #include "zerocal/store/session_store.h"
@@ -387,6 +389,64 @@ TEST_F(JournalTest, SessionStoreListsADamagedJournalAndSeesEveryChangeToAJournal
   std::ofstream(store.journalPath(bad.id), std::ios::trunc);
   EXPECT_TRUE(store.list()[1].damaged.empty());
   EXPECT_EQ(store.list()[1].recorded_poses, 0);
+}
+
+// faults.jsonl: one line per latched fault, samples as [t_s, q1..q6, u, v, sum_v, present,
+// valid], read back to the bit; a non-finite number is null on disk; a line torn by a crash is
+// dropped by the reader and cut by the next append.
+TEST_F(JournalTest, FaultLogRoundTripsAndSurvivesATornLastLine) {
+  FaultRecord f;
+  f.plan_index = 3;
+  f.remeasure = true;
+  f.status = "spot lost";
+  f.message = "the spot left the detector";
+  f.recorded_ns = 1763795000123456789;
+  for (int k = 0; k < 2; ++k) {
+    FaultSample s;
+    s.time_s = 12.5 + k / 3.0;
+    s.q_deg = Joints{1.0 / 3.0, -2, 3, 4, 5, 6.0 + k};
+    s.reading.spot = {0.1 / 3.0, -2e-4 / 7.0};
+    s.reading.sum_v = k == 0 ? 3.9 : std::numeric_limits<double>::quiet_NaN();
+    s.reading.spot_present = k == 0;
+    s.reading.in_valid_zone = false;
+    f.samples.push_back(s);
+  }
+  const nlohmann::json j = toJson(f);
+  ASSERT_EQ(j["samples"].size(), 2u);
+  ASSERT_EQ(j["samples"][0].size(), 12u);
+  EXPECT_EQ(j["samples"][0][0].get<double>(), 12.5);
+  EXPECT_EQ(j["samples"][0][1].get<double>(), 1.0 / 3.0);
+  EXPECT_EQ(j["samples"][0][7].get<double>(), 0.1 / 3.0);
+  EXPECT_EQ(j["samples"][0][10], true);
+  EXPECT_TRUE(nlohmann::json::parse(j.dump())["samples"][1][9].is_null());
+
+  const std::string path = faultLogPath((dir_ / "journal.jsonl").string());
+  EXPECT_EQ(path, (dir_ / "faults.jsonl").string());
+  EXPECT_TRUE(readFaults(path).empty());  // no fault yet: no file
+  appendFault(path, f);
+  std::ofstream(path, std::ios::app) << R"({"plan_index": 4, "sta)";  // a crash mid-write
+  ASSERT_EQ(readFaults(path).size(), 1u);
+  f.plan_index = 5;
+  appendFault(path, f);
+  const std::vector<FaultRecord> back = readFaults(path);
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_EQ(back[1].plan_index, 5);
+  const FaultRecord& b = back[0];
+  EXPECT_EQ(b.plan_index, 3);
+  EXPECT_TRUE(b.remeasure);
+  EXPECT_EQ(b.status, f.status);
+  EXPECT_EQ(b.message, f.message);
+  EXPECT_EQ(b.recorded_ns, f.recorded_ns);
+  ASSERT_EQ(b.samples.size(), 2u);
+  for (std::size_t k = 0; k < 2; ++k) {
+    EXPECT_EQ(b.samples[k].time_s, f.samples[k].time_s);
+    EXPECT_EQ(b.samples[k].q_deg, f.samples[k].q_deg);
+    EXPECT_EQ(b.samples[k].reading.spot, f.samples[k].reading.spot);
+    EXPECT_EQ(b.samples[k].reading.spot_present, f.samples[k].reading.spot_present);
+    EXPECT_EQ(b.samples[k].reading.in_valid_zone, f.samples[k].reading.in_valid_zone);
+  }
+  EXPECT_EQ(b.samples[0].reading.sum_v, 3.9);
+  EXPECT_TRUE(std::isnan(b.samples[1].reading.sum_v));
 }
 
 }  // namespace

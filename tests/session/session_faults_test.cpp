@@ -260,6 +260,59 @@ TEST(SessionFaults, SpotNeverFoundFaultsNamingThePoseWithTheRobotBackAtThePlanne
   expectAt(s.rig.cell.controller().commandedJoints(), planned);
 }
 
+// Forwards to the real chain and keeps every reading with the joints last commanded.
+class RecordingPsd final : public PsdReader {
+ public:
+  RecordingPsd(PsdReader& inner, const RecordingLink& link) : inner_(inner), link_(link) {}
+  PsdReading read() override {
+    readings.push_back(inner_.read());
+    joints.push_back(link_.moves.back());
+    return readings.back();
+  }
+  std::vector<PsdReading> readings;
+  std::vector<Joints> joints;
+
+ private:
+  PsdReader& inner_;
+  const RecordingLink& link_;
+};
+
+// The servo's latched fault keeps its last 32 samples; they reach faults.jsonl, durably, beside a
+// journal that stays as it was (empty here, so a resume measures pose 1 again).
+TEST(SessionFaults, ALatchedFaultsRecentSamplesAreWrittenToFaultsJsonl) {
+  Session s(12, Taught::k100MmOff);
+  s.settings.servo.search_radius_mm = 20;  // ~80 points, none near the spot 100 mm away
+  RecordingLink link(s.rig.client);
+  RecordingPsd psd(s.rig.psd, link);
+  const RunOutcome out = s.run(link, psd);
+  ASSERT_EQ(out.state, RunState::kFaulted);
+  EXPECT_TRUE(s.journalled().empty());
+
+  const std::vector<FaultRecord> faults = readFaults(s.dir.path + "/faults.jsonl");
+  ASSERT_EQ(faults.size(), 1u);
+  const FaultRecord& f = faults.front();
+  EXPECT_EQ(f.plan_index, 0);
+  EXPECT_FALSE(f.remeasure);
+  EXPECT_EQ(f.status, "spot not found");
+  EXPECT_NE(out.message.find(f.message), std::string::npos) << f.message;
+  EXPECT_GT(f.recorded_ns, 0);
+  // The fault's samples are the run's last 32 readings, oldest first, each with the joints
+  // commanded when it was taken, read back to the bit.
+  ASSERT_GT(psd.readings.size(), servo::kFaultHistory);
+  ASSERT_EQ(f.samples.size(), servo::kFaultHistory);
+  const std::size_t first = psd.readings.size() - servo::kFaultHistory;
+  for (std::size_t k = 0; k < f.samples.size(); ++k) {
+    const FaultSample& got = f.samples[k];
+    const PsdReading& read = psd.readings[first + k];
+    EXPECT_EQ(got.time_s, read.time_s) << k;
+    EXPECT_EQ(got.q_deg, psd.joints[first + k]) << k;
+    EXPECT_EQ(got.reading.spot, read.spot) << k;
+    EXPECT_EQ(got.reading.sum_v, read.sum_v) << k;
+    EXPECT_EQ(got.reading.spot_present, read.spot_present) << k;
+    EXPECT_EQ(got.reading.in_valid_zone, read.in_valid_zone) << k;
+  }
+}
+
 // Abort while the servo searches a spot it cannot find (a search of up to 3000 points): no
 // further move is sent once the flag is set.
 TEST(SessionFaults, AbortDuringALongSearchStopsWithinOneServoMove) {

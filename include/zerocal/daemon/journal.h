@@ -4,6 +4,10 @@
 // its line, newline included, is on disk. A session without result.json is unfinished and may be
 // resumed from its journal. Units: joints in degrees, PSD coordinates and their standard errors in
 // millimetres, timestamps in nanoseconds since the Unix epoch (system clock), durations in seconds.
+//
+// Beside it, faults.jsonl: one JSON object per servo fault latched at a pose, with the samples
+// leading to it, appended and fsync()ed; absent until the first fault. No resume reads it: the
+// journal alone says what was measured.
 #pragma once
 
 #include <array>
@@ -108,6 +112,7 @@ class Journal {
   // Every committed record: those read back at opening, then those appended since.
   const std::vector<PoseRecord>& records() const { return records_; }
   const std::string& dropped() const { return dropped_; }
+  const std::string& path() const { return path_; }
 
  private:
   std::string path_;
@@ -116,5 +121,37 @@ class Journal {
   std::vector<PoseRecord> records_;
   std::string dropped_;
 };
+
+// One sample of a latched servo fault: a reading and the joints commanded when it was taken.
+// JSON: [t_s, q1..q6, u_mm, v_mm, sum_v, spot_present, in_valid_zone]; a number that was not
+// finite is null on disk and NaN read back.
+struct FaultSample {
+  double time_s = 0;  // cell clock, seconds
+  Joints q_deg{};
+  PsdReading reading;  // its spot, sum_v and flags are kept; se and time_s are not
+};
+
+// One line of faults.jsonl: the servo latched a fault at a plan pose, whether the run then
+// recovered (a reconnect, the pose again) or stopped there. An abort is not a fault.
+struct FaultRecord {
+  int plan_index = 0;      // 0-based plan pose
+  bool remeasure = false;  // while measuring the pose a second time (JSON only when true)
+  std::string status;      // the servo's status name: "spot not found", "link error", ...
+  std::string message;     // the servo's fault message
+  std::int64_t recorded_ns = 0;
+  std::vector<FaultSample> samples;  // the fault's recent samples, oldest first (at most 32)
+};
+
+nlohmann::json toJson(const FaultRecord& record);
+// Throws JournalError when a member is missing or of the wrong type.
+FaultRecord faultRecordFromJson(const nlohmann::json& json);
+// faults.jsonl in the folder of the journal at `journal_path`.
+std::string faultLogPath(const std::string& journal_path);
+// Appends the record as one line with one write() and fsync()s it (and, when this creates the
+// file, its folder): when this returns the fault is on disk. Throws JournalError.
+void appendFault(const std::string& path, const FaultRecord& record);
+// Every committed line; a missing file has none, a torn last line (a crash mid-write) is dropped.
+// Throws JournalError for a bad line before the last.
+std::vector<FaultRecord> readFaults(const std::string& path);
 
 }  // namespace zerocal

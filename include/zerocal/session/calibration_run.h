@@ -85,7 +85,10 @@ class CalibrationRun {
   // as kFaulted with the pose and the reason; the journal keeps every pose recorded before, and
   // the robot is at rest (every move is a blocking fine-point move, so none is under way). When
   // the spot is not found the robot is back at the planned pose, a pose checked against the
-  // limits before the run started (the "safe pose").
+  // limits before the run started (the "safe pose"). Every fault the servo latches (an abort
+  // excepted) is appended with its recent samples to faults.jsonl beside the journal
+  // (appendFault) before the run recovers or stops; throws JournalError when that or a journal
+  // line cannot be written.
   RunOutcome run(ControllerLink& robot, PsdReader& psd, CellClock& clock,
                  const std::atomic<bool>& abort);
 
@@ -95,6 +98,9 @@ class CalibrationRun {
   void skipNextPose(const std::string& reason);
 
  private:
+  // Appends the servo's latched fault at plan pose `plan_index` to faults.jsonl.
+  void journalFault(const servo::ServoFault& fault, int plan_index, bool again) const;
+
   CellModel knowledge_;
   Eigen::Vector3d taught_centre_;
   std::vector<Pose> plan_;

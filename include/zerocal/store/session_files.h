@@ -2,6 +2,7 @@
 // (docs/daemon.md, docs/results.md):
 //   session.json   SessionFile: what the session was asked to do, written once at its creation
 //   journal.jsonl  PoseRecord per line (zerocal/daemon/journal.h)
+//   faults.jsonl   FaultRecord per line, from the first servo fault on (zerocal/daemon/journal.h)
 //   result.json    ResultFile: the solve and what the daemon knew of the run and the cell
 // Reading is strict about what a reader needs and tolerant of members it does not know, so that a
 // newer file still reads; fromJson(toJson(x)) gives x back, and toJson(fromJson(j)) gives j for

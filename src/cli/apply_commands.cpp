@@ -10,7 +10,7 @@
 
 #include "zerocal/apply/moc_file.h"
 #include "zerocal/apply/motor_calibration.h"
-#include "zerocal/daemon/journal.h"
+#include "zerocal/store/journal.h"
 #include "zerocal/error.h"
 #include "zerocal/model/builtin.h"
 #include "zerocal/model/robot.h"

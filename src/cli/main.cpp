@@ -29,7 +29,7 @@
 #include "zerocal/calib/sensitivity.h"
 #include "zerocal/calib/solver.h"
 #include "zerocal/calib/validation.h"
-#include "zerocal/daemon/journal.h"
+#include "zerocal/store/journal.h"
 #include "zerocal/error.h"
 #include "zerocal/io/joint_set.h"
 #include "zerocal/model/builtin.h"

@@ -12,7 +12,7 @@
 
 #include "zerocal/calib/cell_model.h"
 #include "zerocal/calib/format.h"
-#include "zerocal/daemon/journal.h"
+#include "zerocal/store/journal.h"
 #include "zerocal/report/session_report.h"
 
 namespace zerocal::report {

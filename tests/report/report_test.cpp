@@ -7,7 +7,7 @@
 #include <sstream>
 
 #include "session_fixture.h"
-#include "zerocal/daemon/journal.h"
+#include "zerocal/store/journal.h"
 #include "zerocal/report/session_report.h"
 
 namespace zerocal::report {

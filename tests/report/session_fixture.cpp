@@ -9,7 +9,7 @@
 #include "zerocal/calib/experiment.h"
 #include "zerocal/calib/format.h"
 #include "zerocal/calib/validation.h"
-#include "zerocal/daemon/journal.h"
+#include "zerocal/store/journal.h"
 
 namespace zerocal::test {
 

@@ -28,7 +28,7 @@ struct PsdSpot {
 
 // One point of the spot's path on the detector: where it was, t_s seconds of cell time after the
 // servo's start. The servo keeps them (zerocal/servo/servo.h), the journal writes them as
-// [t_s, u_mm, v_mm] (zerocal/daemon/journal.h), the report draws them.
+// [t_s, u_mm, v_mm] (zerocal/store/journal.h), the report draws them.
 struct SpotPathPoint {
   double t_s = 0;
   PsdSpot spot;

@@ -1,5 +1,5 @@
 // The files a technician reads after a calibration: summary.txt and report.html, written next to
-// result.json in a session folder (<data_dir>/<id>/, see zerocal/daemon/journal.h). Nothing here
+// result.json in a session folder (<data_dir>/<id>/, see zerocal/store/journal.h). Nothing here
 // talks to a controller: the ABB section says what to enter, a person enters it.
 //
 // Units as in result.json (docs/results.md): offsets in degrees (arm side: the joint angle, not

@@ -13,7 +13,7 @@
 
 #include "zerocal/calib/solver.h"
 #include "zerocal/cell/controller_link.h"
-#include "zerocal/daemon/journal.h"
+#include "zerocal/store/journal.h"
 #include "zerocal/servo/psd_reader.h"
 #include "zerocal/servo/servo.h"
 

@@ -1,8 +1,8 @@
 // The files of a session folder as types, and the only code that turns them into JSON and back
 // (docs/daemon.md, docs/results.md):
 //   session.json   SessionFile: what the session was asked to do, written once at its creation
-//   journal.jsonl  PoseRecord per line (zerocal/daemon/journal.h)
-//   faults.jsonl   FaultRecord per line, from the first servo fault on (zerocal/daemon/journal.h)
+//   journal.jsonl  PoseRecord per line (zerocal/store/journal.h)
+//   faults.jsonl   FaultRecord per line, from the first servo fault on (zerocal/store/journal.h)
 //   result.json    ResultFile: the solve and what the daemon knew of the run and the cell
 // Reading is strict about what a reader needs and tolerant of members it does not know, so that a
 // newer file still reads; fromJson(toJson(x)) gives x back, and toJson(fromJson(j)) gives j for
@@ -21,7 +21,7 @@
 #include "zerocal/calib/solver.h"
 #include "zerocal/calib/validation.h"
 #include "zerocal/cell/controller_link.h"
-#include "zerocal/daemon/journal.h"
+#include "zerocal/store/journal.h"
 
 namespace zerocal {
 
@@ -91,7 +91,7 @@ ResultFile resultFileFromJson(const nlohmann::json& json);
 
 // The three files of a session folder, read. Throws FileError naming the file that is missing,
 // unreadable or not JSON, InputError for a member missing or of the wrong type, JournalError for
-// a journal that cannot be read back (zerocal/daemon/journal.h). A session without a result
+// a journal that cannot be read back (zerocal/store/journal.h). A session without a result
 // is unfinished: FileError saying so.
 struct SessionFolder {
   std::string dir;

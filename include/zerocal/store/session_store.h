@@ -1,7 +1,7 @@
 // The daemon's session folders, <data_dir>/<id>/ (zerocal/store/session_files.h for the files):
 // created with their session.json, listed, read back and finished with their result.json. Ids
 // are UTC creation times (20261122T050102Z, with a -002, -003... suffix on a clash), so they sort
-// by age. The journal of a folder is appended by a Journal (zerocal/daemon/journal.h).
+// by age. The journal of a folder is appended by a Journal (zerocal/store/journal.h).
 #pragma once
 
 #include <memory>

@@ -1,4 +1,4 @@
-#include "zerocal/daemon/journal.h"
+#include "zerocal/store/journal.h"
 
 #include <fcntl.h>
 #include <sys/stat.h>

@@ -18,10 +18,10 @@
 #include <ctime>
 
 #include "zerocal/psd/psd.h"
-#include "zerocal/servo/psd_reader.h"
 #include "zerocal/sim/fake_transport.h"
 #include "zerocal/sim/psd_model.h"
 #include "zerocal/sim/psd_rig.h"
+#include "zerocal/usb1408fs/psd_readout.h"
 #include "zerocal/usb1408fs/usb1408fs.h"
 
 namespace {
@@ -184,10 +184,10 @@ void BM_ChainPsdReading(benchmark::State& state) {
   const psd::PsdMap map = psd::PsdMap::fit(sim::simulateSweep(rig, sweep), psd::MapFitOptions{});
   rig.setSpot(PsdSpot{0.1, -0.2});
   BoardClock clock(rig.board());
-  servo::ChainPsdReaderOptions o;
-  o.samples = static_cast<std::size_t>(state.range(0));
-  o.rate_hz = static_cast<double>(state.range(1));
-  servo::ChainPsdReader reader(rig.daq(), map, clock, o);
+  psd::PsdConfig o;
+  o.samples_per_reading = static_cast<int>(state.range(0));
+  o.scan_rate_hz = static_cast<double>(state.range(1));
+  usb1408fs::ChainPsdReader reader(rig.daq(), map, clock, o);
   double simulated = 0;
   for (auto _ : state) {
     const auto t0 = rig.board().now();

@@ -3,9 +3,9 @@
 #include "zerocal/error.h"
 #include "zerocal/model/builtin.h"
 #include "zerocal/service/linked_cell.h"
-#include "zerocal/servo/psd_reader.h"
 #include "zerocal/sim/simulated_rig.h"
 #include "zerocal/sim/world.h"
+#include "zerocal/usb1408fs/psd_readout.h"
 
 namespace zerocal::sim {
 namespace {
@@ -20,10 +20,10 @@ std::optional<std::string> truthFile(const World& world) {
 class SimulatedLinkedCell final : public service::LinkedCell {
  public:
   SimulatedLinkedCell(SimulatedCell& cell, Irc5Options options)
-      : LinkedCell(
-            std::make_unique<Irc5Client>(std::move(options)),
-            std::make_unique<servo::Usb1408fsReadout>(cell.boardOpener(), cell.psdMap(), cell),
-            cell),
+      : LinkedCell(std::make_unique<Irc5Client>(std::move(options)),
+                   std::make_unique<usb1408fs::Usb1408fsReadout>(cell.boardOpener(), cell.psdMap(),
+                                                                 cell, simulatedReadout()),
+                   cell),
         cell_(cell) {}
   std::optional<std::array<double, 4>> truthDeg() const override {
     const auto& t = cell_.world().true_offsets_deg;
@@ -56,8 +56,9 @@ class ExternalSimBackend::Cell final : public service::LinkedCell {
  public:
   Cell(ExternalSimBackend& backend, std::unique_ptr<Irc5Client> spot_link)
       : LinkedCell(std::make_unique<Irc5Client>(backend.options_.client),
-                   std::make_unique<servo::Usb1408fsReadout>(FakeTransport::opener(backend.board_),
-                                                             backend.map_, backend.clock_),
+                   std::make_unique<usb1408fs::Usb1408fsReadout>(
+                       FakeTransport::opener(backend.board_), backend.map_, backend.clock_,
+                       simulatedReadout()),
                    backend.clock_),
         backend_(backend),
         spot_link_(std::move(spot_link)) {

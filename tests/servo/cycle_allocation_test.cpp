@@ -18,12 +18,12 @@
 #include "allocation_counter.h"
 #include "stored_plan.h"
 #include "zerocal/irc5/irc5_client.h"
-#include "zerocal/servo/psd_reader.h"
 #include "zerocal/servo/servo.h"
 #include "zerocal/servo/spot_predictor.h"
 #include "zerocal/sim/sim_controller.h"
 #include "zerocal/sim/simulated_cell.h"
 #include "zerocal/sim/simulated_rig.h"
+#include "zerocal/usb1408fs/psd_readout.h"
 
 namespace zerocal::servo {
 namespace {
@@ -114,18 +114,13 @@ struct CountedRig {
     client.connect();
   }
   // As the daemon configures it (config/zerocald.yaml): 100 scans at 1 kHz per reading.
-  static ChainPsdReaderOptions readerOptions() {
-    ChainPsdReaderOptions o;
-    o.samples = 100;
-    o.rate_hz = 1000;
-    return o;
-  }
+  static psd::PsdConfig readerOptions() { return psd::PsdConfig{}; }
 
   sim::SimulatedCell cell;
   Irc5Client client;
   SimulatedClock clock;
   usb1408fs::Usb1408fs daq;
-  ChainPsdReader psd;
+  usb1408fs::ChainPsdReader psd;
 };
 
 // The instrument itself: it counts this thread, not another, and not while paused. Direct calls

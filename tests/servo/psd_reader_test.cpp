@@ -1,6 +1,4 @@
 // ChainPsdReader over the real USB-1408FS protocol code and the simulated board and detector.
-#include "zerocal/servo/psd_reader.h"
-
 #include <gtest/gtest.h>
 
 #include <optional>
@@ -8,6 +6,7 @@
 #include "zerocal/sim/fake_transport.h"
 #include "zerocal/sim/psd_model.h"
 #include "zerocal/sim/simulated_cell.h"
+#include "zerocal/usb1408fs/psd_readout.h"
 
 namespace zerocal::servo {
 namespace {
@@ -40,7 +39,7 @@ class ChainReader : public ::testing::Test {
 
 TEST_F(ChainReader, InsideTheZoneGivesMappedMillimetres) {
   usb1408fs::Usb1408fs daq(sim::FakeTransport::opener(board_));
-  ChainPsdReader reader(daq, map(), clock_);
+  usb1408fs::ChainPsdReader reader(daq, map(), clock_, sim::simulatedReadout());
   spot_ = PsdSpot{0.2, -0.3};
   const PsdReading r = reader.read();
   EXPECT_TRUE(r.spot_present);
@@ -53,7 +52,7 @@ TEST_F(ChainReader, InsideTheZoneGivesMappedMillimetres) {
 
 TEST_F(ChainReader, OutsideTheZoneGivesACoarseEstimateOfTheRightSign) {
   usb1408fs::Usb1408fs daq(sim::FakeTransport::opener(board_));
-  ChainPsdReader reader(daq, map(), clock_);
+  usb1408fs::ChainPsdReader reader(daq, map(), clock_, sim::simulatedReadout());
   spot_ = PsdSpot{2.5, -3.0};
   const PsdReading r = reader.read();
   EXPECT_TRUE(r.spot_present);
@@ -65,7 +64,7 @@ TEST_F(ChainReader, OutsideTheZoneGivesACoarseEstimateOfTheRightSign) {
 
 TEST_F(ChainReader, NoLightIsNoSpot) {
   usb1408fs::Usb1408fs daq(sim::FakeTransport::opener(board_));
-  ChainPsdReader reader(daq, map(), clock_);
+  usb1408fs::ChainPsdReader reader(daq, map(), clock_, sim::simulatedReadout());
   spot_ = PsdSpot{20, 0};
   EXPECT_FALSE(reader.read().spot_present);
   spot_.reset();

@@ -1,6 +1,6 @@
 // The seam between a session and the PSD, whatever reads it: one averaged, mapped reading per
 // call, stamped with the cell's clock; and the cell's clock itself. ChainPsdReader
-// (zerocal/servo/psd_reader.h) implements the reader over the USB-1408FS chain; tests and the
+// (zerocal/usb1408fs/psd_readout.h) implements the reader over the USB-1408FS chain; tests and the
 // simulated cell implement them directly.
 #pragma once
 

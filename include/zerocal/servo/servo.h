@@ -55,8 +55,8 @@
 #include "zerocal/calib/cell_model.h"
 #include "zerocal/cell/controller_link.h"
 #include "zerocal/cell/link_error.h"
+#include "zerocal/cell/psd_reader.h"
 #include "zerocal/psd/spot.h"
-#include "zerocal/servo/psd_reader.h"
 #include "zerocal/servo/servo_law.h"
 
 namespace zerocal::servo {

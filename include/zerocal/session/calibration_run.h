@@ -13,9 +13,9 @@
 
 #include "zerocal/calib/solver.h"
 #include "zerocal/cell/controller_link.h"
-#include "zerocal/store/journal.h"
-#include "zerocal/servo/psd_reader.h"
+#include "zerocal/cell/psd_reader.h"
 #include "zerocal/servo/servo.h"
+#include "zerocal/store/journal.h"
 
 namespace zerocal {
 

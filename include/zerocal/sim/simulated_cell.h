@@ -13,12 +13,13 @@
 
 #include "zerocal/irc5/irc5_client.h"
 #include "zerocal/psd/psd.h"
-#include "zerocal/servo/psd_reader.h"
+#include "zerocal/psd/psd_config.h"
 #include "zerocal/sim/fake_transport.h"
 #include "zerocal/sim/psd_model.h"
 #include "zerocal/sim/sim_controller.h"
 #include "zerocal/sim/usb1408fs_model.h"
 #include "zerocal/sim/world.h"
+#include "zerocal/usb1408fs/psd_readout.h"
 #include "zerocal/usb1408fs/usb1408fs.h"
 
 namespace zerocal::sim {
@@ -73,5 +74,10 @@ class SimulatedCell final : public CellClock {
   psd::PsdMap map_;
   double waited_s_ = 0;  // waitS() so far; one thread (the session's) drives the cell
 };
+
+// How the simulated cell reads its board: 64 scans at 16 kHz, a reading in 4 ms of cell time.
+// The daemon's daq section is for the real board; the simulated sessions, their figures and
+// tests are made with this readout.
+psd::PsdConfig simulatedReadout();
 
 }  // namespace zerocal::sim

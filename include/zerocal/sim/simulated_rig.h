@@ -8,8 +8,8 @@
 
 #include "zerocal/calib/cell_model.h"
 #include "zerocal/irc5/irc5_client.h"
-#include "zerocal/servo/psd_reader.h"
 #include "zerocal/sim/simulated_cell.h"
+#include "zerocal/usb1408fs/psd_readout.h"
 #include "zerocal/usb1408fs/usb1408fs.h"
 
 namespace zerocal::sim {
@@ -25,14 +25,14 @@ struct SimulatedRig {
           return o;
         }()),
         daq(cell.boardOpener()),
-        psd(daq, cell.psdMap(), cell) {
+        psd(daq, cell.psdMap(), cell, simulatedReadout()) {
     client.connect();
   }
 
   SimulatedCell cell;
   Irc5Client client;
   usb1408fs::Usb1408fs daq;
-  servo::ChainPsdReader psd;
+  usb1408fs::ChainPsdReader psd;
 };
 
 // What a session on the simulated cell is given, as a technician would give it on a real one:

@@ -1,30 +1,25 @@
-#include "zerocal/servo/psd_reader.h"
+#include "zerocal/usb1408fs/psd_readout.h"
 
-#include <thread>
 #include <utility>
 
-namespace zerocal {
+namespace zerocal::usb1408fs {
+namespace {
 
-void CellClock::waitS(double seconds) noexcept {
-  if (seconds > 0) std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
-}
+// Outside the map's zone the spot is estimated from the voltages over the PSD's X and Y slope at
+// its centre (5 V/mm for the detector and amplifier the map was made with; psd::PsdMap's zone
+// excludes the saturating rim where this is coarse).
+constexpr double kCoarseVoltsPerMm = 5.0;
 
-double SteadyCellClock::nowS() noexcept {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-}
+}  // namespace
 
-}  // namespace zerocal
-
-namespace zerocal::servo {
-
-ChainPsdReader::ChainPsdReader(usb1408fs::Usb1408fs& daq, psd::PsdMap map, CellClock& clock,
-                               ChainPsdReaderOptions options)
+ChainPsdReader::ChainPsdReader(Usb1408fs& daq, psd::PsdMap map, CellClock& clock,
+                               const psd::PsdConfig& config)
     : daq_(daq),
       map_(std::move(map)),
       clock_(clock),
-      options_(options),
-      scan_(psd::averagedScan(options.channels, options.samples, options.rate_hz)),
-      detector_(options.on_threshold_v, options.off_threshold_v) {}
+      scan_(psd::averagedScan(config.channels, static_cast<std::size_t>(config.samples_per_reading),
+                              config.scan_rate_hz)),
+      detector_(config.sum_threshold_v, config.sumOffThresholdV()) {}
 
 PsdReading ChainPsdReader::read() {
   // A scan per reading rather than a continuous one (psd::PsdStream): samples queued while the
@@ -44,11 +39,11 @@ PsdReading ChainPsdReader::read() {
   } else {
     // The map extrapolates wildly outside its zone; the saturating voltages over the centre slope
     // still point the right way, which is all the servo needs to get back into the zone.
-    r.spot = {v.x / options_.coarse_v_per_mm, v.y / options_.coarse_v_per_mm};
-    r.se = {v.x_se / options_.coarse_v_per_mm, v.y_se / options_.coarse_v_per_mm};
+    r.spot = {v.x / kCoarseVoltsPerMm, v.y / kCoarseVoltsPerMm};
+    r.se = {v.x_se / kCoarseVoltsPerMm, v.y_se / kCoarseVoltsPerMm};
   }
   r.time_s = clock_.nowS();
   return r;
 }
 
-}  // namespace zerocal::servo
+}  // namespace zerocal::usb1408fs

@@ -7,17 +7,10 @@
 
 #include "zerocal/cell/psd_reader.h"
 #include "zerocal/psd/psd.h"
+#include "zerocal/psd/psd_config.h"
 #include "zerocal/usb1408fs/usb1408fs.h"
 
-namespace zerocal::servo {
-
-struct ChainPsdReaderOptions {
-  psd::PsdChannels channels;
-  std::size_t samples = 64;                            // per channel, averaged into one reading
-  double rate_hz = 16000;                              // scans per second
-  double on_threshold_v = 0.5, off_threshold_v = 0.4;  // SpotDetector hysteresis on SUM
-  double coarse_v_per_mm = 5.0;  // centre slope, for the coarse estimate outside the zone
-};
+namespace zerocal::usb1408fs {
 
 // The real chain. `daq` and `clock` must outlive the reader. Each read() runs one
 // single-execution scan (psd::readAveraged), so a reading holds only samples converted after
@@ -25,16 +18,15 @@ struct ChainPsdReaderOptions {
 // read() allocates nothing once the first reading has sized the driver's buffers.
 class ChainPsdReader final : public PsdReader {
  public:
-  ChainPsdReader(usb1408fs::Usb1408fs& daq, psd::PsdMap map, CellClock& clock,
-                 ChainPsdReaderOptions options = {});
+  // `config` is the daq section: channels, scans per reading and their rate, the SUM threshold.
+  ChainPsdReader(Usb1408fs& daq, psd::PsdMap map, CellClock& clock, const psd::PsdConfig& config);
   PsdReading read() override;
 
  private:
-  usb1408fs::Usb1408fs& daq_;
+  Usb1408fs& daq_;
   psd::PsdMap map_;
   CellClock& clock_;
-  ChainPsdReaderOptions options_;
-  usb1408fs::ScanConfig scan_;
+  ScanConfig scan_;
   psd::SpotDetector detector_;
 };
 
@@ -43,15 +35,15 @@ class ChainPsdReader final : public PsdReader {
 class Usb1408fsReadout final : public PsdReadout {
  public:
   // Opens the board. Throws as Usb1408fs.
-  Usb1408fsReadout(usb1408fs::Usb1408fs::Opener opener, psd::PsdMap map, CellClock& clock,
-                   ChainPsdReaderOptions options = {})
-      : daq_(std::move(opener)), chain_(daq_, std::move(map), clock, std::move(options)) {}
+  Usb1408fsReadout(Usb1408fs::Opener opener, psd::PsdMap map, CellClock& clock,
+                   const psd::PsdConfig& config)
+      : daq_(std::move(opener)), chain_(daq_, std::move(map), clock, config) {}
   PsdReading read() override { return chain_.read(); }
   void reopen() override { daq_.reopen(); }
 
  private:
-  usb1408fs::Usb1408fs daq_;
+  Usb1408fs daq_;
   ChainPsdReader chain_;
 };
 
-}  // namespace zerocal::servo
+}  // namespace zerocal::usb1408fs

@@ -17,6 +17,25 @@ std::optional<std::string> truthFile(const World& world) {
   return worldYaml(world);
 }
 
+// The simulated controller's calibration: the client's requests, and the revolution counter
+// updated by the simulator itself (on a real IRC5 a technician at the FlexPendant does it).
+class SimCalibration final : public ControllerCalibration {
+ public:
+  SimCalibration(ControllerCalibration& link, SimController& controller)
+      : link_(link), controller_(controller) {}
+  std::array<double, 6> readCalOffsets() override { return link_.readCalOffsets(); }
+  void writeCalOffset(int joint, double rad) override { link_.writeCalOffset(joint, rad); }
+  void restart() override { link_.restart(); }
+  bool updateRevolutionCounter(int joint) override {
+    controller_.updateRevolutionCounter(joint);
+    return true;
+  }
+
+ private:
+  ControllerCalibration& link_;
+  SimController& controller_;
+};
+
 class SimulatedLinkedCell final : public service::LinkedCell {
  public:
   SimulatedLinkedCell(SimulatedCell& cell, Irc5Options options)
@@ -24,15 +43,21 @@ class SimulatedLinkedCell final : public service::LinkedCell {
                    std::make_unique<usb1408fs::Usb1408fsReadout>(cell.boardOpener(), cell.psdMap(),
                                                                  cell, simulatedReadout()),
                    cell),
-        cell_(cell) {}
+        cell_(cell),
+        calibration_(*LinkedCell::calibration(), cell.controller()) {}
+  ControllerCalibration* calibration() override { return &calibration_; }
   std::optional<std::array<double, 4>> truthDeg() const override {
+    // The world's offsets and what calibration values applied since moved the zeros by.
     const auto& t = cell_.world().true_offsets_deg;
-    return std::array<double, 4>{t[1], t[2], t[3], t[4]};
+    const Joints shift = cell_.controller().zeroShiftDeg();
+    return std::array<double, 4>{t[1] + shift[1], t[2] + shift[2], t[3] + shift[3],
+                                 t[4] + shift[4]};
   }
   std::optional<std::string> truthWorldYaml() const override { return truthFile(cell_.world()); }
 
  private:
-  const SimulatedCell& cell_;
+  SimulatedCell& cell_;
+  SimCalibration calibration_;
 };
 
 }  // namespace
@@ -53,6 +78,23 @@ std::unique_ptr<ConnectedCell> SimBackend::connect() {
 }
 
 class ExternalSimBackend::Cell final : public service::LinkedCell {
+  // A restart of zerocal-sim drops every connection, the beam-spot link's too: it reconnects
+  // with the controller link, or the PSD would read no light from then on.
+  class Calibration final : public ControllerCalibration {
+   public:
+    Calibration(ControllerCalibration& link, Cell& cell) : link_(link), cell_(cell) {}
+    std::array<double, 6> readCalOffsets() override { return link_.readCalOffsets(); }
+    void writeCalOffset(int joint, double rad) override { link_.writeCalOffset(joint, rad); }
+    void restart() override {
+      link_.restart();
+      cell_.spot_link_->reconnect();
+    }
+
+   private:
+    ControllerCalibration& link_;
+    Cell& cell_;
+  };
+
  public:
   Cell(ExternalSimBackend& backend, std::unique_ptr<Irc5Client> spot_link)
       : LinkedCell(std::make_unique<Irc5Client>(backend.options_.client),
@@ -61,9 +103,11 @@ class ExternalSimBackend::Cell final : public service::LinkedCell {
                        simulatedReadout()),
                    backend.clock_),
         backend_(backend),
-        spot_link_(std::move(spot_link)) {
+        spot_link_(std::move(spot_link)),
+        calibration_(*LinkedCell::calibration(), *this) {
     backend_.spot_link_ = spot_link_.get();
   }
+  ControllerCalibration* calibration() override { return &calibration_; }
   ~Cell() override { backend_.spot_link_ = nullptr; }
 
   void reconnectRobot() override {
@@ -81,6 +125,7 @@ class ExternalSimBackend::Cell final : public service::LinkedCell {
  private:
   ExternalSimBackend& backend_;
   std::unique_ptr<Irc5Client> spot_link_;
+  Calibration calibration_;
 };
 
 ExternalSimBackend::ExternalSimBackend(ExternalSimOptions options)

@@ -32,7 +32,7 @@ json offsetsJson(const Offsets& o) {
 }
 
 // Writes joints 2..5 of `values`, restarts, and checks the controller reads them back.
-void writeAndRestart(CalibrationStore& store, const std::array<double, 6>& values) {
+void writeAndRestart(ControllerCalibration& store, const std::array<double, 6>& values) {
   for (int j = 2; j <= 5; ++j) store.writeCalOffset(j, values[j - 1]);
   store.restart();
   const std::array<double, 6> now = store.readCalOffsets();
@@ -112,7 +112,7 @@ Verdict judge(const std::array<CalOffsetChange, 4>& changes, const Offsets& befo
   return v;
 }
 
-OnlineApplyOutcome applyOnline(CalibrationStore& store,
+OnlineApplyOutcome applyOnline(ControllerCalibration& store,
                                const std::array<CalOffsetChange, 4>& changes, const Offsets& before,
                                const OnlineApplyOptions& options, ApplyJournal& journal) {
   const auto say = [&](const std::string& s) {
@@ -219,7 +219,68 @@ OnlineApplyOutcome applyOnline(CalibrationStore& store,
   }
 }
 
-Recovery recoverApply(CalibrationStore& store, ApplyJournal& journal) {
+namespace {
+
+Offsets offsetsFrom(const json& a) {
+  Offsets o{};
+  for (std::size_t k = 0; k < 4 && k < a.size(); ++k)
+    o[k] = {a[k].value("value_deg", 0.0), a[k].value("sigma_deg", 0.0)};
+  return o;
+}
+
+}  // namespace
+
+std::optional<ApplyRecord> lastApplyRecord(const ApplyJournal& journal) {
+  std::optional<ApplyRecord> r;
+  try {
+    for (const json& line : journal.read()) {
+      const std::string step = line.value("step", "");
+      if (step == "begin") {
+        r.emplace();
+        r->outcome = "interrupted";
+        r->time_unix_s = line.value("time_unix_s", 0.0);
+        r->before_rad = line.at("before_rad").get<std::array<double, 6>>();
+        r->written_rad = line.at("new_rad").get<std::array<double, 6>>();
+        for (const json& c : line.value("changes", json::array()))
+          r->formulas.push_back(c.value("formula", ""));
+      } else if (step == "verify") {
+        r.emplace();
+        r->time_unix_s = line.value("time_unix_s", 0.0);
+        r->outcome = line.value("pass", false) ? "pass" : "fail";
+        r->verification = line.value("session", "");
+        r->remaining = offsetsFrom(line.value("offsets_after", json::array()));
+        r->message = line.value("message", "");
+      } else if (!r) {
+        continue;  // a file apply's record, or a line before any apply
+      } else if (step == "verification") {
+        r->verification = line.value("session", "");
+      } else if (step == "verified") {
+        r->remaining = offsetsFrom(line.value("offsets_after", json::array()));
+      } else if (step == "error") {
+        r->outcome = "error";
+        r->message = line.value("message", "");
+      } else if (step == "done") {
+        r->outcome = line.value("outcome", "");
+        r->message = line.value("message", "");
+      }
+    }
+  } catch (const std::exception&) {
+    return std::nullopt;  // a line of another shape: the report says nothing rather than wrong
+  }
+  return r;
+}
+
+bool applyInterrupted(const ApplyJournal& journal) {
+  bool inside = false;
+  for (const json& line : journal.read()) {
+    const std::string step = line.value("step", "");
+    if (step == "begin") inside = true;
+    if (step == "done") inside = false;
+  }
+  return inside;
+}
+
+Recovery recoverApply(ControllerCalibration& store, ApplyJournal& journal) {
   const std::vector<json> lines = journal.read();
   int begin = -1;
   for (int i = 0; i < static_cast<int>(lines.size()); ++i)

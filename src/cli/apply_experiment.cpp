@@ -23,17 +23,6 @@ namespace {
 
 constexpr double kDegPerRad = 57.29577951308232;
 
-class LinkStore : public apply::CalibrationStore {
- public:
-  explicit LinkStore(Irc5Client& link) : link_(link) {}
-  std::array<double, 6> readCalOffsets() override { return link_.readCalOffsets(); }
-  void writeCalOffset(int joint, double rad) override { link_.writeCalOffset(joint, rad); }
-  void restart() override { link_.restartController(); }
-
- private:
-  Irc5Client& link_;
-};
-
 std::string f(const char* fmt, double a, double b = 0, double c = 0, double d = 0) {
   char buf[200];
   std::snprintf(buf, sizeof buf, fmt, a, b, c, d);
@@ -106,7 +95,7 @@ WorldRun runWorld(std::uint64_t seed, const ApplyExperimentArgs& args, const std
   link_options.robot = so.world.robot;
   Irc5Client link(link_options);
   link.connect();
-  LinkStore store(link);
+  ControllerCalibration& store = link;
   std::array<double, 6> transmission = builtinIrb1600().transmission;
   if (args.wrong_sign_joint > 0) transmission[args.wrong_sign_joint - 1] *= -1;
   const std::array<double, 6> present = link.readCalOffsets();

@@ -19,7 +19,7 @@
 namespace zerocal::apply {
 namespace {
 
-class ClientStore : public CalibrationStore {
+class ClientStore : public ControllerCalibration {
  public:
   explicit ClientStore(Irc5Client& c) : c_(c) {}
   std::array<double, 6> readCalOffsets() override { return c_.readCalOffsets(); }

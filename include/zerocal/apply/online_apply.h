@@ -7,23 +7,14 @@
 #include <array>
 #include <functional>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "zerocal/apply/motor_calibration.h"
+#include "zerocal/cell/controller_calibration.h"
 
 namespace zerocal::apply {
-
-// The controller's calibration as online apply sees it. Irc5Client serves it over the RAPID
-// module (requests 41, 45, 46); tests use the simulated controller through the same client.
-class CalibrationStore {
- public:
-  virtual ~CalibrationStore() = default;
-  virtual std::array<double, 6> readCalOffsets() = 0;
-  virtual void writeCalOffset(int joint, double rad) = 0;
-  // The controller takes written values (a restart); returns when it answers again.
-  virtual void restart() = 0;
-};
 
 // An offset of joints 2..5 as a calibration measured it, deg (arm side).
 struct MeasuredOffset {
@@ -83,9 +74,28 @@ Verdict judge(const std::array<CalOffsetChange, 4>& changes, const Offsets& befo
 // verifies, and restores the backup (with a restart) when the verification fails. Throws Error
 // (after journalling it) when the controller does not hold the expected values or the link
 // fails; recoverApply() then restores a known state.
-OnlineApplyOutcome applyOnline(CalibrationStore& store,
+OnlineApplyOutcome applyOnline(ControllerCalibration& store,
                                const std::array<CalOffsetChange, 4>& changes, const Offsets& before,
                                const OnlineApplyOptions& options, ApplyJournal& journal);
+
+// True when the journal's last online apply has no "done" line (the process stopped inside it):
+// recoverApply() has work to do. Reads only the journal.
+bool applyInterrupted(const ApplyJournal& journal);
+
+// The latest online apply or verification of a session as its journal tells it, for the report.
+struct ApplyRecord {
+  // "verified", "rolled_back", "recovered", "interrupted" (no end line: the process stopped),
+  // "error" (stopped with an error after the backup), "pass" / "fail" (a verification alone).
+  std::string outcome;
+  double time_unix_s = 0;                             // when it began
+  std::array<double, 6> before_rad{}, written_rad{};  // zero for a verification alone
+  std::vector<std::string> formulas;                  // joints 2..5, with their signs
+  std::optional<Offsets> remaining;                   // as the verification measured them
+  std::string verification;                           // its session id, when one ran
+  std::string message;
+};
+// Throws nothing: a journal that is absent or holds no online step gives nullopt.
+std::optional<ApplyRecord> lastApplyRecord(const ApplyJournal& journal);
 
 struct Recovery {
   bool needed = false;  // the journal ends inside an apply
@@ -94,6 +104,6 @@ struct Recovery {
 // Reads the journal; when its last apply did not finish, restores the backed-up values (write,
 // restart, read back), journals that, and says so. Throws Error when the controller cannot be
 // restored (the message holds the backed-up values to enter by hand).
-Recovery recoverApply(CalibrationStore& store, ApplyJournal& journal);
+Recovery recoverApply(ControllerCalibration& store, ApplyJournal& journal);
 
 }  // namespace zerocal::apply

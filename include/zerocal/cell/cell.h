@@ -33,6 +33,8 @@ class ConnectedCell {
   virtual ControllerLink& robot() = 0;
   virtual PsdReader& psd() = 0;
   virtual CellClock& clock() = 0;
+  // The controller's motor calibration (for an online apply); nullptr when its link offers none.
+  virtual ControllerCalibration* calibration() { return nullptr; }
   // Closes and reopens the controller connection (bounded attempts); throws the last LinkError.
   virtual void reconnectRobot() = 0;
   // Closes and reopens the acquisition board (after an unplug); throws the DAQ's error.

@@ -6,6 +6,7 @@
 #include <array>
 #include <string>
 
+#include "zerocal/cell/controller_calibration.h"
 #include "zerocal/model/robot.h"
 
 namespace zerocal {
@@ -64,6 +65,8 @@ class ControllerConnection : public ControllerLink {
   virtual void stop() = 0;
   virtual bool connected() const noexcept = 0;
   virtual void close() noexcept = 0;
+  // The controller's motor calibration over this connection; nullptr when the link offers none.
+  virtual ControllerCalibration* calibration() noexcept { return nullptr; }
 };
 
 }  // namespace zerocal

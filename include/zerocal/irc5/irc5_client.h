@@ -64,7 +64,7 @@ struct SimWorldId {
   std::uint64_t seed = 0;  // its --seed (the world's, unless it was given --world)
 };
 
-class Irc5Client final : public ControllerConnection {
+class Irc5Client final : public ControllerConnection, public ControllerCalibration {
  public:
   // Does not connect. Throws ConfigError when the options are inconsistent.
   explicit Irc5Client(Irc5Options options);
@@ -101,14 +101,17 @@ class Irc5Client final : public ControllerConnection {
   void stop() override;
   std::array<double, 6> readExternalAxes();
   // MOC cal_offset of the six motors, radians, read only.
-  std::array<double, 6> readCalOffsets();
+  std::array<double, 6> readCalOffsets() override;
   // Writes MOC MOTOR_CALIB cal_offset of joint (1..6), rad in [0, 2 pi), 6 decimals (request
   // 45, RAPID WriteCfgData). The motion system takes it at the controller's next restart; read
   // back with readCalOffsets. Throws BadMessageError when the controller refuses it.
-  void writeCalOffset(int joint, double rad);
+  void writeCalOffset(int joint, double rad) override;
   // Restarts the controller so that written system parameters take effect (request 46, RAPID
   // WarmStart), then reconnect()s. Throws as reconnect() when the controller does not come back.
   void restartController();
+  // ControllerCalibration: restartController().
+  void restart() override { restartController(); }
+  ControllerCalibration* calibration() noexcept override { return this; }
   // The controller's own joint bounds, degrees.
   std::array<JointLimit, kJointCount> readJointBounds();
   // Simulator only (zerocal-sim; the RAPID module replies ok = 0, thrown as BadMessageError):

@@ -21,6 +21,7 @@ class LinkedCell : public ConnectedCell {
   ControllerLink& robot() override { return *robot_; }
   PsdReader& psd() override { return *psd_; }
   CellClock& clock() override { return clock_; }
+  ControllerCalibration* calibration() override { return robot_->calibration(); }
   void reconnectRobot() override;
   void reopenPsd() override;
   void stopRobot() noexcept override;

@@ -97,6 +97,7 @@ Json toJson(const ResultFile& r) {
                    {"serial", r.cell->controller.serial},
                    {"software_version", r.cell->controller.software_version}}},
                  {"psd_map", r.cell->psd_map}};
+  if (r.cal_offset_rad) j["controller_cal_offset_rad"] = *r.cal_offset_rad;
   if (!r.zerocal_version.empty()) j["zerocal_version"] = r.zerocal_version;
   if (r.finished_unix_s) j["finished_unix_s"] = *r.finished_unix_s;
   if (r.recoveries)
@@ -144,6 +145,11 @@ ResultFile resultFileFromJson(const Json& json) {
     }
     c.psd_map = cell.stringOr("psd_map", "");
     r.cell = c;
+  }
+  if (j.has("controller_cal_offset_rad")) {
+    const std::vector<double> v = j.numbers("controller_cal_offset_rad", 6);
+    r.cal_offset_rad.emplace();
+    std::copy(v.begin(), v.end(), r.cal_offset_rad->begin());
   }
   r.zerocal_version = j.stringOr("zerocal_version", "");
   if (j.has("finished_unix_s")) r.finished_unix_s = j.integer64("finished_unix_s");

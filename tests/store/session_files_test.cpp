@@ -40,6 +40,7 @@ TEST(SessionFiles, TheDaemonsMembersComeBack) {
   r.remeasured = std::vector<int>{2, 5};
   r.recoveries = ResultFile::Recoveries{1, 2};
   r.truth->world_file = "truth-world.yaml";
+  r.cal_offset_rad = std::array<double, 6>{0.5, 2.001890, 6.07245, 0.25, 3.5, 1e-3};
   PoseTimes measured;
   measured.pose = 1;
   measured.servo.move_s = 1.25;
@@ -61,6 +62,9 @@ TEST(SessionFiles, TheDaemonsMembersComeBack) {
   EXPECT_EQ(back.pose_breakdown->at(0).servo.search_moves, 2);
   EXPECT_EQ(back.pose_breakdown->at(1).skipped, "servo spot not found");
   EXPECT_EQ(back.truth->world_file, "truth-world.yaml");
+  EXPECT_EQ(j["controller_cal_offset_rad"][2], 6.07245);
+  ASSERT_TRUE(back.cal_offset_rad);
+  EXPECT_EQ(*back.cal_offset_rad, *r.cal_offset_rad);
   // The solve itself, typed: what a reader uses.
   EXPECT_EQ(back.report.parameters.size(), r.report.parameters.size());
   EXPECT_EQ(back.report.parameters[0].value, r.report.parameters[0].value);

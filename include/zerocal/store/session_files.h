@@ -68,6 +68,10 @@ struct ResultFile {
     std::string psd_map;   // the map's file and fingerprint
   };
   std::optional<Cell> cell;
+  // The controller's motor calibration (MOC cal_offset of joints 1..6, rad in [0, 2 pi)) while
+  // the session measured: the values its offsets are relative to. An online apply refuses when
+  // the controller holds others. Absent when the link offers no calibration (or an older file).
+  std::optional<std::array<double, 6>> cal_offset_rad;
   std::string zerocal_version;  // empty: not recorded
   std::optional<std::int64_t> finished_unix_s;
   struct Recoveries {

@@ -5,6 +5,7 @@
 #include <cstdarg>
 #include <cstdio>
 #include <ctime>
+#include <map>
 #include <sstream>
 
 namespace zerocal::report::detail {
@@ -204,6 +205,54 @@ std::string wrap(const std::string& text, std::size_t width, std::size_t indent)
   }
   if (!line.empty()) out += pad + line + "\n";
   return out;
+}
+
+Section applySection(const SessionReport& r) {
+  Section s;
+  if (!r.applied) return s;
+  const apply::ApplyRecord& a = *r.applied;
+  const bool verification_only = a.outcome == "pass" || a.outcome == "fail";
+  s.heading = verification_only ? "Verification by measurement" : "Applied to the controller";
+  if (!verification_only) {
+    std::string values = "MOC MOTOR_CALIB cal_offset, rad, before -> written:";
+    for (int j = 2; j <= 5; ++j)
+      values += format(" joint %d %.6f -> %.6f;", j, a.before_rad[j - 1], a.written_rad[j - 1]);
+    s.paragraphs.push_back(values);
+    for (const std::string& f : a.formulas) s.paragraphs.push_back(f);
+  }
+  static const std::map<std::string, std::string> kOutcome{
+      {"verified", "Verified: the new values stay."},
+      {"rolled_back", "ROLLED BACK: the verification did not pass; the backed-up values are back."},
+      {"recovered",
+       "RECOVERED: the apply was interrupted; the backed-up values were restored at the daemon's "
+       "next start."},
+      {"interrupted",
+       "INTERRUPTED: the apply did not finish; the daemon restores the backed-up values when it "
+       "starts."},
+      {"error", "STOPPED with an error after the backup: see the message."},
+      {"pass", "Pass: every offset left is within its bound."},
+      {"fail", "FAIL: an offset left is beyond its bound."}};
+  const auto it = kOutcome.find(a.outcome);
+  s.paragraphs.push_back((it != kOutcome.end() ? it->second : a.outcome) +
+                         (a.message.empty() ? "" : " " + a.message));
+  if (a.remaining) {
+    std::string left = "Offsets left, as the verification" +
+                       (a.verification.empty() ? "" : " (session " + a.verification + ")") +
+                       " measured them:";
+    for (int k = 0; k < 4; ++k)
+      left += format(" delta%d %+.5f deg (sigma %.5f);", k + 2, (*a.remaining)[k].value_deg,
+                     (*a.remaining)[k].sigma_deg);
+    s.paragraphs.push_back(left);
+  }
+  if (a.outcome == "verified") {
+    s.paragraphs.push_back(
+        "Taught positions (robtargets and jointtargets) move physically by the corrected offsets: "
+        "check them at reduced speed.");
+    s.paragraphs.push_back(
+        "Absolute Accuracy data (MOC ARM_CALIB) and a later fine calibration at the "
+        "synchronisation marks refer to the old zeros: they no longer match.");
+  }
+  return s;
 }
 
 }  // namespace zerocal::report::detail

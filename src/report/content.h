@@ -44,6 +44,10 @@ std::vector<std::string> identity(const SessionReport& r);
 // One sentence on the poses measured again after the first solve named them; empty when none.
 std::string remeasuredNote(const SessionReport& r);
 
+// The latest online apply or verification (before / written / verdict / warnings), as plain
+// sentences; an empty heading when there was none.
+Section applySection(const SessionReport& r);
+
 // Wraps text at `width` columns with `indent` spaces before every line.
 std::string wrap(const std::string& text, std::size_t width, std::size_t indent);
 

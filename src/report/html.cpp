@@ -424,6 +424,11 @@ std::string reportHtml(const SessionReport& r) {
   const detail::Section abb = detail::abbSection(r);
   o << "<h2>" << esc(abb.heading) << "</h2>\n";
   for (const std::string& p : abb.paragraphs) o << "<p>" << esc(p) << "</p>\n";
+  const detail::Section applied = detail::applySection(r);
+  if (!applied.heading.empty()) {
+    o << "<h2>" << esc(applied.heading) << "</h2>\n";
+    for (const std::string& p : applied.paragraphs) o << "<p>" << esc(p) << "</p>\n";
+  }
 
   // Every pose.
   o << "<h2>Recorded poses</h2>\n<table>\n<tr><th>pose</th><th>q1..q6 (deg)</th><th>u, v (mm)"

@@ -145,7 +145,8 @@ SessionReport parseSession(const SessionFolder& files) {
 }
 
 void writeSessionReport(const std::string& session_dir) {
-  const SessionReport report = parseSession(readSessionFiles(session_dir));
+  SessionReport report = parseSession(readSessionFiles(session_dir));
+  report.applied = apply::lastApplyRecord(apply::ApplyJournal(session_dir + "/apply.jsonl"));
   const fs::path dir(session_dir);
   writeAtomically(dir / "summary.txt", summaryText(report));
   writeAtomically(dir / "report.html", reportHtml(report));

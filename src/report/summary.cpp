@@ -111,6 +111,11 @@ std::string summaryText(const SessionReport& r) {
   const detail::Section abb = detail::abbSection(r);
   o << "\n" << abb.heading << "\n";
   for (const std::string& p : abb.paragraphs) o << detail::wrap(p, 100, 2) << "\n";
+  const detail::Section applied = detail::applySection(r);
+  if (!applied.heading.empty()) {
+    o << "\n" << applied.heading << "\n";
+    for (const std::string& p : applied.paragraphs) o << detail::wrap(p, 100, 2);
+  }
   if (r.result.cell_time_s) o << format("cell time %.1f s\n", *r.result.cell_time_s);
   o << "report.html beside this file has the plots.\n";
   return o.str();

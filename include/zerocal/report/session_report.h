@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "zerocal/apply/online_apply.h"
 #include "zerocal/error.h"
 #include "zerocal/psd/spot.h"
 #include "zerocal/store/session_files.h"
@@ -67,6 +68,8 @@ struct SessionReport {
   const ResultFile::Cell& cell() const;
   // Plan poses (1-based) measured again after the first solve.
   const std::vector<int>& remeasured() const;
+  // The latest online apply or verification of these offsets (apply.jsonl), when there was one.
+  std::optional<apply::ApplyRecord> applied;
 };
 
 // Reads session.json, journal.jsonl (committed lines, through readJournal's checks) and
@@ -83,7 +86,8 @@ SessionReport parseSession(const SessionFolder& files);
 std::string summaryText(const SessionReport& report);
 std::string reportHtml(const SessionReport& report);
 
-// Reads the session folder and (re)writes summary.txt and report.html beside result.json,
+// Reads the session folder (and its apply.jsonl, when an apply or a verification ran) and
+// (re)writes summary.txt and report.html beside result.json,
 // each atomically (temporary file, then rename). Throws ReportError
 // (missing or inconsistent files, a file that cannot be written) or JournalError.
 void writeSessionReport(const std::string& session_dir);

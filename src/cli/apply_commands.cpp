@@ -258,10 +258,18 @@ void addApplyCommands(CLI::App& app, ApplyCommands& commands) {
       "copy of the controller's MOC.cfg (only cal_offset and its valid flag of joints 2..5 "
       "change)");
   auto* c = commands.apply;
-  c->add_option("session-dir", a.session_dir, "the session folder (<data_dir>/<id>)")->required();
-  c->add_option("--moc", a.moc_file, "MOC.cfg from the controller's backup (SYSPAR/MOC.cfg)")
+  c->add_option("session", a.session_dir,
+                "with --moc: the session folder (<data_dir>/<id>); online: the session id")
       ->required();
-  c->add_option("--out", a.out_file, "the new MOC.cfg to write (must not exist)")->required();
+  c->add_option("--moc", a.moc_file,
+                "MOC.cfg from the controller's backup (SYSPAR/MOC.cfg): write a new file; "
+                "without it, apply online through zerocald");
+  c->add_option("--out", a.out_file, "with --moc: the new MOC.cfg to write (must not exist)");
+  c->add_flag("--confirm", a.confirm,
+              "online: write the new values into the controller and restart it (backed up, "
+              "verified by measurement, rolled back when wrong)");
+  addConnectionOptions(c, a.client);
+  c->add_flag("--json", a.client.json, "online: the daemon's events, one per line");
   c->add_option("--robot", a.robot,
                 "robot model YAML with each joint's transmission, or 'builtin' (default: the "
                 "session's)");
@@ -296,7 +304,29 @@ void addApplyCommands(CLI::App& app, ApplyCommands& commands) {
 int runApplyCommands(const ApplyCommands& commands, std::ostream& out, std::ostream& err) {
   if (commands.experiment && commands.experiment->parsed())
     return runApplyExperiment(commands.experiment_args, out, err);
-  return runApply(commands.args, out, err);
+  const ApplyArgs& a = commands.args;
+  if (!a.moc_file.empty()) {
+    if (a.out_file.empty()) {
+      err << "zerocal apply: --moc needs --out NEW.cfg (the file to write)\n";
+      return kApplyRefused;
+    }
+    return runApply(a, out, err);
+  }
+  if (!a.out_file.empty()) {
+    err << "zerocal apply: --out needs --moc MOC.cfg (the backup to start from)\n";
+    return kApplyRefused;
+  }
+  if (!a.confirm) {
+    err << "zerocal apply: applying online writes the robot's calibration and restarts the "
+           "controller; give --confirm to do it (or --moc MOC.cfg --out NEW.cfg for a file)\n";
+    return kApplyRefused;
+  }
+  ClientArgs client = a.client;
+  client.command = "apply";
+  client.session = a.session_dir;
+  client.confirm = true;
+  // Never the one-line redraw: every step of an apply is worth keeping on the screen.
+  return runClient(client, out, err, false);
 }
 
 int runApply(const ApplyArgs& args, std::ostream& out, std::ostream& err) {

@@ -8,6 +8,8 @@
 #include <ostream>
 #include <string>
 
+#include "control_commands.h"
+
 namespace zerocal::cli {
 
 struct ApplyArgs {
@@ -16,6 +18,9 @@ struct ApplyArgs {
   std::string out_file;
   std::string robot;  // empty: the one in the session's configuration snapshot
   bool unconfirmed_transmission = false;
+  // Online (no --moc): through zerocald, behind this confirmation; the connection options.
+  bool confirm = false;
+  ClientArgs client;
 };
 
 struct ApplyExperimentArgs {
@@ -41,6 +46,9 @@ void addApplyCommands(CLI::App& app, ApplyCommands& commands);
 // The parsed one of them; its exit code.
 int runApplyCommands(const ApplyCommands& commands, std::ostream& out, std::ostream& err);
 
+// With --moc, the file apply below; without, the online apply through zerocald (runClient's
+// codes: 0 applied and verified, 8 verified wrong and rolled back, 3 stopped, 2 refused or no
+// --confirm).
 // Returns the exit code: 0 written; 2 refused (bad input, a file not fully understood, an
 // unconfirmed transmission); 3 the session's solve did not converge; 4 an offset of joints 2..5
 // is not identifiable. Never throws; messages go to err.

@@ -235,6 +235,93 @@ int watch(control::ControlClient& client, const ClientArgs& args, std::ostream& 
   return exitFor(status.value("state", ""));
 }
 
+// The numbers of an apply event, as the technician reads them.
+void printApplyEvent(const json& e, std::ostream& out) {
+  const auto rad = [](const json& a, int joint) {
+    return a.is_array() && a.size() == 6 ? format("%.6f", a[joint - 1].get<double>()) : "?";
+  };
+  if (e.contains("before_rad") || e.contains("written_rad")) {
+    out << "cal_offset (rad)   before      written\n";
+    for (int j = 2; j <= 5; ++j)
+      out << "  joint " << j << "         " << rad(e.value("before_rad", json()), j) << "    "
+          << (e.contains("written_rad") ? rad(e["written_rad"], j) : std::string("-")) << "\n";
+  }
+  if (e.contains("remaining_deg")) {
+    out << "left after it, as the verification " << e.value("verification", "")
+        << " measured (deg):\n";
+    for (const auto& item : e["remaining_deg"].items()) {
+      char line[120];
+      std::snprintf(line, sizeof line, "  %-8s %+.5f  (sigma %.5f)\n", item.key().c_str(),
+                    item.value().value("value", 0.0), item.value().value("sigma", 0.0));
+      out << line;
+    }
+  }
+}
+
+// Sends `apply` or `verify` and follows it to its apply event: progress lines, the verification's
+// poses, the outcome. Subscribed before the request, so no event of it is missed.
+int followApply(control::ControlClient& client, const std::string& cmd, const json& members,
+                const ClientArgs& args, std::ostream& out) {
+  const auto timeout = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+      std::chrono::duration<double>(args.timeout_s));
+  client.call("subscribe", json::object(), timeout);
+  const std::string id = client.call(cmd, members, timeout).value("session", "");
+  if (!args.json)
+    out << (cmd == "apply" ? "applying session " : "verifying session ") << id << "\n"
+        << std::flush;
+  std::string verification;
+  auto last_poll = std::chrono::steady_clock::now();
+  for (;;) {
+    auto event = client.nextEvent(std::chrono::seconds(1));
+    if (event) {
+      if (args.json) out << event->dump() << "\n" << std::flush;
+      const std::string kind = event->value("event", "");
+      const std::string session = event->value("session", "");
+      if (kind == "apply_progress" && session == id && !args.json) {
+        out << "  " << event->value("message", "") << "\n" << std::flush;
+      } else if (kind == "plan" && !args.json) {
+        verification = session;
+        out << "  verification session " << session << ": " << event->value("pose_count", 0)
+            << " poses\n"
+            << std::flush;
+      } else if (kind == "pose" && session == verification && !args.json) {
+        out << "  verification pose " << event->value("pose", 0) << " of "
+            << event->value("pose_count", 0) << "\n"
+            << std::flush;
+      } else if (kind == "apply" && session == id) {
+        const std::string outcome = event->value("outcome", "");
+        if (!args.json) {
+          out << outcome << ": " << event->value("message", "") << "\n";
+          printApplyEvent(*event, out);
+          if (outcome == "verified")
+            out << "Before use:\n"
+                   "  - Taught positions (robtargets and jointtargets) move physically by the "
+                   "corrected offsets: check them at reduced speed.\n"
+                   "  - Absolute Accuracy data (MOC ARM_CALIB) and a later fine calibration at the "
+                   "synchronisation marks refer to the old zeros: they no longer match.\n";
+        }
+        if (outcome == "verified" || outcome == "pass" || outcome == "recovered") return kClientOk;
+        if (outcome == "rolled_back" || outcome == "fail") return kClientVerificationFailed;
+        return kClientSessionFailed;
+      }
+    }
+    if (!event || std::chrono::steady_clock::now() - last_poll > std::chrono::seconds(5)) {
+      // An event missed (a slow reader is dropped events): the status says how it ended.
+      const json status = client.call("status", json::object(), timeout)["status"];
+      last_poll = std::chrono::steady_clock::now();
+      const std::string apply = status.value("apply", "");
+      const std::string prefix = "session " + id + " ";
+      if (!status.value("active", false) && apply.rfind(prefix, 0) == 0) {
+        if (!args.json) out << apply.substr(prefix.size()) << "\n";
+        const std::string outcome = apply.substr(prefix.size(), apply.find(':') - prefix.size());
+        if (outcome == "verified" || outcome == "pass" || outcome == "recovered") return kClientOk;
+        if (outcome == "rolled_back" || outcome == "fail") return kClientVerificationFailed;
+        return kClientSessionFailed;
+      }
+    }
+  }
+}
+
 json startMembers(const ClientArgs& args) {
   json m = json::object();
   if (!args.pattern.empty()) m["plan"] = args.pattern;
@@ -388,6 +475,16 @@ int run(const ClientArgs& args, std::ostream& out, std::ostream& err, bool tty) 
       printResult(resultOf(r), out);
     return kClientOk;
   }
+  if (cmd == "apply") {
+    json members{{"confirm", args.confirm}};
+    if (!args.session.empty()) members["session"] = args.session;
+    return followApply(client, "apply", members, args, out);
+  }
+  if (cmd == "verify") {
+    return followApply(client, "verify",
+                       args.session.empty() ? json::object() : json{{"session", args.session}},
+                       args, out);
+  }
   if (cmd == "plan") {
     // Planning takes the daemon a second or so of CPU; give it room beyond --timeout.
     const auto r = client.call("plan", startMembers(args), timeout + std::chrono::seconds(30));
@@ -451,6 +548,10 @@ void addClientCommands(CLI::App& app, ClientCommands& commands) {
   auto* result =
       add("result", "the verdict and offsets of a finished session (--json: its result.json)");
   result->add_option("session", a.session, "session id (default the latest)");
+  auto* verify = add("verify",
+                     "measure the offsets left after an apply with a short calibration on zerocald "
+                     "and judge them (nothing is written)");
+  verify->add_option("session", a.session, "the applied session's id (default the latest)");
   add("version", "this zerocal's version, and zerocald's and its protocol when one answers");
 }
 

@@ -21,6 +21,9 @@ enum ClientExit {
   kClientNotIdentifiable = 4,
   kClientCannotConnect = 5,  // no daemon at --host:--port, or the connection broke
   kClientAuthRefused = 6,    // the token file cannot be used, or the daemon refused the token
+  // apply: the verification found the new values wrong and the backup was restored; verify: an
+  // offset left is beyond its bound.
+  kClientVerificationFailed = 8,
 };
 
 struct ClientArgs {
@@ -29,8 +32,9 @@ struct ClientArgs {
   std::uint16_t port = 7450;
   std::string token_file;  // empty: $ZEROCAL_TOKEN_FILE, else /etc/zerocal/token
   bool json = false;
-  bool watch = false;   // start, resume: then watch the session
-  std::string session;  // resume, result: a session id (default the latest)
+  bool watch = false;    // start, resume: then watch the session
+  bool confirm = false;  // apply: the technician confirmed writing the robot's calibration
+  std::string session;   // resume, result, apply, verify: a session id (default the latest)
   int skip_pose = 0;    // resume: the next pose, to skip (1-based; 0: none)
   std::string pattern;  // start, plan: optimal, I, II, mixed, file (default the daemon's)
   std::optional<int> poses;

@@ -17,6 +17,9 @@ const std::set<std::string> kStartMembers{"id",    "cmd",       "token",     "pl
 
 const std::set<std::string> kResumeMembers{"id", "cmd", "token", "session", "skip_pose"};
 
+const std::set<std::string> kApplyMembers{"id", "cmd", "token", "session", "confirm"};
+const std::set<std::string> kVerifyMembers{"id", "cmd", "token", "session"};
+
 }  // namespace
 
 const char* planKindName(PlanKind kind) {
@@ -89,6 +92,24 @@ service::ResumeRequest parseResumeRequest(const json& request) {
   return r;
 }
 
+service::ApplyRequest parseApplyRequest(const json& request) {
+  for (const auto& item : request.items())
+    if (!kApplyMembers.count(item.key())) throw BadRequest("unknown member '" + item.key() + "'");
+  service::ApplyRequest r;
+  r.session = optionalString(request, "session");
+  if (request.contains("confirm")) {
+    if (!request["confirm"].is_boolean()) throw BadRequest("confirm: expected true or false");
+    r.confirm = request["confirm"].get<bool>();
+  }
+  return r;
+}
+
+service::VerifyRequest parseVerifyRequest(const json& request) {
+  for (const auto& item : request.items())
+    if (!kVerifyMembers.count(item.key())) throw BadRequest("unknown member '" + item.key() + "'");
+  return {optionalString(request, "session")};
+}
+
 json toJson(const service::SessionStatus& s) {
   // NaN (not identifiable) becomes null: JSON has no NaN and nlohmann writes null for it anyway.
   auto sigmas = [](const std::vector<double>& v) {
@@ -115,6 +136,7 @@ json toJson(const service::SessionStatus& s) {
          {"cell_time_s", s.cell_time_s}};
   if (!s.message.empty()) j["message"] = s.message;
   if (s.skippable_pose > 0) j["skippable_pose"] = s.skippable_pose;
+  if (!s.apply.empty()) j["apply"] = s.apply;
   return j;
 }
 
@@ -184,6 +206,26 @@ struct EventJson {
   }
   json operator()(const service::RemeasureEvent& e) const {
     return {{"event", "remeasure"}, {"session", e.session}, {"poses", e.poses}};
+  }
+  json operator()(const service::ApplyProgressEvent& e) const {
+    return {{"event", "apply_progress"}, {"session", e.session}, {"message", e.message}};
+  }
+  json operator()(const service::ApplyEvent& e) const {
+    json j{{"event", "apply"},
+           {"session", e.session},
+           {"outcome", service::applyOutcomeName(e.outcome)},
+           {"message", e.message}};
+    if (!e.verification.empty()) j["verification"] = e.verification;
+    if (!e.before_rad.empty()) j["before_rad"] = e.before_rad;
+    if (!e.written_rad.empty()) j["written_rad"] = e.written_rad;
+    if (!e.remaining_deg.empty()) {
+      json remaining = json::object();
+      for (std::size_t k = 0; k < e.remaining_deg.size(); ++k)
+        remaining[unknownName(static_cast<int>(k))] = {{"value", e.remaining_deg[k]},
+                                                       {"sigma", e.remaining_sigma_deg[k]}};
+      j["remaining_deg"] = remaining;
+    }
+    return j;
   }
   json operator()(const service::ResultEvent& e) const {
     return {{"event", "result"},

@@ -75,8 +75,8 @@ service::StartRequest planFileInPlanDir(service::StartRequest start, const json&
 }
 
 const std::vector<std::string> kCommands{
-    "hello",    "version", "auth",      "status",      "start", "abort", "resume",
-    "sessions", "result",  "subscribe", "unsubscribe", "psd",   "plan"};
+    "hello",  "version",   "auth",        "status", "start", "abort", "resume", "sessions",
+    "result", "subscribe", "unsubscribe", "psd",    "plan",  "apply", "verify"};
 
 }  // namespace
 
@@ -314,6 +314,15 @@ class Connection : public std::enable_shared_from_this<Connection> {
                             resume.skip_pose);
       else
         server_->log_->info("{}: resumed session {}", peer_, session_id);
+      r["session"] = session_id;
+    } else if (cmd == "apply") {
+      const service::ApplyRequest apply = parseApplyRequest(request);
+      const auto session_id = session.apply(apply);
+      server_->log_->warn("{}: applying session {} to the controller", peer_, session_id);
+      r["session"] = session_id;
+    } else if (cmd == "verify") {
+      const auto session_id = session.verify(parseVerifyRequest(request));
+      server_->log_->info("{}: verifying session {}", peer_, session_id);
       r["session"] = session_id;
     } else if (cmd == "abort") {
       const bool aborted = session.abort();

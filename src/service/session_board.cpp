@@ -29,6 +29,7 @@ SessionBoard::Claim::Claim(SessionBoard& board) : board_(board) {
   std::lock_guard<std::mutex> lock(board_.mutex_);
   const SessionStatus& s = board_.status_;
   if (board_.closed_) throw Refused("busy", "the daemon is stopping");
+  if (!board_.held_.empty()) throw Refused("busy", board_.held_ + ": one thing at a time");
   if (board_.claimed_ || isActive(s.state))
     throw Refused("busy", "session " + s.session_id + " is " + stateName(s.state) +
                               ": one session at a time (abort it first)");
@@ -96,9 +97,22 @@ void SessionBoard::update(const std::function<void(SessionStatus&)>& change) {
   change(status_);
 }
 
+void SessionBoard::hold(const std::string& why) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  held_ = why.empty() ? "held" : why;
+}
+
+void SessionBoard::release() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    held_.clear();
+  }
+  changed_.notify_all();
+}
+
 bool SessionBoard::requestAbort() {
   std::lock_guard<std::mutex> lock(mutex_);
-  if (!claimed_ && !isActive(status_.state)) return false;
+  if (!claimed_ && held_.empty() && !isActive(status_.state)) return false;
   abort_ = true;
   return true;
 }
@@ -111,12 +125,12 @@ void SessionBoard::abortAll() {
 
 bool SessionBoard::activeOrClaimed() const {
   std::lock_guard<std::mutex> lock(mutex_);
-  return claimed_ || isActive(status_.state);
+  return claimed_ || !held_.empty() || isActive(status_.state);
 }
 
 void SessionBoard::waitInactive() const {
   std::unique_lock<std::mutex> lock(mutex_);
-  changed_.wait(lock, [this] { return !claimed_ && !isActive(status_.state); });
+  changed_.wait(lock, [this] { return !claimed_ && held_.empty() && !isActive(status_.state); });
 }
 
 }  // namespace zerocal::service

@@ -27,6 +27,8 @@ const char* stateName(SessionState state) {
       return "recording";
     case SessionState::kSolving:
       return "solving";
+    case SessionState::kApplying:
+      return "applying";
     case SessionState::kDone:
       return "done";
     case SessionState::kAborted:
@@ -269,20 +271,19 @@ Plan SessionManager::preview(const StartRequest& request) const {
   return makePlan(request, target, noise_mm);
 }
 
-std::string SessionManager::start(const StartRequest& request) {
-  const SessionBoard::Claim claim(board_);
-
-  Eigen::Vector3d target;
-  double noise_mm = 0;
-  const Plan plan = makePlan(request, target, noise_mm);
+SessionManager::NewSession SessionManager::createSession(const StartRequest& request) {
+  NewSession n;
+  const Plan plan = makePlan(request, n.target, n.noise_mm);
   refuseUnlessIdentifiable(plan.prediction);
+  n.poses = plan.poses;
 
   SessionFile draft;
   draft.plan = plan;
-  draft.target_mm = target;
-  draft.noise_mm = noise_mm;
+  draft.target_mm = n.target;
+  draft.noise_mm = n.noise_mm;
   draft.config = settings_.config_snapshot;
   const SessionFile created = store_.create(std::move(draft));
+  n.id = created.id;
   makeLogger("session")->info("session {} created in {}: {} ({} poses)", created.id,
                               store_.sessionDir(created.id), plan.description, plan.poses.size());
 
@@ -292,15 +293,22 @@ std::string SessionManager::start(const StartRequest& request) {
   s.pose_count = static_cast<int>(plan.poses.size());
   s.predicted_sigma_deg.assign(plan.prediction.sigma.begin(),
                                plan.prediction.sigma.begin() + kOffsetCount);
+  s.apply = board_.status().apply;  // the latest apply stays in the status
   board_.begin(s);
   live_->clear();
   board_.emit(PlanEvent{created.id, s.pose_count, plan.description, s.predicted_sigma_deg});
   board_.announce();
-  worker_.post([this, id = created.id, poses = plan.poses, target, noise_mm](bool cancelled) {
+  return n;
+}
+
+std::string SessionManager::start(const StartRequest& request) {
+  const SessionBoard::Claim claim(board_);
+  NewSession n = createSession(request);
+  worker_.post([this, n](bool cancelled) {
     if (cancelled) return finish(SessionState::kAborted, "the daemon stopped before it began");
-    runSession(id, poses, target, noise_mm, {});
+    runSession(n.id, n.poses, n.target, n.noise_mm, {});
   });
-  return created.id;
+  return n.id;
 }
 
 std::string SessionManager::resume(const ResumeRequest& request) {
@@ -388,6 +396,7 @@ std::string SessionManager::resume(const ResumeRequest& request) {
     s.pose_count = static_cast<int>(poses.size());
     s.recorded = info->recorded_poses;
     s.resumed_from = info->recorded_poses;
+    s.apply = board_.status().apply;
     // NaN where a hand-edited session.json predicts nothing.
     s.predicted_sigma_deg.assign(session.plan.prediction.sigma.begin(),
                                  session.plan.prediction.sigma.begin() + kOffsetCount);
@@ -452,6 +461,16 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
               robot.serial, robot.software_version);
   } catch (const std::exception& e) {
     log->warn("session {}: the controller did not identify the robot: {}", id, e.what());
+  }
+  // The motor calibration the offsets are measured against: an apply checks it is still there.
+  std::optional<std::array<double, 6>> cal_offset_rad;
+  if (ControllerCalibration* calibration = cell_->calibration()) {
+    try {
+      cal_offset_rad = calibration->readCalOffsets();
+    } catch (const std::exception& e) {
+      log->warn("session {}: the controller did not report its cal_offset values: {}", id,
+                e.what());
+    }
   }
 
   std::optional<RunOutcome> outcome;
@@ -547,6 +566,7 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
   result.remeasured.emplace();
   for (const int i : outcome->remeasured) result.remeasured->push_back(i + 1);
   result.cell = ResultFile::Cell{robot, knowledge_.psd_map};
+  result.cal_offset_rad = cal_offset_rad;
   result.zerocal_version = PROJECT_VERSION;
   result.finished_unix_s = std::chrono::duration_cast<std::chrono::seconds>(
                                std::chrono::system_clock::now().time_since_epoch())

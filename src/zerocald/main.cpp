@@ -180,6 +180,10 @@ int main(int argc, char** argv) {
       return runOnce(manager, io, json);
     }
 
+    // Before the port opens: an apply the daemon was stopped in is restored first (the board is
+    // busy until then, the status says so).
+    if (const int interrupted = manager.recoverInterruptedApplies(); interrupted > 0)
+      log->warn("{} interrupted apply(s) found: restoring the backed-up values", interrupted);
     control::ServerOptions options = cfg.control;  // the control section is the server's options
     try {
       options.token = control::loadToken(options.token_file);

@@ -79,6 +79,29 @@ std::string FakeSession::resume(const service::ResumeRequest& request) {
   return status_.session_id;
 }
 
+// As the manager: confirmation first, then busy, then the session.
+std::string FakeSession::apply(const service::ApplyRequest& request) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (!request.confirm) throw Refused("not_confirmed", "confirm: true needed");
+  if (service::isActive(status_.state)) throw Refused("busy", "a session is running");
+  if (!request.session.empty() && request.session != result_session)
+    throw Refused("not_found", "no session " + request.session);
+  ++apply_calls_;
+  status_.state = SessionState::kApplying;
+  status_.session_id = result_session;
+  return status_.session_id;
+}
+
+std::string FakeSession::verify(const service::VerifyRequest& request) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (service::isActive(status_.state)) throw Refused("busy", "a session is running");
+  if (!request.session.empty() && request.session != result_session)
+    throw Refused("not_found", "no session " + request.session);
+  status_.state = SessionState::kApplying;
+  status_.session_id = result_session;
+  return status_.session_id;
+}
+
 bool FakeSession::abort() {
   ++abort_calls_;
   service::StateEvent event;

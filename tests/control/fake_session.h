@@ -25,6 +25,8 @@ class FakeSession : public service::SessionControl {
   Plan preview(const service::StartRequest& request) const override;
   std::string start(const service::StartRequest& request) override;
   std::string resume(const service::ResumeRequest& request) override;
+  std::string apply(const service::ApplyRequest& request) override;
+  std::string verify(const service::VerifyRequest& request) override;
   bool abort() override;
   std::vector<SessionInfo> sessions() const override;
   ResultFile result(const std::string& id) const override;
@@ -38,6 +40,7 @@ class FakeSession : public service::SessionControl {
   int abortCalls() const { return abort_calls_; }
   service::StartRequest lastRequest() const;
   service::ResumeRequest lastResume() const;
+  int applyCalls() const { return apply_calls_; }
   std::chrono::milliseconds preview_time{0};  // preview() spins this long
   std::chrono::milliseconds start_time{0};    // start() spins this long before it answers
   bool psd_fails = false;
@@ -60,6 +63,7 @@ class FakeSession : public service::SessionControl {
   std::vector<std::thread> readers_;
   std::atomic<int> start_calls_{0};
   std::atomic<int> abort_calls_{0};
+  std::atomic<int> apply_calls_{0};
 };
 
 }  // namespace zerocal::control::testing

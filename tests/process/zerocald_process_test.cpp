@@ -27,6 +27,7 @@ namespace zerocal {
 namespace {
 
 using namespace std::chrono_literals;
+using control::CommandError;
 using control::ControlClient;
 
 // The folder's name says which test left it, should one outlive its test.
@@ -206,6 +207,144 @@ TEST_F(ZerocaldProcess, SigtermDuringASessionStopsTheRobotKeepsTheJournalAndExit
   EXPECT_LT(indices.size(), 8u);
   for (std::size_t i = 0; i < indices.size(); ++i) EXPECT_EQ(indices[i], static_cast<int>(i));
   EXPECT_FALSE(std::filesystem::exists(dir_.path + "/sessions/" + id + "/result.json"));
+}
+
+// zerocal-sim as its own process: the controller outlives a killed daemon, as a real one does.
+class SimProcess {
+ public:
+  explicit SimProcess(const std::string& dir) : out_(dir + "/sim.out") {
+    std::vector<std::string> args = {ZEROCAL_SIM, "--port",        "0",      "--seed",
+                                     "4",         "--ideal-world", "--pace", "0.05"};
+    std::vector<char*> argv;
+    for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, 1, out_.c_str(), O_WRONLY | O_CREAT | O_APPEND,
+                                     0600);
+    posix_spawn_file_actions_adddup2(&actions, 1, 2);
+    if (posix_spawn(&pid_, ZEROCAL_SIM, &actions, nullptr, argv.data(), environ) != 0)
+      throw std::runtime_error("cannot start zerocal-sim");
+    posix_spawn_file_actions_destroy(&actions);
+    static const std::regex kListening("zerocal-sim listening on .*:([0-9]+)");
+    for (int i = 0; i < 1000 && port_ == 0; ++i) {
+      std::smatch m;
+      const std::string text = readFile(out_);
+      if (std::regex_search(text, m, kListening)) port_ = std::stoi(m[1]);
+      std::this_thread::sleep_for(10ms);
+    }
+    if (port_ == 0) throw std::runtime_error("zerocal-sim did not listen: " + readFile(out_));
+  }
+  ~SimProcess() {
+    ::kill(pid_, SIGKILL);
+    ::waitpid(pid_, nullptr, 0);
+  }
+  std::vector<std::string> daemonArgs() const {
+    return {"--set", "backend.sim_host=\"127.0.0.1\"", "--set",
+            "backend.sim_port=" + std::to_string(port_)};
+  }
+
+ private:
+  std::string out_;
+  pid_t pid_ = -1;
+  std::uint16_t port_ = 0;
+};
+
+std::vector<nlohmann::json> jsonLines(const std::string& path) {
+  std::vector<nlohmann::json> lines;
+  std::ifstream in(path);
+  for (std::string line; std::getline(in, line);) {
+    try {
+      lines.push_back(nlohmann::json::parse(line));
+    } catch (const nlohmann::json::exception&) {
+      break;  // cut short by the kill
+    }
+  }
+  return lines;
+}
+
+bool hasStep(const std::vector<nlohmann::json>& lines, const std::string& step) {
+  for (const auto& l : lines)
+    if (l.value("step", "") == step) return true;
+  return false;
+}
+
+// kill -9 while the controller holds new, not yet verified values (written, restarted, the
+// verification measuring): the next daemon finds the apply unfinished in the session's
+// apply.jsonl, restores the backup on the controller (which lived on in its own process) and
+// says so in its log, its status and the journal; a session run afterwards records the backup
+// as the controller's values.
+TEST_F(ZerocaldProcess, Kill9DuringAnApplyRecoversTheBackupOnRestart) {
+  SimProcess sim(dir_.path);
+  std::string id;
+  std::vector<nlohmann::json> journal;
+  {
+    Daemon first(dir_.path, "first", sim.daemonArgs());
+    ControlClient c;
+    connect(c, first);
+    id = c.call("start")["session"];
+    const nlohmann::json end = waitEnd(c, 180s);
+    ASSERT_EQ(end["state"], "done") << end.dump() << first.log();
+    const nlohmann::json result = c.call("result", {{"session", id}})["result"];
+    ASSERT_TRUE(result.contains("controller_cal_offset_rad")) << result.dump();
+    // Refused without the confirmation, and nothing journalled.
+    try {
+      c.call("apply", {{"session", id}});
+      ADD_FAILURE() << "apply without confirm was accepted";
+    } catch (const CommandError& e) {
+      EXPECT_EQ(e.code(), "not_confirmed");
+    }
+    const std::string path = dir_.path + "/sessions/" + id + "/apply.jsonl";
+    EXPECT_FALSE(std::filesystem::exists(path));
+    EXPECT_EQ(c.call("apply", {{"session", id}, {"confirm", true}})["session"], id);
+    for (int i = 0; i < 6000 && !hasStep(jsonLines(path), "restarted"); ++i)
+      std::this_thread::sleep_for(5ms);
+    EXPECT_EQ(first.signalAndWait(SIGKILL), 128 + SIGKILL);
+    journal = jsonLines(path);
+    ASSERT_TRUE(hasStep(journal, "restarted")) << "the apply never restarted the controller";
+    ASSERT_FALSE(hasStep(journal, "done")) << "the apply finished before the kill";
+  }
+  const auto before = journal.front().at("before_rad").get<std::vector<double>>();
+  const auto written = journal.front().at("new_rad").get<std::vector<double>>();
+  ASSERT_GT(std::abs(written[2] - before[2]), 1e-4) << "the apply changes nothing to recover";
+
+  Daemon second(dir_.path, "second", sim.daemonArgs());
+  ControlClient c;
+  connect(c, second);
+  nlohmann::json status;
+  for (int i = 0; i < 6000; ++i) {
+    status = c.call("status")["status"];
+    if (!status["active"].get<bool>() && status.contains("apply")) break;
+    std::this_thread::sleep_for(10ms);
+  }
+  ASSERT_TRUE(status.contains("apply")) << status.dump();
+  EXPECT_NE(status["apply"].get<std::string>().find("recovered"), std::string::npos)
+      << status.dump();
+  EXPECT_NE(second.log().find("interrupted"), std::string::npos) << second.log();
+
+  const std::vector<nlohmann::json> after =
+      jsonLines(dir_.path + "/sessions/" + id + "/apply.jsonl");
+  ASSERT_FALSE(after.empty());
+  EXPECT_EQ(after.back().value("step", ""), "done");
+  EXPECT_EQ(after.back().value("outcome", ""), "recovered");
+  bool found_new = false;
+  for (const auto& l : after)
+    if (l.value("step", "") == "recovering") {
+      // The controller held the written values when the daemon came back.
+      const auto found = l.at("found_rad").get<std::vector<double>>();
+      found_new = std::abs(found[2] - written[2]) < 2e-5;
+    }
+  EXPECT_TRUE(found_new) << "the controller did not hold the written values at the restart: "
+                         << nlohmann::json(after).dump();
+
+  // The controller holds the backup again: a session records it.
+  const std::string check = c.call("start")["session"];
+  const nlohmann::json end = waitEnd(c, 180s);
+  ASSERT_EQ(end["state"], "done") << end.dump() << second.log();
+  const auto now = c.call("result", {{"session", check}})["result"]["controller_cal_offset_rad"]
+                       .get<std::vector<double>>();
+  for (int j = 1; j < 5; ++j) EXPECT_NEAR(now[j], before[j], 2e-5) << "joint " << j + 1;
+  EXPECT_EQ(second.signalAndWait(SIGTERM), 0);
 }
 
 // A second daemon on a port already served: a configuration error (exit 2) naming the port, not

@@ -23,6 +23,12 @@ service::StartRequest parseStartRequest(const nlohmann::json& request,
 // (1-based, 1..kMaxPlanPoses). Others but id, cmd and token are refused. Throws BadRequest.
 service::ResumeRequest parseResumeRequest(const nlohmann::json& request);
 
+// The members of an `apply` request: session (the latest finished when absent) and confirm (a
+// boolean; the manager refuses the apply unless true), and of a `verify` request: session.
+// Others but id, cmd and token are refused. Throw BadRequest.
+service::ApplyRequest parseApplyRequest(const nlohmann::json& request);
+service::VerifyRequest parseVerifyRequest(const nlohmann::json& request);
+
 const char* planKindName(PlanKind kind);
 // Throws BadRequest for an unknown name.
 PlanKind parsePlanKind(const std::string& name);
@@ -30,7 +36,8 @@ PlanKind parsePlanKind(const std::string& name);
 nlohmann::json toJson(const service::SessionStatus& status);
 nlohmann::json toJson(const service::LiveReading& reading);
 nlohmann::json toJson(const std::vector<SessionInfo>& sessions);
-// An event line's object: {"event": "plan" | "state" | "pose" | "remeasure" | "result", ...}.
+// An event line's object: {"event": "plan" | "state" | "pose" | "remeasure" | "result" |
+// "apply_progress" | "apply", ...}.
 nlohmann::json toJson(const service::SessionEvent& event);
 
 }  // namespace zerocal::control

@@ -52,6 +52,12 @@ class SessionBoard {
   // Changes the status without an event (progress figures).
   void update(const std::function<void(SessionStatus&)>& change);
 
+  // While held (an online apply around its verification session), the board counts as active
+  // whatever its state: a claim is refused busy with `why`, waitInactive() waits, an abort is
+  // for the verification. Released by release().
+  void hold(const std::string& why);
+  void release();
+
   // Asks the running or claimed session to stop; false when there is none.
   bool requestAbort();
   // Set by requestAbort() (or abortAll()) until the next claim; the run polls it.
@@ -70,6 +76,7 @@ class SessionBoard {
   mutable std::condition_variable changed_;
   SessionStatus status_;
   bool claimed_ = false;
+  std::string held_;  // why the board is held; empty: not held
   bool closed_ = false;
   std::atomic<bool> abort_{false};
   SessionControl::EventSink sink_;

@@ -28,6 +28,7 @@ enum class SessionState {
   kServoing,    // the spot onto the PSD at pose i
   kRecording,   // pose i to the journal
   kSolving,
+  kApplying,  // an online apply or a verification: writing, restarting, judging, rolling back
   kDone,
   kAborted,
   kFaulted,
@@ -81,6 +82,21 @@ struct SessionStatus {
   std::vector<double> predicted_sigma_deg;  // delta2..delta5, from the plan (NaN: not identif.)
   std::vector<double> achieved_sigma_deg;   // from the solve, when done
   double cell_time_s = 0;                   // since the run (re)started
+  // The latest online apply, verification or recovery of an interrupted apply, in a sentence:
+  // what was applied and how it ended. Empty when there was none since the daemon started.
+  std::string apply;
+};
+
+// An online apply of a finished session's offsets to the controller (docs/apply.md).
+struct ApplyRequest {
+  std::string session;   // the latest finished session when empty
+  bool confirm = false;  // the technician confirmed writing the robot's calibration
+};
+
+// A verification: a short calibration measuring the offsets left now, judged against the last
+// apply of `session` (nothing is written or rolled back).
+struct VerifyRequest {
+  std::string session;  // the latest finished session when empty
 };
 
 // The latest PSD reading seen, for the live `psd` command.
@@ -131,7 +147,38 @@ struct ResultEvent {
   std::vector<double> achieved_sigma_deg;  // delta2..delta5
 };
 
-using SessionEvent = std::variant<PlanEvent, StateEvent, PoseEvent, RemeasureEvent, ResultEvent>;
+// A step of an online apply or a verification, as the terminal shows it ("written: ...",
+// "verifying by measurement").
+struct ApplyProgressEvent {
+  std::string session;  // whose offsets are applied
+  std::string message;
+};
+
+enum class ApplyOutcome {
+  kVerified,    // applied and verified: the new values stay
+  kRolledBack,  // applied, the verification failed (or could not run): the backup is back
+  kFailed,      // stopped before or while writing; the message says what the controller holds
+  kRecovered,   // an apply interrupted earlier (the daemon stopped) was restored at start
+  kPassed,      // a verification on its own: every offset left is within its bound
+  kNotPassed,   // a verification on its own: some are not (nothing was changed)
+};
+const char* applyOutcomeName(ApplyOutcome outcome);
+
+// An apply or a verification ended.
+struct ApplyEvent {
+  std::string session;  // whose offsets were applied (or verified)
+  ApplyOutcome outcome = ApplyOutcome::kFailed;
+  std::string message;       // the verdict; for a rollback or a failure, why
+  std::string verification;  // the verification session's id, when one ran
+  // The controller's cal_offset of joints 1..6 (rad) before and as written (empty when nothing
+  // was read or written).
+  std::vector<double> before_rad, written_rad;
+  // delta2..delta5 left, as the verification measured them (deg; empty when none ran).
+  std::vector<double> remaining_deg, remaining_sigma_deg;
+};
+
+using SessionEvent = std::variant<PlanEvent, StateEvent, PoseEvent, RemeasureEvent, ResultEvent,
+                                  ApplyProgressEvent, ApplyEvent>;
 
 // What the control port needs; SessionManager implements it, protocol tests may fake it.
 class SessionControl {
@@ -148,6 +195,17 @@ class SessionControl {
   // that is not the next one), "not_identifiable" (the plan would not identify every offset
   // without the pose; nothing skipped, nothing moved).
   virtual std::string resume(const ResumeRequest& request) = 0;
+  // Applies a finished session's offsets to the controller online (backup, write, restart,
+  // verify by a short calibration, roll back when wrong; docs/apply.md) and returns the session's
+  // id; progress and the outcome come as ApplyProgressEvent and ApplyEvent. Throws Refused:
+  // "not_confirmed" (confirm not set), "busy", "not_found", "not_usable" (the verdict refuses
+  // the result, or an offset of joints 2..5 is withheld), "unsupported" (the controller link
+  // offers no calibration access), "bad_request".
+  virtual std::string apply(const ApplyRequest& request) = 0;
+  // Runs a verification of a session's offsets now (a short calibration; nothing is written) and
+  // returns the session's id; the verdict comes as an ApplyEvent. Throws Refused: "busy",
+  // "not_found", "not_usable", "bad_request".
+  virtual std::string verify(const VerifyRequest& request) = 0;
   // Asks the running session to stop; the robot is stopped. False when nothing runs.
   virtual bool abort() = 0;
   virtual std::vector<SessionInfo> sessions() const = 0;

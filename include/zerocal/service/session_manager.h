@@ -52,12 +52,20 @@ class SessionManager final : public SessionControl {
   Plan preview(const StartRequest& request) const override;
   std::string start(const StartRequest& request) override;
   std::string resume(const ResumeRequest& request) override;
+  std::string apply(const ApplyRequest& request) override;
+  std::string verify(const VerifyRequest& request) override;
   bool abort() override;
   std::vector<SessionInfo> sessions() const override;
   ResultFile result(const std::string& id) const override;
   void readPsd(ReadingDone done) override;
   void setEventSink(EventSink sink) override;
 
+  // At the daemon's start: finds sessions whose apply journal (apply.jsonl) ends inside an online
+  // apply (the daemon was stopped or killed during it) and restores each one's backed-up values
+  // on the worker (zerocal::apply::recoverApply), reporting it in the log, the status (`apply`)
+  // and an ApplyEvent. Returns how many were found; the restore runs after this returns
+  // (waitIdle() waits for it). Never throws: a recovery that fails is logged and in the status.
+  int recoverInterruptedApplies();
   // Blocks until no session is active; returns the final status. For --once and shutdown.
   SessionStatus waitIdle();
   // The request the configuration describes (session.plan, poses, plan_file, target).
@@ -69,6 +77,25 @@ class SessionManager final : public SessionControl {
 
  private:
   class LiveSlot;
+  class CellCalibration;
+  struct NewSession {
+    std::string id;
+    std::vector<Pose> poses;
+    Eigen::Vector3d target = Eigen::Vector3d::Zero();
+    double noise_mm = 0;
+  };
+  // Plans `request` (refusing it as start() does), creates its folder, and begins it on the board.
+  NewSession createSession(const StartRequest& request);
+  // A finished session's result, checked as an apply needs it: usable, offsets 2..5 given.
+  // Throws Refused.
+  ResultFile usableResult(const std::string& requested, std::string& id) const;
+  // Runs a short calibration (the configured plan around `target`) on the worker thread and
+  // returns its id and result. Throws Error when it does not finish with delta2..delta5.
+  ResultFile verificationRun(const Eigen::Vector3d& target, std::string& id);
+  void runApply(const std::string& id, const ResultFile& result);
+  void runVerify(const std::string& id, const ResultFile& result);
+  void runRecovery(const std::vector<std::string>& ids);
+  void endApply(const ApplyEvent& event, bool ok);
   struct PoseSkip {
     int index = -1;  // 0-based pose to journal as skipped before running; -1: none
     std::string reason;

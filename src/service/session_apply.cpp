@@ -1,0 +1,415 @@
+// The session manager's online apply, verification and recovery of an interrupted apply
+// (docs/apply.md): the engine (zerocal/apply/online_apply.h) driven on the worker thread against
+// the connected cell's ControllerCalibration, with a verification that is an ordinary session of
+// the configured plan (its own folder, events and result).
+#include <cmath>
+#include <filesystem>
+
+#include "zerocal/apply/online_apply.h"
+#include "zerocal/daemon/logging.h"
+#include "zerocal/service/session_manager.h"
+
+namespace zerocal::service {
+
+namespace {
+
+constexpr double kRadPerDeg = 0.017453292519943295;
+constexpr const char* kApplyJournalName = "apply.jsonl";
+// Two values written and read back agree to the controller's float32 and 6 digits.
+constexpr double kSameCalOffsetRad = 2e-6;
+
+apply::Offsets offsetsOf(const ResultFile& result) {
+  apply::Offsets o;
+  for (int k = 0; k < 4; ++k)
+    o[k] = {result.report.parameters[k].value, result.report.parameters[k].sigma};
+  return o;
+}
+
+// Why the result's offsets of joints 2..5 cannot be applied; empty when they can.
+std::string unusable(const ResultFile& r) {
+  if (!r.report.converged) return "its solve did not converge";
+  if (r.verdict_recorded && !r.report.verdict.usable) {
+    std::string why = "its verdict refuses it";
+    for (const std::string& reason : r.report.verdict.reasons) why += ": " + reason;
+    return why;
+  }
+  if (r.report.parameters.size() < 4) return "it holds no offsets";
+  for (int k = 0; k < 4; ++k) {
+    const ParameterEstimate& p = r.report.parameters[k];
+    if (!p.identifiable || !std::isfinite(p.value) || !std::isfinite(p.sigma))
+      return "delta" + std::to_string(k + 2) + " is withheld (" +
+             (p.reason.empty() ? std::string("not determined") : p.reason) + ")";
+  }
+  return "";
+}
+
+std::vector<double> vec(const std::array<double, 6>& a) { return {a.begin(), a.end()}; }
+
+std::string applyJournalPath(const SessionStore& store, const std::string& id) {
+  return store.sessionDir(id) + "/" + kApplyJournalName;
+}
+
+}  // namespace
+
+const char* applyOutcomeName(ApplyOutcome outcome) {
+  switch (outcome) {
+    case ApplyOutcome::kVerified:
+      return "verified";
+    case ApplyOutcome::kRolledBack:
+      return "rolled_back";
+    case ApplyOutcome::kFailed:
+      return "failed";
+    case ApplyOutcome::kRecovered:
+      return "recovered";
+    case ApplyOutcome::kPassed:
+      return "pass";
+    case ApplyOutcome::kNotPassed:
+      return "fail";
+  }
+  return "?";
+}
+
+// The connected cell's calibration, connecting it first when a failed session dropped it (the
+// verification may fault and the rollback still has to reach the controller).
+class SessionManager::CellCalibration final : public ControllerCalibration {
+ public:
+  explicit CellCalibration(SessionManager& manager) : manager_(manager) {}
+  std::array<double, 6> readCalOffsets() override { return get().readCalOffsets(); }
+  void writeCalOffset(int joint, double rad) override { get().writeCalOffset(joint, rad); }
+  void restart() override { get().restart(); }
+  bool updateRevolutionCounter(int joint) override { return get().updateRevolutionCounter(joint); }
+
+ private:
+  ControllerCalibration& get() {
+    manager_.worker_.markProgress();
+    if (!manager_.cell_) manager_.cell_ = manager_.backend_.connect();
+    ControllerCalibration* calibration = manager_.cell_->calibration();
+    if (calibration == nullptr)
+      throw Error("the controller link offers no access to the motor calibration");
+    return *calibration;
+  }
+  SessionManager& manager_;
+};
+
+ResultFile SessionManager::usableResult(const std::string& requested, std::string& id) const {
+  ResultFile r = result(requested);  // Refused not_found, bad_request
+  id = r.session.empty() ? requested : r.session;
+  if (const std::string why = unusable(r); !why.empty())
+    throw Refused("not_usable", "session " + id + " cannot be applied: " + why);
+  return r;
+}
+
+std::string SessionManager::apply(const ApplyRequest& request) {
+  if (!request.confirm)
+    throw Refused("not_confirmed",
+                  "an online apply writes the robot's calibration and restarts the controller: "
+                  "it needs the technician's confirmation (confirm: true)");
+  const SessionBoard::Claim claim(board_);
+  std::string id;
+  const ResultFile result = usableResult(request.session, id);
+  const Robot& robot = knowledge_.cell.robot;
+  for (int j = 2; j <= 5; ++j)
+    if (robot.transmission[j - 1] == 0)
+      throw Refused("unsupported", "the robot file gives joint " + std::to_string(j) +
+                                       " no transmission: its cal_offset cannot be computed");
+  board_.hold("session " + id + " is being applied");
+  SessionStatus s;
+  s.state = SessionState::kApplying;
+  s.session_id = id;
+  s.apply = "applying session " + id;
+  board_.begin(s);
+  board_.announce();
+  makeLogger("apply")->warn("applying session {} to the controller (confirmed)", id);
+  worker_.post([this, id, result](bool cancelled) {
+    if (cancelled) {
+      ApplyEvent e;
+      e.session = id;
+      e.message = "the daemon stopped before the apply began; nothing was written";
+      return endApply(e, false);
+    }
+    runApply(id, result);
+  });
+  return id;
+}
+
+std::string SessionManager::verify(const VerifyRequest& request) {
+  const SessionBoard::Claim claim(board_);
+  std::string id;
+  const ResultFile result = usableResult(request.session, id);
+  board_.hold("session " + id + " is being verified");
+  SessionStatus s;
+  s.state = SessionState::kApplying;
+  s.session_id = id;
+  s.apply = "verifying session " + id;
+  board_.begin(s);
+  board_.announce();
+  worker_.post([this, id, result](bool cancelled) {
+    if (cancelled) {
+      ApplyEvent e;
+      e.session = id;
+      e.message = "the daemon stopped before the verification began";
+      return endApply(e, false);
+    }
+    runVerify(id, result);
+  });
+  return id;
+}
+
+ResultFile SessionManager::verificationRun(const Eigen::Vector3d& target, std::string& id) {
+  // The configured plan around the PSD centre the calibration found: the same code as any
+  // session, so the verification's numbers mean what a calibration's mean.
+  StartRequest request = defaultRequest();
+  request.target_mm = target;
+  const NewSession n = createSession(request);
+  id = n.id;
+  runSession(n.id, n.poses, n.target, n.noise_mm, {});
+  const SessionStatus end = board_.status();
+  if (end.state != SessionState::kDone)
+    throw Error("verification session " + n.id + " " + stateName(end.state) + ": " + end.message);
+  const ResultFile r = store_.readResult(n.id);
+  for (int k = 0; k < 4; ++k) {
+    const ParameterEstimate& p = r.report.parameters.at(k);
+    if (!p.identifiable || !std::isfinite(p.value) || !std::isfinite(p.sigma))
+      throw Error("verification session " + n.id + " did not determine delta" +
+                  std::to_string(k + 2));
+  }
+  return r;
+}
+
+void SessionManager::runApply(const std::string& id, const ResultFile& result) {
+  auto log = makeLogger("apply");
+  ApplyEvent event;
+  event.session = id;
+  const auto progress = [&](const std::string& message) {
+    worker_.markProgress();
+    log->info("session {}: {}", id, message);
+    board_.update([&](SessionStatus& s) { s.apply = "applying session " + id + ": " + message; });
+    board_.emit(ApplyProgressEvent{id, message});
+  };
+  try {
+    CellCalibration calibration(*this);
+    const std::array<double, 6> present = calibration.readCalOffsets();
+    event.before_rad = vec(present);
+    if (result.cal_offset_rad) {
+      for (int j = 2; j <= 5; ++j)
+        if (std::abs((*result.cal_offset_rad)[j - 1] - present[j - 1]) > kSameCalOffsetRad)
+          throw Refused("changed", "the controller's cal_offset of joint " + std::to_string(j) +
+                                       " is " + std::to_string(present[j - 1]) +
+                                       " rad, the calibration measured against " +
+                                       std::to_string((*result.cal_offset_rad)[j - 1]) +
+                                       ": calibrate again; nothing was written");
+    } else {
+      progress(
+          "the session did not record the controller's cal_offset values: applying "
+          "against the present ones");
+    }
+    const Robot& robot = knowledge_.cell.robot;
+    if (!robot.transmission_confirmed)
+      progress(
+          "the robot file's transmissions are not confirmed: the verification settles them "
+          "(a wrong sign doubles the offset and is rolled back)");
+    const apply::Offsets before = offsetsOf(result);
+    std::array<apply::CalOffsetChange, 4> changes;
+    for (int j = 2; j <= 5; ++j) {
+      changes[j - 2] = apply::calOffsetChange(j, before[j - 2].value_deg * kRadPerDeg,
+                                              robot.transmission[j - 1], present[j - 1]);
+      progress(apply::formulaText(changes[j - 2]));
+    }
+    apply::ApplyJournal journal(applyJournalPath(store_, id));
+    apply::OnlineApplyOptions options;
+    options.required_deg = settings_.session.required_accuracy_deg;
+    options.progress = progress;
+    options.update_revolution_counter = [&](int joint, double) {
+      return calibration.updateRevolutionCounter(joint);
+    };
+    options.verify = [&]() {
+      std::string vid;
+      try {
+        const ResultFile v = verificationRun(result.report.estimate.target_mm, vid);
+        event.verification = vid;
+        journal.append({{"step", "verification"}, {"session", vid}});
+        return offsetsOf(v);
+      } catch (...) {
+        event.verification = vid;
+        throw;
+      }
+    };
+    const auto restore_board = [&] {
+      SessionStatus s = board_.status();
+      s.state = SessionState::kApplying;
+      s.session_id = id;
+      s.pose = s.pose_count = s.recorded = 0;
+      board_.begin(s);
+    };
+    apply::OnlineApplyOutcome outcome;
+    try {
+      outcome = apply::applyOnline(calibration, changes, before, options, journal);
+    } catch (...) {
+      restore_board();
+      throw;
+    }
+    restore_board();
+    event.before_rad = vec(outcome.before_rad);
+    event.written_rad = vec(outcome.written_rad);
+    if (outcome.after[0].sigma_deg > 0)
+      for (const apply::MeasuredOffset& m : outcome.after) {
+        event.remaining_deg.push_back(m.value_deg);
+        event.remaining_sigma_deg.push_back(m.sigma_deg);
+      }
+    event.outcome = outcome.state == apply::ApplyState::kVerified ? ApplyOutcome::kVerified
+                                                                  : ApplyOutcome::kRolledBack;
+    event.message = outcome.message;
+  } catch (const std::exception& e) {
+    event.outcome = ApplyOutcome::kFailed;
+    event.message = e.what();
+  }
+  endApply(event, event.outcome == ApplyOutcome::kVerified);
+}
+
+void SessionManager::runVerify(const std::string& id, const ResultFile& result) {
+  ApplyEvent event;
+  event.session = id;
+  try {
+    CellCalibration calibration(*this);
+    event.before_rad = vec(calibration.readCalOffsets());
+    const Robot& robot = knowledge_.cell.robot;
+    std::array<apply::CalOffsetChange, 4> changes;
+    for (int j = 2; j <= 5; ++j) {
+      changes[j - 2].joint = j;
+      changes[j - 2].transmission = robot.transmission[j - 1] != 0 ? robot.transmission[j - 1] : 1;
+    }
+    std::string vid;
+    ResultFile v;
+    try {
+      v = verificationRun(result.report.estimate.target_mm, vid);
+    } catch (...) {
+      event.verification = vid;
+      throw;
+    }
+    event.verification = vid;
+    const apply::Offsets after = offsetsOf(v);
+    for (const apply::MeasuredOffset& m : after) {
+      event.remaining_deg.push_back(m.value_deg);
+      event.remaining_sigma_deg.push_back(m.sigma_deg);
+    }
+    const apply::Verdict verdict =
+        apply::judge(changes, offsetsOf(result), after, settings_.session.required_accuracy_deg);
+    event.outcome = verdict.pass ? ApplyOutcome::kPassed : ApplyOutcome::kNotPassed;
+    event.message = verdict.message;
+    nlohmann::json offsets = nlohmann::json::array();
+    for (const apply::MeasuredOffset& m : after)
+      offsets.push_back({{"value_deg", m.value_deg}, {"sigma_deg", m.sigma_deg}});
+    apply::ApplyJournal(applyJournalPath(store_, id))
+        .append({{"step", "verify"},
+                 {"session", vid},
+                 {"found_rad", event.before_rad},
+                 {"pass", verdict.pass},
+                 {"offsets_after", offsets},
+                 {"message", verdict.message}});
+  } catch (const std::exception& e) {
+    event.outcome = ApplyOutcome::kFailed;
+    event.message = std::string("the verification did not complete: ") + e.what();
+  }
+  SessionStatus s = board_.status();
+  s.state = SessionState::kApplying;
+  s.session_id = id;
+  s.pose = s.pose_count = s.recorded = 0;
+  board_.begin(s);
+  endApply(event, event.outcome == ApplyOutcome::kPassed);
+}
+
+int SessionManager::recoverInterruptedApplies() {
+  auto log = makeLogger("apply");
+  std::vector<std::string> ids;
+  for (const SessionInfo& info : store_.list()) {
+    const std::string path = applyJournalPath(store_, info.id);
+    if (!std::filesystem::exists(path)) continue;
+    try {
+      if (apply::applyInterrupted(apply::ApplyJournal(path))) ids.push_back(info.id);
+    } catch (const std::exception& e) {
+      log->error("session {}: {} cannot be read: {}", info.id, path, e.what());
+    }
+  }
+  if (ids.empty()) return 0;
+  try {
+    const SessionBoard::Claim claim(board_);
+    board_.hold("an interrupted apply is being recovered");
+    SessionStatus s;
+    s.state = SessionState::kApplying;
+    s.session_id = ids.back();
+    s.apply = "recovering an interrupted apply of session " + ids.back();
+    board_.begin(s);
+    board_.announce();
+    for (const std::string& id : ids)
+      log->warn(
+          "session {}: an online apply was interrupted (the daemon stopped during it); "
+          "restoring the backed-up values",
+          id);
+    worker_.post([this, ids](bool cancelled) {
+      if (cancelled) {
+        ApplyEvent e;
+        e.session = ids.back();
+        e.message = "the daemon stopped before an interrupted apply was recovered";
+        return endApply(e, false);
+      }
+      runRecovery(ids);
+    });
+  } catch (const std::exception& e) {
+    log->error("an interrupted apply cannot be recovered now: {}", e.what());
+  }
+  return static_cast<int>(ids.size());
+}
+
+void SessionManager::runRecovery(const std::vector<std::string>& ids) {
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    ApplyEvent event;
+    event.session = ids[i];
+    try {
+      CellCalibration calibration(*this);
+      apply::ApplyJournal journal(applyJournalPath(store_, ids[i]));
+      const apply::Recovery r = apply::recoverApply(calibration, journal);
+      event.outcome = ApplyOutcome::kRecovered;
+      event.message = r.needed ? r.message : "nothing to recover";
+      event.before_rad = vec(calibration.readCalOffsets());
+    } catch (const std::exception& e) {
+      event.outcome = ApplyOutcome::kFailed;
+      event.message = e.what();
+      cell_.reset();
+    }
+    if (i + 1 < ids.size()) {
+      board_.emit(event);
+      continue;
+    }
+    endApply(event, event.outcome == ApplyOutcome::kRecovered);
+  }
+}
+
+void SessionManager::endApply(const ApplyEvent& event, bool ok) {
+  auto log = makeLogger("apply");
+  const std::string summary = std::string(applyOutcomeName(event.outcome)) + ": " + event.message;
+  if (ok)
+    log->info("session {}: {}", event.session, summary);
+  else
+    log->error("session {}: {}", event.session, summary);
+  board_.update([&](SessionStatus& s) {
+    s.session_id = event.session;
+    s.apply = "session " + event.session + " " + summary;
+  });
+  board_.emit(event);
+  if (settings_.write_reports) {
+    // The session's report gains the apply: before / written, the verdict, the warnings.
+    try {
+      settings_.write_reports(store_.sessionDir(event.session));
+    } catch (const std::exception& e) {
+      log->error("session {}: the report does not show the apply: {}", event.session, e.what());
+    }
+  }
+  const bool rolled_back_or_failed =
+      event.outcome == ApplyOutcome::kRolledBack || event.outcome == ApplyOutcome::kFailed;
+  board_.finish(
+      rolled_back_or_failed ? SessionState::kFaulted : SessionState::kDone,
+      rolled_back_or_failed || event.outcome == ApplyOutcome::kNotPassed ? event.message : "");
+  board_.release();
+}
+
+}  // namespace zerocal::service

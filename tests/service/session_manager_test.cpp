@@ -704,3 +704,120 @@ TEST(SessionManager, ASessionsProgressKeepsTheWorkersStallShort) {
 
 }  // namespace
 }  // namespace zerocal::service
+
+namespace zerocal::service {
+namespace {
+
+// The sim backend with the robot model's transmission of one joint given the wrong sign: what a
+// wrong robot file does, the simulated arm keeping its true transmission.
+class WrongSignBackend final : public CellBackend {
+ public:
+  WrongSignBackend(sim::SimulatedCellOptions options, int joint)
+      : inner_(std::move(options)), joint_(joint) {}
+  const char* name() const override { return inner_.name(); }
+  CellKnowledge knowledge() const override {
+    CellKnowledge k = inner_.knowledge();
+    k.cell.robot.transmission[joint_ - 1] *= -1;
+    return k;
+  }
+  std::unique_ptr<ConnectedCell> connect() override { return inner_.connect(); }
+  sim::SimBackend& inner() { return inner_; }
+
+ private:
+  sim::SimBackend inner_;
+  int joint_;
+};
+
+ManagerSettings applySettingsIn(const std::string& dir) {
+  ManagerSettings s = settingsIn(dir);
+  // The verification runs the configured plan: the stored one, not seconds of planning.
+  s.session.plan = PlanKind::kFile;
+  s.session.plan_file = testing::storedPlanPath("ideal-5");
+  return s;
+}
+
+std::vector<nlohmann::json> applyLines(const std::string& path) {
+  std::vector<nlohmann::json> lines;
+  std::ifstream in(path);
+  for (std::string line; std::getline(in, line);) lines.push_back(nlohmann::json::parse(line));
+  return lines;
+}
+
+// Calibrate, apply online, verify: the new zeros remove the world's offsets (the verification's
+// simulated truth), the journal ends verified, and the status and events say so. Refused without
+// the confirmation and while busy.
+TEST(SessionManagerApply, AppliesVerifiesAndKeepsTheNewValues) {
+  const TempDir dir;
+  sim::SimBackend backend(cellFor(5));
+  SessionManager manager(backend, applySettingsIn(dir.path));
+  EventLog log;
+  manager.setEventSink(log.sink());
+  const std::string id = manager.start(manager.defaultRequest());
+  ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
+  const ResultFile calibrated = manager.result(id);
+  ASSERT_TRUE(calibrated.cal_offset_rad);
+  const Joints shift_before = backend.cell().controller().zeroShiftDeg();
+
+  try {
+    manager.apply({id, false});
+    ADD_FAILURE() << "applied without the confirmation";
+  } catch (const Refused& e) {
+    EXPECT_EQ(e.code(), "not_confirmed");
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir.path + "/" + id + "/apply.jsonl"));
+  EXPECT_EQ(manager.apply({id, true}), id);
+  EXPECT_THROW(manager.start(manager.defaultRequest()), Refused);  // busy while it runs
+  const SessionStatus end = manager.waitIdle();
+  EXPECT_EQ(end.state, SessionState::kDone) << end.message;
+  EXPECT_NE(end.apply.find("verified"), std::string::npos) << end.apply;
+
+  const auto applied = log.of<ApplyEvent>();
+  ASSERT_EQ(applied.size(), 1u);
+  EXPECT_EQ(applied[0].outcome, ApplyOutcome::kVerified) << applied[0].message;
+  ASSERT_EQ(applied[0].written_rad.size(), 6u);
+  EXPECT_NE(applied[0].written_rad[2], applied[0].before_rad[2]);
+  EXPECT_FALSE(log.of<ApplyProgressEvent>().empty());
+  // The controller's zeros moved by the identified offsets, and the verification measured what
+  // is left: near zero, as its simulated truth.
+  const Joints shift = backend.cell().controller().zeroShiftDeg();
+  for (int k = 0; k < 4; ++k) {
+    EXPECT_NEAR(shift[k + 1] - shift_before[k + 1], -calibrated.report.parameters[k].value, 1e-3);
+    EXPECT_LT(std::abs(applied[0].remaining_deg[k]), 0.02);
+  }
+  // What is left on the arm is the calibration's own error, exactly.
+  const ResultFile verification = manager.result(applied[0].verification);
+  ASSERT_TRUE(verification.truth && calibrated.truth);
+  for (int k = 0; k < 4; ++k)
+    EXPECT_NEAR(verification.truth->offsets_deg[k],
+                calibrated.truth->offsets_deg[k] - calibrated.report.parameters[k].value, 1e-5);
+  const auto lines = applyLines(dir.path + "/" + id + "/apply.jsonl");
+  ASSERT_FALSE(lines.empty());
+  EXPECT_EQ(lines.back()["step"], "done");
+  EXPECT_EQ(lines.back()["outcome"], "verified");
+}
+
+// A transmission sign wrong in the robot model doubles delta3 on the arm: the verification sees
+// it, the backup goes back, and the message names joint 3.
+TEST(SessionManagerApply, AWrongTransmissionSignIsRolledBackNamingTheJoint) {
+  const TempDir dir;
+  WrongSignBackend backend(cellFor(5), 3);
+  SessionManager manager(backend, applySettingsIn(dir.path));
+  EventLog log;
+  manager.setEventSink(log.sink());
+  const std::string id = manager.start(manager.defaultRequest());
+  ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
+  const Joints shift_before = backend.inner().cell().controller().zeroShiftDeg();
+  manager.apply({id, true});
+  const SessionStatus end = manager.waitIdle();
+  EXPECT_EQ(end.state, SessionState::kFaulted);
+  const auto applied = log.of<ApplyEvent>();
+  ASSERT_EQ(applied.size(), 1u);
+  EXPECT_EQ(applied[0].outcome, ApplyOutcome::kRolledBack);
+  EXPECT_NE(applied[0].message.find("joint 3"), std::string::npos) << applied[0].message;
+  const Joints shift = backend.inner().cell().controller().zeroShiftDeg();
+  for (int i = 0; i < kJointCount; ++i) EXPECT_NEAR(shift[i], shift_before[i], 1e-5) << i;
+  EXPECT_EQ(applyLines(dir.path + "/" + id + "/apply.jsonl").back()["outcome"], "rolled_back");
+}
+
+}  // namespace
+}  // namespace zerocal::service

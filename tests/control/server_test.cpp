@@ -305,6 +305,56 @@ TEST_F(ControlServerTest, Resume) {
   EXPECT_TRUE(session_.lastResume().session.empty());
 }
 
+TEST_F(ControlServerTest, ApplyNeedsTheConfirmationAndIsRefusedWhileBusy) {
+  auto c = connect();
+  EXPECT_EQ(c->request({{"cmd", "apply"}})["error"]["code"], "not_confirmed");
+  EXPECT_EQ(c->request({{"cmd", "apply"}, {"confirm", false}})["error"]["code"], "not_confirmed");
+  // "true" as a string is not a confirmation; a misspelt member is not ignored.
+  EXPECT_EQ(c->request({{"cmd", "apply"}, {"confirm", "true"}})["error"]["code"], "bad_request");
+  EXPECT_EQ(c->request({{"cmd", "apply"}, {"confirm", true}, {"sesion", "x"}})["error"]["code"],
+            "bad_request");
+  EXPECT_EQ(session_.applyCalls(), 0);
+  session_.setState(SessionState::kMoving, 1, 8);
+  EXPECT_EQ(c->request({{"cmd", "apply"}, {"confirm", true}})["error"]["code"], "busy");
+  EXPECT_EQ(c->request({{"cmd", "verify"}})["error"]["code"], "busy");
+  session_.setState(SessionState::kDone);
+  EXPECT_EQ(c->request({{"cmd", "apply"}, {"confirm", true}, {"session", "nope"}})["error"]["code"],
+            "not_found");
+  EXPECT_EQ(c->call("apply", {{"confirm", true}})["session"], "20261122-0000");
+  EXPECT_EQ(session_.applyCalls(), 1);
+  EXPECT_EQ(c->call("status")["status"]["state"], "applying");
+}
+
+TEST_F(ControlServerTest, ApplyEventsAreSerialisedByTheControlLayer) {
+  auto watcher = connect();
+  watcher->call("subscribe");
+  service::ApplyEvent done;
+  done.session = "20261122-0000";
+  done.outcome = service::ApplyOutcome::kRolledBack;
+  done.message = "delta3 doubled: the sign of joint 3's transmission is wrong";
+  done.verification = "20261122-0002";
+  done.before_rad = {1, 2, 3, 4, 5, 6};
+  done.written_rad = {1, 2.5, 3, 4, 5, 6};
+  done.remaining_deg = {0.001, 1.1, -0.002, 0.0005};
+  done.remaining_sigma_deg = {0.003, 0.001, 0.001, 0.001};
+  session_.emit(service::ApplyProgressEvent{"20261122-0000", "written: rob1_2 2.500000"});
+  session_.emit(done);
+  std::optional<json> progress, outcome;
+  const auto deadline = std::chrono::steady_clock::now() + 2s;
+  while (!outcome && std::chrono::steady_clock::now() < deadline) {
+    auto e = watcher->nextEvent(500ms);
+    if (!e) continue;
+    if ((*e)["event"] == "apply_progress") progress = e;
+    if ((*e)["event"] == "apply") outcome = e;
+  }
+  ASSERT_TRUE(progress && outcome);
+  EXPECT_EQ((*progress)["message"], "written: rob1_2 2.500000");
+  EXPECT_EQ((*outcome)["outcome"], "rolled_back");
+  EXPECT_EQ((*outcome)["written_rad"][1], 2.5);
+  EXPECT_EQ((*outcome)["verification"], "20261122-0002");
+  EXPECT_EQ((*outcome)["remaining_deg"]["delta3_deg"]["value"], 1.1);
+}
+
 TEST_F(ControlServerTest, Sessions) {
   const auto list = connect()->call("sessions")["sessions"];
   ASSERT_EQ(list.size(), 2u);

@@ -16,6 +16,7 @@
 
 #include "stored_plan_request.h"
 #include "zerocal/io/joint_set.h"
+#include "zerocal/report/session_report.h"
 #include "zerocal/sim/sim_backend.h"
 #include "zerocal/sim/sim_controller.h"
 #include "zerocal/sim/world.h"
@@ -733,6 +734,7 @@ ManagerSettings applySettingsIn(const std::string& dir) {
   // The verification runs the configured plan: the stored one, not seconds of planning.
   s.session.plan = PlanKind::kFile;
   s.session.plan_file = testing::storedPlanPath("ideal-5");
+  s.write_reports = [](const std::string& session_dir) { report::writeSessionReport(session_dir); };
   return s;
 }
 
@@ -794,6 +796,13 @@ TEST(SessionManagerApply, AppliesVerifiesAndKeepsTheNewValues) {
   ASSERT_FALSE(lines.empty());
   EXPECT_EQ(lines.back()["step"], "done");
   EXPECT_EQ(lines.back()["outcome"], "verified");
+  // The session's summary is written again with the apply: values, verdict, warnings.
+  std::ifstream in(dir.path + "/" + id + "/summary.txt");
+  const std::string summary((std::istreambuf_iterator<char>(in)), {});
+  EXPECT_NE(summary.find("Applied to the controller"), std::string::npos) << summary;
+  EXPECT_NE(summary.find("Verified"), std::string::npos);
+  EXPECT_NE(summary.find("Taught positions"), std::string::npos);
+  EXPECT_NE(summary.find("cal_offset_3 = wrap("), std::string::npos);
 }
 
 // A transmission sign wrong in the robot model doubles delta3 on the arm: the verification sees

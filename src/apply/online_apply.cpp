@@ -243,6 +243,11 @@ std::optional<ApplyRecord> lastApplyRecord(const ApplyJournal& journal) {
         r->written_rad = line.at("new_rad").get<std::array<double, 6>>();
         for (const json& c : line.value("changes", json::array()))
           r->formulas.push_back(c.value("formula", ""));
+      } else if (step == "verify" && r && !r->formulas.empty()) {
+        // A verification after an apply: the apply stays what the report shows, with it.
+        r->later_check = ApplyRecord::LaterCheck{
+            line.value("pass", false) ? "pass" : "fail", line.value("session", ""),
+            line.value("message", ""), offsetsFrom(line.value("offsets_after", json::array()))};
       } else if (step == "verify") {
         r.emplace();
         r->time_unix_s = line.value("time_unix_s", 0.0);

@@ -240,7 +240,11 @@ void printApplyEvent(const json& e, std::ostream& out) {
   const auto rad = [](const json& a, int joint) {
     return a.is_array() && a.size() == 6 ? format("%.6f", a[joint - 1].get<double>()) : "?";
   };
-  if (e.contains("before_rad") || e.contains("written_rad")) {
+  if (e.contains("before_rad") && !e.contains("written_rad")) {
+    out << "cal_offset now (rad):";
+    for (int j = 2; j <= 5; ++j) out << "  joint " << j << " " << rad(e["before_rad"], j);
+    out << "\n";
+  } else if (e.contains("before_rad") || e.contains("written_rad")) {
     out << "cal_offset (rad)   before      written\n";
     for (int j = 2; j <= 5; ++j)
       out << "  joint " << j << "         " << rad(e.value("before_rad", json()), j) << "    "
@@ -551,7 +555,7 @@ void addClientCommands(CLI::App& app, ClientCommands& commands) {
   auto* verify = add("verify",
                      "measure the offsets left after an apply with a short calibration on zerocald "
                      "and judge them (nothing is written)");
-  verify->add_option("session", a.session, "the applied session's id (default the latest)");
+  verify->add_option("session", a.session, "the applied session's id (default the latest applied)");
   add("version", "this zerocal's version, and zerocald's and its protocol when one answers");
 }
 

@@ -244,6 +244,15 @@ Section applySection(const SessionReport& r) {
                      (*a.remaining)[k].sigma_deg);
     s.paragraphs.push_back(left);
   }
+  if (a.later_check) {
+    std::string later = "Verified again later (session " + a.later_check->session +
+                        "): " + (a.later_check->outcome == "pass" ? "pass. " : "FAIL. ") +
+                        a.later_check->message + ". Offsets left:";
+    for (int k = 0; k < 4; ++k)
+      later += format(" delta%d %+.5f deg (sigma %.5f);", k + 2,
+                      a.later_check->remaining[k].value_deg, a.later_check->remaining[k].sigma_deg);
+    s.paragraphs.push_back(later);
+  }
   if (a.outcome == "verified") {
     s.paragraphs.push_back(
         "Taught positions (robtargets and jointtargets) move physically by the corrected offsets: "

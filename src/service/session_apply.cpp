@@ -134,8 +134,17 @@ std::string SessionManager::apply(const ApplyRequest& request) {
 
 std::string SessionManager::verify(const VerifyRequest& request) {
   const SessionBoard::Claim claim(board_);
+  // By default the session applied last, not the latest finished one (which, after an apply, is
+  // its verification).
+  std::string requested = request.session;
+  if (requested.empty()) {
+    const std::vector<SessionInfo> list = store_.list();
+    for (auto it = list.rbegin(); it != list.rend() && requested.empty(); ++it)
+      if (apply::lastApplyRecord(apply::ApplyJournal(applyJournalPath(store_, it->id))))
+        requested = it->id;
+  }
   std::string id;
-  const ResultFile result = usableResult(request.session, id);
+  const ResultFile result = usableResult(requested, id);
   board_.hold("session " + id + " is being verified");
   SessionStatus s;
   s.state = SessionState::kApplying;

@@ -803,6 +803,23 @@ TEST(SessionManagerApply, AppliesVerifiesAndKeepsTheNewValues) {
   EXPECT_NE(summary.find("Verified"), std::string::npos);
   EXPECT_NE(summary.find("Taught positions"), std::string::npos);
   EXPECT_NE(summary.find("cal_offset_3 = wrap("), std::string::npos);
+
+  // A verification on its own afterwards: by default of the session applied last (not of the
+  // verification session, the latest finished), judged, nothing written; the report keeps the
+  // apply and adds the check.
+  EXPECT_EQ(manager.verify({}), id);
+  EXPECT_EQ(manager.waitIdle().state, SessionState::kDone);
+  const auto checks = log.of<ApplyEvent>();
+  ASSERT_EQ(checks.size(), 2u);
+  EXPECT_EQ(checks[1].outcome, ApplyOutcome::kPassed) << checks[1].message;
+  EXPECT_TRUE(checks[1].written_rad.empty());
+  ASSERT_EQ(checks[1].before_rad.size(), 6u);
+  for (int i = 0; i < 6; ++i)  // as the controller keeps them: float32
+    EXPECT_NEAR(checks[1].before_rad[i], applied[0].written_rad[i], 2e-6) << i;
+  std::ifstream again(dir.path + "/" + id + "/summary.txt");
+  const std::string updated((std::istreambuf_iterator<char>(again)), {});
+  EXPECT_NE(updated.find("Applied to the controller"), std::string::npos) << updated;
+  EXPECT_NE(updated.find("Verified again later"), std::string::npos) << updated;
 }
 
 // A transmission sign wrong in the robot model doubles delta3 on the arm: the verification sees

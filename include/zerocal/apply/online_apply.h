@@ -93,6 +93,12 @@ struct ApplyRecord {
   std::optional<Offsets> remaining;                   // as the verification measured them
   std::string verification;                           // its session id, when one ran
   std::string message;
+  // A verification run on its own after this apply ("pass" / "fail"), the latest one.
+  struct LaterCheck {
+    std::string outcome, session, message;
+    Offsets remaining{};
+  };
+  std::optional<LaterCheck> later_check;
 };
 // Throws nothing: a journal that is absent or holds no online step gives nullopt.
 std::optional<ApplyRecord> lastApplyRecord(const ApplyJournal& journal);

@@ -96,7 +96,9 @@ struct ApplyRequest {
 // A verification: a short calibration measuring the offsets left now, judged against the last
 // apply of `session` (nothing is written or rolled back).
 struct VerifyRequest {
-  std::string session;  // the latest finished session when empty
+  // When empty: the latest session with an online apply (or verification) in its apply.jsonl,
+  // else the latest finished one.
+  std::string session;
 };
 
 // The latest PSD reading seen, for the live `psd` command.

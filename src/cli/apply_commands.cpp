@@ -10,11 +10,11 @@
 
 #include "zerocal/apply/moc_file.h"
 #include "zerocal/apply/motor_calibration.h"
-#include "zerocal/store/journal.h"
 #include "zerocal/error.h"
 #include "zerocal/model/builtin.h"
 #include "zerocal/model/robot.h"
 #include "zerocal/report/session_report.h"
+#include "zerocal/store/journal.h"
 
 namespace zerocal::cli {
 

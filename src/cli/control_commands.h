@@ -35,8 +35,8 @@ struct ClientArgs {
   bool watch = false;    // start, resume: then watch the session
   bool confirm = false;  // apply: the technician confirmed writing the robot's calibration
   std::string session;   // resume, result, apply, verify: a session id (default the latest)
-  int skip_pose = 0;    // resume: the next pose, to skip (1-based; 0: none)
-  std::string pattern;  // start, plan: optimal, I, II, mixed, file (default the daemon's)
+  int skip_pose = 0;     // resume: the next pose, to skip (1-based; 0: none)
+  std::string pattern;   // start, plan: optimal, I, II, mixed, file (default the daemon's)
   std::optional<int> poses;
   std::string plan_file;
   std::vector<double> target;  // empty or X Y Z in mm

@@ -29,11 +29,11 @@
 #include "zerocal/calib/sensitivity.h"
 #include "zerocal/calib/solver.h"
 #include "zerocal/calib/validation.h"
-#include "zerocal/store/journal.h"
 #include "zerocal/error.h"
 #include "zerocal/io/joint_set.h"
 #include "zerocal/model/builtin.h"
 #include "zerocal/report/session_report.h"
+#include "zerocal/store/journal.h"
 #include "zerocal/usb1408fs/errors.h"
 
 namespace zerocal {

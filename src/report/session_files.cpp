@@ -12,8 +12,8 @@
 
 #include "zerocal/calib/cell_model.h"
 #include "zerocal/calib/format.h"
-#include "zerocal/store/journal.h"
 #include "zerocal/report/session_report.h"
+#include "zerocal/store/journal.h"
 
 namespace zerocal::report {
 namespace {

@@ -7,8 +7,8 @@
 #include <sstream>
 
 #include "session_fixture.h"
-#include "zerocal/store/journal.h"
 #include "zerocal/report/session_report.h"
+#include "zerocal/store/journal.h"
 
 namespace zerocal::report {
 namespace {

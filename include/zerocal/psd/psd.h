@@ -129,9 +129,9 @@ struct MapFitReport {
 
 struct SpotPosition {
   PsdSpot spot;
-  PsdSpot se;                       // from the voltage standard errors through the map
-  bool present = false;             // enough light (SpotDetector threshold)
-  bool valid = false;               // present and inside the zone the map was fitted on
+  PsdSpot se;            // from the voltage standard errors through the map
+  bool present = false;  // enough light (SpotDetector threshold)
+  bool valid = false;    // present and inside the zone the map was fitted on
 };
 
 // Voltages -> millimetres: u = sum a_ij X^i Y^j, v = sum b_ij X^i Y^j over i + j <= degree, with

@@ -14,9 +14,9 @@
 #include "zerocal/calib/planner.h"
 #include "zerocal/calib/solver.h"
 #include "zerocal/cell/psd_reader.h"
-#include "zerocal/store/journal.h"
 #include "zerocal/error.h"
 #include "zerocal/service/plan_kind.h"
+#include "zerocal/store/journal.h"
 #include "zerocal/store/session_store.h"
 
 namespace zerocal::service {

@@ -194,6 +194,7 @@ bool Irc5Client::connected() const noexcept { return io_->open; }
 void Irc5Client::connect() {
   io_->shut();
   have_joints_ = false;
+  search_ready_ = false;
   error_code ec;
   tcp::resolver resolver(io_->ctx);
   const auto endpoints = resolver.resolve(options_.host, std::to_string(options_.port), ec);
@@ -520,6 +521,87 @@ void Irc5Client::moveLinear(const TcpPose& target) {
                                        {t.quat_wxyz[2], q},
                                        {t.quat_wxyz[3], q}}),
            irc5::kMoveLinear, 0, timeout);
+}
+
+bool Irc5Client::startSpotSearch(const SpotSearch& search) {
+  search_ready_ = false;
+  if (!(search.pitch_mm > 0)) throw RequestRefusedError("spot search pitch must be positive");
+  const Joints* rows[3] = {&search.centre_deg, &search.per_u_mm, &search.per_v_mm};
+  for (int row = 0; row < 3; ++row) {
+    // Joints at 5 decimals, as every joint; the rows of deg per mm at 6 (~1e-6 deg/mm leaves
+    // under 0.1 um of spot at 60 mm).
+    const int decimals = row == 0 ? irc5::kJointDecimals : 6;
+    std::array<irc5::Param, 7> params;
+    params[0] = {static_cast<double>(row), 0};
+    for (int i = 0; i < kJointCount; ++i) {
+      if (!std::isfinite((*rows[row])[i]))
+        throw RequestRefusedError("spot search row " + std::to_string(row) + " is not finite");
+      params[1 + i] = {(*rows[row])[i], decimals};
+    }
+    try {
+      transact(request(irc5::kSearchSpiral, params.data(), params.size()), irc5::kSearchSpiral, 0,
+               options_.request_timeout);
+    } catch (const BadMessageError&) {
+      if (row == 0) return false;  // upstream's server, or a module without its light signal
+      throw;
+    }
+  }
+  search_ = search;
+  search_ready_ = true;
+  return true;
+}
+
+std::optional<Joints> Irc5Client::searchRun(const SearchRun& run) {
+  if (!search_ready_) throw RequestRefusedError("search run without a search spiral");
+  if (!(run.from_mm >= 0) || !(run.to_mm >= run.from_mm) || !std::isfinite(run.to_mm))
+    throw RequestRefusedError("search run radii must satisfy 0 <= from <= to");
+  if (!(run.speed_mm_s > 0) || run.speed_mm_s > options_.speed_tcp_mm_s)
+    throw RequestRefusedError("search speed " + std::to_string(run.speed_mm_s) +
+                              " mm/s is not in (0, the link's TCP speed " +
+                              std::to_string(options_.speed_tcp_mm_s) + " mm/s]");
+  // Every waypoint, and every step to it, as a joint move would be checked; the deadline from
+  // the same steps at the run's speed.
+  if (!have_joints_ || options_.max_step_deg > 0) readJoints();
+  Joints from = last_joints_;
+  double seconds = 0;
+  const char* problem = nullptr;
+  int waypoints = 0;
+  forEachSearchWaypoint(search_, run, [&](const Joints& q) {
+    ++waypoints;
+    if (!options_.robot.withinLimits(q, options_.limit_margin_deg)) {
+      problem = "a waypoint lies outside the joint limits less the margin";
+      return false;
+    }
+    for (int i = 0; i < kJointCount; ++i) {
+      if (options_.max_step_deg > 0 && std::abs(q[i] - from[i]) > options_.max_step_deg) {
+        problem = "a step between waypoints exceeds the step limit";
+        return false;
+      }
+    }
+    seconds +=
+        irc5::jointMoveSeconds(options_.robot, from, q, run.speed_mm_s, options_.speed_ori_deg_s);
+    from = q;
+    return true;
+  });
+  if (problem != nullptr) throw RequestRefusedError(std::string("search run refused: ") + problem);
+  if (waypoints == 0) throw RequestRefusedError("search run has no waypoint");
+  const std::array<irc5::Param, 4> params{{{search_.pitch_mm, 3},
+                                           {run.from_mm, 3},
+                                           {run.to_mm, 3},
+                                           {run.speed_mm_s, irc5::kSpeedDecimals}}};
+  const auto timeout =
+      milliseconds(static_cast<long long>(seconds * options_.move_timeout_factor * 1000.0)) +
+      options_.move_timeout_margin;
+  have_joints_ = false;  // somewhere on the spiral
+  const irc5::ReplyView r = transact(request(irc5::kSearchRun, params.data(), params.size()),
+                                     irc5::kSearchRun, -1, timeout);
+  if (r.field_count == 1 && r.fields[0] == "0") return std::nullopt;
+  if (r.field_count != 7 || r.fields[0] != "1")
+    throw ProtocolError("reply to 49 is neither \"0\" nor \"1\" and six joints: \"" +
+                        std::string(r.data) + "\"");
+  Joints hit;
+  for (int i = 0; i < kJointCount; ++i) hit[i] = parseNumber(r.fields[1 + i], r.code);
+  return hit;
 }
 
 void Irc5Client::stop() {

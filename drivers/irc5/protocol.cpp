@@ -171,6 +171,7 @@ int expectedReplyFields(int code) {
     case kSimWorldId:
       return 2;
     case kRobotInfo:
+    case kSearchRun:  // "0", or "1" and the six joints where the signal rose
       return -1;
     default:
       return 0;

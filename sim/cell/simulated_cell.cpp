@@ -55,6 +55,8 @@ SimControllerOptions controllerOptions(const SimulatedCellOptions& o) {
   c.seed = o.controller_seed;
   c.pace = o.pace;
   c.motion = o.motion;
+  c.search.wired = o.search_signal;
+  c.search.psd = o.psd;  // the comparator watches this cell's detector
   c.start_joints = o.start_joints;
   return c;
 }

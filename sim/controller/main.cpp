@@ -53,6 +53,10 @@ int main(int argc, char** argv) {
                  "settling at the fine point after every move (s)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 60.0));
+  app.add_flag(
+      "--no-search-signal", [&](std::int64_t) { options.search.wired = false; },
+      "no PSD light signal at the controller's input: the spot search (49, 47) is refused, as "
+      "by a RAPID module whose signal is not configured");
   app.add_option("--drop-after", options.faults.drop_after_requests,
                  "close each connection instead of answering its request N+1");
   app.add_option("--delay-ms", delay_ms, "delay every reply (ms)");

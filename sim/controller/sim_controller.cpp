@@ -11,6 +11,7 @@
 #include <set>
 #include <thread>
 
+#include "zerocal/cell/search_move.h"
 #include "zerocal/error.h"
 #include "zerocal/irc5/motion_time.h"
 #include "zerocal/irc5/protocol.h"
@@ -62,6 +63,7 @@ struct SimController::Impl {
         acceptor(ctx),
         rng(options.seed),
         gross_rng(options.seed ^ 0x67726f7373ull),
+        search_rng(options.seed ^ 0x736561726368ull),
         faults(options.faults) {
     const std::string motion = options.motion.validate();
     if (!motion.empty()) throw ConfigError("SimControllerOptions", {"motion: " + motion});
@@ -101,6 +103,12 @@ struct SimController::Impl {
   // linear_seconds >= 0: a MoveL of that duration (straight path) instead of a joint move.
   std::string moveTo(const Joints& target, int code, milliseconds* wall_delay,
                      double linear_seconds = -1);
+  // Charges a move's time to the clock (and, paced, to the reply's wall delay).
+  void charge(const irc5::MoveTime& t, milliseconds* wall_delay);
+  // The robot at rest at `stored`: a new repeatability draw and the gross-error state.
+  void arrive(const Joints& stored);
+  // Request 49 (after the three rows of 47): the reply text.
+  std::string searchRun(const SearchRun& run, milliseconds* wall_delay);
   Frame<double> toolInWobj(const Joints& q) const;
   bool solveIk(const Frame<double>& flange_target, Joints* q) const;
 
@@ -116,6 +124,9 @@ struct SimController::Impl {
 
   std::mt19937_64 rng;
   std::mt19937_64 gross_rng;  // its own stream: the repeatability draws stay those of the seed
+  std::mt19937_64 search_rng;  // the search signal's latency, its own stream for the same reason
+  SpotSearch search;           // the spiral given by 47
+  int search_rows = 0;         // bit r: row r of 47 received
   SimFaults faults;
   Joints commanded{};
   Joints move_error{};  // this move's repeatability error plus an unsettled reading's
@@ -252,7 +263,8 @@ class SimController::Impl::Session : public std::enable_shared_from_this<Session
       return;
     }
     const irc5::ParsedRequest r = irc5::parseRequest(request);
-    const bool move = r.valid && (r.code == irc5::kMoveJoints || r.code == irc5::kMoveLinear);
+    const bool move = r.valid && (r.code == irc5::kMoveJoints || r.code == irc5::kMoveLinear ||
+                                  r.code == irc5::kSearchRun);
     if (move && faults.stall_moves) {
       stalled_ = true;
       return;
@@ -351,6 +363,7 @@ void SimController::Impl::restart() {
     std::lock_guard<std::mutex> lock(mutex);
     if (!restart_requested) return;
     restart_requested = false;
+    search_rows = 0;  // the RAPID program starts over
     for (int i = 0; i < kJointCount; ++i)
       if (pending_cal[i]) takeCalOffset(i, *pending_cal[i]);
     pending_cal.fill(std::nullopt);
@@ -424,6 +437,12 @@ std::string SimController::Impl::moveTo(const Joints& target, int code, millisec
     t = irc5::jointMoveTime(options.world.robot, commanded, stored, speed_tcp_mm_s, speed_ori_deg_s,
                             options.motion);
   }
+  charge(t, wall_delay);
+  arrive(stored);
+  return std::to_string(code) + " 1 ";
+}
+
+void SimController::Impl::charge(const irc5::MoveTime& t, milliseconds* wall_delay) {
   const double seconds = t.total();
   sim_time_s += seconds;
   ++totals.moves;
@@ -432,12 +451,105 @@ std::string SimController::Impl::moveTo(const Joints& target, int code, millisec
   totals.settle_s += t.settle_s;
   if (options.pace > 0)
     *wall_delay = milliseconds(static_cast<long long>(seconds * options.pace * 1000));
+}
+
+void SimController::Impl::arrive(const Joints& stored) {
   commanded = stored;
   std::normal_distribution<double> noise(0.0, options.world.noise.repeatability_deg);
   for (double& e : move_error) e = options.world.noise.repeatability_deg > 0 ? noise(rng) : 0.0;
   updateGross(options.world.gross, commanded, gross_rng, &gross);
   for (int i = 0; i < kJointCount; ++i) move_error[i] += gross.unsettled_deg[i];
-  return std::to_string(code) + " 1 ";
+}
+
+std::string SimController::Impl::searchRun(const SearchRun& run, milliseconds* wall_delay) {
+  const std::string c = std::to_string(irc5::kSearchRun);
+  const Robot& robot = options.world.robot;
+  // The waypoints as the module computes them (RAPID nums), each checked before anything moves.
+  constexpr std::size_t kMaxWaypoints = 5000;
+  std::vector<Joints> path{commanded};
+  forEachSearchWaypoint(search, run, [&](const Joints& q) {
+    Joints stored;
+    for (int i = 0; i < kJointCount; ++i) stored[i] = f32(q[i]);
+    path.push_back(stored);
+    return path.size() <= kMaxWaypoints;
+  });
+  if (path.size() < 2 || path.size() > kMaxWaypoints) return c + " 0 bad run";
+  for (const Joints& q : path)
+    if (!robot.limitViolation(q).empty()) return c + " 0 out of bounds";
+  // Time along the path: each joint segment at the run's speed, one ramp up and down for all.
+  std::vector<double> until{0.0};  // cruise seconds at each waypoint
+  double largest = 0;
+  for (std::size_t i = 1; i < path.size(); ++i) {
+    until.push_back(until.back() + irc5::jointMoveSeconds(robot, path[i - 1], path[i],
+                                                          run.speed_mm_s, speed_ori_deg_s));
+    for (int j = 0; j < kJointCount; ++j)
+      largest = std::max(largest, std::abs(path[i][j] - path[0][j]));
+  }
+  const double cruise = until.back();
+  const double motion_s = irc5::rampedSeconds(cruise, largest, options.motion.joint_accel_deg_s2);
+  const double scale = cruise > 0 ? motion_s / cruise : 1.0;
+  irc5::MoveTime t;
+  t.overhead_s = options.motion.overhead_s;
+  t.settle_s = options.motion.settle_s;
+  const double t0 = sim_time_s + t.overhead_s;
+  const sim::PsdModel detector(options.search.psd);
+  const auto lit = [&](const Joints& q, double at) {
+    const std::optional<BeamHit> hit = beamHit(options.world, q, trueExtraDeg(), at);
+    return hit && detector.ideal(hit->spot).sum > options.search.threshold_v;
+  };
+  const auto along = [&](std::size_t i, double f) {  // segment i (to waypoint i), fraction f
+    Joints q;
+    for (int j = 0; j < kJointCount; ++j) q[j] = path[i - 1][j] + f * (path[i][j] - path[i - 1][j]);
+    return q;
+  };
+  // The input interrupts on a rising edge only (ISignalDI \Single): light already on the
+  // detector at the start raises nothing until it has gone and come back.
+  bool was_lit = lit(path[0], t0);
+  std::size_t rose_in = 0;
+  double rose_s = 0;
+  for (std::size_t i = 1; i < path.size() && rose_in == 0; ++i) {
+    double largest_step = 0;
+    for (int j = 0; j < kJointCount; ++j)
+      largest_step = std::max(largest_step, std::abs(path[i][j] - path[i - 1][j]));
+    // 0.005 deg moves the spot ~0.1 mm at a metre: far finer than the 5.7 mm lit disk.
+    const int n = std::max(1, static_cast<int>(std::ceil(largest_step / 0.005)));
+    for (int k = 1; k <= n; ++k) {
+      const double f = static_cast<double>(k) / n;
+      const double at = until[i - 1] + f * (until[i] - until[i - 1]);
+      const bool now_lit = lit(along(i, f), t0 + at * scale);
+      if (now_lit && !was_lit) {
+        rose_in = i;
+        rose_s = at;
+        break;
+      }
+      was_lit = now_lit;
+    }
+  }
+  std::size_t stop_at = path.size() - 1;
+  std::optional<Joints> latched;
+  if (rose_in > 0) {
+    std::uniform_real_distribution<double> latency(options.search.latency_min_s,
+                                                   options.search.latency_max_s);
+    const double latch_s = std::min(cruise, rose_s + latency(search_rng));
+    std::size_t i = rose_in;
+    while (i + 1 < path.size() && until[i] < latch_s) ++i;
+    const double span = until[i] - until[i - 1];
+    const Joints q =
+        along(i, span > 0 ? std::clamp((latch_s - until[i - 1]) / span, 0.0, 1.0) : 1.0);
+    latched.emplace();
+    for (int j = 0; j < kJointCount; ++j) (*latched)[j] = f32(q[j]);
+    // The module stops queueing waypoints once the trap has run; the one queued for the zone
+    // (the program pointer runs a move ahead) is still driven to.
+    stop_at = std::min(path.size() - 1, i + 1);
+  }
+  t.motion_s = motion_s * (cruise > 0 ? until[stop_at] / cruise : 1.0);
+  charge(t, wall_delay);
+  ++totals.search_moves;
+  arrive(path[stop_at]);
+  if (!latched) return c + " 1 0";
+  std::string reply = c + " 1 1";
+  for (double v : *latched) reply += " " + fmt(v, irc5::kJointDecimals);
+  return reply;
 }
 
 std::optional<BeamHit> SimController::Impl::spotNow() const {
@@ -551,6 +663,27 @@ std::optional<std::string> SimController::Impl::respond(const irc5::ParsedReques
         b[i] = r.params[0] == 0 ? l.lower_deg : l.upper_deg;
       }
       return six(b, 3);
+    }
+    case irc5::kSearchSpiral: {
+      // Row 0: the centre's joints; rows 1 and 2: the joints per mm of spot along u and v.
+      if (n != 7 || !(r.params[0] == 0 || r.params[0] == 1 || r.params[0] == 2)) return bad;
+      if (!options.search.wired) return c + " 0 no search signal";
+      const int row = static_cast<int>(r.params[0]);
+      Joints& v = row == 0 ? search.centre_deg : row == 1 ? search.per_u_mm : search.per_v_mm;
+      for (int i = 0; i < kJointCount; ++i) v[i] = f32(r.params[1 + i]);
+      search_rows |= 1 << row;
+      return done;
+    }
+    case irc5::kSearchRun: {
+      if (n != 4) return bad;
+      if (search_rows != 7) return c + " 0 no search spiral";
+      const double pitch = f32(r.params[0]);
+      const SearchRun run{f32(r.params[1]), f32(r.params[2]), f32(r.params[3])};
+      if (!(pitch > 0) || !(run.from_mm >= 0) || !(run.to_mm >= run.from_mm) ||
+          !(run.speed_mm_s > 0) || run.speed_mm_s > speed_tcp_mm_s)
+        return bad;
+      search.pitch_mm = pitch;
+      return searchRun(run, wall_delay);
     }
     case irc5::kSimBeamSpot: {
       // Simulator only: what a PSD placed in the world would see now (an external daemon's

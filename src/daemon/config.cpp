@@ -309,6 +309,8 @@ std::vector<Field> schema(DaemonConfig& c) {
   f.push_back(realField("servo.search_radius_mm", s.search_radius_mm));
   f.push_back(realField("servo.search_step_mm", s.search_step_mm));
   f.push_back(realField("servo.search_time_s", s.search_time_s));
+  f.push_back(realField("servo.sweep_speed_mm_s", s.sweep_speed_mm_s));
+  f.push_back(realField("servo.sweep_pitch_mm", s.sweep_pitch_mm));
   f.push_back(realField("servo.gain", s.gain));
   f.push_back(realField("servo.damping_mm", s.damping_mm));
 
@@ -586,6 +588,13 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
     check.fail("servo.search_step_mm", str(s.search_step_mm) + " exceeds servo.search_radius_mm (" +
                                            str(s.search_radius_mm) + ")");
   check.positive("servo.search_time_s", s.search_time_s, 3600.0);
+  check.range("servo.sweep_speed_mm_s", s.sweep_speed_mm_s, 0.0, 1000.0);
+  if (s.sweep_speed_mm_s > l.speed_tcp_mm_s)
+    check.fail("servo.sweep_speed_mm_s", str(s.sweep_speed_mm_s) +
+                                             " exceeds controller.speed_tcp_mm_s (" +
+                                             str(l.speed_tcp_mm_s) + ")");
+  // Over 11.4 mm two turns of the spiral can pass either side of the lit disk (5.7 mm radius).
+  check.positive("servo.sweep_pitch_mm", s.sweep_pitch_mm, 11.0);
   // Above 1 the step overshoots a right Jacobian; the servo is stable for any gain in (0, 1].
   check.positive("servo.gain", s.gain, 1.0);
   // Damping of 1 (mm/deg)^2 already shortens every step by about half at the usual 1 mm/deg.

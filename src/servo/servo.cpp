@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <exception>
+#include <optional>
 
 #include "zerocal/error.h"
 #include "zerocal/model/kinematics.h"
@@ -71,6 +72,8 @@ std::string ServoOptions::validate() const {
   if (!(search_radius_mm >= 0)) return "search_radius_mm must not be negative";
   if (max_search_points < 0) return "max_search_points must not be negative";
   if (!(search_time_s > 0)) return "search_time_s must be positive";
+  if (!(sweep_speed_mm_s >= 0)) return "sweep_speed_mm_s must not be negative";
+  if (!(sweep_pitch_mm > 0)) return "sweep_pitch_mm must be positive";
   if (!(settle_s >= 0)) return "settle_s must not be negative";
   return {};
 }
@@ -237,20 +240,21 @@ void PsdServo::orderPath(ServoResult& result) const noexcept {
   std::rotate(tail, tail + static_cast<std::ptrdiff_t>(path_tail_next_), result.path.end());
 }
 
-bool PsdServo::acquire(ControllerLink& robot, PsdReader& psd, const Joints& planned,
-                       const PsdSpot& expected, ServoResult& result) noexcept {
-  const Eigen::Vector2d expected_uv = toVector(expected);
+bool PsdServo::spiral(ControllerLink& robot, PsdReader& psd, const Joints& base_q,
+                      const Eigen::Vector2d& expected_uv, double radius_mm, bool centre_read,
+                      ServoResult& result, bool* failed) noexcept {
+  *failed = false;
   const Eigen::Matrix<double, kJointCount, 2> pinv =
-      dampedPseudoInverse(imageJacobian(cell_, psd_centre_, planned), options_.damping_mm);
-  const JointVector base = toVector(planned);
+      dampedPseudoInverse(imageJacobian(cell_, psd_centre_, base_q), options_.damping_mm);
+  const JointVector base = toVector(base_q);
   // Archimedean spiral r = b theta, b = step / 2 pi: turns step apart, points step apart along it.
   const double b = options_.search_step_mm / (2 * kPi);
-  // The planned pose itself was read already; with a prediction the spiral's centre is new.
-  const bool centre_new = expected_uv.norm() > 0.5 * options_.search_step_mm;
+  // A centre already read is not read again.
+  const bool centre_new = !centre_read || expected_uv.norm() > 0.5 * options_.search_step_mm;
   double theta = centre_new ? 0.0 : 2 * kPi;
   for (int point = 0; point < options_.max_search_points; ++point) {
     const double r = b * theta;
-    if (r > options_.search_radius_mm) break;
+    if (r > radius_mm) break;
     if (result.reading.time_s - result.start_s > options_.search_time_s) break;
     // Spot offsets wanted from where it is expected: dq = J^+ (wanted - expected).
     const Eigen::Vector2d offset(r * std::cos(theta), r * std::sin(theta));
@@ -260,23 +264,155 @@ bool PsdServo::acquire(ControllerLink& robot, PsdReader& psd, const Joints& plan
     // Points the arm cannot reach are skipped; the rest of the spiral may still find the spot.
     if (!cell_.robot.withinLimits(target, options_.limit_margin_deg)) continue;
     const int before = result.moves;
-    if (walkTo(robot, target, result) != Step::kOk) return false;
+    const Step walked = walkTo(robot, target, result);
     result.search_moves += result.moves - before;
-    if (read(psd, result) != Step::kOk) return false;
+    if (walked != Step::kOk || read(psd, result) != Step::kOk) {
+      *failed = true;
+      return false;
+    }
     if (result.reading.spot_present) {
       // Taken on the fly: the fine servo starts from a settled reading.
       if (options_.settle_s <= 0 || clock_ == nullptr) return true;
-      if (settledRead(psd, result) != Step::kOk) return false;
+      if (settledRead(psd, result) != Step::kOk) {
+        *failed = true;
+        return false;
+      }
       result.settle_acquisition_s = result.settle_s;
       return true;
     }
   }
+  return false;
+}
+
+PsdServo::Sweep PsdServo::sweep(ControllerLink& robot, PsdReader& psd, const Joints& planned,
+                                const PsdSpot& expected, ServoResult& result) noexcept {
+  if (!(options_.sweep_speed_mm_s > 0)) return Sweep::kUnavailable;
+  // The point-by-point spiral's own mapping, q = planned + J^+ (offset - expected), as rows.
+  const Eigen::Matrix<double, kJointCount, 2> pinv =
+      dampedPseudoInverse(imageJacobian(cell_, psd_centre_, planned), options_.damping_mm);
+  SpotSearch search;
+  search.pitch_mm = options_.sweep_pitch_mm;
+  search.centre_deg = toJoints(toVector(planned) - pinv * toVector(expected));
+  search.per_u_mm = toJoints(pinv.col(0));
+  search.per_v_mm = toJoints(pinv.col(1));
+  bool offered = false;
+  try {
+    offered = robot.startSpotSearch(search);
+  } catch (...) {
+    latchLinkError(result, ServoStatus::kLinkError, "the controller link failed starting a search");
+    return Sweep::kFailed;
+  }
+  if (!offered) return Sweep::kUnavailable;
+  // To the spiral's centre in checked steps, then runs of growing radius, each short enough that
+  // an abort waits at most ~kRunS for the move in progress: a run from r0 to r1 is a path of
+  // about pi (r1^2 - r0^2) / pitch.
+  constexpr double kRunS = 3.0;
+  if (maxAbs(toVector(search.centre_deg) - toVector(q_)) > 1e-9) {
+    // The signal interrupts on a rising edge: a spiral that starts lit would pass the spot by.
+    const int before = result.moves;
+    const Step walked = walkTo(robot, search.centre_deg, result);
+    result.search_moves += result.moves - before;
+    if (walked != Step::kOk || read(psd, result) != Step::kOk) return Sweep::kFailed;
+    if (result.reading.spot_present) {
+      if (options_.settle_s > 0 && clock_ != nullptr) {
+        if (settledRead(psd, result) != Step::kOk) return Sweep::kFailed;
+        result.settle_acquisition_s = result.settle_s;
+      }
+      return result.reading.spot_present ? Sweep::kLit : Sweep::kNear;
+    }
+  }
+  const double area_per_run = options_.sweep_speed_mm_s * kRunS * search.pitch_mm / kPi;
+  bool refused = false;
+  SearchRun run;
+  run.speed_mm_s = options_.sweep_speed_mm_s;
+  for (run.from_mm = 0; run.from_mm < options_.search_radius_mm; run.from_mm = run.to_mm) {
+    run.to_mm =
+        std::min(options_.search_radius_mm, std::sqrt(run.from_mm * run.from_mm + area_per_run));
+    if (aborted(result)) return Sweep::kFailed;
+    const double now = clock_ != nullptr ? clock_->nowS() : result.end_s;
+    if (now - result.start_s > options_.search_time_s) break;
+    std::optional<Joints> hit;
+    try {
+      hit = robot.searchRun(run);
+    } catch (const LinkError& e) {
+      // A waypoint out of reach (or a run this controller refuses): the spiral point by point
+      // skips what it cannot reach.
+      if (e.kind() != LinkError::Kind::kRefused) {
+        latchLinkError(result, ServoStatus::kLinkError, "the controller link failed in a search");
+        return Sweep::kFailed;
+      }
+      refused = true;
+      break;
+    } catch (...) {
+      latchLinkError(result, ServoStatus::kLinkError, "the controller link failed in a search");
+      return Sweep::kFailed;
+    }
+    ++result.moves;
+    ++result.search_moves;
+    if (!hit) continue;
+    // The robot came to rest a waypoint or so beyond where the light rose: back there.
+    try {
+      q_ = robot.readJoints();
+    } catch (...) {
+      latchLinkError(result, ServoStatus::kLinkError, "the controller link failed reading joints");
+      return Sweep::kFailed;
+    }
+    const int before = result.moves;
+    const Step back = walkTo(robot, *hit, result);
+    result.search_moves += result.moves - before;
+    if (back != Step::kOk || settledRead(psd, result) != Step::kOk) return Sweep::kFailed;
+    result.settle_acquisition_s = result.settle_s;
+    return result.reading.spot_present ? Sweep::kLit : Sweep::kNear;
+  }
+  try {
+    q_ = robot.readJoints();
+  } catch (...) {
+    latchLinkError(result, ServoStatus::kLinkError, "the controller link failed reading joints");
+    return Sweep::kFailed;
+  }
+  return refused ? Sweep::kUnavailable : Sweep::kNothing;
+}
+
+void PsdServo::notFound(ControllerLink& robot, const Joints& planned,
+                        ServoResult& result) noexcept {
   // Leave the robot where the caller put it, not somewhere on the spiral.
   const int before = result.moves;
   const Step back = walkTo(robot, planned, result);
   result.search_moves += result.moves - before;
   if (back == Step::kOk)
     latch(result, ServoStatus::kSpotNotFound, "spot not found; robot back at the planned pose");
+}
+
+bool PsdServo::acquire(ControllerLink& robot, PsdReader& psd, const Joints& planned,
+                       const PsdSpot& expected, ServoResult& result) noexcept {
+  bool failed = false;
+  switch (sweep(robot, psd, planned, expected, result)) {
+    case Sweep::kLit:
+      return true;
+    case Sweep::kFailed:
+      return false;
+    case Sweep::kNothing:
+      notFound(robot, planned, result);
+      return false;
+    case Sweep::kNear:
+      // Where the signal rose the reading is dark: the detector's edge is a pitch away at most.
+      if (spiral(robot, psd, q_, Eigen::Vector2d::Zero(), options_.sweep_pitch_mm, true, result,
+                 &failed))
+        return true;
+      if (!failed) notFound(robot, planned, result);
+      return false;
+    case Sweep::kUnavailable:
+      break;
+  }
+  // Point by point, from the planned pose (the search moves, if any, left it).
+  if (maxAbs(toVector(q_) - toVector(planned)) > 1e-3) {
+    if (walkTo(robot, planned, result) != Step::kOk) return false;
+  }
+  q_ = planned;  // not its float32 echo
+  if (spiral(robot, psd, planned, toVector(expected), options_.search_radius_mm, true, result,
+             &failed))
+    return true;
+  if (!failed) notFound(robot, planned, result);
   return false;
 }
 

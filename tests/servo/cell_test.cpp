@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <vector>
 
 #include "stored_plan.h"
@@ -112,6 +113,104 @@ TEST(SimulatedCell, SpotNeverFoundLeavesTheRobotAtThePlannedPose) {
   EXPECT_TRUE(servo.faulted());
   const Joints now = rig.client.readJoints();
   for (int i = 0; i < kJointCount; ++i) EXPECT_NEAR(now[i], planned[i], 1e-4);
+}
+
+// The continuous search (the PSD's light signal wired to the controller) finds the spot of the
+// first pose, which has no prediction, in a few search moves; without the signal the same pose
+// takes the point-by-point spiral's many. Both end converged.
+TEST(SimulatedCell, ContinuousSearchFindsTheSpotInAFewMoves) {
+  int continuous_moves = 0, discrete_moves = 0;
+  for (bool wired : {true, false}) {
+    sim::SimulatedCellOptions options = cellOptions(13, 1.5e-3);
+    options.search_signal = wired;
+    Rig rig(options);
+    const Knowledge k = knowledgeOf(rig.cell.world());
+    const Joints planned = planFor("realistic-13")[0].q_deg;
+    rig.client.moveJoints(planned);
+    ASSERT_FALSE(rig.psd.read().spot_present) << "the test needs a pose that misses the detector";
+    PsdServo servo(k.cell, k.taught_centre, withoutClock(ServoStop::kZone));
+    const ServoResult r = servo.run(rig.client, rig.psd, planned);
+    ASSERT_TRUE(r.ok()) << statusName(r.status) << ": " << servo.fault().message;
+    (wired ? continuous_moves : discrete_moves) = r.search_moves;
+    EXPECT_EQ(rig.cell.controller().motionTotals().search_moves > 0, wired);
+  }
+  std::printf("search moves: continuous %d, point by point %d\n", continuous_moves, discrete_moves);
+  EXPECT_LE(continuous_moves, 20);
+  EXPECT_GT(discrete_moves, 3 * continuous_moves);
+}
+
+// The spiral of the continuous search for a planned pose: the servo's own mapping.
+SpotSearch spiralAt(const Knowledge& k, const Joints& planned) {
+  const Eigen::Matrix<double, kJointCount, 2> pinv =
+      dampedPseudoInverse(imageJacobian(k.cell, k.taught_centre, planned), 1e-3);
+  SpotSearch search;
+  search.centre_deg = planned;
+  for (int i = 0; i < kJointCount; ++i) {
+    search.per_u_mm[i] = pinv(i, 0);
+    search.per_v_mm[i] = pinv(i, 1);
+  }
+  return search;
+}
+
+// A run latches the joints where the light rose (the edge of the lit disk, ~5.7 mm from the
+// detector's centre, plus what the input's latency carries it), and the robot rests within a
+// waypoint or two beyond.
+TEST(SimulatedCell, SearchRunLatchesTheJointsWhereTheLightRose) {
+  Rig rig(cellOptions(11, 0.0));
+  const Knowledge k = knowledgeOf(rig.cell.world());
+  const Joints planned = planFor("realistic-11")[0].q_deg;
+  rig.client.moveJoints(planned);
+  ASSERT_FALSE(rig.psd.read().spot_present) << "the test needs a pose that misses the detector";
+  ASSERT_TRUE(rig.client.startSpotSearch(spiralAt(k, planned)));
+  const double t0 = rig.cell.nowS();
+  const std::optional<Joints> hit = rig.client.searchRun({0, 60, 100});
+  ASSERT_TRUE(hit);
+  const double run_s = rig.cell.nowS() - t0;
+  EXPECT_EQ(rig.cell.controller().motionTotals().search_moves, 1);
+  const auto rest = rig.cell.controller().beamHitNow();
+  ASSERT_TRUE(rest);
+  rig.client.moveJoints(*hit);
+  const auto latched = rig.cell.controller().beamHitNow();
+  ASSERT_TRUE(latched);
+  const double from_centre = std::hypot(latched->spot.u_mm, latched->spot.v_mm);
+  EXPECT_GT(from_centre, 4.0);
+  EXPECT_LT(from_centre, 9.0);
+  EXPECT_LT(std::hypot(rest->spot.u_mm - latched->spot.u_mm, rest->spot.v_mm - latched->spot.v_mm),
+            16.0);
+  // One move's fixed cost and its settling at least.
+  const MotionTotals totals = rig.cell.controller().motionTotals();
+  EXPECT_GT(run_s, (totals.overhead_s + totals.settle_s) / totals.moves);
+}
+
+// A run with a waypoint outside the limits less the margin, too fast, or before a spiral was
+// given, is refused by the client before anything is sent.
+TEST(SimulatedCell, SearchRunsAreCheckedBeforeTheyAreSent) {
+  Rig rig(cellOptions(11, 0.0), [](Irc5Options& o) { o.limit_margin_deg = 1.0; });
+  const Knowledge k = knowledgeOf(rig.cell.world());
+  const Joints planned = planFor("realistic-11")[0].q_deg;
+  rig.client.moveJoints(planned);
+  EXPECT_THROW(rig.client.searchRun({0, 10, 100}), RequestRefusedError);
+  SpotSearch wild = spiralAt(k, planned);
+  wild.per_u_mm[0] = 10;  // 10 deg of joint 1 per mm: out of its range within the spiral
+  ASSERT_TRUE(rig.client.startSpotSearch(wild));
+  const long requests = rig.cell.controller().requestCount();
+  EXPECT_THROW(rig.client.searchRun({0, 60, 100}), RequestRefusedError);
+  ASSERT_TRUE(rig.client.startSpotSearch(spiralAt(k, planned)));
+  const long after_start = rig.cell.controller().requestCount();
+  EXPECT_THROW(rig.client.searchRun({0, 60, 1e6}), RequestRefusedError);
+  EXPECT_EQ(rig.cell.controller().requestCount(), after_start);
+  EXPECT_GT(after_start, requests);
+  EXPECT_EQ(rig.cell.controller().motionTotals().search_moves, 0);
+}
+
+// A controller without the light signal refuses the spiral; the client says so.
+TEST(SimulatedCell, NoLightSignalMeansNoContinuousSearch) {
+  sim::SimulatedCellOptions options = cellOptions(11, 0.0);
+  options.search_signal = false;
+  Rig rig(options);
+  const Knowledge k = knowledgeOf(rig.cell.world());
+  EXPECT_FALSE(rig.client.startSpotSearch(spiralAt(k, planFor("realistic-11")[0].q_deg)));
+  EXPECT_TRUE(rig.client.connected());
 }
 
 // The controller connection drops mid-servo, then the board is unplugged: each is latched as a

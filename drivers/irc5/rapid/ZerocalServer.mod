@@ -15,7 +15,9 @@ MODULE ZerocalServer
     !   - a client silent for kReceiveTimeout seconds is dropped, so a dead client cannot wedge the
     !     server (clients send 00 as a heartbeat);
     !   - the bind address is a constant to set per cell, not 127.0.0.1;
-    !   - extensions only in codes 40..49; codes 30..36 (buffered and circular moves) reply ok = 0.
+    !   - extensions only in codes 40..49; codes 30..36 (buffered and circular moves) reply ok = 0;
+    !   - a spot search (47, 49): a spiral driven without stopping, the joints latched by an
+    !     interrupt on a light signal from the PSD.
     !
     ! Request:  code SP *(param SP) "#"   e.g. "04 #", "02 +10.00000 -5.25000 ... #"
     ! Reply:    rcode SP ok SP [data] LF  e.g. "4 1 10.00000 -5.25000 0.00000 0.00000 90.00000 0.00000"
@@ -28,6 +30,13 @@ MODULE ZerocalServer
     CONST num kReceiveTimeout := 60;
     ! Seconds a request may stay without its '#' before it is answered as a bad message.
     CONST num kFragmentTimeout := 1;
+
+    ! The spot search (47, 49): the digital input that a comparator on the PSD amplifier's SUM
+    ! output drives high while light is on the detector (docs/irc5.md, "The spot search").
+    ! Define it in the I/O configuration under this name; without it 47 replies ok = 0.
+    CONST string kSearchSignal := "diZerocalSpot";
+    ! Zone of the search's waypoints (mm): small against their spacing (pitch / 2, ~4 mm).
+    CONST num kSearchZone := 1;
 
     ! Decimals of joint angles in replies. 5 matches num's float32 resolution near 100 deg; if
     ! NumToStr refuses 5 on this RobotWare, set 4 (the client reads either).
@@ -65,6 +74,18 @@ MODULE ZerocalServer
     PERS wobjdata zc_wobj := [FALSE,TRUE,"",[[0,0,0],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];
     VAR speeddata zc_speed := [100,50,0,0];
     VAR zonedata zc_zone;
+
+    ! The spot search: the signal and its interrupt, the spiral (47), the latched joints.
+    VAR signaldi search_di;
+    VAR intnum search_int;
+    VAR num search_rows := 0;
+    VAR num search_centre{6};
+    VAR num search_per_u{6};
+    VAR num search_per_v{6};
+    VAR bool search_found := FALSE;
+    VAR jointtarget search_hit;
+    VAR speeddata search_speed;
+    VAR zonedata search_zone;
 
     VAR jointtarget joint_target;
     VAR robtarget cart_target;
@@ -244,6 +265,7 @@ MODULE ZerocalServer
     ! Sets ok, data and close_after for `request`.
     PROC HandleRequest()
         VAR num value;
+        VAR num theta;
         VAR string which;
         ok := 0;
         data := "";
@@ -394,6 +416,58 @@ MODULE ZerocalServer
                 ok := 1;
                 restart_after := TRUE;
             ENDIF
+        CASE 47:
+            ! One row of the spot search's spiral: 0 = the centre's joints (deg), 1 and 2 = the
+            ! joints per mm of spot along the PSD's u and v (deg/mm). Row 0 binds the signal.
+            IF n_params = 7 AND (params{1} = 0 OR params{1} = 1 OR params{1} = 2) THEN
+                IF params{1} = 0 THEN
+                    search_rows := 0;
+                    AliasIO kSearchSignal, search_di;
+                ENDIF
+                FOR i FROM 1 TO 6 DO
+                    IF params{1} = 0 search_centre{i} := params{i + 1};
+                    IF params{1} = 1 search_per_u{i} := params{i + 1};
+                    IF params{1} = 2 search_per_v{i} := params{i + 1};
+                ENDFOR
+                search_rows := search_rows + 1;
+                ok := 1;
+            ENDIF
+        CASE 49:
+            ! One run of the spiral: pitch, from and to radius (mm), speed (mm/s). Every waypoint
+            ! is checked first; then MoveAbsJ through them in small zones, without stopping,
+            ! while an interrupt on the signal's rising edge latches the joints (SearchTrap) and
+            ! the loop stops queueing waypoints. Replies "1" and the latched joints, or "0".
+            IF n_params = 4 AND search_rows = 3 AND params{1} > 0 AND params{2} >= 0
+                AND params{3} >= params{2} AND params{4} > 0 AND params{4} <= zc_speed.v_tcp THEN
+                IF SearchRunWithinBounds() THEN
+                    search_found := FALSE;
+                    search_speed := [params{4}, zc_speed.v_ori, 0, 0];
+                    search_zone := [FALSE, kSearchZone, kSearchZone, kSearchZone, 0.1,
+                        kSearchZone, 0.1];
+                    IDelete search_int;
+                    CONNECT search_int WITH SearchTrap;
+                    ISignalDI \Single, search_di, 1, search_int;
+                    theta := 2 * pi * params{2} / params{1};
+                    WHILE NOT search_found AND params{1} * theta / (2 * pi) <= params{3} + 0.000001 DO
+                        SearchWaypoint theta;
+                        MoveAbsJ joint_target, search_speed, search_zone, zc_tool \WObj:=zc_wobj;
+                        theta := theta + (params{1} / 2)
+                            / Larger(params{1} * theta / (2 * pi), params{1} / 2);
+                    ENDWHILE
+                    WaitRob \InPos;
+                    IDelete search_int;
+                    IF search_found THEN
+                        data := "1 " + JointsText(search_hit);
+                    ELSE
+                        data := "0";
+                    ENDIF
+                    ok := 1;
+                ELSE
+                    data := "out of bounds";
+                ENDIF
+            ELSEIF search_rows <> 3 THEN
+                data := "no search spiral";
+            ENDIF
         CASE 98:
             IF n_params = 0 THEN
                 data := GetSysInfo(\SerialNo) + "*" + GetSysInfo(\SWVersion) + "*"
@@ -411,8 +485,58 @@ MODULE ZerocalServer
             SkipWarn;
             RETURN;
         ENDIF
+        ! 47 without the search signal defined in the I/O configuration.
+        IF ERRNO = ERR_ALIASIO_DEF OR ERRNO = ERR_ALIASIO_TYPE THEN
+            ok := 0;
+            data := "no search signal " + kSearchSignal;
+            search_rows := 0;
+            SkipWarn;
+            RETURN;
+        ENDIF
         RAISE;
     ENDPROC
+
+    ! The spiral's waypoint at angle theta (rad): centre + per_u x + per_v y, (x, y) = r (cos, sin),
+    ! r = pitch theta / 2 pi; into joint_target. The same formula as the client's
+    ! (forEachSearchWaypoint, include/zerocal/cell/search_move.h).
+    PROC SearchWaypoint(num theta)
+        VAR num r;
+        VAR num x;
+        VAR num y;
+        r := params{1} * theta / (2 * pi);
+        x := r * Cos(theta * 180 / pi);
+        y := r * Sin(theta * 180 / pi);
+        joint_target := CJointT();
+        joint_target.robax.rax_1 := search_centre{1} + search_per_u{1} * x + search_per_v{1} * y;
+        joint_target.robax.rax_2 := search_centre{2} + search_per_u{2} * x + search_per_v{2} * y;
+        joint_target.robax.rax_3 := search_centre{3} + search_per_u{3} * x + search_per_v{3} * y;
+        joint_target.robax.rax_4 := search_centre{4} + search_per_u{4} * x + search_per_v{4} * y;
+        joint_target.robax.rax_5 := search_centre{5} + search_per_u{5} * x + search_per_v{5} * y;
+        joint_target.robax.rax_6 := search_centre{6} + search_per_u{6} * x + search_per_v{6} * y;
+    ENDPROC
+
+    ! Every waypoint of the run in params{1..3} within the MOC bounds (checked before moving).
+    FUNC bool SearchRunWithinBounds()
+        VAR num theta;
+        theta := 2 * pi * params{2} / params{1};
+        WHILE params{1} * theta / (2 * pi) <= params{3} + 0.000001 DO
+            SearchWaypoint theta;
+            IF NOT WithinBounds(joint_target) RETURN FALSE;
+            theta := theta + (params{1} / 2) / Larger(params{1} * theta / (2 * pi), params{1} / 2);
+        ENDWHILE
+        RETURN TRUE;
+    ENDFUNC
+
+    FUNC num Larger(num a, num b)
+        IF a > b RETURN a;
+        RETURN b;
+    ENDFUNC
+
+    ! The signal rose: latch where the arm is, and let the run's loop stop queueing waypoints.
+    TRAP SearchTrap
+        search_hit := CJointT();
+        search_found := TRUE;
+    ENDTRAP
 
     ! One write: "rcode ok data" + LF. Code 99 gets no reply (upstream's behaviour).
     PROC SendReply()

@@ -4,9 +4,11 @@
 #pragma once
 
 #include <array>
+#include <optional>
 #include <string>
 
 #include "zerocal/cell/controller_calibration.h"
+#include "zerocal/cell/search_move.h"
 #include "zerocal/model/robot.h"
 
 namespace zerocal {
@@ -49,6 +51,24 @@ class ControllerLink {
   virtual TcpPose readPose() = 0;
   // Linear tool move (MoveL, fine point); returns when settled.
   virtual void moveLinear(const TcpPose& target) = 0;
+
+  // The continuous spot search, where the cell offers it (zerocal/cell/search_move.h): the PSD's
+  // light signal wired to one of the controller's digital inputs (docs/irc5.md).
+  // startSpotSearch() gives the controller the spiral; false when it offers no search (then
+  // searchRun must not be called).
+  virtual bool startSpotSearch(const SpotSearch& search) {
+    (void)search;
+    return false;
+  }
+  // Drives the robot through one run of the spiral without stopping. Returns the joints (deg)
+  // where the signal rose, the robot at rest a little further along; nullopt when it did not
+  // rise, the robot at the run's last waypoint. Throws a LinkError of kind kRefused, nothing
+  // sent, when a waypoint lies outside the limits less the margin or a step between waypoints
+  // exceeds the step limit.
+  virtual std::optional<Joints> searchRun(const SearchRun& run) {
+    (void)run;
+    return std::nullopt;
+  }
 };
 
 // A controller link with its connection's life: what a connected cell owns. The cell factory

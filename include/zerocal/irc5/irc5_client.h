@@ -97,6 +97,13 @@ class Irc5Client final : public ControllerConnection, public ControllerCalibrati
   // The quaternion is normalised before sending; throws RequestRefusedError for a zero one.
   void moveLinear(const TcpPose& target) override;
 
+  // The continuous spot search (requests 47 and 49; docs/irc5.md). startSpotSearch() is false
+  // when the server refuses the spiral's first row (upstream's, or a module whose light signal is
+  // not configured). searchRun checks every waypoint against the limits less the margin and
+  // every step against max_step_deg before sending (RequestRefusedError).
+  bool startSpotSearch(const SpotSearch& search) override;
+  std::optional<Joints> searchRun(const SearchRun& run) override;
+
   // Extensions (zerocal's server and simulator only; upstream replies ok = 0).
   void stop() override;
   std::array<double, 6> readExternalAxes();
@@ -141,6 +148,9 @@ class Irc5Client final : public ControllerConnection, public ControllerCalibrati
   RobotInfo info_;
   bool have_joints_ = false;
   Joints last_joints_{};
+  // The spiral the server holds; valid while search_ready_, which a new connection clears.
+  SpotSearch search_;
+  bool search_ready_ = false;
 };
 
 }  // namespace zerocal

@@ -34,6 +34,8 @@ enum Code : int {
   kSimWorldId = 44,       // simulator only: hash of the simulated world (16 hex digits), seed
   kWriteCalOffset = 45,   // extension: 2 params, joint 1..6 and MOC cal_offset (rad, [0, 2 pi))
   kRestart = 46,          // extension: reply, then restart the controller (MOC changes take effect)
+  kSearchSpiral = 47,     // extension: 7 params, one row of the spot search's spiral (joints)
+  kSearchRun = 49,        // extension: 4 params, one run of the spiral; the joints where light rose
   kRobotInfo = 98,
   kClose = 99,
 };

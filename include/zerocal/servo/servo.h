@@ -1,16 +1,28 @@
 // The PSD servo: from a planned pose, find the laser spot on the PSD (acquisition) and bring it to
 // the detector's centre (fine servo), with small joint moves the caller can bound.
 //
-// Acquisition: when SUM is below threshold at the planned pose, an Archimedean spiral in the PSD
-// plane around it (or around where the caller expects the spot), points `search_step_mm` apart
-// along the path and between turns, out to `search_radius_mm`. Every point is a move, and a move
-// costs a real controller about half a second whatever its length (docs/simulated-cell.md), so
-// the spacing follows the detector, not the spot: the 10 mm detector is lit (SUM over threshold)
-// with the spot's centre up to ~5.7 mm from its centre; 4 mm spacing leaves no point of the
-// plane farther than 2.8 mm from a search point, with room for the linearised model's error far
-// out (7 mm missed the spot in 4 of 10 seeded worlds, 5 mm one 58 mm out in seed 41). The
-// spiral is mapped to joints through the model's image Jacobian at the planned pose. Not found
-// within the bounds: the robot is walked back to the planned pose and the fault latched.
+// Acquisition when SUM is below threshold at the planned pose, out to `search_radius_mm` around
+// the planned pose (or around where the caller expects the spot):
+//
+// - Continuous search, where the controller offers it (the PSD's light signal wired to one of
+//   its inputs; ControllerLink::startSpotSearch, zerocal/cell/search_move.h) and
+//   `sweep_speed_mm_s` > 0: the same spiral mapping as below with turns `sweep_pitch_mm` apart,
+//   driven without stopping in runs of growing radius (each about 3 s, so that an abort waits
+//   little), the controller latching the joints where the light rose. The 10 mm detector is lit
+//   with the spot's centre up to ~5.7 mm from its centre, so an 8 mm pitch passes every point
+//   within 4 mm: a handful of moves to 60 mm instead of hundreds of points. The robot then steps
+//   back to the latched joints and a settled reading there starts the fine servo; should it be
+//   dark, a point-by-point spiral of one pitch around them.
+// - Otherwise a discrete Archimedean spiral, points `search_step_mm` apart along the path and
+//   between turns. Every point is a move, and a move costs a real controller about half a second
+//   whatever its length (docs/simulated-cell.md), so the spacing follows the detector, not the
+//   spot: 4 mm leaves no point of the plane farther than 2.8 mm from a search point, with room
+//   for the linearised model's error far out (7 mm missed the spot in 4 of 10 seeded worlds,
+//   5 mm one 58 mm out in seed 41). The spiral is mapped to joints through the model's image
+//   Jacobian at the planned pose.
+//
+// Not found within the bounds: the robot is walked back to the planned pose and the fault
+// latched.
 //
 // Fine servo: a ServoLaw (servo_law.h) turns each steering reading into a joint correction; the
 // default, CorrectedJacobianLaw, is this: e = (u, v) - target; dq = -gain J^+ e, with J = d(u,
@@ -88,6 +100,10 @@ struct ServoOptions {
   double search_radius_mm = 60.0;
   double search_step_mm = 4.0;
   double search_time_s = 600;  // at ~0.5 s a point, the 60 mm radius ends it first
+  // The continuous search (above): speed along the path, 0 for the discrete spiral only; the
+  // distance between its turns.
+  double sweep_speed_mm_s = 100.0;
+  double sweep_pitch_mm = 8.0;
   double gain = 0.9;           // below 1: no overshoot from a slightly wrong Jacobian
   double damping_mm = 1e-3;    // Tikhonov term of the pseudo-inverse (mm/deg)^2 scale
 
@@ -210,6 +226,22 @@ class PsdServo {
   void orderPath(ServoResult& result) const noexcept;
   bool acquire(ControllerLink& robot, PsdReader& psd, const Joints& planned,
                const PsdSpot& expected, ServoResult& result) noexcept;
+  enum class Sweep {
+    kUnavailable,  // no continuous search here: search point by point
+    kLit,          // the spot on the detector, a settled reading taken
+    kNear,         // the signal rose, but the reading where it rose is dark
+    kNothing,      // the whole spiral without a signal
+    kFailed,       // latched
+  };
+  Sweep sweep(ControllerLink& robot, PsdReader& psd, const Joints& planned, const PsdSpot& expected,
+              ServoResult& result) noexcept;
+  // The discrete spiral around `base` + J^+ (offset - expected_uv), out to radius_mm; true when
+  // a settled reading sees the spot. False with nothing latched when the spiral ends dark.
+  bool spiral(ControllerLink& robot, PsdReader& psd, const Joints& base,
+              const Eigen::Vector2d& expected_uv, double radius_mm, bool centre_read,
+              ServoResult& result, bool* failed) noexcept;
+  // Walks back to the planned pose and latches kSpotNotFound.
+  void notFound(ControllerLink& robot, const Joints& planned, ServoResult& result) noexcept;
   void fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& result) noexcept;
   ServoResult& latch(ServoResult& result, ServoStatus status, const char* message) noexcept;
   // latch() from inside a catch handler, keeping the LinkError's kind of the exception in flight.

@@ -18,6 +18,7 @@
 
 #include "zerocal/irc5/motion_time.h"
 #include "zerocal/model/robot.h"
+#include "zerocal/sim/psd_model.h"
 #include "zerocal/sim/world.h"
 
 namespace zerocal {
@@ -53,6 +54,19 @@ struct SimMotorCalibration {
   std::optional<std::array<double, kJointCount>> transmission;
 };
 
+// The spot search's light signal (requests 47 and 49, docs/irc5.md): a comparator on the PSD
+// amplifier's SUM output wired to a digital input, whose rising edge interrupts the RAPID module's
+// run and latches the joints. The simulated controller evaluates the detector's noise-free SUM
+// along the run's path.
+struct SimSearchSignal {
+  bool wired = true;         // false: 47 is refused as by a module whose signal is not configured
+  sim::PsdModelOptions psd;  // the detector the comparator watches
+  double threshold_v = 0.5;  // the comparator's threshold (the chain's daq.sum_threshold_v)
+  // From the light crossing the threshold to the trap latching the joints (s): the input's
+  // filter, the I/O cycle and the interrupt, uniform in [min, max] (inferred, docs/irc5.md).
+  double latency_min_s = 0.002, latency_max_s = 0.012;
+};
+
 struct SimControllerOptions {
   World world;
   SimMotorCalibration motor;
@@ -65,6 +79,7 @@ struct SimControllerOptions {
   double pace = 0.0;
   // What each move costs beyond its distance over its speed (docs/simulated-cell.md).
   irc5::MotionCosts motion;
+  SimSearchSignal search;
   // Seeds the repeatability noise.
   std::uint64_t seed = 1;
   // A request still missing its '#' after this long gets a bad-message reply and is discarded
@@ -80,7 +95,8 @@ struct SimControllerOptions {
 
 // Where the simulated time of the moves went, summed over every move since construction.
 struct MotionTotals {
-  long moves = 0;
+  long moves = 0;  // search moves (47) included
+  long search_moves = 0;
   double motion_s = 0, overhead_s = 0, settle_s = 0;
 };
 

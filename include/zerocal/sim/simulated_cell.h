@@ -29,6 +29,8 @@ struct SimulatedCellOptions {
   std::uint64_t controller_seed = 1;  // repeatability noise of the moves
   double pace = 0.0;  // wall seconds per simulated second of a move (SimControllerOptions::pace)
   irc5::MotionCosts motion;  // what each move costs the controller (SimControllerOptions::motion)
+  // The PSD's light signal wired to the controller (the continuous spot search, SimSearchSignal).
+  bool search_signal = true;
   PsdModelOptions psd;       // detector, board noise and its seed
   std::uint32_t board_seed = 1408;  // the board's calibration table
   Joints start_joints{0, 0, 0, 0, 30, 0};

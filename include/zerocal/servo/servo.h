@@ -12,7 +12,9 @@
 //   with the spot's centre up to ~5.7 mm from its centre, so an 8 mm pitch passes every point
 //   within 4 mm: a handful of moves to 60 mm instead of hundreds of points. The robot then steps
 //   back to the latched joints and a settled reading there starts the fine servo; should it be
-//   dark, a point-by-point spiral of one pitch around them.
+//   dark, a point-by-point spiral of one pitch around them. A spiral that ends dark is driven
+//   once more turned half a turn, its turns between the first one's (the linearised mapping
+//   spreads them far out).
 // - Otherwise a discrete Archimedean spiral, points `search_step_mm` apart along the path and
 //   between turns. Every point is a move, and a move costs a real controller about half a second
 //   whatever its length (docs/simulated-cell.md), so the spacing follows the detector, not the
@@ -235,6 +237,9 @@ class PsdServo {
   };
   Sweep sweep(ControllerLink& robot, PsdReader& psd, const Joints& planned, const PsdSpot& expected,
               ServoResult& result) noexcept;
+  // One spiral: to its centre, then its runs.
+  Sweep sweepPass(ControllerLink& robot, PsdReader& psd, const SpotSearch& search,
+                  ServoResult& result) noexcept;
   // The discrete spiral around `base` + J^+ (offset - expected_uv), out to radius_mm; true when
   // a settled reading sees the spot. False with nothing latched when the spiral ends dark.
   bool spiral(ControllerLink& robot, PsdReader& psd, const Joints& base,

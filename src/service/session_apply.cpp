@@ -2,8 +2,10 @@
 // (docs/apply.md): the engine (zerocal/apply/online_apply.h) driven on the worker thread against
 // the connected cell's ControllerCalibration, with a verification that is an ordinary session of
 // the configured plan (its own folder, events and result).
+#include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <thread>
 
 #include "zerocal/apply/online_apply.h"
 #include "zerocal/daemon/logging.h"
@@ -369,11 +371,37 @@ int SessionManager::recoverInterruptedApplies() {
   return static_cast<int>(ids.size());
 }
 
+void SessionManager::connectWaitingForRestart() {
+  if (cell_) return;
+  const auto deadline = std::chrono::steady_clock::now() + settings_.controller_restart_timeout;
+  std::chrono::milliseconds pause(100);
+  bool said = false;
+  for (;;) {
+    worker_.markProgress();
+    try {
+      cell_ = backend_.connect();
+      return;
+    } catch (const LinkError& e) {
+      if (e.kind() != LinkError::Kind::kTransient || board_.abortRequested() ||
+          std::chrono::steady_clock::now() + pause >= deadline)
+        throw;
+      if (!said)
+        makeLogger("apply")->warn(
+            "the controller does not serve ({}); it may be restarting: waiting up to {} s",
+            e.what(), settings_.controller_restart_timeout.count() / 1000);
+      said = true;
+    }
+    std::this_thread::sleep_for(pause);
+    pause = std::min(2 * pause, std::chrono::milliseconds(2000));
+  }
+}
+
 void SessionManager::runRecovery(const std::vector<std::string>& ids) {
   for (std::size_t i = 0; i < ids.size(); ++i) {
     ApplyEvent event;
     event.session = ids[i];
     try {
+      connectWaitingForRestart();
       CellCalibration calibration(*this);
       apply::ApplyJournal journal(applyJournalPath(store_, ids[i]));
       const apply::Recovery r = apply::recoverApply(calibration, journal);

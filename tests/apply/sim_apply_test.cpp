@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <thread>
 
 #include "zerocal/apply/motor_calibration.h"
 #include "zerocal/error.h"
@@ -128,6 +129,56 @@ TEST(SimulatedMotorCalibration, WrittenOverTheLinkTakenAtTheRestart) {
   EXPECT_NEAR(sim.calOffsets()[2], 3.5, 1e-6);
   EXPECT_NEAR(client.readCalOffsets()[2], 3.5, 1e-6);
   EXPECT_EQ(sim.zeroShiftDeg()[1], 0.0);
+}
+
+// A restart costs what a warm start costs (restart_s of simulated time, pace x that of wall time),
+// and meanwhile the controller refuses connections; the client waits for it, up to its
+// restart_timeout.
+TEST(SimulatedMotorCalibration, ARestartTakesAWarmStartsTimeRefusingConnectionsMeanwhile) {
+  using namespace std::chrono;
+  SimControllerOptions o;
+  o.world = randomWorld(2);
+  o.restart_s = 30;
+  o.pace = 0.01;  // 0.3 s of wall time
+  SimController sim(o);
+  sim.start();
+  Irc5Client client(clientOptions(sim.port()));
+  client.connect();
+  const double before_s = sim.simTimeS();
+  const auto asked = steady_clock::now();
+  client.rawRequest("46 #", 0, milliseconds(1000));
+  Irc5Client probe(clientOptions(sim.port()));
+  for (int i = 0; i < 100 && sim.restartCount() == 0; ++i) std::this_thread::sleep_for(1ms);
+  EXPECT_THROW(probe.connect(), ConnectionError);  // refused: the server is not back
+  EXPECT_EQ(sim.simTimeS() - before_s, 30.0);
+  bool back = false;
+  while (!back && steady_clock::now() - asked < 5s) {
+    try {
+      probe.connect();
+      back = true;
+    } catch (const ConnectionError&) {
+      std::this_thread::sleep_for(5ms);
+    }
+  }
+  ASSERT_TRUE(back);
+  const auto down = steady_clock::now() - asked;
+  EXPECT_GE(down, 290ms);
+  EXPECT_LT(down, 3s);
+  probe.close();
+
+  // restartController() waits for it; with a restart_timeout shorter than the restart it gives up.
+  client.connect();
+  const auto t0 = steady_clock::now();
+  client.restartController();
+  EXPECT_GE(steady_clock::now() - t0, 290ms);
+  EXPECT_TRUE(client.connected());
+  EXPECT_EQ(sim.restartCount(), 2);
+  Irc5Options impatient = clientOptions(sim.port());
+  impatient.restart_timeout = milliseconds(100);
+  Irc5Client hurried(impatient);
+  hurried.connect();
+  client.close();
+  EXPECT_THROW(hurried.restartController(), TimeoutError);
 }
 
 TEST(SimulatedMotorCalibration, RefusesValuesNoControllerHolds) {

@@ -624,6 +624,11 @@ void Irc5Client::writeCalOffset(int joint, double rad) {
            options_.request_timeout);
 }
 
+std::array<double, 6> Irc5Client::readMotorAngles() {
+  return sixNumbers(transact(request(irc5::kReadMotorAngles), irc5::kReadMotorAngles, 6,
+                             options_.request_timeout));
+}
+
 void Irc5Client::restartController() {
   transact(request(irc5::kRestart), irc5::kRestart, 0, options_.request_timeout);
   // The controller goes away now and refuses or ignores connections until its restart is over:

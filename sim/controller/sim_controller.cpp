@@ -705,6 +705,17 @@ std::optional<std::string> SimController::Impl::respond(const irc5::ParsedReques
       if (n != 0) return bad;
       restart_requested = true;
       return done;
+    case irc5::kReadMotorAngles: {
+      // ReadMotor: the motor's angle behind the joint angle the controller reports, q = (phi -
+      // cal_offset) / k with the arm's true k, within one motor turn (docs/apply.md: inferred).
+      if (n != 0) return bad;
+      std::array<double, 6> phi;
+      for (int i = 0; i < kJointCount; ++i) {
+        const double turns = cal_offset[i] + transmission[i] * commanded[i] * kDegToRad;
+        phi[i] = f32(turns - 2 * kPi * std::floor(turns / (2 * kPi)));
+      }
+      return six(phi, 6);
+    }
     case irc5::kReadJointBounds: {
       if (n != 1 || (r.params[0] != 0 && r.params[0] != 1)) return bad;
       std::array<double, 6> b;

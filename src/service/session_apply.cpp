@@ -79,6 +79,7 @@ class SessionManager::CellCalibration final : public ControllerCalibration {
   std::array<double, 6> readCalOffsets() override { return get().readCalOffsets(); }
   void writeCalOffset(int joint, double rad) override { get().writeCalOffset(joint, rad); }
   void restart() override { get().restart(); }
+  std::array<double, 6> readMotorAngles() override { return get().readMotorAngles(); }
   bool updateRevolutionCounter(int joint) override { return get().updateRevolutionCounter(joint); }
 
  private:
@@ -215,10 +216,29 @@ void SessionManager::runApply(const std::string& id, const ResultFile& result) {
           "against the present ones");
     }
     const Robot& robot = knowledge_.cell.robot;
+    apply::ApplyJournal journal(applyJournalPath(store_, id));
+    // Measured before anything is written: a transmission whose sign or ratio the robot file has
+    // wrong would move the zero the wrong way (docs/apply.md, "The transmission measured").
+    std::vector<apply::TransmissionMeasurement> measured;
+    for (int j = 2; j <= 5; ++j) {
+      progress("joint " + std::to_string(j) +
+               ": measuring its transmission (a small joint move, read on the motor side, and "
+               "back)");
+      measured.push_back(apply::measureTransmission(cell_->robot(), calibration, robot, j,
+                                                    settings_.transmission_check));
+      progress(measured.back().message);
+    }
+    apply::journalTransmissionCheck(journal, measured);
+    std::string disagree;
+    for (const apply::TransmissionMeasurement& m : measured)
+      if (!m.agrees) disagree += (disagree.empty() ? "" : "; ") + m.message;
+    if (!disagree.empty())
+      throw Refused("transmission", "the robot file's transmission disagrees with the cell: " +
+                                        disagree + "; nothing was written");
     if (!robot.transmission_confirmed)
       progress(
-          "the robot file's transmissions are not confirmed: the verification settles them "
-          "(a wrong sign doubles the offset and is rolled back)");
+          "the robot file's transmissions are not confirmed, but agree with the cell's "
+          "measurement; the verification settles the rest");
     const apply::Offsets before = offsetsOf(result);
     std::array<apply::CalOffsetChange, 4> changes;
     for (int j = 2; j <= 5; ++j) {
@@ -226,7 +246,6 @@ void SessionManager::runApply(const std::string& id, const ResultFile& result) {
                                               robot.transmission[j - 1], present[j - 1]);
       progress(apply::formulaText(changes[j - 2]));
     }
-    apply::ApplyJournal journal(applyJournalPath(store_, id));
     apply::OnlineApplyOptions options;
     options.required_deg = settings_.session.required_accuracy_deg;
     options.progress = progress;

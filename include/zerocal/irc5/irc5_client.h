@@ -116,6 +116,9 @@ class Irc5Client final : public ControllerConnection, public ControllerCalibrati
   // 45, RAPID WriteCfgData). The motion system takes it at the controller's next restart; read
   // back with readCalOffsets. Throws BadMessageError when the controller refuses it.
   void writeCalOffset(int joint, double rad) override;
+  // The six motors' angles now (request 48, RAPID ReadMotor), radians. Throws BadMessageError
+  // from a server without request 48.
+  std::array<double, 6> readMotorAngles() override;
   // Restarts the controller so that written system parameters take effect (request 46, RAPID
   // WarmStart), then connects again as soon as it serves, trying until restart_timeout. Throws
   // TimeoutError when it does not come back within it (the last attempt's error in the

@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "zerocal/apply/transmission_check.h"
 #include "zerocal/cell/cell.h"
 #include "zerocal/daemon/config.h"
 #include "zerocal/service/session_board.h"
@@ -43,6 +44,8 @@ struct ManagerSettings {
   // How long the recovery of an interrupted apply waits for a controller that refuses or ignores
   // connections: a daemon killed while the controller restarted on new values comes back first.
   std::chrono::milliseconds controller_restart_timeout{180000};
+  // The online apply measures joints 2..5's transmissions before it writes (docs/apply.md).
+  apply::TransmissionCheckOptions transmission_check;
 };
 
 class SessionManager final : public SessionControl {

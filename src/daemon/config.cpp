@@ -570,7 +570,8 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
   // A calibration never needs one move larger than this; a larger step is a typing error.
   check.positive("controller.max_step_deg", k.max_step_deg, 45.0);
   check.range("controller.reconnect_attempts", l.reconnect_attempts, 0, 1000);
-  check.positive("controller.restart_timeout_ms", l.restart_timeout.count(), 3600000);
+  // The wait for a restart shows no progress: it must stay below the worker's 120 s stall limit.
+  check.positive("controller.restart_timeout_ms", l.restart_timeout.count(), 110000);
 
   checkDaq(c.daq, check);
 

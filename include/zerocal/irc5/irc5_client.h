@@ -58,7 +58,7 @@ struct Irc5Options {
   std::chrono::milliseconds backoff_max{2000};
   // restartController(): how long the restarting controller may take to serve again, tried
   // with the same back-off. A warm start takes tens of seconds (docs/irc5.md).
-  std::chrono::milliseconds restart_timeout{180000};
+  std::chrono::milliseconds restart_timeout{90000};
 };
 
 // What zerocal-sim says it simulates (simulator-only request 44).

@@ -43,7 +43,7 @@ struct ManagerSettings {
   std::function<void(const std::string& session_dir)> write_reports;
   // How long the recovery of an interrupted apply waits for a controller that refuses or ignores
   // connections: a daemon killed while the controller restarted on new values comes back first.
-  std::chrono::milliseconds controller_restart_timeout{180000};
+  std::chrono::milliseconds controller_restart_timeout{90000};
   // The online apply measures joints 2..5's transmissions before it writes (docs/apply.md).
   apply::TransmissionCheckOptions transmission_check;
 };

@@ -184,6 +184,7 @@ Irc5Client::Irc5Client(Irc5Options options) : options_(std::move(options)), io_(
     problems.push_back("speed_tcp_mm_s and speed_ori_deg_s must be positive");
   }
   if (options_.reconnect_attempts < 1) problems.push_back("reconnect_attempts must be >= 1");
+  if (options_.restart_timeout.count() <= 0) problems.push_back("restart_timeout must be > 0");
   if (!problems.empty()) throw ConfigError("Irc5Options", problems);
 }
 
@@ -623,9 +624,33 @@ void Irc5Client::writeCalOffset(int joint, double rad) {
            options_.request_timeout);
 }
 
+std::array<double, 6> Irc5Client::readMotorAngles() {
+  return sixNumbers(transact(request(irc5::kReadMotorAngles), irc5::kReadMotorAngles, 6,
+                             options_.request_timeout));
+}
+
 void Irc5Client::restartController() {
   transact(request(irc5::kRestart), irc5::kRestart, 0, options_.request_timeout);
-  reconnect();
+  // The controller goes away now and refuses or ignores connections until its restart is over:
+  // a few attempts (reconnect()) would give up long before a warm start ends.
+  io_->shut();
+  have_joints_ = false;
+  const auto deadline = Clock::now() + options_.restart_timeout;
+  auto backoff = options_.backoff_initial;
+  for (;;) {
+    std::this_thread::sleep_for(backoff);
+    try {
+      connect();
+      return;
+    } catch (const LinkError& e) {
+      if (e.kind() != LinkError::Kind::kTransient) throw;
+      if (Clock::now() + backoff >= deadline)
+        throw TimeoutError("the controller did not serve again within " +
+                           std::to_string(options_.restart_timeout.count()) +
+                           " ms of its restart: " + e.what());
+    }
+    backoff = std::min(backoff * 2, options_.backoff_max);
+  }
 }
 
 std::array<JointLimit, kJointCount> Irc5Client::readJointBounds() {

@@ -165,6 +165,7 @@ int expectedReplyFields(int code) {
     case kReadExternalAxes:
     case kReadCalOffset:
     case kReadJointBounds:
+    case kReadMotorAngles:
       return 6;
     case kSimBeamSpot:
       return 3;

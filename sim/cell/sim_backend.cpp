@@ -25,6 +25,7 @@ class SimCalibration final : public ControllerCalibration {
       : link_(link), controller_(controller) {}
   std::array<double, 6> readCalOffsets() override { return link_.readCalOffsets(); }
   void writeCalOffset(int joint, double rad) override { link_.writeCalOffset(joint, rad); }
+  std::array<double, 6> readMotorAngles() override { return link_.readMotorAngles(); }
   void restart() override { link_.restart(); }
   bool updateRevolutionCounter(int joint) override {
     controller_.updateRevolutionCounter(joint);
@@ -85,6 +86,7 @@ class ExternalSimBackend::Cell final : public service::LinkedCell {
     Calibration(ControllerCalibration& link, Cell& cell) : link_(link), cell_(cell) {}
     std::array<double, 6> readCalOffsets() override { return link_.readCalOffsets(); }
     void writeCalOffset(int joint, double rad) override { link_.writeCalOffset(joint, rad); }
+    std::array<double, 6> readMotorAngles() override { return link_.readMotorAngles(); }
     void restart() override {
       link_.restart();
       cell_.spot_link_->reconnect();

@@ -57,6 +57,11 @@ int main(int argc, char** argv) {
       "--no-search-signal", [&](std::int64_t) { options.search.wired = false; },
       "no PSD light signal at the controller's input: the spot search (49, 47) is refused, as "
       "by a RAPID module whose signal is not configured");
+  app.add_option("--restart-s", options.restart_s,
+                 "simulated seconds a restart (request 46) takes, connections refused meanwhile "
+                 "(wall time: this x --pace); a real IRC5's warm start takes tens of seconds")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 3600.0));
   app.add_option("--drop-after", options.faults.drop_after_requests,
                  "close each connection instead of answering its request N+1");
   app.add_option("--delay-ms", delay_ms, "delay every reply (ms)");

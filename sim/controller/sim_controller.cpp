@@ -67,6 +67,8 @@ struct SimController::Impl {
         faults(options.faults) {
     const std::string motion = options.motion.validate();
     if (!motion.empty()) throw ConfigError("SimControllerOptions", {"motion: " + motion});
+    if (!(options.restart_s >= 0 && options.restart_s <= 3600))
+      throw ConfigError("SimControllerOptions", {"restart_s must be within 0..3600 s"});
     commanded = options.start_joints;
     for (double& q : commanded) q = f32(q);
     initMotorCalibration();
@@ -76,13 +78,22 @@ struct SimController::Impl {
     error_code ec;
     const tcp::endpoint ep(asio::ip::make_address(options.address, ec), options.port);
     if (ec) throw Error("simulated controller: bad address " + options.address);
+    listen(ep, ec);
+    if (ec) {
+      throw Error("simulated controller: cannot listen on " + options.address + ":" +
+                  std::to_string(options.port) + ": " + ec.message());
+    }
+    endpoint = acceptor.local_endpoint();  // the port stays this one across restarts
+  }
+
+  void listen(const tcp::endpoint& ep, error_code& ec) {
     acceptor.open(ep.protocol(), ec);
     if (!ec) acceptor.set_option(tcp::acceptor::reuse_address(true), ec);
     if (!ec) acceptor.bind(ep, ec);
     if (!ec) acceptor.listen(asio::socket_base::max_listen_connections, ec);
     if (ec) {
-      throw Error("simulated controller: cannot listen on " + options.address + ":" +
-                  std::to_string(options.port) + ": " + ec.message());
+      error_code ignored;
+      acceptor.close(ignored);
     }
   }
 
@@ -115,6 +126,9 @@ struct SimController::Impl {
   SimControllerOptions options;
   asio::io_context ctx;
   tcp::acceptor acceptor;
+  tcp::endpoint endpoint;                 // where it listens
+  asio::steady_timer restart_timer{ctx};  // the end of a restart (I/O thread)
+  bool stopped = false;                   // I/O thread
   std::thread thread;
   std::set<std::shared_ptr<Session>> sessions;  // I/O thread only
 
@@ -136,7 +150,7 @@ struct SimController::Impl {
   bool fine = false;
   double sim_time_s = 0;
   MotionTotals totals;
-  long requests = 0, connections = 0;
+  long requests = 0, connections = 0, restarts = 0;
   std::array<double, kJointCount> cal_offset{}, transmission{}, zero_shift_rad{};
   // Written over the link (45), taken at the next restart (46).
   std::array<std::optional<double>, kJointCount> pending_cal{};
@@ -147,9 +161,12 @@ struct SimController::Impl {
     zero_shift_rad[i] += (stored - cal_offset[i]) / transmission[i];
     cal_offset[i] = stored;
   }
-  // The restart after 46 has been answered: pending values taken, every connection dropped
-  // (the listener stays, as the RAPID server comes back). I/O thread.
+  // The restart after 46 has been answered: pending values taken, every connection dropped,
+  // restart_s charged to the simulated clock; when paced, the listener closed for pace x
+  // restart_s of wall time (connections refused), as a restarting controller's. I/O thread.
   void restart();
+  // Listens again at the end of a restart. I/O thread.
+  void relisten();
 };
 
 void SimController::Impl::initMotorCalibration() {
@@ -359,6 +376,7 @@ void SimController::Impl::accept() {
 }
 
 void SimController::Impl::restart() {
+  milliseconds down(0);
   {
     std::lock_guard<std::mutex> lock(mutex);
     if (!restart_requested) return;
@@ -367,12 +385,44 @@ void SimController::Impl::restart() {
     for (int i = 0; i < kJointCount; ++i)
       if (pending_cal[i]) takeCalOffset(i, *pending_cal[i]);
     pending_cal.fill(std::nullopt);
+    sim_time_s += options.restart_s;
+    ++restarts;
+    if (options.pace > 0)
+      down = milliseconds(static_cast<long long>(options.restart_s * options.pace * 1000));
   }
   const auto copy = sessions;
   for (const auto& s : copy) s->close();
+  if (down.count() == 0 || stopped) return;
+  // A restarting controller serves nothing: connecting is refused until it is back.
+  error_code ignored;
+  acceptor.close(ignored);
+  restart_timer.expires_after(down);
+  restart_timer.async_wait([this](const error_code& ec) {
+    if (!ec) relisten();
+  });
+}
+
+void SimController::Impl::relisten() {
+  if (stopped) return;
+  error_code ec;
+  listen(endpoint, ec);
+  if (ec) {
+    // The port taken meanwhile (rare: an ephemeral port): try again shortly, as a controller's
+    // server would.
+    std::fprintf(stderr, "simulated controller: cannot listen again on port %u: %s\n",
+                 static_cast<unsigned>(endpoint.port()), ec.message().c_str());
+    restart_timer.expires_after(milliseconds(100));
+    restart_timer.async_wait([this](const error_code& e) {
+      if (!e) relisten();
+    });
+    return;
+  }
+  accept();
 }
 
 void SimController::Impl::closeAll() {
+  stopped = true;
+  restart_timer.cancel();
   error_code ignored;
   acceptor.close(ignored);
   const auto copy = sessions;
@@ -655,6 +705,17 @@ std::optional<std::string> SimController::Impl::respond(const irc5::ParsedReques
       if (n != 0) return bad;
       restart_requested = true;
       return done;
+    case irc5::kReadMotorAngles: {
+      // ReadMotor: the motor's angle behind the joint angle the controller reports, q = (phi -
+      // cal_offset) / k with the arm's true k, within one motor turn (docs/apply.md: inferred).
+      if (n != 0) return bad;
+      std::array<double, 6> phi;
+      for (int i = 0; i < kJointCount; ++i) {
+        const double turns = cal_offset[i] + transmission[i] * commanded[i] * kDegToRad;
+        phi[i] = f32(turns - 2 * kPi * std::floor(turns / (2 * kPi)));
+      }
+      return six(phi, 6);
+    }
     case irc5::kReadJointBounds: {
       if (n != 1 || (r.params[0] != 0 && r.params[0] != 1)) return bad;
       std::array<double, 6> b;
@@ -746,7 +807,7 @@ void SimController::stop() {
   }
 }
 
-std::uint16_t SimController::port() const { return impl_->acceptor.local_endpoint().port(); }
+std::uint16_t SimController::port() const { return impl_->endpoint.port(); }
 
 void SimController::setFaults(const SimFaults& faults) {
   std::lock_guard<std::mutex> lock(impl_->mutex);
@@ -815,6 +876,11 @@ double SimController::simTimeS() const {
 MotionTotals SimController::motionTotals() const {
   std::lock_guard<std::mutex> lock(impl_->mutex);
   return impl_->totals;
+}
+
+long SimController::restartCount() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->restarts;
 }
 
 long SimController::requestCount() const {

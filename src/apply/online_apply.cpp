@@ -219,6 +219,29 @@ OnlineApplyOutcome applyOnline(ControllerCalibration& store,
   }
 }
 
+void journalTransmissionCheck(ApplyJournal& journal,
+                              const std::vector<TransmissionMeasurement>& measurements) {
+  json rows = json::array();
+  bool agree = true;
+  std::string message;
+  for (const TransmissionMeasurement& m : measurements) {
+    rows.push_back({{"joint", m.joint},
+                    {"configured", m.configured},
+                    {"measured", m.measured},
+                    {"joint_step_deg", m.joint_step_deg},
+                    {"motor_change_rad", m.motor_change_rad},
+                    {"agrees", m.agrees},
+                    {"message", m.message}});
+    if (!m.agrees) message += (message.empty() ? "" : "; ") + m.message;
+    agree = agree && m.agrees;
+  }
+  journal.append({{"step", "transmission_check"},
+                  {"agree", agree},
+                  {"measurements", rows},
+                  {"message", agree ? "the robot file's transmissions agree with the cell"
+                                    : message + "; nothing was written"}});
+}
+
 namespace {
 
 Offsets offsetsFrom(const json& a) {
@@ -232,11 +255,28 @@ Offsets offsetsFrom(const json& a) {
 
 std::optional<ApplyRecord> lastApplyRecord(const ApplyJournal& journal) {
   std::optional<ApplyRecord> r;
+  // A check that agreed belongs to the apply whose "begin" follows it.
+  std::vector<ApplyRecord::Transmission> checked;
   try {
     for (const json& line : journal.read()) {
       const std::string step = line.value("step", "");
-      if (step == "begin") {
+      if (step == "transmission_check") {
+        checked.clear();
+        for (const json& m : line.at("measurements"))
+          checked.push_back({m.at("joint").get<int>(), m.at("configured").get<double>(),
+                             m.at("measured").get<double>(), m.at("agrees").get<bool>()});
+        if (!line.value("agree", false)) {
+          r.emplace();
+          r->outcome = "refused";
+          r->time_unix_s = line.value("time_unix_s", 0.0);
+          r->message = line.value("message", "");
+          r->transmissions = std::move(checked);
+          checked.clear();
+        }
+      } else if (step == "begin") {
         r.emplace();
+        r->transmissions = std::move(checked);
+        checked.clear();
         r->outcome = "interrupted";
         r->time_unix_s = line.value("time_unix_s", 0.0);
         r->before_rad = line.at("before_rad").get<std::array<double, 6>>();

@@ -285,6 +285,7 @@ std::vector<Field> schema(DaemonConfig& c) {
   f.push_back(realField("controller.limit_margin_deg", l.limit_margin_deg));
   f.push_back(realField("controller.max_step_deg", k.max_step_deg));
   f.push_back(integerField("controller.reconnect_attempts", l.reconnect_attempts));
+  f.push_back(millisField("controller.restart_timeout_ms", l.restart_timeout));
 
   using psd::DaqKind;
   f.push_back(choiceField<DaqKind>("daq.kind", c.daq.kind, {{"usb-1408fs", DaqKind::kUsb1408fs}}));
@@ -569,6 +570,8 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
   // A calibration never needs one move larger than this; a larger step is a typing error.
   check.positive("controller.max_step_deg", k.max_step_deg, 45.0);
   check.range("controller.reconnect_attempts", l.reconnect_attempts, 0, 1000);
+  // The wait for a restart shows no progress: it must stay below the worker's 120 s stall limit.
+  check.positive("controller.restart_timeout_ms", l.restart_timeout.count(), 110000);
 
   checkDaq(c.daq, check);
 

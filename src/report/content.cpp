@@ -212,8 +212,20 @@ Section applySection(const SessionReport& r) {
   if (!r.applied) return s;
   const apply::ApplyRecord& a = *r.applied;
   const bool verification_only = a.outcome == "pass" || a.outcome == "fail";
-  s.heading = verification_only ? "Verification by measurement" : "Applied to the controller";
-  if (!verification_only) {
+  const bool refused = a.outcome == "refused";
+  s.heading = verification_only ? "Verification by measurement"
+              : refused         ? "Not applied to the controller"
+                                : "Applied to the controller";
+  if (!a.transmissions.empty()) {
+    std::string measured =
+        "Transmissions measured on the cell before writing (motor angle per joint angle, a "
+        "small joint move read with the controller's motor angles), robot file -> measured:";
+    for (const apply::ApplyRecord::Transmission& t : a.transmissions)
+      measured += format(" joint %d %+g -> %+.2f%s;", t.joint, t.configured, t.measured,
+                         t.agrees ? "" : " (DISAGREES)");
+    s.paragraphs.push_back(measured);
+  }
+  if (!verification_only && !refused) {
     std::string values = "MOC MOTOR_CALIB cal_offset, rad, before -> written:";
     for (int j = 2; j <= 5; ++j)
       values += format(" joint %d %.6f -> %.6f;", j, a.before_rad[j - 1], a.written_rad[j - 1]);
@@ -230,6 +242,9 @@ Section applySection(const SessionReport& r) {
        "INTERRUPTED: the apply did not finish; the daemon restores the backed-up values when it "
        "starts."},
       {"error", "STOPPED with an error after the backup: see the message."},
+      {"refused",
+       "REFUSED: a transmission measured on the cell disagrees with the robot file; nothing was "
+       "written."},
       {"pass", "Pass: every offset left is within its bound."},
       {"fail", "FAIL: an offset left is beyond its bound."}};
   const auto it = kOutcome.find(a.outcome);

@@ -74,6 +74,7 @@ ManagerSettings managerSettingsOf(const DaemonConfig& cfg) {
     s.move_overhead = MoveOverhead{cfg.backend.sim_move_overhead_s, irc5::MotionCosts{}.settle_s};
   }
   s.write_reports = [](const std::string& dir) { report::writeSessionReport(dir); };
+  s.controller_restart_timeout = cfg.controller.irc5.restart_timeout;
   return s;
 }
 

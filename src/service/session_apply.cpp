@@ -2,8 +2,10 @@
 // (docs/apply.md): the engine (zerocal/apply/online_apply.h) driven on the worker thread against
 // the connected cell's ControllerCalibration, with a verification that is an ordinary session of
 // the configured plan (its own folder, events and result).
+#include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <thread>
 
 #include "zerocal/apply/online_apply.h"
 #include "zerocal/daemon/logging.h"
@@ -77,6 +79,7 @@ class SessionManager::CellCalibration final : public ControllerCalibration {
   std::array<double, 6> readCalOffsets() override { return get().readCalOffsets(); }
   void writeCalOffset(int joint, double rad) override { get().writeCalOffset(joint, rad); }
   void restart() override { get().restart(); }
+  std::array<double, 6> readMotorAngles() override { return get().readMotorAngles(); }
   bool updateRevolutionCounter(int joint) override { return get().updateRevolutionCounter(joint); }
 
  private:
@@ -213,10 +216,29 @@ void SessionManager::runApply(const std::string& id, const ResultFile& result) {
           "against the present ones");
     }
     const Robot& robot = knowledge_.cell.robot;
+    apply::ApplyJournal journal(applyJournalPath(store_, id));
+    // Measured before anything is written: a transmission whose sign or ratio the robot file has
+    // wrong would move the zero the wrong way (docs/apply.md, "The transmission measured").
+    std::vector<apply::TransmissionMeasurement> measured;
+    for (int j = 2; j <= 5; ++j) {
+      progress("joint " + std::to_string(j) +
+               ": measuring its transmission (a small joint move, read on the motor side, and "
+               "back)");
+      measured.push_back(apply::measureTransmission(cell_->robot(), calibration, robot, j,
+                                                    settings_.transmission_check));
+      progress(measured.back().message);
+    }
+    apply::journalTransmissionCheck(journal, measured);
+    std::string disagree;
+    for (const apply::TransmissionMeasurement& m : measured)
+      if (!m.agrees) disagree += (disagree.empty() ? "" : "; ") + m.message;
+    if (!disagree.empty())
+      throw Refused("transmission", "the robot file's transmission disagrees with the cell: " +
+                                        disagree + "; nothing was written");
     if (!robot.transmission_confirmed)
       progress(
-          "the robot file's transmissions are not confirmed: the verification settles them "
-          "(a wrong sign doubles the offset and is rolled back)");
+          "the robot file's transmissions are not confirmed, but agree with the cell's "
+          "measurement; the verification settles the rest");
     const apply::Offsets before = offsetsOf(result);
     std::array<apply::CalOffsetChange, 4> changes;
     for (int j = 2; j <= 5; ++j) {
@@ -224,7 +246,6 @@ void SessionManager::runApply(const std::string& id, const ResultFile& result) {
                                               robot.transmission[j - 1], present[j - 1]);
       progress(apply::formulaText(changes[j - 2]));
     }
-    apply::ApplyJournal journal(applyJournalPath(store_, id));
     apply::OnlineApplyOptions options;
     options.required_deg = settings_.session.required_accuracy_deg;
     options.progress = progress;
@@ -369,11 +390,37 @@ int SessionManager::recoverInterruptedApplies() {
   return static_cast<int>(ids.size());
 }
 
+void SessionManager::connectWaitingForRestart() {
+  if (cell_) return;
+  const auto deadline = std::chrono::steady_clock::now() + settings_.controller_restart_timeout;
+  std::chrono::milliseconds pause(100);
+  bool said = false;
+  for (;;) {
+    worker_.markProgress();
+    try {
+      cell_ = backend_.connect();
+      return;
+    } catch (const LinkError& e) {
+      if (e.kind() != LinkError::Kind::kTransient || board_.abortRequested() ||
+          std::chrono::steady_clock::now() + pause >= deadline)
+        throw;
+      if (!said)
+        makeLogger("apply")->warn(
+            "the controller does not serve ({}); it may be restarting: waiting up to {} s",
+            e.what(), settings_.controller_restart_timeout.count() / 1000);
+      said = true;
+    }
+    std::this_thread::sleep_for(pause);
+    pause = std::min(2 * pause, std::chrono::milliseconds(2000));
+  }
+}
+
 void SessionManager::runRecovery(const std::vector<std::string>& ids) {
   for (std::size_t i = 0; i < ids.size(); ++i) {
     ApplyEvent event;
     event.session = ids[i];
     try {
+      connectWaitingForRestart();
       CellCalibration calibration(*this);
       apply::ApplyJournal journal(applyJournalPath(store_, ids[i]));
       const apply::Recovery r = apply::recoverApply(calibration, journal);

@@ -28,6 +28,7 @@ class ClientStore : public ControllerCalibration {
     c_.writeCalOffset(joint, rad);
   }
   void restart() override { c_.restartController(); }
+  std::array<double, 6> readMotorAngles() override { return c_.readMotorAngles(); }
   int writes_left_ = -1;  // -1: never fail
 
  private:

@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "stored_plan_request.h"
+#include "zerocal/apply/online_apply.h"
 #include "zerocal/io/joint_set.h"
 #include "zerocal/report/session_report.h"
 #include "zerocal/sim/sim_backend.h"
@@ -795,6 +796,8 @@ TEST(SessionManagerApply, AppliesVerifiesAndKeepsTheNewValues) {
                 calibrated.truth->offsets_deg[k] - calibrated.report.parameters[k].value, 1e-5);
   const auto lines = applyLines(dir.path + "/" + id + "/apply.jsonl");
   ASSERT_FALSE(lines.empty());
+  EXPECT_EQ(lines.front()["step"], "transmission_check");  // measured before the backup
+  EXPECT_EQ(lines.front()["agree"], true);
   EXPECT_EQ(lines.back()["step"], "done");
   EXPECT_EQ(lines.back()["outcome"], "verified");
   // The session's summary is written again with the apply: values, verdict, warnings.
@@ -804,6 +807,8 @@ TEST(SessionManagerApply, AppliesVerifiesAndKeepsTheNewValues) {
   EXPECT_NE(summary.find("Verified"), std::string::npos);
   EXPECT_NE(summary.find("Taught positions"), std::string::npos);
   EXPECT_NE(summary.find("cal_offset_3 = wrap("), std::string::npos);
+  EXPECT_NE(summary.find("Transmissions measured"), std::string::npos) << summary;
+  EXPECT_EQ(summary.find("DISAGREES"), std::string::npos) << summary;
 
   // A verification on its own afterwards: by default of the session applied last (not of the
   // verification session, the latest finished), judged, nothing written; the report keeps the
@@ -823,9 +828,12 @@ TEST(SessionManagerApply, AppliesVerifiesAndKeepsTheNewValues) {
   EXPECT_NE(updated.find("Verified again later"), std::string::npos) << updated;
 }
 
-// A transmission sign wrong in the robot model doubles delta3 on the arm: the verification sees
-// it, the backup goes back, and the message names joint 3.
-TEST(SessionManagerApply, AWrongTransmissionSignIsRolledBackNamingTheJoint) {
+// A transmission sign wrong in the robot model would double delta3 on the arm: the apply measures
+// the transmissions first and refuses, naming joint 3 with both ratios, before anything is
+// written; the robot is back where it stood, the controller untouched, and the journal and the
+// report show the measurement. (The rollback after a failed verification, for what a measurement
+// cannot see, is tested on the engine: online_apply_test.cpp.)
+TEST(SessionManagerApply, AWrongTransmissionSignIsRefusedBeforeAnyWrite) {
   const TempDir dir;
   WrongSignBackend backend(cellFor(6), 3);
   SessionManager manager(backend, applySettingsIn(dir.path));
@@ -833,17 +841,45 @@ TEST(SessionManagerApply, AWrongTransmissionSignIsRolledBackNamingTheJoint) {
   manager.setEventSink(log.sink());
   const std::string id = manager.start(manager.defaultRequest());
   ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
-  const Joints shift_before = backend.inner().cell().controller().zeroShiftDeg();
+  SimController& controller = backend.inner().cell().controller();
+  const Joints shift_before = controller.zeroShiftDeg();
+  const Joints joints_before = controller.commandedJoints();
+  const std::array<double, 6> cal_before = controller.calOffsets();
+  const long restarts_before = controller.restartCount();
+  const long moves_before = controller.motionTotals().moves;
   manager.apply({id, true});
   const SessionStatus end = manager.waitIdle();
   EXPECT_EQ(end.state, SessionState::kFaulted);
   const auto applied = log.of<ApplyEvent>();
   ASSERT_EQ(applied.size(), 1u);
-  EXPECT_EQ(applied[0].outcome, ApplyOutcome::kRolledBack);
-  EXPECT_NE(applied[0].message.find("joint 3"), std::string::npos) << applied[0].message;
-  const Joints shift = backend.inner().cell().controller().zeroShiftDeg();
-  for (int i = 0; i < kJointCount; ++i) EXPECT_NEAR(shift[i], shift_before[i], 1e-5) << i;
-  EXPECT_EQ(applyLines(dir.path + "/" + id + "/apply.jsonl").back()["outcome"], "rolled_back");
+  EXPECT_EQ(applied[0].outcome, ApplyOutcome::kFailed);
+  const std::string& why = applied[0].message;
+  EXPECT_NE(why.find("joint 3: the robot file's transmission is -120, the cell measured +120.0"),
+            std::string::npos)
+      << why;
+  EXPECT_NE(why.find("the sign is wrong"), std::string::npos) << why;
+  EXPECT_NE(why.find("nothing was written"), std::string::npos) << why;
+  EXPECT_EQ(why.find("joint 2"), std::string::npos) << why;  // the others agree
+  // Nothing written, no restart, the zeros where they were, the robot back where it stood after
+  // its eight small moves (four joints, out and back).
+  EXPECT_EQ(controller.calOffsets(), cal_before);
+  EXPECT_EQ(controller.restartCount(), restarts_before);
+  EXPECT_EQ(controller.zeroShiftDeg(), shift_before);
+  EXPECT_EQ(controller.commandedJoints(), joints_before);
+  EXPECT_EQ(controller.motionTotals().moves - moves_before, 8);
+  const auto lines = applyLines(dir.path + "/" + id + "/apply.jsonl");
+  ASSERT_EQ(lines.size(), 1u);
+  EXPECT_EQ(lines[0]["step"], "transmission_check");
+  EXPECT_EQ(lines[0]["agree"], false);
+  ASSERT_EQ(lines[0]["measurements"].size(), 4u);
+  for (const auto& m : lines[0]["measurements"])
+    EXPECT_EQ(m["agrees"].get<bool>(), m["joint"].get<int>() != 3) << m.dump();
+  EXPECT_FALSE(apply::applyInterrupted(apply::ApplyJournal(dir.path + "/" + id + "/apply.jsonl")));
+  std::ifstream in(dir.path + "/" + id + "/summary.txt");
+  const std::string summary((std::istreambuf_iterator<char>(in)), {});
+  EXPECT_NE(summary.find("REFUSED"), std::string::npos) << summary;
+  EXPECT_NE(summary.find("Transmissions measured"), std::string::npos) << summary;
+  EXPECT_NE(summary.find("(DISAGREES)"), std::string::npos) << summary;
 }
 
 }  // namespace

@@ -432,6 +432,15 @@ MODULE ZerocalServer
                 search_rows := search_rows + 1;
                 ok := 1;
             ENDIF
+        CASE 48:
+            ! Motor angles of motors 1..6 (radians, motor side), for measuring a transmission.
+            IF n_params = 0 THEN
+                FOR i FROM 1 TO 6 DO
+                    data := data + NumToStr(ReadMotor(i), 6);
+                    IF i < 6 data := data + " ";
+                ENDFOR
+                ok := 1;
+            ENDIF
         CASE 49:
             ! One run of the spiral: pitch, from and to radius (mm), speed (mm/s). Every waypoint
             ! is checked first; then MoveAbsJ through them in small zones, without stopping,

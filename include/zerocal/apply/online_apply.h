@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "zerocal/apply/motor_calibration.h"
+#include "zerocal/apply/transmission_check.h"
 #include "zerocal/cell/controller_calibration.h"
 
 namespace zerocal::apply {
@@ -78,6 +79,12 @@ OnlineApplyOutcome applyOnline(ControllerCalibration& store,
                                const std::array<CalOffsetChange, 4>& changes, const Offsets& before,
                                const OnlineApplyOptions& options, ApplyJournal& journal);
 
+// Journals the transmissions measured before an apply (a "transmission_check" line). When one
+// disagrees the apply stops there, nothing written: lastApplyRecord() shows it as "refused".
+// Throws Error when it cannot write.
+void journalTransmissionCheck(ApplyJournal& journal,
+                              const std::vector<TransmissionMeasurement>& measurements);
+
 // True when the journal's last online apply has no "done" line (the process stopped inside it):
 // recoverApply() has work to do. Reads only the journal.
 bool applyInterrupted(const ApplyJournal& journal);
@@ -85,7 +92,8 @@ bool applyInterrupted(const ApplyJournal& journal);
 // The latest online apply or verification of a session as its journal tells it, for the report.
 struct ApplyRecord {
   // "verified", "rolled_back", "recovered", "interrupted" (no end line: the process stopped),
-  // "error" (stopped with an error after the backup), "pass" / "fail" (a verification alone).
+  // "error" (stopped with an error after the backup), "refused" (a measured transmission
+  // disagreed with the robot file; nothing written), "pass" / "fail" (a verification alone).
   std::string outcome;
   double time_unix_s = 0;                             // when it began
   std::array<double, 6> before_rad{}, written_rad{};  // zero for a verification alone
@@ -93,6 +101,13 @@ struct ApplyRecord {
   std::optional<Offsets> remaining;                   // as the verification measured them
   std::string verification;                           // its session id, when one ran
   std::string message;
+  // The transmissions measured before writing (empty when the apply did not measure them).
+  struct Transmission {
+    int joint = 0;
+    double configured = 0, measured = 0;
+    bool agrees = false;
+  };
+  std::vector<Transmission> transmissions;
   // A verification run on its own after this apply ("pass" / "fail"), the latest one.
   struct LaterCheck {
     std::string outcome, session, message;

@@ -1,7 +1,9 @@
 // The seam between zerocal and the calibration a robot controller keeps: each motor's zero (on an
-// ABB IRC5, MOC MOTOR_CALIB cal_offset), read, written, taken by a restart. The online apply
+// ABB IRC5, MOC MOTOR_CALIB cal_offset), read, written, taken by a restart, and the motors'
+// angles by which a joint's transmission is measured. The online apply
 // (zerocal/apply/online_apply.h) speaks only this; Irc5Client implements it over the RAPID
-// module (requests 41, 45, 46), and a connected cell hands it out (ConnectedCell::calibration).
+// module (requests 41, 45, 46, 48), and a connected cell hands it out
+// (ConnectedCell::calibration).
 #pragma once
 
 #include <array>
@@ -20,6 +22,11 @@ class ControllerCalibration {
   // Restarts the controller so that written values take effect; returns when it answers again
   // (the link reconnected). Throws a LinkError when it does not come back.
   virtual void restart() = 0;
+  // The six motors' angles now, radians, as the controller measures them (an IRC5: RAPID
+  // ReadMotor). Only differences are meaningful: whether the value stays within one motor turn
+  // or counts turns is the controller's, so a caller unwraps the change between two readings.
+  // Throws a LinkError (of kind refused when the controller cannot report them).
+  virtual std::array<double, 6> readMotorAngles() = 0;
   // Updates joint (1..6)'s revolution counter with the joint at its synchronisation mark. False
   // when this controller cannot do it remotely (an IRC5 over RAPID: a technician does it on the
   // FlexPendant). Throws a LinkError.

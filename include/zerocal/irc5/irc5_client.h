@@ -56,6 +56,9 @@ struct Irc5Options {
   int reconnect_attempts = 5;
   std::chrono::milliseconds backoff_initial{100};
   std::chrono::milliseconds backoff_max{2000};
+  // restartController(): how long the restarting controller may take to serve again, tried
+  // with the same back-off. A warm start takes tens of seconds (docs/irc5.md).
+  std::chrono::milliseconds restart_timeout{90000};
 };
 
 // What zerocal-sim says it simulates (simulator-only request 44).
@@ -113,8 +116,13 @@ class Irc5Client final : public ControllerConnection, public ControllerCalibrati
   // 45, RAPID WriteCfgData). The motion system takes it at the controller's next restart; read
   // back with readCalOffsets. Throws BadMessageError when the controller refuses it.
   void writeCalOffset(int joint, double rad) override;
+  // The six motors' angles now (request 48, RAPID ReadMotor), radians. Throws BadMessageError
+  // from a server without request 48.
+  std::array<double, 6> readMotorAngles() override;
   // Restarts the controller so that written system parameters take effect (request 46, RAPID
-  // WarmStart), then reconnect()s. Throws as reconnect() when the controller does not come back.
+  // WarmStart), then connects again as soon as it serves, trying until restart_timeout. Throws
+  // TimeoutError when it does not come back within it (the last attempt's error in the
+  // message), a refused LinkError or ConfigError at once, as connect().
   void restartController();
   // ControllerCalibration: restartController().
   void restart() override { restartController(); }

@@ -35,6 +35,7 @@ enum Code : int {
   kWriteCalOffset = 45,   // extension: 2 params, joint 1..6 and MOC cal_offset (rad, [0, 2 pi))
   kRestart = 46,          // extension: reply, then restart the controller (MOC changes take effect)
   kSearchSpiral = 47,     // extension: 7 params, one row of the spot search's spiral (joints)
+  kReadMotorAngles = 48,  // extension: RAPID ReadMotor of the six motors, radians
   kSearchRun = 49,        // extension: 4 params, one run of the spiral; the joints where light rose
   kRobotInfo = 98,
   kClose = 99,

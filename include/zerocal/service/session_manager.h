@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "zerocal/apply/transmission_check.h"
 #include "zerocal/cell/cell.h"
 #include "zerocal/daemon/config.h"
 #include "zerocal/service/session_board.h"
@@ -40,6 +41,11 @@ struct ManagerSettings {
   std::optional<MoveOverhead> move_overhead;
   // Called with a finished session's folder after result.json is written (summary, report).
   std::function<void(const std::string& session_dir)> write_reports;
+  // How long the recovery of an interrupted apply waits for a controller that refuses or ignores
+  // connections: a daemon killed while the controller restarted on new values comes back first.
+  std::chrono::milliseconds controller_restart_timeout{90000};
+  // The online apply measures joints 2..5's transmissions before it writes (docs/apply.md).
+  apply::TransmissionCheckOptions transmission_check;
 };
 
 class SessionManager final : public SessionControl {
@@ -95,6 +101,9 @@ class SessionManager final : public SessionControl {
   void runApply(const std::string& id, const ResultFile& result);
   void runVerify(const std::string& id, const ResultFile& result);
   void runRecovery(const std::vector<std::string>& ids);
+  // Connects the cell for a recovery, waiting up to controller_restart_timeout while the
+  // controller does not serve (a transient LinkError). Throws the last error after that.
+  void connectWaitingForRestart();
   void endApply(const ApplyEvent& event, bool ok);
   struct PoseSkip {
     int index = -1;  // 0-based pose to journal as skipped before running; -1: none

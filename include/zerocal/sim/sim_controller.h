@@ -80,6 +80,11 @@ struct SimControllerOptions {
   // What each move costs beyond its distance over its speed (docs/simulated-cell.md).
   irc5::MotionCosts motion;
   SimSearchSignal search;
+  // Simulated seconds a restart (request 46, RAPID WarmStart) takes before the RAPID server
+  // listens again: charged to the simulated clock, and pace x this in wall time, during which
+  // the controller refuses connections. A real IRC5's warm start takes tens of seconds
+  // (docs/irc5.md: inferred, not measured).
+  double restart_s = 30.0;
   // Seeds the repeatability noise.
   std::uint64_t seed = 1;
   // A request still missing its '#' after this long gets a bad-message reply and is discarded
@@ -147,6 +152,8 @@ class SimController {
   // Simulated seconds since construction (advanced by moves only).
   double simTimeS() const;
   MotionTotals motionTotals() const;
+  // Restarts (request 46) begun since construction.
+  long restartCount() const;
   // Requests answered or dropped, over all connections.
   long requestCount() const;
   long connectionCount() const;

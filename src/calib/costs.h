@@ -69,6 +69,23 @@ void laserLineInBase(const CellModel& cell, const double* q_rad, const T* delta,
   *direction = flange.R * d;
 }
 
+// The miss of the laser line (flange pose `flange`, laser parameters kappa) from the hit point
+// target + offset, along b1, b2, divided by sigma: the residual of the point-to-line costs below.
+template <typename T>
+void pointToLineMiss(const CellModel& cell, const Frame<T>& flange, const T* kappa, const T* target,
+                     const Eigen::Vector3d& offset, double inv_sigma, T* residual) {
+  Vec3<T> p, d;
+  cell.laser.line(kappa, &p, &d);
+  const Vec3<T> hit(target[0] + offset[0], target[1] + offset[1], target[2] + offset[2]);
+  const Vec3<T> w = flange.R.transpose() * (hit - flange.p) - p;
+  const Vec3<T> e1 = cell.laser.e1().cast<T>();
+  Vec3<T> b1 = e1 - e1.dot(d) * d;
+  b1 /= b1.norm();
+  const Vec3<T> b2 = d.cross(b1);
+  residual[0] = b1.dot(w) * inv_sigma;
+  residual[1] = b2.dot(w) * inv_sigma;
+}
+
 // Maximum likelihood, target explicit (point-to-line).
 //
 //   h_i = c + o_i                     o_i = R_psd (u_i, v_i, 0), or 0 without a reading
@@ -89,16 +106,7 @@ class PointToLineCost {
   template <typename T>
   bool operator()(const T* delta, const T* kappa, const T* target, T* residual) const {
     const Frame<T> flange = flangeWithOffsets(cell_.robot, q_rad_, delta);
-    Vec3<T> p, d;
-    cell_.laser.line(kappa, &p, &d);
-    const Vec3<T> hit(target[0] + offset_[0], target[1] + offset_[1], target[2] + offset_[2]);
-    const Vec3<T> w = flange.R.transpose() * (hit - flange.p) - p;
-    const Vec3<T> e1 = cell_.laser.e1().cast<T>();
-    Vec3<T> b1 = e1 - e1.dot(d) * d;
-    b1 /= b1.norm();
-    const Vec3<T> b2 = d.cross(b1);
-    residual[0] = b1.dot(w) * inv_sigma_;
-    residual[1] = b2.dot(w) * inv_sigma_;
+    pointToLineMiss(cell_, flange, kappa, target, offset_, inv_sigma_, residual);
     return true;
   }
 
@@ -135,16 +143,7 @@ class LinkPointToLineCost {
   bool operator()(const T* delta, const T* kappa, const T* link, const T* target,
                   T* residual) const {
     const Frame<T> flange = flangeWithLinkErrors(cell_.robot, q_rad_, delta, link);
-    Vec3<T> p, d;
-    cell_.laser.line(kappa, &p, &d);
-    const Vec3<T> hit(target[0] + offset_[0], target[1] + offset_[1], target[2] + offset_[2]);
-    const Vec3<T> w = flange.R.transpose() * (hit - flange.p) - p;
-    const Vec3<T> e1 = cell_.laser.e1().cast<T>();
-    Vec3<T> b1 = e1 - e1.dot(d) * d;
-    b1 /= b1.norm();
-    const Vec3<T> b2 = d.cross(b1);
-    residual[0] = b1.dot(w) * inv_sigma_;
-    residual[1] = b2.dot(w) * inv_sigma_;
+    pointToLineMiss(cell_, flange, kappa, target, offset_, inv_sigma_, residual);
     return true;
   }
 

@@ -119,14 +119,8 @@ SolveReport solveMultiPlacement(const CellModel& cell, const std::vector<Pose>& 
   const PlacementLayout layout(poses);
   checkPlacements(poses, layout, options);
   const int n = static_cast<int>(poses.size());
-  bool readings = options.use_readings;
-  for (const auto& p : poses) readings = readings && p.spot.has_value();
-
-  SolveReport report;
-  report.cost = options.cost;
-  report.used_readings = readings;
-  report.pose_count = n;
-  report.required_accuracy_deg = options.required_accuracy_deg;
+  SolveReport report = startReport(poses, options);
+  const bool readings = report.used_readings;
   report.model_length_mm = options.model_length_mm;
   report.model_angle_deg = options.model_angle_deg;
 

@@ -391,6 +391,16 @@ double intervalQuantile(const SolveReport& report) {
   return 1.959963984540054;
 }
 
+SolveReport startReport(const std::vector<Pose>& poses, const SolveOptions& options) {
+  SolveReport report;
+  report.cost = options.cost;
+  report.used_readings = options.use_readings;
+  for (const auto& p : poses) report.used_readings = report.used_readings && p.spot.has_value();
+  report.pose_count = static_cast<int>(poses.size());
+  report.required_accuracy_deg = options.required_accuracy_deg;
+  return report;
+}
+
 std::string fixedText(double v, int precision) { return fixed(v, precision); }
 
 std::string poseLabel(const std::vector<Pose>& poses, int i) { return poseName(poses, i); }
@@ -403,14 +413,8 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
   if (placementCount(poses) > 1) return detail::solveMultiPlacement(cell, poses, options);
   const auto start = std::chrono::steady_clock::now();
   const int n = static_cast<int>(poses.size());
-  bool readings = options.use_readings;
-  for (const auto& p : poses) readings = readings && p.spot.has_value();
-
-  SolveReport report;
-  report.cost = options.cost;
-  report.used_readings = readings;
-  report.pose_count = n;
-  report.required_accuracy_deg = options.required_accuracy_deg;
+  SolveReport report = detail::startReport(poses, options);
+  const bool readings = report.used_readings;
 
   // Exact duplicates (the same joints and reading) are one measurement recorded twice: counted
   // once, or they would claim information (and degrees of freedom) that was never measured.

@@ -187,6 +187,9 @@ void addPlacementExperiment(CLI::App& experiment, PlacementExperimentArgs& args)
       ->check(CLI::PositiveNumber);
   cmd->add_flag("--ideal-world", args.ideal_world,
                 "the seeds' ideal worlds instead of the realistic ones (docs/simulated-cell.md)");
+  cmd->add_flag("--without-sag", args.without_sag,
+                "the worlds without the gravity sag of joints 2 and 3, which the solve does not "
+                "model (to see what it costs)");
   cmd->add_flag("--json", args.json, "print one JSON object instead of text");
 }
 
@@ -202,7 +205,8 @@ int runPlacementExperiment(const PlacementExperimentArgs& args) {
   nlohmann::json per_world = nlohmann::json::array();
   for (int w = 0; w < args.worlds; ++w) {
     const std::uint64_t seed = args.seed0 + static_cast<std::uint64_t>(w);
-    const World world = randomWorld(seed, kind);
+    World world = randomWorld(seed, kind);
+    if (args.without_sag) world.compliance = Compliance{};
     const std::vector<SimPlacement> placements =
         placementsOf(world, args.placements, seed, args.ideal_world);
     // What the session knows: the nominal robot and laser, the taught centres and the
@@ -249,6 +253,7 @@ int runPlacementExperiment(const PlacementExperimentArgs& args) {
     nlohmann::json j{{"worlds", args.worlds},
                      {"seed0", args.seed0},
                      {"world", args.ideal_world ? "ideal" : "realistic"},
+                     {"without_sag", args.without_sag},
                      {"placements", args.placements},
                      {"poses_per_placement", args.poses},
                      {"noise_mm", args.noise_mm},
@@ -260,11 +265,11 @@ int runPlacementExperiment(const PlacementExperimentArgs& args) {
   } else {
     char line[300];
     std::printf(
-        "%d %s worlds from seed %llu; %d placements x %d poses against one placement "
+        "%d %s worlds%s from seed %llu; %d placements x %d poses against one placement "
         "with %d poses; noise %.3f mm given%s\n",
         args.worlds, args.ideal_world ? "ideal" : "realistic",
-        static_cast<unsigned long long>(args.seed0), args.placements, args.poses,
-        args.placements * args.poses, args.noise_mm,
+        args.without_sag ? " without gravity sag" : "", static_cast<unsigned long long>(args.seed0),
+        args.placements, args.poses, args.placements * args.poses, args.noise_mm,
         args.ideal_world ? "" : ", link tolerances 0.1 mm and 0.01 deg counted");
     std::printf("%-22s %8s %8s %10s %14s %12s %14s %12s\n", "session", "usable", "offered",
                 "within 3s", "worst (sigma)", "RMS (deg)", "links ident.", "");

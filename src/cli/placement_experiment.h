@@ -16,6 +16,7 @@ struct PlacementExperimentArgs {
   double model_length_mm = 0.1;  // link tolerances counted (the daemon's defaults)
   double model_angle_deg = 0.01;
   bool ideal_world = false;
+  bool without_sag = false;  // the realistic world less its gravity sag (what the sag costs)
   bool json = false;
   // The requirements of the several-placement sessions.
   double max_rms_deg = 0.005;

@@ -245,7 +245,7 @@ TEST(SeveralPlacements, RefuseWhatTheyDoNotOfferAndTooFewPosesAtAPlacement) {
       InputError);
 }
 
-TEST(SeveralPlacements, ThePlanPredictsTheLinkErrorsAndBetterOffsetsThanOnePlacement) {
+TEST(SeveralPlacements, ThePlanPredictsTheLinkErrorsTheyIdentify) {
   const Table2Scenario sc = table2Scenario();
   const std::vector<Pose>& planned = threePlacementPlan();
   const Prediction three = predictUncertainty(sc.cell, planned, {}, 0.02);

@@ -1,6 +1,7 @@
 #include "zerocal/calib/cell_model.h"
 
 #include <Eigen/Dense>
+#include <algorithm>
 
 #include "costs.h"
 #include "zerocal/error.h"
@@ -21,12 +22,41 @@ std::string unknownName(int i) {
   return names[i];
 }
 
+std::string linkParamName(int k) {
+  static const char* kinds[3] = {"da", "dd", "dalpha"};
+  return kinds[k % 3] + std::to_string(k / 3 + 1) + (k % 3 == 2 ? "_deg" : "_mm");
+}
+
+Robot withLinkErrors(const Robot& robot, const Eigen::Matrix<double, kLinkParamCount, 1>& link) {
+  Robot out = robot;
+  for (int j = 0; j < kJointCount; ++j) {
+    out.dh[j].a_mm += link[3 * j];
+    out.dh[j].d_mm += link[3 * j + 1];
+    out.dh[j].alpha_rad += link[3 * j + 2];
+  }
+  return out;
+}
+
+const Eigen::Matrix3d& CellModel::psdRotation(int placement) const {
+  const std::size_t k = static_cast<std::size_t>(placement - 2);
+  return placement >= 2 && k < placement_rotations.size() ? placement_rotations[k] : psd_rotation;
+}
+
 Line laserLine(const CellModel& cell, const Joints& q_deg, const CalibrationParameters& params) {
   double q_rad[kJointCount];
   for (int i = 0; i < kJointCount; ++i) q_rad[i] = q_deg[i] * kDegToRad;
   Line line;
-  laserLineInBase(cell, q_rad, params.delta_rad.data(), params.laser.data(), &line.point,
-                  &line.direction);
+  if (params.link.isZero(0)) {
+    laserLineInBase(cell, q_rad, params.delta_rad.data(), params.laser.data(), &line.point,
+                    &line.direction);
+  } else {
+    const Frame<double> flange =
+        flangeWithLinkErrors(cell.robot, q_rad, params.delta_rad.data(), params.link.data());
+    Eigen::Vector3d p, d;
+    cell.laser.line(params.laser.data(), &p, &d);
+    line.point = flange.apply(p);
+    line.direction = flange.R * d;
+  }
   return line;
 }
 
@@ -44,9 +74,18 @@ Eigen::Vector3d closestPointToLines(const std::vector<Line>& lines) {
   return a.ldlt().solve(b);
 }
 
+std::vector<int> placementsOf(const std::vector<Pose>& poses) {
+  std::vector<int> out;
+  for (const Pose& p : poses) out.push_back(p.placement);
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  return out;
+}
+
 Eigen::Vector3d hitPointOffset(const CellModel& cell, const Pose& pose, bool use_readings) {
   if (!use_readings || !pose.spot) return Eigen::Vector3d::Zero();
-  return cell.psd_rotation.col(0) * pose.spot->u_mm + cell.psd_rotation.col(1) * pose.spot->v_mm;
+  const Eigen::Matrix3d& r = cell.psdRotation(pose.placement);
+  return r.col(0) * pose.spot->u_mm + r.col(1) * pose.spot->v_mm;
 }
 
 }  // namespace zerocal

@@ -23,6 +23,41 @@ Frame<T> flangeWithOffsets(const Robot& robot, const double* q_rad, const T* del
   return flangePose(robot, joints);
 }
 
+// One DH link with its errors: Rz(theta) Tz(d + dd) Tx(a + da) Rx(alpha + dalpha), error =
+// (da, dd, dalpha) in mm, mm, rad; theta in radians, the row's theta offset added.
+template <typename T>
+Frame<T> dhLinkWithErrors(const DhRow& row, const T& joint_rad, const T* error) {
+  using std::cos;
+  using std::sin;
+  const T theta = joint_rad + T(row.theta_offset_rad);
+  const T alpha = T(row.alpha_rad) + error[2];
+  const T ct = cos(theta), st = sin(theta), ca = cos(alpha), sa = sin(alpha);
+  const T a = T(row.a_mm) + error[0];
+  Frame<T> f;
+  f.R << ct, -st * ca, st * sa,  //
+      st, ct * ca, -ct * sa,     //
+      T(0), sa, ca;
+  f.p << a * ct, a * st, T(row.d_mm) + error[1];
+  return f;
+}
+
+// Flange pose with the offsets delta2..delta5 and the link errors (kLinkParamCount, in
+// linkParamName order) added.
+template <typename T>
+Frame<T> flangeWithLinkErrors(const Robot& robot, const double* q_rad, const T* delta,
+                              const T* link) {
+  const T joints[kJointCount] = {T(q_rad[0]),
+                                 T(q_rad[1]) + delta[0],
+                                 T(q_rad[2]) + delta[1],
+                                 T(q_rad[3]) + delta[2],
+                                 T(q_rad[4]) + delta[3],
+                                 T(q_rad[5])};
+  Frame<T> f = dhLinkWithErrors(robot.dh[0], joints[0], link);
+  for (int i = 1; i < kJointCount; ++i)
+    f = f * dhLinkWithErrors(robot.dh[i], joints[i], link + 3 * i);
+  return f;
+}
+
 // Laser line of one pose in the base frame, differentiable in the offsets and laser parameters.
 template <typename T>
 void laserLineInBase(const CellModel& cell, const double* q_rad, const T* delta, const T* kappa,
@@ -32,6 +67,23 @@ void laserLineInBase(const CellModel& cell, const double* q_rad, const T* delta,
   cell.laser.line(kappa, &p, &d);
   *point = flange.apply(p);
   *direction = flange.R * d;
+}
+
+// The miss of the laser line (flange pose `flange`, laser parameters kappa) from the hit point
+// target + offset, along b1, b2, divided by sigma: the residual of the point-to-line costs below.
+template <typename T>
+void pointToLineMiss(const CellModel& cell, const Frame<T>& flange, const T* kappa, const T* target,
+                     const Eigen::Vector3d& offset, double inv_sigma, T* residual) {
+  Vec3<T> p, d;
+  cell.laser.line(kappa, &p, &d);
+  const Vec3<T> hit(target[0] + offset[0], target[1] + offset[1], target[2] + offset[2]);
+  const Vec3<T> w = flange.R.transpose() * (hit - flange.p) - p;
+  const Vec3<T> e1 = cell.laser.e1().cast<T>();
+  Vec3<T> b1 = e1 - e1.dot(d) * d;
+  b1 /= b1.norm();
+  const Vec3<T> b2 = d.cross(b1);
+  residual[0] = b1.dot(w) * inv_sigma;
+  residual[1] = b2.dot(w) * inv_sigma;
 }
 
 // Maximum likelihood, target explicit (point-to-line).
@@ -54,16 +106,7 @@ class PointToLineCost {
   template <typename T>
   bool operator()(const T* delta, const T* kappa, const T* target, T* residual) const {
     const Frame<T> flange = flangeWithOffsets(cell_.robot, q_rad_, delta);
-    Vec3<T> p, d;
-    cell_.laser.line(kappa, &p, &d);
-    const Vec3<T> hit(target[0] + offset_[0], target[1] + offset_[1], target[2] + offset_[2]);
-    const Vec3<T> w = flange.R.transpose() * (hit - flange.p) - p;
-    const Vec3<T> e1 = cell_.laser.e1().cast<T>();
-    Vec3<T> b1 = e1 - e1.dot(d) * d;
-    b1 /= b1.norm();
-    const Vec3<T> b2 = d.cross(b1);
-    residual[0] = b1.dot(w) * inv_sigma_;
-    residual[1] = b2.dot(w) * inv_sigma_;
+    pointToLineMiss(cell_, flange, kappa, target, offset_, inv_sigma_, residual);
     return true;
   }
 
@@ -72,6 +115,43 @@ class PointToLineCost {
     return new ceres::AutoDiffCostFunction<PointToLineCost, 2, kOffsetCount, kLaserParamCount,
                                            kTargetCount>(
         new PointToLineCost(cell, q_deg, hit_offset, sigma_mm));
+  }
+
+ private:
+  const CellModel& cell_;
+  double q_rad_[kJointCount];
+  Eigen::Vector3d offset_;
+  double inv_sigma_;
+};
+
+// Point-to-line with the link errors as unknowns too (several PSD placements, each with its own
+// target c_p): the same residual as PointToLineCost,
+//
+//   w   = R_6(q_i, delta, lambda)^T (c_p + o_i - t_6(q_i, delta, lambda)) - p_E(kappa)
+//   r_i = [ b1 . w ; b2 . w ] / sigma
+//
+// with lambda the 18 link errors (da, dd, dalpha of each joint) in the DH rows.
+class LinkPointToLineCost {
+ public:
+  LinkPointToLineCost(const CellModel& cell, const Joints& q_deg, const Eigen::Vector3d& hit_offset,
+                      double sigma_mm)
+      : cell_(cell), offset_(hit_offset), inv_sigma_(1.0 / sigma_mm) {
+    for (int i = 0; i < kJointCount; ++i) q_rad_[i] = q_deg[i] * kDegToRad;
+  }
+
+  template <typename T>
+  bool operator()(const T* delta, const T* kappa, const T* link, const T* target,
+                  T* residual) const {
+    const Frame<T> flange = flangeWithLinkErrors(cell_.robot, q_rad_, delta, link);
+    pointToLineMiss(cell_, flange, kappa, target, offset_, inv_sigma_, residual);
+    return true;
+  }
+
+  static ceres::CostFunction* create(const CellModel& cell, const Joints& q_deg,
+                                     const Eigen::Vector3d& hit_offset, double sigma_mm) {
+    return new ceres::AutoDiffCostFunction<LinkPointToLineCost, 2, kOffsetCount, kLaserParamCount,
+                                           kLinkParamCount, kTargetCount>(
+        new LinkPointToLineCost(cell, q_deg, hit_offset, sigma_mm));
   }
 
  private:

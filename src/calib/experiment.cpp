@@ -23,7 +23,7 @@ std::vector<Pose> simulateRecording(const CellModel& cell, const CalibrationPara
 }
 
 Table2Scenario table2Scenario() {
-  Table2Scenario s{CellModel{builtinIrb1600(), LaserModel(), Eigen::Matrix3d::Identity()}, {}};
+  Table2Scenario s{CellModel{builtinIrb1600(), LaserModel(), Eigen::Matrix3d::Identity(), {}}, {}};
   s.truth.delta_rad = Eigen::Vector4d(-0.4, 0.5, -0.7, -0.5) * kDegToRad;
   s.truth.target_mm = Eigen::Vector3d(900, -50, 400);
   return s;

@@ -78,6 +78,16 @@ nlohmann::json toJson(const SolveReport& r) {
   j["target_mm"] = {r.estimate.target_mm.x(), r.estimate.target_mm.y(), r.estimate.target_mm.z()};
   j["target_sigma_mm"] = {number(r.target_sigma_mm.x()), number(r.target_sigma_mm.y()),
                           number(r.target_sigma_mm.z())};
+  if (!r.placements.empty()) {
+    j["placements"] = nlohmann::json::array();
+    for (const auto& c : r.placements)
+      j["placements"].push_back({{"placement", c.placement},
+                                 {"poses", c.poses},
+                                 {"target_mm", {c.target_mm.x(), c.target_mm.y(), c.target_mm.z()}},
+                                 {"target_sigma_mm",
+                                  {number(c.target_sigma_mm.x()), number(c.target_sigma_mm.y()),
+                                   number(c.target_sigma_mm.z())}}});
+  }
   j["rank"] = r.rank;
   j["condition_number"] = number(r.condition_number);
   j["dof"] = r.dof;
@@ -172,8 +182,18 @@ std::string toText(const SolveReport& r) {
   o << printf("\ntarget (PSD centre) %.3f %.3f %.3f mm, sigma %.3f %.3f %.3f mm\n",
               r.estimate.target_mm.x(), r.estimate.target_mm.y(), r.estimate.target_mm.z(),
               r.target_sigma_mm.x(), r.target_sigma_mm.y(), r.target_sigma_mm.z());
-  o << "rank " << r.rank << " of " << kUnknownCount << ", condition number "
-    << printf("%.1f", r.condition_number) << " (column-scaled Jacobian)\n";
+  for (const auto& c : r.placements)
+    o << printf("placement %d (%d poses): centre %.3f %.3f %.3f mm, sigma %.3f %.3f %.3f mm\n",
+                c.placement, c.poses, c.target_mm.x(), c.target_mm.y(), c.target_mm.z(),
+                c.target_sigma_mm.x(), c.target_sigma_mm.y(), c.target_sigma_mm.z());
+  if (!r.placements.empty())
+    o << "identified " << r.rank << " of "
+      << kIdentifiedCount + kLinkParamCount + kTargetCount * static_cast<int>(r.placements.size())
+      << " unknowns (the others are named above), condition number "
+      << printf("%.1f", r.condition_number) << " (column-scaled Jacobian)\n";
+  else
+    o << "rank " << r.rank << " of " << kUnknownCount << ", condition number "
+      << printf("%.1f", r.condition_number) << " (column-scaled Jacobian)\n";
   std::string strong;
   for (int a = 0; a < r.correlation.rows(); ++a)
     for (int b = a + 1; b < r.correlation.cols(); ++b)
@@ -252,6 +272,19 @@ nlohmann::json toJson(const Plan& plan) {
     pred[unknownName(k)] = e;
   }
   j["predicted"] = pred;
+  if (plan.prediction.placements > 1) {
+    j["placements"] = plan.prediction.placements;
+    j["pose_placements"] = nlohmann::json::array();
+    for (const auto& p : plan.poses) j["pose_placements"].push_back(p.placement);
+    nlohmann::json links = nlohmann::json::object();
+    for (int l = 0; l < kLinkParamCount; ++l) {
+      nlohmann::json e{{"identifiable", plan.prediction.link_identifiable[l]},
+                       {"sigma", number(plan.prediction.link_sigma[l])}};
+      if (!plan.prediction.link_identifiable[l]) e["reason"] = plan.prediction.link_reason[l];
+      links[linkParamName(l)] = e;
+    }
+    j["predicted_link_errors"] = links;
+  }
   j["predicted_rms_offset_sigma_deg"] = number(plan.prediction.rms_offset_sigma_deg);
   j["rank"] = plan.prediction.rank;
   j["condition_number"] = number(plan.prediction.condition_number);
@@ -269,9 +302,21 @@ std::string toText(const Plan& plan) {
       o << printf("  %-19s not identifiable: %s\n", unknownName(k).c_str(),
                   plan.prediction.reason[k].c_str());
   }
-  o << printf("  RMS over delta2..delta5: %.5f deg; rank %d of %d, condition number %.1f\n",
-              plan.prediction.rms_offset_sigma_deg, plan.prediction.rank, kUnknownCount,
-              plan.prediction.condition_number);
+  const Prediction& pr = plan.prediction;
+  if (pr.placements > 1) {
+    o << "link errors (" << pr.placements << " placements):\n";
+    for (int l = 0; l < kLinkParamCount; ++l) {
+      if (pr.link_identifiable[l])
+        o << printf("  %-19s %10.5f\n", linkParamName(l).c_str(), pr.link_sigma[l]);
+      else
+        o << printf("  %-19s %s\n", linkParamName(l).c_str(), pr.link_reason[l].c_str());
+    }
+  }
+  o << printf("  RMS over delta2..delta5: %.5f deg; %s %d of %d, condition number %.1f\n",
+              pr.rms_offset_sigma_deg, pr.placements > 1 ? "identified" : "rank", pr.rank,
+              pr.placements > 1 ? kIdentifiedCount + kLinkParamCount + kTargetCount * pr.placements
+                                : kUnknownCount,
+              pr.condition_number);
   return o.str();
 }
 

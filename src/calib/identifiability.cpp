@@ -1,10 +1,12 @@
 #include "zerocal/calib/identifiability.h"
 
+#include <Eigen/QR>
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <sstream>
+#include <stdexcept>
 
 #include "costs.h"
 
@@ -213,6 +215,174 @@ Identifiability analyseIdentifiability(const Eigen::MatrixXd& jacobian, const Ce
       for (int j = 0; j < n; ++j)
         out.unit_covariance(k, j) = out.unit_covariance(j, k) =
             std::numeric_limits<double>::quiet_NaN();
+  return out;
+}
+
+}  // namespace zerocal
+
+namespace zerocal {
+
+int PlacementLayout::slot(int placement) const {
+  const auto it = std::lower_bound(placements.begin(), placements.end(), placement);
+  if (it == placements.end() || *it != placement)
+    throw std::out_of_range("placement " + std::to_string(placement) + " is not in the layout");
+  return static_cast<int>(it - placements.begin());
+}
+
+std::string PlacementLayout::name(int k) const {
+  if (k < kIdentifiedCount) return unknownName(k);
+  if (k < firstTarget()) return linkParamName(k - firstLink());
+  const int t = k - firstTarget();
+  return "target" + std::to_string(placements[t / kTargetCount]) + "_" + "xyz"[t % kTargetCount] +
+         "_mm";
+}
+
+std::string PlacementLayout::readable(int k) const {
+  if (k < kOffsetCount) return "delta" + std::to_string(k + 2);
+  if (k < kIdentifiedCount) return "the laser line";
+  if (k < firstTarget()) {
+    const std::string n = linkParamName(k - firstLink());
+    return n.substr(0, n.rfind('_'));
+  }
+  return "the placement-" + std::to_string(placements[(k - firstTarget()) / kTargetCount]) +
+         " centre";
+}
+
+Eigen::MatrixXd placementJacobian(const CellModel& cell, const std::vector<Pose>& poses,
+                                  const PlacementLayout& layout,
+                                  const CalibrationParameters& params,
+                                  const std::vector<Eigen::Vector3d>& targets, double sigma_mm,
+                                  bool use_readings, Eigen::VectorXd* residuals) {
+  const int n = static_cast<int>(poses.size());
+  Eigen::MatrixXd jac = Eigen::MatrixXd::Zero(2 * n, layout.unknownCount());
+  if (residuals) residuals->resize(2 * n);
+  Eigen::Matrix<double, 2, kOffsetCount, Eigen::RowMajor> jd;
+  Eigen::Matrix<double, 2, kLaserParamCount, Eigen::RowMajor> jl;
+  Eigen::Matrix<double, 2, kLinkParamCount, Eigen::RowMajor> jk;
+  Eigen::Matrix<double, 2, kTargetCount, Eigen::RowMajor> jt;
+  double* jacobians[4] = {jd.data(), jl.data(), jk.data(), jt.data()};
+  double r[2];
+  for (int i = 0; i < n; ++i) {
+    const int slot = layout.slot(poses[i].placement);
+    const double* blocks[4] = {params.delta_rad.data(), params.laser.data(), params.link.data(),
+                               targets[slot].data()};
+    LinkPointToLineCost functor(cell, poses[i].q_deg, hitPointOffset(cell, poses[i], use_readings),
+                                sigma_mm);
+    ceres::AutoDiffCostFunction<LinkPointToLineCost, 2, kOffsetCount, kLaserParamCount,
+                                kLinkParamCount, kTargetCount>
+        cost(&functor, ceres::DO_NOT_TAKE_OWNERSHIP);
+    cost.Evaluate(blocks, r, jacobians);
+    jac.block(2 * i, 0, 2, kOffsetCount) = jd;
+    jac.block(2 * i, kOffsetCount, 2, kLaserParamCount) = jl;
+    jac.block(2 * i, PlacementLayout::firstLink(), 2, kLinkParamCount) = jk;
+    jac.block(2 * i, PlacementLayout::firstTarget() + kTargetCount * slot, 2, kTargetCount) = jt;
+    if (residuals) residuals->segment<2>(2 * i) = Eigen::Vector2d(r[0], r[1]);
+  }
+  return jac;
+}
+
+BaseParameters analyseBaseParameters(const Eigen::MatrixXd& jacobian,
+                                     const PlacementLayout& layout) {
+  // A column below this fraction of the largest (same units: the misses per unit of the
+  // parameter, rad or mm) moves no miss; a column whose part outside the span of the kept ones
+  // is below kDependent of its length is a combination of them (structural dependencies come
+  // out near 1e-12, the weakest real parameters of a spread plan near 1e-3).
+  constexpr double kNoEffect = 1e-10;
+  constexpr double kDependent = 1e-6;
+  const int n = static_cast<int>(jacobian.cols());
+  std::vector<int> order;
+  for (int k = 0; k < kIdentifiedCount; ++k) order.push_back(k);
+  for (int k = PlacementLayout::firstTarget(); k < n; ++k) order.push_back(k);
+  for (int k = PlacementLayout::firstLink(); k < PlacementLayout::firstTarget(); ++k)
+    order.push_back(k);
+  BaseParameters out;
+  out.identified.assign(n, false);
+  out.reason.assign(n, "");
+  double largest = 0;
+  for (int k = 0; k < n; ++k) largest = std::max(largest, jacobian.col(k).norm());
+  std::vector<int> kept;
+  Eigen::MatrixXd basis(jacobian.rows(), 0);  // orthonormal, spans the kept scaled columns
+  for (int k : order) {
+    const double norm = jacobian.col(k).norm();
+    if (!(norm > kNoEffect * largest)) {
+      out.reason[k] = "no effect on the measurements at these poses";
+      continue;
+    }
+    const Eigen::VectorXd u = jacobian.col(k) / norm;
+    Eigen::VectorXd rest = u - basis * (basis.transpose() * u);
+    rest -= basis * (basis.transpose() * rest);  // once more, for orthogonality in rounding
+    if (rest.norm() > kDependent) {
+      basis.conservativeResize(Eigen::NoChange, basis.cols() + 1);
+      basis.col(basis.cols() - 1) = rest.normalized();
+      kept.push_back(k);
+      out.identified[k] = true;
+      continue;
+    }
+    // The combination: u = A beta with A the kept scaled columns.
+    Eigen::MatrixXd a(jacobian.rows(), static_cast<Eigen::Index>(kept.size()));
+    for (std::size_t j = 0; j < kept.size(); ++j)
+      a.col(static_cast<Eigen::Index>(j)) = jacobian.col(kept[j]).normalized();
+    const Eigen::VectorXd beta = a.colPivHouseholderQr().solve(u);
+    const double biggest = beta.cwiseAbs().maxCoeff();
+    std::vector<std::string> names;
+    for (std::size_t j = 0; j < kept.size(); ++j)
+      if (std::abs(beta[static_cast<Eigen::Index>(j)]) > 0.1 * biggest) {
+        const std::string r = layout.readable(kept[j]);
+        if (std::find(names.begin(), names.end(), r) == names.end()) names.push_back(r);
+      }
+    std::string why = "not identifiable: combined with ";
+    for (std::size_t i = 0; i < names.size(); ++i)
+      why += (i ? (i + 1 == names.size() ? " and " : ", ") : "") + names[i];
+    out.reason[k] = why + " (a change of it is a change of those, to the measurements)";
+  }
+  out.count = static_cast<int>(kept.size());
+  return out;
+}
+
+Eigen::MatrixXd baseCovariance(const Eigen::MatrixXd& jacobian, const BaseParameters& base,
+                               double* condition_number) {
+  const int n = static_cast<int>(jacobian.cols());
+  std::vector<int> cols;
+  for (int k = 0; k < n; ++k)
+    if (base.identified[k]) cols.push_back(k);
+  const int m = static_cast<int>(cols.size());
+  Eigen::MatrixXd jb(jacobian.rows(), m);
+  Eigen::VectorXd scale(m);
+  for (int j = 0; j < m; ++j) {
+    scale[j] = jacobian.col(cols[j]).norm();
+    jb.col(j) = jacobian.col(cols[j]) / scale[j];
+  }
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd(jb, Eigen::ComputeThinV);
+  const Eigen::VectorXd s = svd.singularValues();
+  Eigen::MatrixXd inv = Eigen::MatrixXd::Zero(m, m);
+  int rank = 0;
+  for (int i = 0; i < s.size(); ++i)
+    if (s[i] > kNullTolerance * s[0]) {
+      inv += svd.matrixV().col(i) * svd.matrixV().col(i).transpose() / (s[i] * s[i]);
+      ++rank;
+    }
+  if (condition_number)
+    *condition_number =
+        rank == m && m > 0 ? s[0] / s[m - 1] : std::numeric_limits<double>::infinity();
+  inv = scale.cwiseInverse().asDiagonal() * inv * scale.cwiseInverse().asDiagonal();
+  Eigen::MatrixXd cov = Eigen::MatrixXd::Constant(n, n, std::numeric_limits<double>::quiet_NaN());
+  for (int a = 0; a < m; ++a)
+    for (int b = 0; b < m; ++b) cov(cols[a], cols[b]) = inv(a, b);
+  return cov;
+}
+
+std::vector<Eigen::Vector3d> placementTargets(const CellModel& cell, const std::vector<Pose>& poses,
+                                              const PlacementLayout& layout,
+                                              const CalibrationParameters& params,
+                                              bool use_readings) {
+  std::vector<std::vector<Line>> lines(layout.count());
+  for (const auto& pose : poses) {
+    Line l = laserLine(cell, pose.q_deg, params);
+    l.point -= hitPointOffset(cell, pose, use_readings);
+    lines[layout.slot(pose.placement)].push_back(l);
+  }
+  std::vector<Eigen::Vector3d> out;
+  for (const auto& group : lines) out.push_back(closestPointToLines(group));
   return out;
 }
 

@@ -3,6 +3,7 @@
 #include <ceres/jet.h>
 
 #include <Eigen/Dense>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -119,8 +120,49 @@ std::optional<Joints> servoOnto(const CellModel& cell, const CalibrationParamete
   return toDegrees(*q);
 }
 
+namespace {
+
+Prediction predictSeveralPlacements(const CellModel& cell, const std::vector<Pose>& poses,
+                                    const CalibrationParameters& at, double sigma_mm) {
+  const PlacementLayout layout(poses);
+  const auto targets = placementTargets(cell, poses, layout, at, false);
+  // Planned poses aim the nominal lines exactly at their centres: the structural Jacobian.
+  const Eigen::MatrixXd jac = placementJacobian(cell, poses, layout, at, targets, sigma_mm, false);
+  const BaseParameters base = analyseBaseParameters(jac, layout);
+  Prediction out;
+  out.placements = layout.count();
+  out.rank = base.count;
+  const Eigen::MatrixXd cov = baseCovariance(jac, base, &out.condition_number);
+  constexpr double kMeaningfulDeg = 0.5;  // as with one placement
+  double sum = 0;
+  for (int k = 0; k < kIdentifiedCount; ++k) {
+    const double unit = k < kOffsetCount ? kRadToDeg : 1.0;
+    const double sigma = std::sqrt(cov(k, k)) * unit;
+    const bool ok = base.identified[k] && (k >= kOffsetCount || sigma <= kMeaningfulDeg);
+    out.sigma.push_back(base.identified[k] ? sigma : NAN);
+    out.identifiable.push_back(ok);
+    out.reason.push_back(ok ? std::string()
+                         : base.identified[k]
+                             ? "determined only to " + std::to_string(sigma) + " deg"
+                             : base.reason[k]);
+    if (k < kOffsetCount) sum += ok ? sigma * sigma : INFINITY;
+  }
+  out.rms_offset_sigma_deg = std::sqrt(sum / kOffsetCount);
+  for (int l = 0; l < kLinkParamCount; ++l) {
+    const int k = PlacementLayout::firstLink() + l;
+    out.link_identifiable.push_back(base.identified[k]);
+    out.link_sigma.push_back(
+        base.identified[k] ? std::sqrt(cov(k, k)) * (l % 3 == 2 ? kRadToDeg : 1.0) : NAN);
+    out.link_reason.push_back(base.reason[k]);
+  }
+  return out;
+}
+
+}  // namespace
+
 Prediction predictUncertainty(const CellModel& cell, const std::vector<Pose>& poses,
                               const CalibrationParameters& at, double sigma_mm) {
+  if (placementCount(poses) > 1) return predictSeveralPlacements(cell, poses, at, sigma_mm);
   const Eigen::MatrixXd jac = pointToLineJacobian(cell, poses, at, sigma_mm, false);
   // A plan predicts; whether its accuracy is enough is the solve's verdict. Here an offset counts
   // as determined up to the half degree beyond which a value means nothing.
@@ -179,6 +221,10 @@ std::string PlanOptions::validate() const {
     s << "the largest incidence angle must lie between 0 and 90 deg; ";
   if (!(sweep_deg > 0 && sweep_deg < 90)) s << "the sweep must lie between 0 and 90 deg; ";
   if (!(psd_normal.norm() > 0.5)) s << "the PSD normal must be a non-zero vector; ";
+  if (static_cast<int>(more_placements.size()) + 1 > kMaxPlacements)
+    s << "at most " << kMaxPlacements << " placements; ";
+  for (const auto& c : more_placements)
+    if (!c.allFinite()) s << "every placement's centre must be finite; ";
   std::string out = s.str();
   if (!out.empty()) out.resize(out.size() - 2);
   return out;
@@ -315,9 +361,51 @@ std::vector<int> selectOptimal(
 
 }  // namespace
 
+std::vector<Eigen::Vector3d> defaultPlacements(const Eigen::Vector3d& first, int count) {
+  if (count < 1 || count > kMaxDefaultPlacements)
+    throw InputError("the default placements are 1 to " + std::to_string(kMaxDefaultPlacements) +
+                     "; give the centres of more");
+  static const double turn_deg[kMaxDefaultPlacements] = {0, 50, -50, 100, -100};
+  static const double raise_mm[kMaxDefaultPlacements] = {0, 200, -200, -200, 200};
+  std::vector<Eigen::Vector3d> out;
+  for (int k = 1; k < count; ++k)
+    out.push_back(Eigen::AngleAxisd(turn_deg[k] * kDegToRad, Eigen::Vector3d::UnitZ()) * first +
+                  Eigen::Vector3d(0, 0, raise_mm[k]));
+  return out;
+}
+
 Plan planPoses(const CellModel& cell, const Eigen::Vector3d& target, const PlanOptions& o) {
   if (const std::string problem = o.validate(); !problem.empty())
     throw InputError("plan options: " + problem);
+  if (!o.more_placements.empty()) {
+    // Each placement planned on its own, aimed at its centre; the prediction is the joint one.
+    PlanOptions one = o;
+    one.more_placements.clear();
+    Plan plan;
+    std::vector<Eigen::Vector3d> centres{target};
+    centres.insert(centres.end(), o.more_placements.begin(), o.more_placements.end());
+    std::ostringstream what;
+    what << centres.size() << " PSD placements, " << o.poses << " poses at each:";
+    for (std::size_t p = 0; p < centres.size(); ++p) {
+      Plan part;
+      try {
+        part = planPoses(cell, centres[p], one);
+      } catch (const InputError& e) {
+        throw InputError("placement " + std::to_string(p + 1) + ": " + e.what());
+      }
+      for (Pose pose : part.poses) {
+        pose.placement = static_cast<int>(p + 1);
+        plan.poses.push_back(pose);
+      }
+      plan.candidates_considered += part.candidates_considered;
+      what << (p ? "; " : " ") << "placement " << p + 1 << " at (" << centres[p].x() << ", "
+           << centres[p].y() << ", " << centres[p].z() << ") mm, " << part.description;
+    }
+    CalibrationParameters at;
+    plan.prediction = predictUncertainty(cell, plan.poses, at, o.noise_mm);
+    plan.description = what.str();
+    return plan;
+  }
   if (!target.allFinite()) throw InputError("the target point must be finite");
   CalibrationParameters at;
   at.target_mm = target;

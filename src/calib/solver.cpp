@@ -13,25 +13,11 @@
 #include <memory>
 
 #include "costs.h"
+#include "solver_detail.h"
 #include "zerocal/calib/identifiability.h"
 #include "zerocal/error.h"
 
 namespace zerocal {
-namespace {
-
-class CancelCallback : public ceres::IterationCallback {
- public:
-  explicit CancelCallback(const std::function<bool()>& cancelled) : cancelled_(cancelled) {}
-  ceres::CallbackReturnType operator()(const ceres::IterationSummary&) override {
-    return cancelled_ && cancelled_() ? ceres::SOLVER_ABORT : ceres::SOLVER_CONTINUE;
-  }
-
- private:
-  const std::function<bool()>& cancelled_;
-};
-
-}  // namespace
-
 void checkPoses(const CellModel& cell, const std::vector<Pose>& poses) {
   if (poses.size() < static_cast<std::size_t>(kMinimumPoses))
     throw InputError(std::to_string(poses.size()) + " poses given; identifying " +
@@ -185,7 +171,7 @@ Fit runFit(const CellModel& cell, const std::vector<Pose>& poses, const SolveOpt
   solver_options.parameter_tolerance = 1e-14;
   solver_options.num_threads = 1;
   solver_options.logging_type = ceres::SILENT;
-  CancelCallback cancel(options.cancelled);
+  detail::CancelCallback cancel(options.cancelled);
   solver_options.callbacks.push_back(&cancel);
   ceres::Solver::Summary summary;
   ceres::Solve(solver_options, &problem, &summary);
@@ -313,7 +299,10 @@ DeletionTest deletionTest(const CellModel& cell, const std::vector<Pose>& active
 
 bool significant(const DeletionTest& t, int i) { return t.checkable && i >= 0 && t.ratio[i] > 1; }
 
-// The gates: any reason here and the result is not offered for use.
+}  // namespace
+
+namespace detail {
+
 Verdict judge(const SolveReport& r, const SolveOptions& o,
               const std::vector<std::string>& gross_problems) {
   Verdict v;
@@ -353,42 +342,87 @@ Verdict judge(const SolveReport& r, const SolveOptions& o,
   return v;
 }
 
-}  // namespace
+std::vector<int> findDuplicates(const std::vector<Pose>& poses) {
+  const int n = static_cast<int>(poses.size());
+  std::vector<int> duplicate_of(n, -1);
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < i && duplicate_of[i] < 0; ++j)
+      if (duplicate_of[j] < 0 && poses[i].q_deg == poses[j].q_deg &&
+          poses[i].spot == poses[j].spot && poses[i].placement == poses[j].placement)
+        duplicate_of[i] = j;
+  return duplicate_of;
+}
+
+void throwUnlessEnoughDistinct(const std::vector<Pose>& poses, const std::vector<int>& duplicate_of,
+                               int distinct) {
+  if (distinct >= kMinimumPoses) return;
+  int first = 0;
+  while (first < static_cast<int>(poses.size()) && duplicate_of[first] < 0) ++first;
+  throw InputError(std::to_string(poses.size()) + " poses given, but only " +
+                   std::to_string(distinct) + " are distinct (" + poseName(poses, first) +
+                   " repeats an earlier one exactly); the solve needs at least " +
+                   std::to_string(kMinimumPoses) + " distinct poses");
+}
+
+void applyNoise(SolveReport& report, const SolveOptions& options, double rss_mm2) {
+  if (options.noise_mm) {
+    report.noise_mm = *options.noise_mm;
+    if (report.dof > 0) {
+      const double chi2 = rss_mm2 / (report.noise_mm * report.noise_mm);
+      report.chi2_per_dof = chi2 / report.dof;
+      report.chi2_p_value =
+          boost::math::cdf(boost::math::complement(boost::math::chi_squared(report.dof), chi2));
+      // The poses miss by more than the stated noise: the honest sigma is the one they show
+      // (the Birge ratio). Never scaled down: a small chi-square with few poses is chance.
+      report.noise_scale = std::max(1.0, std::sqrt(*report.chi2_per_dof));
+      report.noise_mm *= report.noise_scale;
+    }
+  } else {
+    report.noise_estimated = true;
+    report.noise_mm =
+        report.dof > 0 ? std::sqrt(rss_mm2 / report.dof) : std::numeric_limits<double>::quiet_NaN();
+  }
+}
+
+double intervalQuantile(const SolveReport& report) {
+  // Student's t whenever the sigma in force comes from the residuals (estimated, or scaled up).
+  if ((report.noise_estimated || report.noise_scale > 1) && report.dof > 0)
+    return boost::math::quantile(boost::math::students_t(report.dof), 0.975);
+  return 1.959963984540054;
+}
+
+SolveReport startReport(const std::vector<Pose>& poses, const SolveOptions& options) {
+  SolveReport report;
+  report.cost = options.cost;
+  report.used_readings = options.use_readings;
+  for (const auto& p : poses) report.used_readings = report.used_readings && p.spot.has_value();
+  report.pose_count = static_cast<int>(poses.size());
+  report.required_accuracy_deg = options.required_accuracy_deg;
+  return report;
+}
+
+std::string fixedText(double v, int precision) { return fixed(v, precision); }
+
+std::string poseLabel(const std::vector<Pose>& poses, int i) { return poseName(poses, i); }
+
+}  // namespace detail
 
 SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
                   const SolveOptions& options) {
   checkInput(cell, poses, options);
+  if (placementCount(poses) > 1) return detail::solveMultiPlacement(cell, poses, options);
   const auto start = std::chrono::steady_clock::now();
   const int n = static_cast<int>(poses.size());
-  bool readings = options.use_readings;
-  for (const auto& p : poses) readings = readings && p.spot.has_value();
-
-  SolveReport report;
-  report.cost = options.cost;
-  report.used_readings = readings;
-  report.pose_count = n;
-  report.required_accuracy_deg = options.required_accuracy_deg;
+  SolveReport report = detail::startReport(poses, options);
+  const bool readings = report.used_readings;
 
   // Exact duplicates (the same joints and reading) are one measurement recorded twice: counted
   // once, or they would claim information (and degrees of freedom) that was never measured.
-  std::vector<int> duplicate_of(n, -1), active;
-  for (int i = 0; i < n; ++i) {
-    for (int j = 0; j < i && duplicate_of[i] < 0; ++j)
-      if (duplicate_of[j] < 0 && poses[i].q_deg == poses[j].q_deg && poses[i].spot == poses[j].spot)
-        duplicate_of[i] = j;
+  const std::vector<int> duplicate_of = detail::findDuplicates(poses);
+  std::vector<int> active;
+  for (int i = 0; i < n; ++i)
     if (duplicate_of[i] < 0) active.push_back(i);
-  }
-  if (static_cast<int>(active.size()) < kMinimumPoses)
-    throw InputError(std::to_string(n) + " poses given, but only " + std::to_string(active.size()) +
-                     " are distinct (" +
-                     poseName(poses,
-                              [&] {
-                                for (int i = 0; i < n; ++i)
-                                  if (duplicate_of[i] >= 0) return i;
-                                return 0;
-                              }()) +
-                     " repeats an earlier one exactly); the solve needs at least " +
-                     std::to_string(kMinimumPoses) + " distinct poses");
+  detail::throwUnlessEnoughDistinct(poses, duplicate_of, static_cast<int>(active.size()));
 
   // Start: zero offsets, nominal laser, the point the nominal lines pass closest to.
   CalibrationParameters nominal;
@@ -522,23 +556,7 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
   report.condition_number = ident.condition_number;
   report.dof = static_cast<int>(std::lround(2 * weights)) - ident.rank;
   report.rms_miss_mm = std::sqrt(unweighted_rss / m);
-  if (options.noise_mm) {
-    report.noise_mm = *options.noise_mm;
-    if (report.dof > 0) {
-      const double chi2 = rss / (report.noise_mm * report.noise_mm);
-      report.chi2_per_dof = chi2 / report.dof;
-      report.chi2_p_value =
-          boost::math::cdf(boost::math::complement(boost::math::chi_squared(report.dof), chi2));
-      // The poses miss by more than the stated noise: the honest sigma is the one they show
-      // (the Birge ratio). Never scaled down: a small chi-square with few poses is chance.
-      report.noise_scale = std::max(1.0, std::sqrt(*report.chi2_per_dof));
-      report.noise_mm *= report.noise_scale;
-    }
-  } else {
-    report.noise_estimated = true;
-    report.noise_mm =
-        report.dof > 0 ? std::sqrt(rss / report.dof) : std::numeric_limits<double>::quiet_NaN();
-  }
+  detail::applyNoise(report, options, rss);
   const double sigma = report.noise_mm;
   for (SuspectPose& sp : report.suspect_poses) {
     const double unit = options.noise_mm ? *options.noise_mm : sigma;
@@ -585,10 +603,7 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
     }
   }
 
-  // Student's t whenever the sigma in force comes from the residuals (estimated, or scaled up).
-  double quantile = 1.959963984540054;
-  if ((report.noise_estimated || report.noise_scale > 1) && report.dof > 0)
-    quantile = boost::math::quantile(boost::math::students_t(report.dof), 0.975);
+  const double quantile = detail::intervalQuantile(report);
 
   report.not_identifiable.push_back({"delta1_deg", delta1Reason()});
   const Eigen::VectorXd values = [&] {
@@ -658,7 +673,7 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
            "repeats " + poseName(poses, duplicate_of[i]) +
                " exactly (the same joints and reading): one measurement, counted once",
            report.chi2_per_dof.value_or(1.0)});
-  report.verdict = judge(report, options, gross_problems);
+  report.verdict = detail::judge(report, options, gross_problems);
   report.solve_time_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return report;

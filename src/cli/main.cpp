@@ -4,11 +4,11 @@
 // --robot).
 // Exit codes: 0 done; 1 unexpected failure; 2 bad input or usage, or no USB-1408FS / no permission
 // to open it; 3 the solver did not converge; 4 solved, but some of delta2..delta5 are not
-// identifiable from the poses (or not to the required accuracy); 7 (experiment cell) a requirement
-// does not hold; 8 solved, but the verdict refuses the result (stand-off, offset bound, misfit,
-// gross errors: the reasons are printed, no correction is). The
-// client commands add 3 (the watched session was aborted or faulted), 5 (cannot connect) and 6
-// (token refused or unusable); control_commands.h.
+// identifiable from the poses (or not to the required accuracy); 7 (experiment cell, placements) a
+// requirement does not hold; 8 solved, but the verdict refuses the result (stand-off, offset bound,
+// misfit, gross errors: the reasons are printed, no correction is). The client commands add 3 (the
+// watched session was aborted or faulted), 5 (cannot connect) and 6 (token refused or unusable);
+// control_commands.h.
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
@@ -21,6 +21,7 @@
 #include "apply_commands.h"
 #include "cell_experiment.h"
 #include "control_commands.h"
+#include "placement_experiment.h"
 #include "psd_commands.h"
 #include "robustness_experiment.h"
 #include "zerocal/calib/experiment.h"
@@ -71,7 +72,8 @@ struct CellArgs {
     return CellModel{
         std::move(r),
         LaserModel(Eigen::Vector3d(laser_direction.data()), Eigen::Vector3d(laser_point.data())),
-        Eigen::Matrix3d::Identity()};
+        Eigen::Matrix3d::Identity(),
+        {}};
   }
 };
 
@@ -228,6 +230,17 @@ int main(int argc, char** argv) {
       ->expected(3);
   plan_cmd->add_flag("--joint1-fixed", plan_options.joint1_fixed,
                      "pattern II: hold joint 1 exactly constant (to show the failure)");
+  int plan_placements = 1;
+  std::vector<std::vector<double>> placement_centres;
+  plan_cmd
+      ->add_option("--placements", plan_placements,
+                   "PSD placements of the session (the first at --target, the others spread "
+                   "over the workspace unless given with --placement); --poses at each")
+      ->check(CLI::Range(1, kMaxPlacements));
+  plan_cmd
+      ->add_option("--placement", placement_centres,
+                   "centre of the next placement (2, 3, ...) in the base frame, mm (repeatable)")
+      ->expected(3);
   plan_cmd->add_option("--out", out_file, "write the joint targets as a joint-set CSV");
   plan_cmd->add_flag("--json", plan_json, "print one JSON object instead of text");
 
@@ -249,6 +262,8 @@ int main(int argc, char** argv) {
   auto* cell_exp_cmd = cli::addCellExperiment(*exp_cmd, cell_exp_args);
   cli::RobustnessExperimentArgs robustness_args;
   cli::addRobustnessExperiments(*exp_cmd, robustness_args);
+  cli::PlacementExperimentArgs placement_args;
+  cli::addPlacementExperiment(*exp_cmd, placement_args);
 
   // sensitivity
   auto* sens_cmd = app.add_subcommand(
@@ -310,7 +325,7 @@ int main(int argc, char** argv) {
     // On the daemon: its cell, its planner; only the options of a session request apply.
     for (const char* local :
          {"--standoff", "--margin", "--max-incidence", "--sweep", "--psd-normal", "--joint1-fixed",
-          "--out", "--laser-direction", "--laser-point"})
+          "--out", "--laser-direction", "--laser-point", "--placements", "--placement"})
       if (plan_cmd->count(local) > 0) {
         std::cerr << "zerocal: plan " << local << " needs --robot (a plan made here)\n";
         return kBadInput;
@@ -375,6 +390,19 @@ int main(int argc, char** argv) {
       plan_options.standoff_min_mm = standoff[0];
       plan_options.standoff_max_mm = standoff[1];
       plan_options.psd_normal = Eigen::Vector3d(psd_normal.data());
+      for (const auto& c : placement_centres)
+        plan_options.more_placements.emplace_back(c[0], c[1], c[2]);
+      const int given = static_cast<int>(placement_centres.size()) + 1;
+      if (plan_cmd->count("--placements") > 0 && plan_placements < given)
+        throw InputError("--placements " + std::to_string(plan_placements) + " but " +
+                         std::to_string(given) + " placements are given (--target and " +
+                         std::to_string(given - 1) + " --placement)");
+      if (plan_placements > given) {
+        // The rest from the default spread, after the ones given.
+        const auto spread = defaultPlacements(Eigen::Vector3d(target.data()), plan_placements);
+        for (int p = given; p < plan_placements; ++p)
+          plan_options.more_placements.push_back(spread[p - 1]);
+      }
       const Plan plan = planPoses(cell, Eigen::Vector3d(target.data()), plan_options);
       if (!out_file.empty()) {
         std::ofstream out(out_file);
@@ -401,6 +429,7 @@ int main(int argc, char** argv) {
       return kOk;
     }
     if (cell_exp_cmd->parsed()) return cli::runCellExperiment(cell_exp_args);
+    if (placement_args.cmd->parsed()) return cli::runPlacementExperiment(placement_args);
     if (const int rc = cli::runRobustnessExperiment(robustness_args); rc >= 0) return rc;
     if (sim_cmd->parsed()) {
       const CellModel cell = sim_cell.cell();

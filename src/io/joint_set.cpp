@@ -39,7 +39,7 @@ std::vector<Pose> parseJointSet(const std::string& text, const std::string& orig
   std::istringstream in(text);
   std::string line;
   int line_no = 0;
-  std::vector<int> column(8, -1);  // q1..q6, u, v
+  std::vector<int> column(9, -1);  // q1..q6, u, v, placement
   bool have_header = false;
   std::size_t header_fields = 0;
   std::vector<Pose> poses;
@@ -54,9 +54,9 @@ std::vector<Pose> parseJointSet(const std::string& text, const std::string& orig
     if (t.empty() || t[0] == '#') continue;
     const auto fields = splitFields(t);
     if (!have_header) {
-      static const char* names[8] = {"q1", "q2", "q3", "q4", "q5", "q6", "u", "v"};
+      static const char* names[9] = {"q1", "q2", "q3", "q4", "q5", "q6", "u", "v", "placement"};
       for (std::size_t i = 0; i < fields.size(); ++i)
-        for (int k = 0; k < 8; ++k)
+        for (int k = 0; k < 9; ++k)
           if (fields[i] == names[k]) {
             if (column[k] >= 0) fail("column '" + fields[i] + "' appears twice in the header");
             column[k] = static_cast<int>(i);
@@ -90,6 +90,15 @@ std::vector<Pose> parseJointSet(const std::string& text, const std::string& orig
     pose.source_line = line_no;
     for (int k = 0; k < 6; ++k) pose.q_deg[k] = value(k);
     if (column[6] >= 0) pose.spot = PsdSpot{value(6), value(7)};
+    if (column[8] >= 0) {
+      const std::string& f = fields[column[8]];
+      static const std::regex kWhole(R"([0-9]{1,9})");
+      const int placement = std::regex_match(f, kWhole) ? std::atoi(f.c_str()) : 0;
+      if (placement < 1 || placement > kMaxPlacements)
+        fail("column " + std::to_string(column[8] + 1) +
+             " (placement) is not a whole number from 1 to " + std::to_string(kMaxPlacements));
+      pose.placement = placement;
+    }
     if (poses.size() >= kMaxJointSetPoses)
       fail("more than " + std::to_string(kMaxJointSetPoses) + " poses: not a joint set");
     poses.push_back(pose);
@@ -133,7 +142,10 @@ std::string formatJointSet(const std::vector<Pose>& poses, const std::string& co
   }
   bool with_uv = !poses.empty();
   for (const auto& p : poses) with_uv = with_uv && p.spot.has_value();
-  out << "q1,q2,q3,q4,q5,q6" << (with_uv ? ",u,v" : "") << "\n";
+  bool with_placement = false;
+  for (const auto& p : poses) with_placement = with_placement || p.placement != 1;
+  out << "q1,q2,q3,q4,q5,q6" << (with_uv ? ",u,v" : "") << (with_placement ? ",placement" : "")
+      << "\n";
   char buf[64];
   for (const auto& p : poses) {
     for (int k = 0; k < kJointCount; ++k) {
@@ -144,6 +156,7 @@ std::string formatJointSet(const std::vector<Pose>& poses, const std::string& co
       std::snprintf(buf, sizeof buf, ",%.5f,%.5f", p.spot->u_mm, p.spot->v_mm);
       out << buf;
     }
+    if (with_placement) out << "," << p.placement;
     out << "\n";
   }
   return out.str();

@@ -55,6 +55,31 @@ TEST_F(CostGradients, PointToLineWithHitPointOffset) {
   check(*cost, {delta.data(), laser.data(), target.data()});
 }
 
+TEST_F(CostGradients, PointToLineWithLinkErrors) {
+  Eigen::Matrix<double, kLinkParamCount, 1> link;
+  for (int k = 0; k < kLinkParamCount; ++k) link[k] = (k % 3 == 2 ? 1e-4 : 0.1) * (k % 2 ? -1 : 1);
+  for (const auto& pose : poses) {
+    std::unique_ptr<ceres::CostFunction> cost(
+        LinkPointToLineCost::create(sc.cell, pose.q_deg, Eigen::Vector3d(0.2, 0.1, 0), 0.03));
+    check(*cost, {delta.data(), laser.data(), link.data(), target.data()});
+  }
+}
+
+TEST_F(CostGradients, LinkErrorsOfZeroGiveThePointToLineResidual) {
+  const Eigen::Matrix<double, kLinkParamCount, 1> zero =
+      Eigen::Matrix<double, kLinkParamCount, 1>::Zero();
+  for (const auto& pose : poses) {
+    const Eigen::Vector3d offset(0.2, 0.1, 0);
+    double plain[2], with_links[2];
+    PointToLineCost(sc.cell, pose.q_deg, offset, 0.03)(delta.data(), laser.data(), target.data(),
+                                                       plain);
+    LinkPointToLineCost(sc.cell, pose.q_deg, offset, 0.03)(delta.data(), laser.data(), zero.data(),
+                                                           target.data(), with_links);
+    EXPECT_NEAR(plain[0], with_links[0], 1e-9);
+    EXPECT_NEAR(plain[1], with_links[1], 1e-9);
+  }
+}
+
 TEST_F(CostGradients, Pairwise) {
   std::unique_ptr<ceres::CostFunction> cost(PairwiseCost::create(sc.cell, poses, 0.03));
   check(*cost, {delta.data(), laser.data()});

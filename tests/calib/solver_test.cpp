@@ -463,8 +463,10 @@ joints:
   - {a_mm: 0, alpha_deg: 0, d_mm: 82.3, theta_offset_deg: 0, lower_deg: -360, upper_deg: 360, max_speed_deg_s: 180}
 )",
                               "ur5.yaml");
-  const CellModel cell{ur, LaserModel(Eigen::Vector3d::UnitZ(), Eigen::Vector3d(10, 0, 20)),
-                       Eigen::Matrix3d::Identity()};
+  const CellModel cell{ur,
+                       LaserModel(Eigen::Vector3d::UnitZ(), Eigen::Vector3d(10, 0, 20)),
+                       Eigen::Matrix3d::Identity(),
+                       {}};
   CalibrationParameters truth;
   truth.delta_rad = Eigen::Vector4d(0.3, -0.2, 0.5, -0.4) * kDegToRad;
   truth.laser = Eigen::Vector4d(0.002, -0.001, 0.3, 0.2);

@@ -115,5 +115,44 @@ TEST(JointSetCsv, FormatRoundTripsWithFiveDecimals) {
   EXPECT_NEAR(back[1].spot->u_mm, -0.1, 1e-12);
 }
 
+TEST(JointSetCsv, PlacementColumnIsOptionalAndOneBased) {
+  const auto without = parseJointSet("q1,q2,q3,q4,q5,q6\n1,2,3,4,5,6\n", "p.csv");
+  ASSERT_EQ(without.size(), 1u);
+  EXPECT_EQ(without[0].placement, 1);
+  const auto with = parseJointSet(
+      "placement,q1,q2,q3,q4,q5,q6\n"
+      "2,1,2,3,4,5,6\n"
+      " 3 ,1,2,3,4,5,7\n",
+      "p.csv");
+  ASSERT_EQ(with.size(), 2u);
+  EXPECT_EQ(with[0].placement, 2);
+  EXPECT_EQ(with[1].placement, 3);
+  EXPECT_DOUBLE_EQ(with[1].q_deg[5], 7);
+}
+
+TEST(JointSetCsv, BadPlacementsNameTheLineAndColumn) {
+  const std::string header = "q1,q2,q3,q4,q5,q6,placement\n1,2,3,4,5,6,1\n";
+  for (const char* bad : {"0", "-1", "1.5", "x", "", "2e0", "101", "9999999999"})
+    EXPECT_NE(errorOf(header + "1,2,3,4,5,6," + bad + "\n")
+                  .find("poses.csv:3: column 7 (placement) is not a whole number from 1 to 100"),
+              std::string::npos)
+        << bad;
+  EXPECT_NE(errorOf("q1,q2,q3,q4,q5,q6,placement,placement\n").find("appears twice"),
+            std::string::npos);
+}
+
+TEST(JointSetCsv, FormatWritesPlacementOnlyWhenThereIsMoreThanOne) {
+  std::vector<Pose> poses(2);
+  poses[1].q_deg[0] = 1;
+  EXPECT_EQ(formatJointSet(poses).find("placement"), std::string::npos);
+  poses[1].placement = 3;
+  const std::string text = formatJointSet(poses);
+  EXPECT_NE(text.find("q1,q2,q3,q4,q5,q6,placement\n"), std::string::npos);
+  const auto back = parseJointSet(text, "p.csv");
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_EQ(back[0].placement, 1);
+  EXPECT_EQ(back[1].placement, 3);
+}
+
 }  // namespace
 }  // namespace zerocal

@@ -45,7 +45,7 @@ TEST(ReferenceFacts, JointDirectionsAreTheControllersOnes) {
 TEST(ReferenceFacts, WristSensitivityIsThePapersFigure) {
   // calibration-math.md section 6: at about 600 mm, 0.02 mm on the PSD is about 0.002 deg of
   // wrist rotation.
-  const CellModel cell{builtinIrb1600(), LaserModel(), Eigen::Matrix3d::Identity()};
+  const CellModel cell{builtinIrb1600(), LaserModel(), Eigen::Matrix3d::Identity(), {}};
   const auto s = spotSensitivity(cell, Joints{0, 30, 10, 0, 45, 0}, 600);
   EXPECT_NEAR(s[4].deg_per_20um, 0.002, 0.0002);
 }

@@ -43,4 +43,66 @@ Eigen::MatrixXd pointToLineJacobian(const CellModel& cell, const std::vector<Pos
 std::vector<double> standoffs(const CellModel& cell, const std::vector<Pose>& poses,
                               const CalibrationParameters& params);
 
+// ---- Several PSD placements (docs/maths.md section 8) ----
+//
+// The unknowns of a session with P placements: delta2..delta5, the laser's four, the 18 link
+// errors (linkParamName order), then the centre (3) of each placement in ascending placement
+// number.
+struct PlacementLayout {
+  std::vector<int> placements;  // the placement numbers, ascending
+
+  explicit PlacementLayout(const std::vector<Pose>& poses) : placements(placementsOf(poses)) {}
+  int count() const { return static_cast<int>(placements.size()); }
+  static constexpr int firstLink() { return kIdentifiedCount; }
+  static constexpr int firstTarget() { return kIdentifiedCount + kLinkParamCount; }
+  int unknownCount() const { return firstTarget() + kTargetCount * count(); }
+  // 0-based position of a placement number; throws std::out_of_range for an unknown one.
+  int slot(int placement) const;
+  // unknownName, linkParamName, or "target2_x_mm" (placement 2's centre).
+  std::string name(int k) const;
+  // In words, for reasons: "delta3", "the laser line", "da2", "the placement-2 centre".
+  std::string readable(int k) const;
+};
+
+// Whitened point-to-line Jacobian with the link errors, 2N x layout.unknownCount() (columns:
+// delta2..5 in rad, laser, link errors in mm and rad, the centres in mm), at `params` (its
+// target_mm unused) with targets[slot] the centre of each placement. With `residuals`, also the
+// whitened misses (2N).
+Eigen::MatrixXd placementJacobian(const CellModel& cell, const std::vector<Pose>& poses,
+                                  const PlacementLayout& layout,
+                                  const CalibrationParameters& params,
+                                  const std::vector<Eigen::Vector3d>& targets, double sigma_mm,
+                                  bool use_readings, Eigen::VectorXd* residuals = nullptr);
+
+// The base parameters, as FIGAROH finds them, from the Jacobian of poses whose lines pass
+// exactly through their centres (where the lines miss, a change that keeps an exact fit exact,
+// the arm's scale or a turn about the beam, still moves the misses and would look identifiable):
+// the columns of the column-scaled Jacobian are taken
+// in order of preference (the offsets, the laser, the centres, then the link errors joint by
+// joint) and an unknown is kept when its column adds a direction to those kept before it (the
+// diagonal of R in a QR decomposition without pivoting, relative to the column, above 1e-6).
+// An unknown whose column is zero has "no effect on the measurements"; one whose column is a
+// combination of kept ones is "not identifiable: combined with ..." the kept unknowns that
+// combination leans on (R1^-1 R2, FIGAROH's regrouping). Such unknowns are held at their nominal
+// value; the kept ones form a full-rank problem.
+struct BaseParameters {
+  std::vector<bool> identified;     // per unknown, layout order
+  std::vector<std::string> reason;  // why not, empty when identified
+  int count = 0;                    // identified unknowns
+};
+BaseParameters analyseBaseParameters(const Eigen::MatrixXd& jacobian,
+                                     const PlacementLayout& layout);
+
+// The unit-sigma covariance (layout order, NaN rows and columns for unknowns not identified) of
+// the identified unknowns, the pseudo-inverse of J_b^T J_b with J_b the Jacobian's identified
+// columns, and the condition number of J_b column-scaled.
+Eigen::MatrixXd baseCovariance(const Eigen::MatrixXd& jacobian, const BaseParameters& base,
+                               double* condition_number = nullptr);
+
+// The point each placement's nominal lines pass closest to (through the hit points), per slot.
+std::vector<Eigen::Vector3d> placementTargets(const CellModel& cell, const std::vector<Pose>& poses,
+                                              const PlacementLayout& layout,
+                                              const CalibrationParameters& params,
+                                              bool use_readings);
+
 }  // namespace zerocal

@@ -34,10 +34,20 @@ struct Prediction {
   double rms_offset_sigma_deg = 0;  // RMS over delta2..delta5 (infinite if any is not identifiable)
   int rank = 0;
   double condition_number = 0;
+  // With poses at several PSD placements: how many, and per link error (linkParamName order) its
+  // sigma (mm, or deg for a twist; NaN when not identified), whether the poses identify it, and
+  // why not. Empty with one placement.
+  int placements = 1;
+  std::vector<double> link_sigma;
+  std::vector<bool> link_identifiable;
+  std::vector<std::string> link_reason;
 };
 
 // The Cramer-Rao bound of the point-to-line model at the given poses, with the target as a
-// nuisance parameter (the 8 x 8 block of the 11 x 11 inverse information), for sigma_mm.
+// nuisance parameter (the 8 x 8 block of the 11 x 11 inverse information), for sigma_mm. With
+// poses at several placements, that of the several-placement model: each placement's centre a
+// nuisance, the link errors identified where the base-parameter analysis keeps them (their
+// sigmas in link_sigma); the centres are where each placement's nominal lines cross.
 Prediction predictUncertainty(const CellModel& cell, const std::vector<Pose>& poses,
                               const CalibrationParameters& at, double sigma_mm);
 
@@ -56,8 +66,20 @@ struct PlanOptions {
   Eigen::Vector3d psd_normal = Eigen::Vector3d::UnitZ();  // the PSD faces up by default
   double sweep_deg = 45;                                  // patterns I and II: beam tilt range, +-
   bool joint1_fixed = false;  // pattern II only: hold joint 1 exactly constant
+  // More PSD placements: the centres (base frame, mm) of placements 2, 3, ...; the target given
+  // to planPoses is placement 1's. `poses` are planned at each placement (the same pattern,
+  // aimed at that centre), each pose carrying its placement number. Empty: one placement.
+  std::vector<Eigen::Vector3d> more_placements;
   std::string validate() const;
 };
+
+// A default spread of `count` PSD placements (1..kMaxDefaultPlacements) around the first, on
+// the robot's side of the cell: the first is `first`; the others turned about the base z axis
+// by +-50 and +-100 deg and raised or lowered 200 mm, so that the arm reaches them with its
+// upper arm and forearm in different configurations. Returns placements 2..count's centres.
+// Throws InputError for a count outside the range.
+constexpr int kMaxDefaultPlacements = 5;
+std::vector<Eigen::Vector3d> defaultPlacements(const Eigen::Vector3d& first, int count);
 
 struct Plan {
   std::vector<Pose> poses;

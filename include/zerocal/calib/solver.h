@@ -18,6 +18,9 @@ enum class CostKind {
 };
 enum class RobustLoss { kNone, kHuber, kCauchy };
 
+// With several PSD placements each placement's centre needs lines from at least this many poses.
+constexpr int kMinimumPosesPerPlacement = 3;
+
 struct SolveOptions {
   CostKind cost = CostKind::kMaximumLikelihood;
   // Measurement sigma in mm (miss distance of a line from the hit point, per axis). When unset
@@ -105,16 +108,26 @@ struct SolveReport {
   double required_accuracy_deg = 0;
   double model_length_mm = 0, model_angle_deg = 0;  // the link tolerances counted (SolveOptions)
 
-  std::vector<ParameterEstimate> parameters;  // the 8 identified, in unknownName order
+  // The 8 of unknownName order; with several placements then the 18 link errors
+  // (linkParamName order), each identified or named in not_identifiable with the reason.
+  std::vector<ParameterEstimate> parameters;
   struct NotIdentifiable {
     std::string name, reason;
   };
   std::vector<NotIdentifiable> not_identifiable;  // always delta1 and delta6, plus any others
-  CalibrationParameters estimate;                 // radians inside
+  CalibrationParameters estimate;  // radians inside; target_mm: the first placement's
   Eigen::Vector3d target_sigma_mm = Eigen::Vector3d::Zero();
+  // With two or more PSD placements, each placement's centre (empty with one).
+  struct PlacementCentre {
+    int placement = 1;  // the joint set's number
+    int poses = 0;      // poses aimed at it (duplicates included)
+    Eigen::Vector3d target_mm = Eigen::Vector3d::Zero();
+    Eigen::Vector3d target_sigma_mm = Eigen::Vector3d::Zero();
+  };
+  std::vector<PlacementCentre> placements;
   Eigen::MatrixXd correlation;  // 8 x 8, NaN where not identifiable
 
-  int rank = 0;
+  int rank = 0;  // with several placements: the number of identified unknowns (base parameters)
   double condition_number = 0;
   int dof = 0;
   double noise_mm = 0;                 // the sigma behind the reported uncertainties
@@ -137,8 +150,11 @@ struct SolveReport {
 void checkPoses(const CellModel& cell, const std::vector<Pose>& poses);
 
 // Throws InputError for fewer than kMinimumPoses distinct poses, joints outside the robot's
-// limits, or invalid options. Everything else (non-convergence, unidentifiable parameters, poses
-// that do not fit) is in the report, and its verdict says whether the result may be used.
+// limits, or invalid options; with poses at two or more PSD placements (Pose::placement), also
+// for fewer than kMinimumPosesPerPlacement at a placement, or for the pairwise cost or a robust
+// loss, which that solve does not offer. Everything else (non-convergence, unidentifiable
+// parameters, poses that do not fit) is in the report, and its verdict says whether the result may
+// be used.
 SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
                   const SolveOptions& options = {});
 

@@ -1,0 +1,272 @@
+// The solve for poses at two or more PSD placements: each placement its own centre, and the
+// link errors the poses can identify beside the offsets and the laser (docs/maths.md section 8).
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include "costs.h"
+#include "solver_detail.h"
+#include "zerocal/calib/identifiability.h"
+#include "zerocal/calib/planner.h"
+#include "zerocal/error.h"
+
+namespace zerocal::detail {
+namespace {
+
+struct MultiFit {
+  CalibrationParameters est;
+  std::vector<Eigen::Vector3d> targets;  // per placement slot
+  bool converged = false;
+  std::string message;
+  int iterations = 0;
+};
+
+// Holds the entries of a parameter block that the base-parameter analysis did not keep.
+void holdUnidentified(ceres::Problem& problem, double* block, int first, int size,
+                      const BaseParameters& base) {
+  std::vector<int> held;
+  for (int i = 0; i < size; ++i)
+    if (!base.identified[first + i]) held.push_back(i);
+  if (static_cast<int>(held.size()) == size)
+    problem.SetParameterBlockConstant(block);
+  else if (!held.empty())
+    problem.SetManifold(block, new ceres::SubsetManifold(size, held));
+}
+
+MultiFit fit(const CellModel& cell, const std::vector<Pose>& poses, const PlacementLayout& layout,
+             const BaseParameters& base, const SolveOptions& options, bool readings,
+             const CalibrationParameters& start, const std::vector<Eigen::Vector3d>& targets) {
+  MultiFit f;
+  f.est = start;
+  f.targets = targets;
+  ceres::Problem::Options problem_options;
+  problem_options.cost_function_ownership = ceres::TAKE_OWNERSHIP;
+  problem_options.manifold_ownership = ceres::TAKE_OWNERSHIP;
+  ceres::Problem problem(problem_options);
+  const double sigma_in = options.noise_mm.value_or(1.0);
+  for (const Pose& pose : poses)
+    problem.AddResidualBlock(LinkPointToLineCost::create(
+                                 cell, pose.q_deg, hitPointOffset(cell, pose, readings), sigma_in),
+                             nullptr, f.est.delta_rad.data(), f.est.laser.data(), f.est.link.data(),
+                             f.targets[layout.slot(pose.placement)].data());
+  holdUnidentified(problem, f.est.delta_rad.data(), 0, kOffsetCount, base);
+  holdUnidentified(problem, f.est.laser.data(), kOffsetCount, kLaserParamCount, base);
+  holdUnidentified(problem, f.est.link.data(), PlacementLayout::firstLink(), kLinkParamCount, base);
+  for (int p = 0; p < layout.count(); ++p)
+    holdUnidentified(problem, f.targets[p].data(),
+                     PlacementLayout::firstTarget() + kTargetCount * p, kTargetCount, base);
+
+  ceres::Solver::Options solver_options;
+  solver_options.linear_solver_type = ceres::DENSE_QR;
+  solver_options.max_num_iterations = options.max_iterations;
+  solver_options.function_tolerance = 1e-15;
+  solver_options.gradient_tolerance = 1e-15;
+  solver_options.parameter_tolerance = 1e-14;
+  solver_options.num_threads = 1;
+  solver_options.logging_type = ceres::SILENT;
+  CancelCallback cancel(options.cancelled);
+  solver_options.callbacks.push_back(&cancel);
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver_options, &problem, &summary);
+  f.converged = summary.termination_type == ceres::CONVERGENCE;
+  f.message = summary.termination_type == ceres::USER_FAILURE ? "cancelled" : summary.message;
+  f.iterations = static_cast<int>(summary.iterations.size());
+  return f;
+}
+
+// The poses moved (by a minimum-norm change of the joints, a fraction of a degree) so that the
+// nominal lines pass exactly through their placement's centre: where the base parameters are
+// found. A pose that cannot be moved so keeps its joints.
+std::vector<Pose> onTheirCentres(const CellModel& cell, const std::vector<Pose>& poses,
+                                 const PlacementLayout& layout,
+                                 const std::vector<Eigen::Vector3d>& targets) {
+  std::vector<Pose> out;
+  for (const Pose& p : poses) {
+    Pose moved = p;
+    moved.spot.reset();
+    if (const auto q = servoOnto(cell, {}, targets[layout.slot(p.placement)], p.q_deg))
+      moved.q_deg = *q;
+    out.push_back(moved);
+  }
+  return out;
+}
+
+void checkPlacements(const std::vector<Pose>& poses, const PlacementLayout& layout,
+                     const SolveOptions& options) {
+  if (options.cost != CostKind::kMaximumLikelihood)
+    throw InputError(
+        "the poses are at " + std::to_string(layout.count()) +
+        " PSD placements: only the maximum-likelihood cost identifies several placements");
+  if (options.loss != RobustLoss::kNone)
+    throw InputError("the poses are at " + std::to_string(layout.count()) +
+                     " PSD placements: a robust loss is not offered with several placements");
+  for (int placement : layout.placements) {
+    const auto n = std::count_if(poses.begin(), poses.end(),
+                                 [&](const Pose& p) { return p.placement == placement; });
+    if (n < kMinimumPosesPerPlacement)
+      throw InputError("placement " + std::to_string(placement) + " has " + std::to_string(n) +
+                       " pose" + (n == 1 ? "" : "s") + "; each placement's centre needs at least " +
+                       std::to_string(kMinimumPosesPerPlacement));
+  }
+}
+
+}  // namespace
+
+SolveReport solveMultiPlacement(const CellModel& cell, const std::vector<Pose>& poses,
+                                const SolveOptions& options) {
+  const auto started = std::chrono::steady_clock::now();
+  const PlacementLayout layout(poses);
+  checkPlacements(poses, layout, options);
+  const int n = static_cast<int>(poses.size());
+  SolveReport report = startReport(poses, options);
+  const bool readings = report.used_readings;
+  report.model_length_mm = options.model_length_mm;
+  report.model_angle_deg = options.model_angle_deg;
+
+  const std::vector<int> duplicate_of = findDuplicates(poses);
+  std::vector<Pose> used;
+  for (int i = 0; i < n; ++i)
+    if (duplicate_of[i] < 0) used.push_back(poses[i]);
+  throwUnlessEnoughDistinct(poses, duplicate_of, static_cast<int>(used.size()));
+  const int m = static_cast<int>(used.size());
+  report.poses_used = m;
+
+  // Start: zero offsets and link errors, nominal laser, each centre where its nominal lines
+  // pass closest. The base parameters are found there: which unknowns the poses can separate
+  // is a property of the poses, not of small changes of the parameters.
+  CalibrationParameters start;
+  const std::vector<Eigen::Vector3d> start_targets =
+      placementTargets(cell, used, layout, start, readings);
+  const BaseParameters base = analyseBaseParameters(
+      placementJacobian(cell, onTheirCentres(cell, used, layout, start_targets), layout, start,
+                        start_targets, 1.0, false),
+      layout);
+  const MultiFit f = fit(cell, used, layout, base, options, readings, start, start_targets);
+  report.converged = f.converged;
+  report.message = f.message;
+  report.iterations = f.iterations;
+  report.estimate = f.est;
+  report.estimate.target_mm = f.targets[0];
+
+  Eigen::VectorXd r_used;
+  const Eigen::MatrixXd jac =
+      placementJacobian(cell, used, layout, f.est, f.targets, 1.0, readings, &r_used);
+  report.rank = base.count;
+  report.dof = 2 * m - base.count;
+  applyNoise(report, options, r_used.squaredNorm());
+  const double sigma = report.noise_mm;
+  Eigen::MatrixXd cov = baseCovariance(jac, base, &report.condition_number) * sigma * sigma;
+
+  // The link errors the poses cannot identify are held at nominal; known to the tolerances,
+  // their effect on the identified unknowns is a consider covariance (as with one placement).
+  // An error combined only with the laser or a centre moves nothing else: its part is zero.
+  const int unknowns = layout.unknownCount();
+  Eigen::MatrixXd model_cov = Eigen::MatrixXd::Zero(unknowns, unknowns);
+  if (options.model_length_mm > 0 || options.model_angle_deg > 0) {
+    std::vector<int> held;
+    for (int k = PlacementLayout::firstLink(); k < PlacementLayout::firstTarget(); ++k)
+      if (!base.identified[k]) held.push_back(k);
+    if (!held.empty()) {
+      Eigen::MatrixXd g(jac.rows(), static_cast<Eigen::Index>(held.size()));
+      Eigen::VectorXd tolerance(g.cols());
+      for (std::size_t j = 0; j < held.size(); ++j) {
+        g.col(static_cast<Eigen::Index>(j)) = jac.col(held[j]);
+        tolerance[static_cast<Eigen::Index>(j)] = (held[j] - PlacementLayout::firstLink()) % 3 == 2
+                                                      ? options.model_angle_deg * kDegToRad
+                                                      : options.model_length_mm;
+      }
+      const Eigen::MatrixXd unit =
+          (cov / (sigma * sigma)).unaryExpr([](double x) { return std::isfinite(x) ? x : 0.0; });
+      const Eigen::MatrixXd s_matrix = unit * jac.transpose() * g;
+      model_cov = s_matrix * tolerance.cwiseAbs2().asDiagonal() * s_matrix.transpose();
+      cov += model_cov;
+    }
+  }
+
+  const double quantile = intervalQuantile(report);
+  report.not_identifiable.push_back({"delta1_deg", delta1Reason()});
+  report.not_identifiable.push_back({"delta6_deg", delta6Reason()});
+  const auto value = [&](int k) {
+    if (k < kOffsetCount) return f.est.delta_rad[k] * kRadToDeg;
+    if (k < kIdentifiedCount) return f.est.laser[k - kOffsetCount];
+    const int l = k - PlacementLayout::firstLink();
+    return f.est.link[l] * (l % 3 == 2 ? kRadToDeg : 1.0);
+  };
+  for (int k = 0; k < PlacementLayout::firstTarget(); ++k) {
+    ParameterEstimate pe;
+    pe.name = layout.name(k);
+    pe.identifiable = base.identified[k];
+    pe.reason = base.reason[k];
+    const bool angle = k < kOffsetCount || (k >= PlacementLayout::firstLink() &&
+                                            (k - PlacementLayout::firstLink()) % 3 == 2);
+    const double unit = angle ? kRadToDeg : 1.0;
+    pe.value = value(k);
+    pe.sigma = std::sqrt(cov(k, k)) * unit;
+    pe.model_sigma = std::sqrt(model_cov(k, k)) * unit;
+    if (k < kOffsetCount && pe.identifiable && !(pe.sigma <= options.required_accuracy_deg)) {
+      pe.identifiable = false;
+      pe.reason = "known only to " + fixedText(pe.sigma, 4) + " deg (one standard deviation" +
+                  (pe.model_sigma > 0 ? ", " + fixedText(pe.model_sigma, 4) +
+                                            " deg of it from the link tolerances of what the "
+                                            "poses cannot identify"
+                                      : std::string()) +
+                  "); the required accuracy is " + fixedText(options.required_accuracy_deg, 4) +
+                  " deg";
+    }
+    pe.ci95_low = pe.value - quantile * pe.sigma;
+    pe.ci95_high = pe.value + quantile * pe.sigma;
+    if (!pe.identifiable) report.not_identifiable.push_back({pe.name, pe.reason});
+    report.parameters.push_back(pe);
+  }
+  for (int p = 0; p < layout.count(); ++p) {
+    SolveReport::PlacementCentre c;
+    c.placement = layout.placements[p];
+    c.poses = static_cast<int>(std::count_if(
+        poses.begin(), poses.end(), [&](const Pose& q) { return q.placement == c.placement; }));
+    c.target_mm = f.targets[p];
+    for (int a = 0; a < kTargetCount; ++a) {
+      const int k = PlacementLayout::firstTarget() + kTargetCount * p + a;
+      c.target_sigma_mm[a] = std::sqrt(cov(k, k));
+      if (!base.identified[k]) report.not_identifiable.push_back({layout.name(k), base.reason[k]});
+    }
+    report.placements.push_back(c);
+  }
+  report.target_sigma_mm = report.placements.front().target_sigma_mm;
+  report.correlation.resize(kIdentifiedCount, kIdentifiedCount);
+  for (int a = 0; a < kIdentifiedCount; ++a)
+    for (int b = 0; b < kIdentifiedCount; ++b)
+      report.correlation(a, b) = cov(a, b) / std::sqrt(cov(a, a) * cov(b, b));
+
+  // Every given pose's miss and stand-off at the result (duplicates included).
+  Eigen::VectorXd r_all;
+  placementJacobian(cell, poses, layout, f.est, f.targets, 1.0, readings, &r_all);
+  double rss = 0;
+  for (int i = 0; i < n; ++i) {
+    PoseResidual pr;
+    pr.source_line = poses[i].source_line;
+    pr.miss_mm = r_all.segment<2>(2 * i);
+    pr.miss_norm_mm = pr.miss_mm.norm();
+    pr.normalised = pr.miss_norm_mm / sigma;
+    pr.used = duplicate_of[i] < 0;
+    pr.duplicate_of = duplicate_of[i] + 1;
+    const Line l = laserLine(cell, poses[i].q_deg, f.est);
+    pr.standoff_mm = l.direction.dot(f.targets[layout.slot(poses[i].placement)] - l.point);
+    if (pr.used) rss += pr.miss_mm.squaredNorm();
+    report.poses.push_back(pr);
+  }
+  report.rms_miss_mm = std::sqrt(rss / m);
+  for (int i = 0; i < n; ++i)
+    if (duplicate_of[i] >= 0)
+      report.suspect_poses.push_back(
+          {i + 1, poses[i].source_line,
+           "repeats " + poseLabel(poses, duplicate_of[i]) +
+               " exactly (the same joints, reading and placement): one measurement, counted once",
+           report.chi2_per_dof.value_or(1.0)});
+  report.verdict = judge(report, options, {});
+  report.solve_time_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started).count();
+  return report;
+}
+
+}  // namespace zerocal::detail

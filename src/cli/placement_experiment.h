@@ -1,0 +1,32 @@
+// zerocal experiment placements: calibrations with several PSD placements on seeded simulated
+// worlds, beside the same worlds calibrated from one placement.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <cstdint>
+
+namespace zerocal::cli {
+
+struct PlacementExperimentArgs {
+  int worlds = 30;
+  std::uint64_t seed0 = 1;
+  int placements = 3;            // PSD placements of the several-placement session
+  int poses = 12;                // per placement; the one-placement session has them all at one
+  double noise_mm = 0.020;       // the measurement sigma given to the solve (the daemon's)
+  double model_length_mm = 0.1;  // link tolerances counted (the daemon's defaults)
+  double model_angle_deg = 0.01;
+  bool ideal_world = false;
+  bool without_sag = false;  // the realistic world less its gravity sag (what the sag costs)
+  bool json = false;
+  // The requirements of the several-placement sessions.
+  double max_rms_deg = 0.005;
+  double max_sigmas = 3.0;
+  CLI::App* cmd = nullptr;
+};
+
+void addPlacementExperiment(CLI::App& experiment, PlacementExperimentArgs& args);
+
+// Returns 0 when the requirements hold, kRequirementNotMet (cell_experiment.h) when one does not.
+int runPlacementExperiment(const PlacementExperimentArgs& args);
+
+}  // namespace zerocal::cli

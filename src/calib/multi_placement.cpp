@@ -57,16 +57,8 @@ MultiFit fit(const CellModel& cell, const std::vector<Pose>& poses, const Placem
     holdUnidentified(problem, f.targets[p].data(),
                      PlacementLayout::firstTarget() + kTargetCount * p, kTargetCount, base);
 
-  ceres::Solver::Options solver_options;
-  solver_options.linear_solver_type = ceres::DENSE_QR;
-  solver_options.max_num_iterations = options.max_iterations;
-  solver_options.function_tolerance = 1e-15;
-  solver_options.gradient_tolerance = 1e-15;
-  solver_options.parameter_tolerance = 1e-14;
-  solver_options.num_threads = 1;
-  solver_options.logging_type = ceres::SILENT;
   CancelCallback cancel(options.cancelled);
-  solver_options.callbacks.push_back(&cancel);
+  const ceres::Solver::Options solver_options = solverOptions(options, &cancel);
   ceres::Solver::Summary summary;
   ceres::Solve(solver_options, &problem, &summary);
   f.converged = summary.termination_type == ceres::CONVERGENCE;

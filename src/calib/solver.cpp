@@ -163,16 +163,8 @@ Fit runFit(const CellModel& cell, const std::vector<Pose>& poses, const SolveOpt
                              est.delta_rad.data(), est.laser.data());
   }
 
-  ceres::Solver::Options solver_options;
-  solver_options.linear_solver_type = ceres::DENSE_QR;
-  solver_options.max_num_iterations = options.max_iterations;
-  solver_options.function_tolerance = 1e-15;
-  solver_options.gradient_tolerance = 1e-15;
-  solver_options.parameter_tolerance = 1e-14;
-  solver_options.num_threads = 1;
-  solver_options.logging_type = ceres::SILENT;
   detail::CancelCallback cancel(options.cancelled);
-  solver_options.callbacks.push_back(&cancel);
+  const ceres::Solver::Options solver_options = detail::solverOptions(options, &cancel);
   ceres::Solver::Summary summary;
   ceres::Solve(solver_options, &problem, &summary);
   fit.converged = summary.termination_type == ceres::CONVERGENCE;
@@ -302,6 +294,19 @@ bool significant(const DeletionTest& t, int i) { return t.checkable && i >= 0 &&
 }  // namespace
 
 namespace detail {
+
+ceres::Solver::Options solverOptions(const SolveOptions& options, CancelCallback* cancel) {
+  ceres::Solver::Options o;
+  o.linear_solver_type = ceres::DENSE_QR;
+  o.max_num_iterations = options.max_iterations;
+  o.function_tolerance = 1e-15;
+  o.gradient_tolerance = 1e-15;
+  o.parameter_tolerance = 1e-14;
+  o.num_threads = 1;
+  o.logging_type = ceres::SILENT;
+  o.callbacks.push_back(cancel);
+  return o;
+}
 
 Verdict judge(const SolveReport& r, const SolveOptions& o,
               const std::vector<std::string>& gross_problems) {

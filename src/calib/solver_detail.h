@@ -23,6 +23,10 @@ class CancelCallback : public ceres::IterationCallback {
   const std::function<bool()>& cancelled_;
 };
 
+// Ceres' options of every solve: dense QR, tight tolerances, one thread, silent, the caller's
+// iteration limit, and `cancel` polled each iteration (it must outlive the solve).
+ceres::Solver::Options solverOptions(const SolveOptions& options, CancelCallback* cancel);
+
 // The gates: any reason here and the result is not offered for use.
 Verdict judge(const SolveReport& r, const SolveOptions& o,
               const std::vector<std::string>& gross_problems);

@@ -241,16 +241,16 @@ void PsdServo::orderPath(ServoResult& result) const noexcept {
 }
 
 bool PsdServo::spiral(ControllerLink& robot, PsdReader& psd, const Joints& base_q,
-                      const Eigen::Vector2d& expected_uv, double radius_mm, bool centre_read,
-                      ServoResult& result, bool* failed) noexcept {
+                      const Eigen::Vector2d& expected_uv, double radius_mm, ServoResult& result,
+                      bool* failed) noexcept {
   *failed = false;
   const Eigen::Matrix<double, kJointCount, 2> pinv =
       dampedPseudoInverse(imageJacobian(cell_, psd_centre_, base_q), options_.damping_mm);
   const JointVector base = toVector(base_q);
   // Archimedean spiral r = b theta, b = step / 2 pi: turns step apart, points step apart along it.
   const double b = options_.search_step_mm / (2 * kPi);
-  // A centre already read is not read again.
-  const bool centre_new = !centre_read || expected_uv.norm() > 0.5 * options_.search_step_mm;
+  // The centre, already read, is not read again.
+  const bool centre_new = expected_uv.norm() > 0.5 * options_.search_step_mm;
   double theta = centre_new ? 0.0 : 2 * kPi;
   for (int point = 0; point < options_.max_search_points; ++point) {
     const double r = b * theta;
@@ -363,12 +363,7 @@ PsdServo::Sweep PsdServo::sweepPass(ControllerLink& robot, PsdReader& psd, const
     ++result.search_moves;
     if (!hit) continue;
     // The robot came to rest a waypoint or so beyond where the light rose: back there.
-    try {
-      q_ = robot.readJoints();
-    } catch (...) {
-      latchLinkError(result, ServoStatus::kLinkError, "the controller link failed reading joints");
-      return Sweep::kFailed;
-    }
+    if (readBack(robot, result) != Step::kOk) return Sweep::kFailed;
     const int before = result.moves;
     const Step back = walkTo(robot, *hit, result);
     result.search_moves += result.moves - before;
@@ -376,13 +371,18 @@ PsdServo::Sweep PsdServo::sweepPass(ControllerLink& robot, PsdReader& psd, const
     result.settle_acquisition_s = result.settle_s;
     return result.reading.spot_present ? Sweep::kLit : Sweep::kNear;
   }
+  if (readBack(robot, result) != Step::kOk) return Sweep::kFailed;
+  return refused ? Sweep::kUnavailable : Sweep::kNothing;
+}
+
+PsdServo::Step PsdServo::readBack(ControllerLink& robot, ServoResult& result) noexcept {
   try {
     q_ = robot.readJoints();
   } catch (...) {
     latchLinkError(result, ServoStatus::kLinkError, "the controller link failed reading joints");
-    return Sweep::kFailed;
+    return Step::kFailed;
   }
-  return refused ? Sweep::kUnavailable : Sweep::kNothing;
+  return Step::kOk;
 }
 
 void PsdServo::notFound(ControllerLink& robot, const Joints& planned,
@@ -408,8 +408,7 @@ bool PsdServo::acquire(ControllerLink& robot, PsdReader& psd, const Joints& plan
       return false;
     case Sweep::kNear:
       // Where the signal rose the reading is dark: the detector's edge is a pitch away at most.
-      if (spiral(robot, psd, q_, Eigen::Vector2d::Zero(), options_.sweep_pitch_mm, true, result,
-                 &failed))
+      if (spiral(robot, psd, q_, Eigen::Vector2d::Zero(), options_.sweep_pitch_mm, result, &failed))
         return true;
       if (!failed) notFound(robot, planned, result);
       return false;
@@ -421,8 +420,7 @@ bool PsdServo::acquire(ControllerLink& robot, PsdReader& psd, const Joints& plan
     if (walkTo(robot, planned, result) != Step::kOk) return false;
   }
   q_ = planned;  // not its float32 echo
-  if (spiral(robot, psd, planned, toVector(expected), options_.search_radius_mm, true, result,
-             &failed))
+  if (spiral(robot, psd, planned, toVector(expected), options_.search_radius_mm, result, &failed))
     return true;
   if (!failed) notFound(robot, planned, result);
   return false;
@@ -508,13 +506,7 @@ void PsdServo::runCycle(ControllerLink& robot, PsdReader& psd, const Joints& pla
   ring_count_ = ring_next_ = 0;
   path_tail_next_ = 0;
   faulted_ = false;
-  if (aborted(result)) return;
-  try {
-    q_ = robot.readJoints();
-  } catch (...) {
-    latchLinkError(result, ServoStatus::kLinkError, "the controller link failed reading joints");
-    return;
-  }
+  if (aborted(result) || readBack(robot, result) != Step::kOk) return;
   // The controller stores float32 and speaks 5 decimals: a few 1e-5 deg from the request.
   for (int i = 0; i < kJointCount; ++i) {
     if (!(std::abs(q_[i] - planned_deg[i]) <= 1e-3)) {

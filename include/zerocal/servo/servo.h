@@ -243,8 +243,10 @@ class PsdServo {
   // The discrete spiral around `base` + J^+ (offset - expected_uv), out to radius_mm; true when
   // a settled reading sees the spot. False with nothing latched when the spiral ends dark.
   bool spiral(ControllerLink& robot, PsdReader& psd, const Joints& base,
-              const Eigen::Vector2d& expected_uv, double radius_mm, bool centre_read,
-              ServoResult& result, bool* failed) noexcept;
+              const Eigen::Vector2d& expected_uv, double radius_mm, ServoResult& result,
+              bool* failed) noexcept;  // the centre was read already
+  // q_ from the controller (after moves it interpolated itself), or the fault latched.
+  Step readBack(ControllerLink& robot, ServoResult& result) noexcept;
   // Walks back to the planned pose and latches kSpotNotFound.
   void notFound(ControllerLink& robot, const Joints& planned, ServoResult& result) noexcept;
   void fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& result) noexcept;

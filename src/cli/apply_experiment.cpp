@@ -62,12 +62,16 @@ WorldRun runWorld(std::uint64_t seed, const ApplyExperimentArgs& args, const std
   const std::unique_ptr<CellBackend> backend = service::makeBackend(config);
   service::SessionManager manager(*backend, service::managerSettingsOf(config));
   // The verification is planned around the PSD centre the calibration found (result.json
-  // target_mm), not the taught one: it knows the cell better.
-  std::optional<Eigen::Vector3d> found_target;
+  // target_mm), not the taught one, and predicts the spot from the laser line it found, as the
+  // daemon's own verification does: it knows the cell better.
+  std::optional<CalibrationParameters> found;
   const auto calibrate = [&]() {
     service::StartRequest request = manager.defaultRequest();
     request.poses = args.poses;
-    if (found_target) request.target_mm = found_target;
+    if (found) {
+      request.target_mm = found->target_mm;
+      request.found_before = found;
+    }
     const std::string id = manager.start(request);
     const service::SessionStatus end = manager.waitIdle();
     if (end.state != service::SessionState::kDone)
@@ -82,7 +86,7 @@ WorldRun runWorld(std::uint64_t seed, const ApplyExperimentArgs& args, const std
                     " not identifiable");
       o[k] = {p.value, p.sigma};
     }
-    if (!found_target) found_target = r.estimate.target_mm;
+    if (!found) found = r.estimate;
     return o;
   };
 
@@ -166,7 +170,7 @@ int runApplyExperiment(const ApplyExperimentArgs& args, std::ostream& out, std::
   }
   bool holds = true;
   double sum_measured = 0, sum_true = 0, sum_z = 0;
-  int n = 0, within = 0, named = 0, restored = 0;
+  int n = 0, within = 0, named = 0, restored = 0, harmless = 0;
   for (const WorldRun& r : runs) {
     const bool verified = r.outcome.state == apply::ApplyState::kVerified;
     const bool measured = r.outcome.after[0].sigma_deg > 0;  // the verification ran
@@ -181,6 +185,15 @@ int runApplyExperiment(const ApplyExperimentArgs& args, std::ostream& out, std::
       within += std::abs(m) <= 3 * std::hypot(r.before[k].sigma_deg, r.outcome.after[k].sigma_deg);
     }
     if (args.wrong_sign_joint > 0) {
+      // An offset within its sigma of zero stays there whatever the sign: no measurement can
+      // see the wrong sign, and none is needed (world 9's delta2 is -0.0008 deg).
+      const int k = args.wrong_sign_joint - 2;
+      const double doubled = 2 * std::abs(r.before[k].value_deg);
+      if (verified &&
+          doubled <= 3 * std::hypot(r.before[k].sigma_deg, r.outcome.after[k].sigma_deg)) {
+        ++harmless;
+        continue;
+      }
       named += !verified &&
                r.outcome.message.find("joint " + std::to_string(args.wrong_sign_joint) + "'s") !=
                    std::string::npos;
@@ -205,13 +218,21 @@ int runApplyExperiment(const ApplyExperimentArgs& args, std::ostream& out, std::
            "sigma: RMS "
         << f("%.2f", std::sqrt(sum_z / n)) << " (1 when the sigmas are right)\n";
   if (args.wrong_sign_joint > 0) {
+    const int judged = static_cast<int>(runs.size()) - harmless;
     out << "rolled back with joint " << args.wrong_sign_joint << " named: " << named << " of "
-        << runs.size() << "; controller back to its backed-up values: " << restored << " of "
-        << runs.size() << "\n";
-    holds = named == static_cast<int>(runs.size()) && restored == static_cast<int>(runs.size());
+        << judged << "; controller back to its backed-up values: " << restored << " of " << judged
+        << "\n";
+    if (harmless > 0)
+      out << harmless << " world(s) verified: joint " << args.wrong_sign_joint
+          << "'s offset is within 3 sigma of zero, so its sign changes nothing measurable\n";
+    holds = named == judged && restored == judged;
   } else {
     out << "verified: " << (holds ? "all" : "NOT all") << " worlds\n";
-    holds = holds && rms_measured <= args.required_deg && within == n;
+    // The requirement is on the robot: what remains in it, which the simulation knows. The
+    // verification's measurement of it carries the verification's own noise (delta2's sigma is
+    // about 0.0035 deg on 8 poses), so its RMS is no bound on the robot's; it must only be
+    // consistent with zero.
+    holds = holds && rms_true <= args.required_deg && within == n;
   }
   if (failed > 0) out << failed << " world(s) could not be calibrated before the apply\n";
   holds = holds && failed == 0;

@@ -167,14 +167,16 @@ std::string SessionManager::verify(const VerifyRequest& request) {
   return id;
 }
 
-ResultFile SessionManager::verificationRun(const Eigen::Vector3d& target, std::string& id) {
-  // The configured plan around the PSD centre the calibration found: the same code as any
-  // session, so the verification's numbers mean what a calibration's mean.
+ResultFile SessionManager::verificationRun(const CalibrationParameters& found, std::string& id) {
+  // The configured plan around the PSD centre the calibration found, the spot predicted from its
+  // laser line: the same code as any session, so the verification's numbers mean what a
+  // calibration's mean.
   StartRequest request = defaultRequest();
-  request.target_mm = target;
+  request.target_mm = found.target_mm;
+  request.found_before = found;
   const NewSession n = createSession(request);
   id = n.id;
-  runSession(n.id, n.poses, n.target, n.noise_mm, {});
+  runSession(n.id, n.poses, n.target, n.noise_mm, {}, n.found_before);
   const SessionStatus end = board_.status();
   if (end.state != SessionState::kDone)
     throw Error("verification session " + n.id + " " + stateName(end.state) + ": " + end.message);
@@ -255,7 +257,7 @@ void SessionManager::runApply(const std::string& id, const ResultFile& result) {
     options.verify = [&]() {
       std::string vid;
       try {
-        const ResultFile v = verificationRun(result.report.estimate.target_mm, vid);
+        const ResultFile v = verificationRun(result.report.estimate, vid);
         event.verification = vid;
         journal.append({{"step", "verification"}, {"session", vid}});
         return offsetsOf(v);
@@ -311,7 +313,7 @@ void SessionManager::runVerify(const std::string& id, const ResultFile& result) 
     std::string vid;
     ResultFile v;
     try {
-      v = verificationRun(result.report.estimate.target_mm, vid);
+      v = verificationRun(result.report.estimate, vid);
     } catch (...) {
       event.verification = vid;
       throw;

@@ -8,6 +8,7 @@
 
 #include "zerocal/calib/format.h"
 #include "zerocal/calib/solver.h"
+#include "zerocal/cell/link_error.h"
 #include "zerocal/daemon/logging.h"
 #include "zerocal/io/joint_set.h"
 
@@ -88,6 +89,24 @@ class SessionManager::LiveSlot {
 };
 
 namespace {
+
+// A verification's poses, those where a joint offset moves the spot least first: the shortest
+// beam, most nearly square to the PSD (the spot moves by range / cos(incidence) per radian). Its
+// spot prediction starts from the calibration, so the first pose's search is centred on where
+// the spot would be if the apply was right; if it was not (a wrong transmission doubles an
+// offset of up to a degree), this is the pose whose spot is still within the search, and each
+// pose found teaches the prediction the next one.
+void leastSensitiveFirst(std::vector<Pose>& poses, const CellModel& cell,
+                         const CalibrationParameters& found) {
+  const Eigen::Vector3d normal = cell.psd_rotation.col(2);
+  const auto spread = [&](const Pose& pose) {
+    const Line beam = laserLine(cell, pose.q_deg, found);
+    const double range = (found.target_mm - beam.point).dot(beam.direction);
+    return std::abs(range / normal.dot(beam.direction));
+  };
+  std::stable_sort(poses.begin(), poses.end(),
+                   [&](const Pose& a, const Pose& b) { return spread(a) < spread(b); });
+}
 
 // A simulated session's whole world, beside its result (docs/simulated-cell.md).
 constexpr const char* kTruthWorldFile = "truth-world.yaml";
@@ -259,7 +278,10 @@ Plan SessionManager::makePlan(const StartRequest& request, Eigen::Vector3d& targ
     options.poses = request.poses;
     options.noise_mm = noise_mm;
     options.psd_normal = knowledge_.cell.psd_rotation.col(2);
-    return planPoses(knowledge_.cell, target, options);
+    Plan plan = planPoses(knowledge_.cell, target, options);
+    if (request.found_before)
+      leastSensitiveFirst(plan.poses, knowledge_.cell, *request.found_before);
+    return plan;
   } catch (const InputError& e) {
     throw Refused("bad_request", e.what());
   }
@@ -276,6 +298,7 @@ SessionManager::NewSession SessionManager::createSession(const StartRequest& req
   const Plan plan = makePlan(request, n.target, n.noise_mm);
   refuseUnlessIdentifiable(plan.prediction);
   n.poses = plan.poses;
+  n.found_before = request.found_before;
 
   SessionFile draft;
   draft.plan = plan;
@@ -306,7 +329,7 @@ std::string SessionManager::start(const StartRequest& request) {
   NewSession n = createSession(request);
   worker_.post([this, n](bool cancelled) {
     if (cancelled) return finish(SessionState::kAborted, "the daemon stopped before it began");
-    runSession(n.id, n.poses, n.target, n.noise_mm, {});
+    runSession(n.id, n.poses, n.target, n.noise_mm, {}, n.found_before);
   });
   return n.id;
 }
@@ -441,7 +464,8 @@ void SessionManager::finish(SessionState state, const std::string& message) {
 
 void SessionManager::runSession(const std::string& id, const std::vector<Pose>& plan,
                                 const Eigen::Vector3d& target, double noise_mm,
-                                const PoseSkip& skip) {
+                                const PoseSkip& skip,
+                                const std::optional<CalibrationParameters>& found_before) {
   auto log = makeLogger("session");
   if (board_.abortRequested()) return finish(SessionState::kAborted, "aborted before connecting");
   try {
@@ -454,9 +478,22 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
     return finish(SessionState::kFaulted, std::string("cannot connect to the cell: ") + e.what());
   }
   // Which robot this is, as its controller says: the result names it (and a report of it).
+  // The links are kept between sessions; a controller restarted meanwhile (an apply by another
+  // client, a power cycle) has dropped them, and this first request is where that shows: both
+  // links are made again before anything moves, or the PSD's would read as no light.
   RobotInfo robot;
   try {
-    robot = cell_->robot().robotInfo();
+    try {
+      robot = cell_->robot().robotInfo();
+    } catch (const LinkError& e) {
+      if (e.kind() != LinkError::Kind::kTransient) throw;
+      log->info(
+          "session {}: the link to the controller was lost since the last session ({}): "
+          "connecting again",
+          id, e.what());
+      cell_->reconnectRobot();
+      robot = cell_->robot().robotInfo();
+    }
     log->info("session {}: {} serial {}, controller software {}", id, robot.robot_type,
               robot.serial, robot.software_version);
   } catch (const std::exception& e) {
@@ -486,6 +523,7 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
     run_settings.reconnect_link = [this] { cell_->reconnectRobot(); };
     run_settings.reopen_sensor = [this] { cell_->reopenPsd(); };
     CalibrationRun run(knowledge_.cell, target, plan, run_settings, journal);
+    run.found_before = found_before;
     const double start_s = cell_->clock().nowS();
     run.on_phase = [this, start_s](int i, RunPhase phase) {
       // The cell's clock is the worker's to read: the status gets its time at each phase.

@@ -22,7 +22,23 @@ PredictorState spread() {
 }  // namespace
 
 SpotPredictor::SpotPredictor(const CellModel& cell, const Eigen::Vector3d& taught_centre_mm)
-    : cell_(cell), centre_(taught_centre_mm) {}
+    : cell_(cell), centre_(taught_centre_mm), spread_(spread()) {}
+
+void SpotPredictor::startFrom(const CalibrationParameters& found) {
+  prior_.setZero();
+  prior_.segment<4>(6) = found.laser;
+  prior_.tail<3>() = found.target_mm - centre_;
+  // What a calibration leaves unknown: a tenth of a millimetre and 1e-3 of slope cover the
+  // line's and centre's few-micrometre sigmas many times over; delta1 and delta6 are absorbed in
+  // them. delta2..delta5 keep the build spread (see startFrom's contract).
+  spread_.head<6>().setConstant(0.01 * kDegToRad);
+  spread_.segment<4>(1) = spread().segment<4>(1);
+  spread_.segment<4>(6) << 1e-3, 1e-3, 0.1, 0.1;
+  spread_.tail<3>().setConstant(0.1);
+  started_from_calibration_ = true;
+  x_ = prior_;
+  if (!poses_.empty()) refit();
+}
 
 Eigen::Vector2d SpotPredictor::spot(const PredictorState& x, const Joints& q) const {
   Joints delta_deg;
@@ -49,12 +65,12 @@ PsdSpot SpotPredictor::predict(const Joints& q_deg) const {
 }
 
 PsdSpot SpotPredictor::searchCentre(const Joints& q_deg) const {
-  return poseCount() >= kConfidentPoses ? predict(q_deg) : PsdSpot{};
+  return confident() ? predict(q_deg) : PsdSpot{};
 }
 
 void SpotPredictor::refit() {
   constexpr int kN = PredictorState::RowsAtCompileTime;
-  const PredictorState s = spread();
+  const PredictorState& s = spread_;
   const int m = 2 * static_cast<int>(poses_.size());
   PredictorState x = x_;
   for (int iteration = 0; iteration < 10; ++iteration) {
@@ -76,7 +92,7 @@ void SpotPredictor::refit() {
     j.topRows(m) /= kReadingMm;
     r.head(m) /= kReadingMm;
     j.bottomRows(kN) = s.cwiseInverse().asDiagonal();
-    r.tail(kN) = x.cwiseQuotient(s);
+    r.tail(kN) = (x - prior_).cwiseQuotient(s);
     const PredictorState step = -(j.transpose() * j).ldlt().solve(j.transpose() * r);
     x += step;
     if (step.cwiseQuotient(s).norm() < 1e-6) break;

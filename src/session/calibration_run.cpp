@@ -129,6 +129,7 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
   servo_options.abort = &abort;
   servo::PsdServo servo(knowledge_, taught_centre_, servo_options);
   servo::SpotPredictor predictor(knowledge_, taught_centre_);
+  if (found_before) predictor.startFrom(*found_before);
   // Resumed poses teach the predictor where the spot falls, as if they had just been servoed.
   for (const PoseRecord& r : out.records)
     if (r.measured()) predictor.addPose(r.joints_deg, r.reading.spot);

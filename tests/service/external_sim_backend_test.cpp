@@ -95,6 +95,37 @@ TEST(ExternalSim, SessionRunsToTheWorldsTruth) {
   }
 }
 
+// The daemon keeps its links to the cell between sessions. A controller restarted in between
+// (another client's apply, a power cycle) has dropped them all; the next session notices at its
+// first request and makes both links again instead of reading a dead spot link as "no light".
+TEST(ExternalSim, ASessionAfterAControllerRestartMakesItsLinksAgain) {
+  constexpr std::uint64_t kSeed = 7;
+  TempDir dir;
+  SimController sim(externalSim(kSeed));
+  sim.start();
+  const DaemonConfig config = configFor(sim, kSeed, dir.path);
+  const std::unique_ptr<CellBackend> backend = makeBackend(config);
+  SessionManager manager(*backend, managerSettingsOf(config));
+  manager.start(testing::onStoredPlan(manager.defaultRequest(), "ideal-7"));
+  ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
+
+  Irc5Options o;
+  o.host = "127.0.0.1";
+  o.port = sim.port();
+  o.robot = sim.world().robot;
+  Irc5Client other(o);
+  other.connect();
+  other.restartController();
+  ASSERT_EQ(sim.restartCount(), 1);
+
+  const std::string id = manager.start(testing::onStoredPlan(manager.defaultRequest(), "ideal-7"));
+  const SessionStatus end = manager.waitIdle();
+  ASSERT_EQ(end.state, SessionState::kDone) << end.message;
+  const nlohmann::json result = toJson(manager.result(id));
+  EXPECT_EQ(result["cell"]["controller"]["serial"], "SIM-1600-0001");
+  EXPECT_TRUE(result.contains("controller_cal_offset_rad"));
+}
+
 TEST(ExternalSim, AMismatchedWorldIsRefusedBeforeAnythingMoves) {
   TempDir dir;
   SimController sim(externalSim(5));

@@ -297,5 +297,48 @@ TEST(SimulatedCell, EightServoedPosesCalibrateWithinThreeSigma) {
   EXPECT_LE(std::sqrt(sum_sq / count), 0.005);
 }
 
+// After an apply the verification knows the cell as the calibration found it: started from that
+// estimate, the prediction puts the search at the spot from the first pose on, where an
+// unstarted one (nominal laser, taught centre) is tens of millimetres off and makes no
+// prediction at all before two poses. The apply is simulated on the world: its offsets of
+// joints 2..5 are what the calibration left.
+TEST(SimulatedCell, APredictionStartedFromTheCalibrationFindsTheSpotAfterAnApply) {
+  constexpr std::uint64_t kSeed = 21;
+  Rig rig(cellOptions(kSeed, 5e-4, WorldKind::kIdeal));
+  const Knowledge k = knowledgeOf(rig.cell.world());
+  const std::vector<Pose> plan = planFor("ideal-21");
+  const std::vector<Pose> poses = record(rig, k, plan, withoutClock(ServoStop::kZone), nullptr);
+  ASSERT_EQ(poses.size(), plan.size());
+  SolveOptions so;
+  so.noise_mm = 0.010;
+  const SolveReport report = solve(k.cell, poses, so);
+  ASSERT_TRUE(report.converged) << report.message;
+
+  sim::SimulatedCellOptions applied = cellOptions(kSeed, 5e-4, WorldKind::kIdeal);
+  for (int i = 0; i < kOffsetCount; ++i)
+    applied.world.true_offsets_deg[i + 1] -= report.parameters[i].value;
+  Rig after(applied);
+  SpotPredictor started(k.cell, k.taught_centre), unstarted(k.cell, k.taught_centre);
+  started.startFrom(report.estimate);
+  ASSERT_TRUE(started.confident());
+  double worst_started = 0, worst_unstarted = 0;
+  for (const Pose& p : plan) {
+    after.client.moveJoints(p.q_deg);
+    const auto hit = after.cell.controller().beamHitNow();
+    ASSERT_TRUE(hit);
+    const auto miss = [&](const SpotPredictor& predictor) {
+      const PsdSpot s = predictor.predict(p.q_deg);
+      return std::hypot(s.u_mm - hit->spot.u_mm, s.v_mm - hit->spot.v_mm);
+    };
+    worst_started = std::max(worst_started, miss(started));
+    worst_unstarted = std::max(worst_unstarted, miss(unstarted));
+  }
+  std::printf("worst prediction error: %.3f mm started from the calibration, %.1f mm without\n",
+              worst_started, worst_unstarted);
+  EXPECT_LT(worst_started, 0.5);
+  EXPECT_GT(worst_unstarted, 5.0);
+  EXPECT_EQ(unstarted.searchCentre(plan[0].q_deg), PsdSpot{});
+}
+
 }  // namespace
 }  // namespace zerocal::servo

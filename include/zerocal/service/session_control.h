@@ -54,6 +54,9 @@ struct StartRequest {
   std::string plan_file;                     // plan: file
   std::optional<Eigen::Vector3d> target_mm;  // nominal PSD centre; default the cell's taught one
   std::optional<double> noise_mm;            // measurement sigma; default session.noise_mm
+  // A verification after an apply: the cell as the calibration it verifies found it
+  // (CalibrationRun::found_before). Not on the control port: the daemon's own verification.
+  std::optional<CalibrationParameters> found_before;
 };
 
 struct ResumeRequest {

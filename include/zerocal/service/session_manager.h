@@ -89,6 +89,7 @@ class SessionManager final : public SessionControl {
     std::vector<Pose> poses;
     Eigen::Vector3d target = Eigen::Vector3d::Zero();
     double noise_mm = 0;
+    std::optional<CalibrationParameters> found_before;  // StartRequest's
   };
   // Plans `request` (refusing it as start() does), creates its folder, and begins it on the board.
   NewSession createSession(const StartRequest& request);
@@ -97,7 +98,7 @@ class SessionManager final : public SessionControl {
   ResultFile usableResult(const std::string& requested, std::string& id) const;
   // Runs a short calibration (the configured plan around `target`) on the worker thread and
   // returns its id and result. Throws Error when it does not finish with delta2..delta5.
-  ResultFile verificationRun(const Eigen::Vector3d& target, std::string& id);
+  ResultFile verificationRun(const CalibrationParameters& found, std::string& id);
   void runApply(const std::string& id, const ResultFile& result);
   void runVerify(const std::string& id, const ResultFile& result);
   void runRecovery(const std::vector<std::string>& ids);
@@ -110,7 +111,8 @@ class SessionManager final : public SessionControl {
     std::string reason;
   };
   void runSession(const std::string& id, const std::vector<Pose>& plan,
-                  const Eigen::Vector3d& target, double noise_mm, const PoseSkip& skip);
+                  const Eigen::Vector3d& target, double noise_mm, const PoseSkip& skip,
+                  const std::optional<CalibrationParameters>& found_before = std::nullopt);
   // Ends the run (the robot stopped unless done) and logs why.
   void finish(SessionState state, const std::string& message);
   void setPhase(SessionState state, int pose);

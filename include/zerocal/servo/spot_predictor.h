@@ -27,6 +27,13 @@ class SpotPredictor {
  public:
   SpotPredictor(const CellModel& cell, const Eigen::Vector3d& taught_centre_mm);
 
+  // Starts from the cell as an earlier calibration found it, whose joint offsets have since been
+  // written to the controller (a verification): its laser line and PSD centre (`found.target_mm`,
+  // base frame) are then known to a fraction of a millimetre, delta1 and delta6 are in them (the
+  // solver's line and centre absorb both), and delta2..delta5 are expected near zero but keep
+  // their full spread: a wrong transmission doubles an offset instead of removing it. From here
+  // on predictions are made from the first pose.
+  void startFrom(const CalibrationParameters& found);
   // A servoed pose: controller joints and the reading there (PSD frame, mm).
   void addPose(const Joints& q_deg, const PsdSpot& spot);
   // Where the spot is expected on the PSD (PSD frame, mm) at controller joints q.
@@ -38,6 +45,7 @@ class SpotPredictor {
   PsdSpot searchCentre(const Joints& q_deg) const;
   static constexpr int kConfidentPoses = 2;
   int poseCount() const { return static_cast<int>(poses_.size()); }
+  bool confident() const { return started_from_calibration_ || poseCount() >= kConfidentPoses; }
 
  private:
   void refit();
@@ -47,6 +55,10 @@ class SpotPredictor {
   Eigen::Vector3d centre_;
   std::vector<std::pair<Joints, Eigen::Vector2d>> poses_;
   PredictorState x_ = PredictorState::Zero();
+  // The prior: its mean (zero, the nominal cell, unless startFrom) and spread (one sigma).
+  PredictorState prior_ = PredictorState::Zero();
+  PredictorState spread_;
+  bool started_from_calibration_ = false;
 };
 
 }  // namespace zerocal::servo

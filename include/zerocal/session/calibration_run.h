@@ -71,6 +71,11 @@ class CalibrationRun {
   CalibrationRun(CellModel knowledge, Eigen::Vector3d taught_centre_mm, std::vector<Pose> plan,
                  RunSettings settings, Journal& journal);
 
+  // The cell as the calibration being verified found it, its offsets since written to the
+  // controller: where the spot lands is then predicted from the first pose
+  // (servo::SpotPredictor::startFrom). Unset for a calibration.
+  std::optional<CalibrationParameters> found_before;
+
   // Called after each journalled pose (index, record); for progress display.
   std::function<void(const PoseRecord&)> on_pose;
   // Called before each phase of each pose, and before the solve.

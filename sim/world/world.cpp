@@ -108,6 +108,16 @@ std::optional<BeamHit> beamHit(const World& world, const Joints& q_deg, const Jo
   return BeamHit{{local.x(), local.y()}, t};
 }
 
+const char* grossKindName(GrossErrors::Kind kind) {
+  return kind == GrossErrors::Kind::kUnsettled ? "unsettled" : "stray_light";
+}
+
+GrossErrors::Kind parseGrossKind(const std::string& word) {
+  if (word == "stray_light") return GrossErrors::Kind::kStrayLight;
+  if (word == "unsettled") return GrossErrors::Kind::kUnsettled;
+  throw InputError("'" + word + "' is not a kind of gross error: stray_light or unsettled");
+}
+
 void updateGross(const GrossErrors& gross, const Joints& q_deg, std::mt19937_64& rng,
                  GrossState* state) {
   if (state->anchored) {
@@ -123,12 +133,21 @@ void updateGross(const GrossErrors& gross, const Joints& q_deg, std::mt19937_64&
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   const double stray = unit(rng), angle = 2 * kPi * unit(rng);
   const double unsettled = unit(rng), which = unit(rng), sign = unit(rng);
+  bool forced = false;
+  if (gross.forced_at_deg && !state->forced_done) {
+    double off = 0;
+    for (int i = 0; i < kJointCount; ++i)
+      off = std::max(off, std::abs(q_deg[i] - (*gross.forced_at_deg)[i]));
+    forced = state->forced_done = off <= kGrossPoseExtentDeg;
+  }
+  const bool forced_stray = forced && gross.forced_kind == GrossErrors::Kind::kStrayLight;
+  const bool forced_unsettled = forced && gross.forced_kind == GrossErrors::Kind::kUnsettled;
   state->stray_light_mm = Eigen::Vector2d::Zero();
-  if (stray < gross.stray_light_rate)
+  if (stray < gross.stray_light_rate || forced_stray)
     state->stray_light_mm =
         gross.stray_light_mm * Eigen::Vector2d(std::cos(angle), std::sin(angle));
   state->unsettled_deg = Joints{};
-  if (unsettled < gross.unsettled_rate) {
+  if (unsettled < gross.unsettled_rate || forced_unsettled) {
     const int joint = std::min(kJointCount - 1, static_cast<int>(which * kJointCount));
     state->unsettled_deg[joint] = sign < 0.5 ? -gross.unsettled_deg : gross.unsettled_deg;
   }
@@ -178,6 +197,10 @@ std::string worldHash(const World& w) {
   value(w.gross.stray_light_mm);
   value(w.gross.unsettled_rate);
   value(w.gross.unsettled_deg);
+  if (w.gross.forced_at_deg) {  // mixed in only when set: every other world keeps its hash
+    for (const double q : *w.gross.forced_at_deg) value(q);
+    value(static_cast<int>(w.gross.forced_kind));
+  }
   char buf[17];
   std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
   return buf;
@@ -358,7 +381,8 @@ World parseWorld(const std::string& yaml_text, const std::string& origin,
   }
   if (const YAML::Node g = root["gross_errors"]) {
     read.onlyKeys(g, "gross_errors",
-                  {"stray_light_rate", "stray_light_mm", "unsettled_rate", "unsettled_deg"});
+                  {"stray_light_rate", "stray_light_mm", "unsettled_rate", "unsettled_deg",
+                   "forced_at_deg", "forced_kind"});
     read.number(g, "stray_light_rate", "gross_errors.", &w.gross.stray_light_rate);
     read.number(g, "stray_light_mm", "gross_errors.", &w.gross.stray_light_mm);
     read.number(g, "unsettled_rate", "gross_errors.", &w.gross.unsettled_rate);
@@ -366,6 +390,18 @@ World parseWorld(const std::string& yaml_text, const std::string& origin,
     if (w.gross.stray_light_rate > 1)
       problems.push_back("gross_errors.stray_light_rate: must be <= 1");
     if (w.gross.unsettled_rate > 1) problems.push_back("gross_errors.unsettled_rate: must be <= 1");
+    Eigen::Matrix<double, kJointCount, 1> q;
+    if (read.optionalVec<kJointCount>(g, "forced_at_deg", "gross_errors.", &q)) {
+      w.gross.forced_at_deg = Joints{};
+      for (int i = 0; i < kJointCount; ++i) (*w.gross.forced_at_deg)[i] = q[i];
+    }
+    if (const YAML::Node k = g["forced_kind"]) {
+      try {
+        w.gross.forced_kind = parseGrossKind(k.IsScalar() ? k.as<std::string>() : "");
+      } catch (const InputError& e) {
+        problems.push_back(std::string("gross_errors.forced_kind: ") + e.what());
+      }
+    }
   }
   if (!problems.empty()) throw ConfigError(origin, problems);
   return w;
@@ -482,6 +518,9 @@ std::string worldYaml(const World& w, const std::string& robot_file) {
     << "\n  stray_light_mm: " << num(w.gross.stray_light_mm)
     << "\n  unsettled_rate: " << num(w.gross.unsettled_rate)
     << "\n  unsettled_deg: " << num(w.gross.unsettled_deg) << "\n";
+  if (w.gross.forced_at_deg)
+    o << "  forced_at_deg: " << list(*w.gross.forced_at_deg, kJointCount)
+      << "\n  forced_kind: " << grossKindName(w.gross.forced_kind) << "\n";
   return o.str();
 }
 

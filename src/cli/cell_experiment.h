@@ -24,6 +24,12 @@ struct CellExperimentArgs {
   double max_cell_time_s = 120.0;
   int max_moves = 149;      // fewer than 150 in a calibration
   int max_pose_moves = 40;  // at any pose, the first included
+  // Instead: each world twice, without gross errors and with exactly one at a pose of the plan
+  // (backend.sim_gross_pose), the requirement being that it is found and named and that the
+  // result measured again agrees with the clean one.
+  bool gross_error = false;
+  double min_named_share = 0.95;
+  double max_change_sigmas = 1.0;
 };
 
 CLI::App* addCellExperiment(CLI::App& experiment, CellExperimentArgs& args);

@@ -31,8 +31,6 @@ std::unique_ptr<CellBackend> makeBackend(const DaemonConfig& cfg) {
   if (!cfg.backend.sim_ideal_world) {
     o.world.gross.stray_light_rate = cfg.backend.sim_gross_rate;
     o.world.gross.unsettled_rate = cfg.backend.sim_gross_rate;
-    o.world.gross.forced_pose = cfg.backend.sim_gross_pose;
-    o.world.gross.forced_kind = parseGrossKind(cfg.backend.sim_gross_kind);
   }
   if (!cfg.backend.sim_world.empty()) o.world = loadWorld(cfg.backend.sim_world);
   if (!cfg.backend.sim_host.empty()) {

@@ -175,6 +175,51 @@ TEST(IdealWorld, ReproducesTheNominalArmExactly) {
   EXPECT_EQ(w.gross.unsettled_rate, 0);
 }
 
+// One error put at a pose: there the first time the arm rests near it, not when it comes back
+// (a measurement made again), and every other pose drawn as without it.
+TEST(GrossErrors, OneForcedErrorStrikesItsPoseOnceAndNothingElse) {
+  const std::vector<Joints> poses = {
+      {0, 10, 20, 0, 60, 0}, {30, 0, 10, 20, 40, 0}, {-20, 15, 5, -30, 70, 10}};
+  for (const auto kind : {GrossErrors::Kind::kStrayLight, GrossErrors::Kind::kUnsettled}) {
+    GrossErrors plain;  // no rates: nothing but the forced error may appear
+    GrossErrors forced = plain;
+    forced.forced_at_deg = poses[1];
+    forced.forced_kind = kind;
+    std::mt19937_64 rng_plain(5), rng_forced(5);
+    GrossState s_plain, s_forced;
+    // Poses 0, 1 (near), 2, then 1 again.
+    const std::vector<int> visits = {0, 1, 2, 1};
+    for (std::size_t v = 0; v < visits.size(); ++v) {
+      Joints q = poses[visits[v]];
+      q[5] += 3.0;  // within the 5 deg of the forced pose
+      updateGross(plain, q, rng_plain, &s_plain);
+      updateGross(forced, q, rng_forced, &s_forced);
+      const bool struck = v == 1;
+      const bool stray = s_forced.stray_light_mm.norm() > 0;
+      const bool unsettled =
+          Eigen::Map<const Eigen::Matrix<double, 6, 1>>(s_forced.unsettled_deg.data())
+              .cwiseAbs()
+              .maxCoeff() > 0;
+      EXPECT_EQ(stray, struck && kind == GrossErrors::Kind::kStrayLight) << v;
+      EXPECT_EQ(unsettled, struck && kind == GrossErrors::Kind::kUnsettled) << v;
+      EXPECT_EQ(s_plain.stray_light_mm.norm(), 0.0);
+    }
+    // The same draws were consumed: the streams are still in step.
+    EXPECT_EQ(rng_plain(), rng_forced());
+  }
+  // A world file says it, and the hash tells the two worlds apart.
+  World w = randomWorld(3);
+  const std::string before = worldHash(w);
+  w.gross.forced_at_deg = poses[2];
+  w.gross.forced_kind = GrossErrors::Kind::kUnsettled;
+  const World back = parseWorld(worldYaml(w), "test");
+  ASSERT_TRUE(back.gross.forced_at_deg);
+  EXPECT_EQ(*back.gross.forced_at_deg, poses[2]);
+  EXPECT_EQ(back.gross.forced_kind, GrossErrors::Kind::kUnsettled);
+  EXPECT_NE(worldHash(w), before);
+  EXPECT_THROW(parseGrossKind("cosmic_ray"), InputError);
+}
+
 TEST(GrossErrors, AppearAtTheConfiguredRatePerPose) {
   GrossErrors g;
   g.stray_light_rate = 0.1;

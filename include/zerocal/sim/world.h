@@ -67,7 +67,17 @@ struct GrossErrors {
   // one random joint while the pose is read.
   double unsettled_rate = 0;
   double unsettled_deg = 0.05;
+  // Besides the rates: exactly one error of `forced_kind`, the first time the arm comes to rest
+  // within kGrossPoseExtentDeg of `forced_at_deg` (a plan's pose). For measuring what a session
+  // does with one gross error against the same session without it (`zerocal experiment cell
+  // --gross-error`); its direction or joint comes from that pose's own draws.
+  enum class Kind { kStrayLight, kUnsettled };
+  std::optional<Joints> forced_at_deg;
+  Kind forced_kind = Kind::kStrayLight;
 };
+// "stray_light", "unsettled"; the parse throws InputError naming the accepted words.
+const char* grossKindName(GrossErrors::Kind kind);
+GrossErrors::Kind parseGrossKind(const std::string& word);
 constexpr double kGrossPoseExtentDeg = 5.0;
 
 // The realistic world's draws (randomWorld); docs/simulated-cell.md gives the evidence.
@@ -124,6 +134,7 @@ struct GrossState {
   Eigen::Vector2d stray_light_mm = Eigen::Vector2d::Zero();
   Joints unsettled_deg{};
   long draws = 0;  // poses drawn so far
+  bool forced_done = false;  // GrossErrors::forced_at_deg has had its error
 };
 
 // Called after every move to q_deg: redraws `state` from `rng` when the arm left the last pose.
@@ -148,7 +159,8 @@ std::string worldHash(const World& world);
 //   dh_errors: {a_mm: [6], d_mm: [6], alpha_deg: [6]}
 //   compliance: {joint2_sag_deg: x, joint3_sag_deg: x}
 //   thermal: {expansion_per_k: x, rise_k: x, time_constant_s: x}
-//   gross_errors: {stray_light_rate: x, stray_light_mm: x, unsettled_rate: x, unsettled_deg: x}
+//   gross_errors: {stray_light_rate: x, stray_light_mm: x, unsettled_rate: x, unsettled_deg: x,
+//                  forced_at_deg: [6 numbers], forced_kind: stray_light | unsettled}
 // Throws ConfigError listing every problem found.
 World loadWorld(const std::string& path);
 World parseWorld(const std::string& yaml_text, const std::string& origin,

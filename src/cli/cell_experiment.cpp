@@ -125,24 +125,23 @@ int runGrossErrorExperiment(const CellExperimentArgs& args) {
     const std::string kind = grossKindName(world.gross.forced_kind);
     Json row{{"seed", seed}, {"pose", pose}, {"kind", kind}};
     ++runs;
-    if (!clean.completed) {
+    // A pair that did not complete: the reason, and no comparison.
+    const auto incomplete = [&](const std::string& message) {
       ++failed;
-      row["message"] = "without the gross error: " + clean.message;
+      row["message"] = message;
       if (!args.json)
         std::printf("%6llu %5d %12s  %s\n", static_cast<unsigned long long>(seed), pose,
-                    kind.c_str(), row["message"].get<std::string>().c_str());
+                    kind.c_str(), message.c_str());
       worlds.push_back(row);
+    };
+    if (!clean.completed) {
+      incomplete("without the gross error: " + clean.message);
       continue;
     }
     world.gross.forced_at_deg = clean.plan[pose - 1].q_deg;
     const Calibration gross = runOn(world, "gross");
     if (!gross.completed) {
-      ++failed;
-      row["message"] = "with the gross error: " + gross.message;
-      if (!args.json)
-        std::printf("%6llu %5d %12s  %s\n", static_cast<unsigned long long>(seed), pose,
-                    kind.c_str(), row["message"].get<std::string>().c_str());
-      worlds.push_back(row);
+      incomplete("with the gross error: " + gross.message);
       continue;
     }
     // Named: the daemon measured the pose again because the first solve named it.

@@ -825,7 +825,10 @@ ResultFile SessionManager::result(const std::string& requested) const {
 }
 
 void SessionManager::readPsd(ReadingDone done) {
-  if (board_.activeOrClaimed()) {  // the board belongs to the session: report what it last read
+  // The board belongs to a running session: report what it last read. A session waiting for the
+  // PSD to be moved reads nothing meanwhile, so a reading is taken now (the technician placing
+  // the detector may want one).
+  if (board_.activeOrClaimed() && board_.status().state != SessionState::kAwaitingPlacement) {
     if (const std::optional<PsdReading> r = live_->load())
       done(LiveReading{*r, true}, "");
     else

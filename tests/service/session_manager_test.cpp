@@ -381,6 +381,12 @@ TEST(SessionManagerPlacements, WaitsForThePsdAtEachPlacementAndSolvesWithEveryPl
   EXPECT_EQ(placed[0].placement, 2);
   EXPECT_EQ(placed[0].centre_mm, waiting.next_centre_mm);
   EXPECT_EQ(backend.cell().world().active_placement, 1);  // not moved before the continue
+  // The technician placing the PSD may read it: a reading is taken now, not the session's last.
+  std::promise<std::optional<LiveReading>> now;
+  manager.readPsd([&now](std::optional<LiveReading> r, const std::string&) { now.set_value(r); });
+  const std::optional<LiveReading> reading = now.get_future().get();
+  ASSERT_TRUE(reading);
+  EXPECT_FALSE(reading->during_session);
   // Still one session at a time while it waits.
   EXPECT_EQ(refusalOf([&] { manager.start(manager.defaultRequest()); }), "busy");
   std::this_thread::sleep_for(std::chrono::milliseconds(50));

@@ -10,6 +10,12 @@
 namespace zerocal::sim {
 namespace {
 
+// zerocal-sim's protocol has no request that moves its PSD (its world is fixed at start, and
+// compared with the daemon's at connect), so a session cannot move it between placements.
+constexpr const char* kExternalPlacements =
+    "the external zerocal-sim cannot move its PSD between placements: run sessions at several "
+    "PSD placements on the in-process simulated cell (leave backend.sim_host unset)";
+
 // The world as a world file, when its robot is the built-in one (a world file's own robot file is
 // not known here; that world is on disk already).
 std::optional<std::string> truthFile(const World& world) {
@@ -55,6 +61,9 @@ class SimulatedLinkedCell final : public service::LinkedCell {
                                  t[4] + shift[4]};
   }
   std::optional<std::string> truthWorldYaml() const override { return truthFile(cell_.world()); }
+  void placePsd(int placement, const std::vector<Eigen::Vector3d>& planned_centres_mm) override {
+    cell_.controller().placePsd(placement, planned_centres_mm);
+  }
 
  private:
   SimulatedCell& cell_;
@@ -123,6 +132,9 @@ class ExternalSimBackend::Cell final : public service::LinkedCell {
   std::optional<std::string> truthWorldYaml() const override {
     return truthFile(backend_.options_.world);
   }
+  void placePsd(int placement, const std::vector<Eigen::Vector3d>&) override {
+    if (placement != 1) throw Error(kExternalPlacements);
+  }
 
  private:
   ExternalSimBackend& backend_;
@@ -148,6 +160,8 @@ ExternalSimBackend::ExternalSimBackend(ExternalSimOptions options)
 }
 
 ExternalSimBackend::~ExternalSimBackend() = default;
+
+std::string ExternalSimBackend::placementsRefusal() const { return kExternalPlacements; }
 
 CellKnowledge ExternalSimBackend::knowledge() const {
   const SessionKnowledge k = knowledgeOf(options_.world);

@@ -893,6 +893,22 @@ long SimController::connectionCount() const {
   return impl_->connections;
 }
 
+void SimController::placePsd(int placement,
+                             const std::vector<Eigen::Vector3d>& planned_centres_mm) {
+  if (placement < 1 || placement > static_cast<int>(planned_centres_mm.size()))
+    throw ConfigError("simulated controller", {"no PSD placement " + std::to_string(placement) +
+                                               " of " + std::to_string(planned_centres_mm.size())});
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  World& w = impl_->options.world;
+  // Every placement of the session, drawn anew from the seed: the same truth whichever
+  // placement a run (re)starts at.
+  w.placements.clear();
+  for (std::size_t p = 1; p < planned_centres_mm.size(); ++p)
+    w.placements.push_back(
+        drawPlacement(w, impl_->options.seed, static_cast<int>(p + 1), planned_centres_mm[p]));
+  w.active_placement = placement;
+}
+
 const World& SimController::world() const { return impl_->options.world; }
 
 }  // namespace zerocal

@@ -97,14 +97,20 @@ std::optional<BeamHit> beamHit(const World& world, const Joints& q_deg, const Jo
   const Frame<double> flange = trueFlange(world, q_deg, delta, time_s);
   const Eigen::Vector3d p = flange.apply(world.laser_point_mm);
   const Eigen::Vector3d d = (flange.R * world.laser_direction).normalized();
-  const Eigen::Vector3d normal = world.psd_rotation.col(2);
+  const Eigen::Vector3d* position = &world.psd_position_mm;
+  const Eigen::Matrix3d* rotation = &world.psd_rotation;
+  for (const PsdPlacement& placed : world.placements)
+    if (placed.placement == world.active_placement) {
+      position = &placed.position_mm;
+      rotation = &placed.rotation;
+    }
+  const Eigen::Vector3d normal = rotation->col(2);
   const double along = normal.dot(d);
   // Grazing beams give huge, meaningless hit points long before exact parallelism.
   if (std::abs(along) < 1e-9) return std::nullopt;
-  const double t = normal.dot(world.psd_position_mm - p) / along;
+  const double t = normal.dot(*position - p) / along;
   if (!(t > 0)) return std::nullopt;
-  const Eigen::Vector3d local =
-      world.psd_rotation.transpose() * (p + t * d - world.psd_position_mm);
+  const Eigen::Vector3d local = rotation->transpose() * (p + t * d - *position);
   return BeamHit{{local.x(), local.y()}, t};
 }
 
@@ -346,7 +352,7 @@ World parseWorld(const std::string& yaml_text, const std::string& origin,
   }
   read.onlyKeys(root, "",
                 {"robot", "true_offsets_deg", "laser", "psd", "noise", "dh_errors", "compliance",
-                 "thermal", "gross_errors"});
+                 "thermal", "gross_errors", "placements"});
   if (psd && psd.IsMap()) {
     read.onlyKeys(psd, "psd", {"position_mm", "rpy_deg", "configured_rpy_deg", "taught_centre_mm"});
     w.psd_rotation_configured = w.psd_rotation;
@@ -401,6 +407,30 @@ World parseWorld(const std::string& yaml_text, const std::string& origin,
       } catch (const InputError& e) {
         problems.push_back(std::string("gross_errors.forced_kind: ") + e.what());
       }
+    }
+  }
+  if (const YAML::Node placements = root["placements"]) {
+    if (!placements.IsSequence()) problems.push_back("placements: expected a list");
+    for (std::size_t i = 0; placements.IsSequence() && i < placements.size(); ++i) {
+      const YAML::Node p = placements[i];
+      const std::string where = "placements[" + std::to_string(i) + "].";
+      if (!p.IsMap()) {
+        problems.push_back(where + ": expected a map");
+        continue;
+      }
+      read.onlyKeys(p, "placements[" + std::to_string(i) + "]",
+                    {"placement", "planned_mm", "position_mm", "rpy_deg"});
+      PsdPlacement placed;
+      double number = 0;
+      read.number(p, "placement", where, &number);
+      if (number != std::floor(number) || number < 2 || number > 100)
+        problems.push_back(where + "placement: must be a whole number 2..100");
+      placed.placement = static_cast<int>(number);
+      read.vec<3>(p, "planned_mm", where, &placed.planned_mm);
+      read.vec<3>(p, "position_mm", where, &placed.position_mm);
+      Eigen::Vector3d angles;
+      if (read.vec<3>(p, "rpy_deg", where, &angles)) placed.rotation = rpy(angles);
+      w.placements.push_back(placed);
     }
   }
   if (!problems.empty()) throw ConfigError(origin, problems);
@@ -463,6 +493,29 @@ World randomWorld(std::uint64_t seed, WorldKind kind) {
   return w;
 }
 
+PsdPlacement drawPlacement(const World& world, std::uint64_t seed, int placement,
+                           const Eigen::Vector3d& planned_mm) {
+  std::mt19937_64 rng(seed ^ 0x706c6163656d656eull ^
+                      (static_cast<std::uint64_t>(placement) * 0x9e3779b97f4a7c15ull));
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const auto direction = [&] {
+    Eigen::Vector3d v;
+    do v = Eigen::Vector3d(normal(rng), normal(rng), normal(rng));
+    while (v.norm() < 1e-6);
+    return v.normalized();
+  };
+  const double centre_error_mm = (world.psd_centre_taught_mm - world.psd_position_mm).norm();
+  const double angle_rad =
+      Eigen::AngleAxisd(world.psd_rotation_configured.transpose() * world.psd_rotation).angle();
+  PsdPlacement p;
+  p.placement = placement;
+  p.planned_mm = planned_mm;
+  p.position_mm = planned_mm + centre_error_mm * direction();
+  p.rotation =
+      world.psd_rotation_configured * Eigen::AngleAxisd(angle_rad, direction()).toRotationMatrix();
+  return p;
+}
+
 namespace {
 
 Eigen::Vector3d rpyOf(const Eigen::Matrix3d& r) {
@@ -521,6 +574,11 @@ std::string worldYaml(const World& w, const std::string& robot_file) {
   if (w.gross.forced_at_deg)
     o << "  forced_at_deg: " << list(*w.gross.forced_at_deg, kJointCount)
       << "\n  forced_kind: " << grossKindName(w.gross.forced_kind) << "\n";
+  if (!w.placements.empty()) o << "placements:\n";
+  for (const PsdPlacement& p : w.placements)
+    o << "  - placement: " << p.placement << "\n    planned_mm: " << list(p.planned_mm, 3)
+      << "\n    position_mm: " << list(p.position_mm, 3)
+      << "\n    rpy_deg: " << list(rpyOf(p.rotation), 3) << "\n";
   return o.str();
 }
 

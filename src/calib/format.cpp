@@ -478,6 +478,9 @@ SolveReport solveReportFromJson(const nlohmann::json& json, const std::string& w
       else
         r.estimate.laser[k - kOffsetCount] = e.value;
     }
+    for (int l = 0; l < kLinkParamCount; ++l)  // several placements: a, d in mm, alpha in deg
+      if (linkParamName(l) == name && e.identifiable)
+        r.estimate.link[l] = l % 3 == 2 ? e.value * kDegToRad : e.value;
     r.parameters.push_back(e);
   }
   for (std::size_t i = 0; i < j.array("not_identifiable").size(); ++i) {
@@ -486,6 +489,12 @@ SolveReport solveReportFromJson(const nlohmann::json& json, const std::string& w
   }
   r.estimate.target_mm = vector3(j, "target_mm");
   r.target_sigma_mm = vector3(j, "target_sigma_mm");
+  if (j.has("placements"))
+    for (std::size_t i = 0; i < j.array("placements").size(); ++i) {
+      const JsonReader e = j.element("placements", i);
+      r.placements.push_back({e.integer("placement"), e.integer("poses"), vector3(e, "target_mm"),
+                              vector3(e, "target_sigma_mm")});
+    }
   r.rank = j.integer("rank");
   r.condition_number = j.numberOrNan("condition_number");
   r.dof = j.integer("dof");
@@ -589,6 +598,33 @@ Plan planFromJson(const nlohmann::json& json, const std::string& where) {
     p.rms_offset_sigma_deg = j.numberOrNan("predicted_rms_offset_sigma_deg");
     p.rank = j.has("rank") ? j.integer("rank") : 0;
     p.condition_number = j.numberOrNan("condition_number");
+  }
+  // A plan at several PSD placements: each pose's placement, and what it predicts of the link
+  // errors (toJson writes these only then).
+  if (j.present("pose_placements")) {
+    const std::vector<double> numbers = JsonReader::numbersOf(
+        j.json().at("pose_placements"), plan.poses.size(), where + " pose_placements");
+    for (std::size_t i = 0; i < plan.poses.size(); ++i) {
+      if (numbers[i] != std::floor(numbers[i]) || numbers[i] < 1 || numbers[i] > kMaxPlacements)
+        throw InputError(where + " pose_placements[" + std::to_string(i) +
+                         "]: not a placement number 1.." + std::to_string(kMaxPlacements));
+      plan.poses[i].placement = static_cast<int>(numbers[i]);
+    }
+    p.placements = j.has("placements") ? j.integer("placements") : placementCount(plan.poses);
+  }
+  if (j.present("predicted_link_errors")) {
+    const JsonReader links = j.object("predicted_link_errors");
+    p.link_sigma.assign(kLinkParamCount, std::nan(""));
+    p.link_identifiable.assign(kLinkParamCount, false);
+    p.link_reason.assign(kLinkParamCount, "not predicted");
+    for (int l = 0; l < kLinkParamCount; ++l) {
+      const std::string name = linkParamName(l);
+      if (!links.has(name.c_str())) continue;
+      const JsonReader e = links.object(name.c_str());
+      p.link_identifiable[l] = e.boolean("identifiable");
+      p.link_sigma[l] = e.numberOrNan("sigma");
+      p.link_reason[l] = e.stringOr("reason", "");
+    }
   }
   return plan;
 }

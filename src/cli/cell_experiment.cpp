@@ -62,6 +62,7 @@ struct Calibration {
 Calibration calibrate(const DaemonConfig& config) {
   service::ManagerSettings settings = service::managerSettingsOf(config);
   settings.write_reports = nullptr;  // figures only
+  settings.unattended_placements = true;  // --set session.placements=N: the cell moves its PSD
   const std::unique_ptr<CellBackend> backend = service::makeBackend(config);
   service::SessionManager manager(*backend, settings);
   Calibration out;

@@ -54,6 +54,9 @@ std::string progressLine(const json& s) {
     line += "  servo error " + format("%.1f", live.get<double>()) + " um now";
   else if (s.value("recorded", 0) > 0)
     line += "  servo error " + format("%.1f", s.value("last_servo_error_um", 0.0)) + " um";
+  if (s.value("placement_count", 0) > 1)
+    line += "  placement " + std::to_string(s.value("placement", 0)) + " of " +
+            std::to_string(s.value("placement_count", 0));
   if (s.value("cell_time_s", 0.0) > 0)
     line += "  " + format("%.0f", s["cell_time_s"].get<double>()) + " s";
   return line;
@@ -68,6 +71,9 @@ void printStatus(const json& s, std::ostream& out) {
       << s.value("recorded", 0);
   if (s.value("resumed_from", 0) > 0) out << " (resumed from " << s["resumed_from"] << ")";
   out << "\n";
+  if (s.value("placement_count", 0) > 1)
+    out << "placement:  " << s.value("placement", 0) << " of " << s.value("placement_count", 0)
+        << "\n";
   out << "servo:      " << format("%.2f", s.value("last_servo_error_um", 0.0))
       << " um at the last recorded pose";
   const json live = s.value("live_servo_error_um", json(nullptr));
@@ -164,6 +170,12 @@ ResultFile resultOf(const json& answer) {
   }
 }
 
+// A watch ends when the session does, or when it waits for the technician to move the PSD (who
+// then runs `zerocal continue`).
+bool watchEnds(const json& status) {
+  return !status.value("active", false) || status.value("state", "") == "awaiting_placement";
+}
+
 int exitFor(const std::string& state) {
   return state == "aborted" || state == "faulted" ? kClientSessionFailed : kClientOk;
 }
@@ -184,7 +196,7 @@ int watch(control::ControlClient& client, const ClientArgs& args, std::ostream& 
   std::string last_line = progressLine(status);
   show(status, true);
   auto last_poll = std::chrono::steady_clock::now();
-  while (status.value("active", false)) {
+  while (!watchEnds(status)) {
     auto event = client.nextEvent(std::chrono::seconds(1));
     if (event) {
       if (args.json) out << event->dump() << "\n" << std::flush;
@@ -333,6 +345,7 @@ json startMembers(const ClientArgs& args) {
   if (!args.plan_file.empty()) m["plan_file"] = args.plan_file;
   if (!args.target.empty()) m["target_mm"] = args.target;
   if (args.noise_mm) m["noise_mm"] = *args.noise_mm;
+  if (args.placements) m["placements"] = *args.placements;
   return m;
 }
 
@@ -424,15 +437,22 @@ int run(const ClientArgs& args, std::ostream& out, std::ostream& err, bool tty) 
     return kClientOk;
   }
   if (cmd == "watch") return watch(client, args, out, tty);
-  if (cmd == "start" || cmd == "resume") {
-    const auto r = cmd == "start" ? client.call("start", startMembers(args), timeout)
-                                  : client.call("resume", resumeMembers(args), timeout);
+  if (cmd == "start" || cmd == "resume" || cmd == "continue") {
+    json continued = json::object();
+    if (!args.centre.empty()) continued["centre_mm"] = args.centre;
+    const auto r = cmd == "start"    ? client.call("start", startMembers(args), timeout)
+                   : cmd == "resume" ? client.call("resume", resumeMembers(args), timeout)
+                                     : client.call("continue", continued, timeout);
     const std::string id = r.value("session", "");
     if (!args.watch) {
       if (args.json)
         out << json{{"session", id}}.dump() << "\n";
       else
-        out << "session " << id << (cmd == "start" ? " started" : " resumed") << "\n";
+        out << "session " << id
+            << (cmd == "start"    ? " started"
+                : cmd == "resume" ? " resumed"
+                                  : " continued at its next PSD placement")
+            << "\n";
       return kClientOk;
     }
     return watch(client, args, out, tty);
@@ -536,7 +556,13 @@ void addClientCommands(CLI::App& app, ClientCommands& commands) {
   start->add_option("--target", a.target, "nominal PSD centre X Y Z in mm (default the cell's)")
       ->expected(3);
   start->add_option("--noise", a.noise_mm, "measurement sigma in mm")->check(CLI::PositiveNumber);
-  start->add_flag("--watch", a.watch, "then show its progress until it ends");
+  start
+      ->add_option("--placements", a.placements,
+                   "PSD placements, --poses at each; the session waits for the PSD to be moved "
+                   "between them (default the daemon's)")
+      ->check(CLI::Range(1, kMaxDefaultPlacements));
+  start->add_flag("--watch", a.watch,
+                  "then show its progress until it ends or waits for the PSD to be moved");
   add("status", "the daemon's session state");
   add("watch", "live progress of the running session; exits when it ends");
   add("abort", "stop the running session (the robot stops)");
@@ -548,6 +574,16 @@ void addClientCommands(CLI::App& app, ClientCommands& commands) {
                    "refused unless the plan identifies every offset without it")
       ->check(CLI::PositiveNumber);
   resume->add_flag("--watch", a.watch, "then show its progress until it ends");
+  auto* go_on = add("continue",
+                    "go on with the session waiting for the PSD at its next placement, once the "
+                    "PSD is there");
+  go_on
+      ->add_option("--centre", a.centre,
+                   "the placement's centre as taught, X Y Z in mm, robot base frame (default "
+                   "its planned centre)")
+      ->expected(3);
+  go_on->add_flag("--watch", a.watch,
+                  "then show its progress until it ends or waits for the PSD to be moved");
   add("sessions", "the sessions in the daemon's data folder");
   auto* result =
       add("result", "the verdict and offsets of a finished session (--json: its result.json)");

@@ -1,5 +1,6 @@
 // The client subcommands of zerocal, which drive zerocald's control port (docs/protocol.md):
-// start, status, watch, abort, resume, sessions, result, and plan when no --robot is given.
+// start, status, watch, abort, resume, continue, sessions, result, and plan when no --robot is
+// given.
 #pragma once
 
 #include <CLI/CLI.hpp>
@@ -41,6 +42,8 @@ struct ClientArgs {
   std::string plan_file;
   std::vector<double> target;  // empty or X Y Z in mm
   std::optional<double> noise_mm;
+  std::optional<int> placements;  // start, plan: PSD placements (default the daemon's)
+  std::vector<double> centre;     // continue: empty or the placement's taught centre X Y Z, mm
   double timeout_s = 10;  // per request; `plan` takes its own time on the daemon
 };
 

@@ -325,7 +325,7 @@ int main(int argc, char** argv) {
     // On the daemon: its cell, its planner; only the options of a session request apply.
     for (const char* local :
          {"--standoff", "--margin", "--max-incidence", "--sweep", "--psd-normal", "--joint1-fixed",
-          "--out", "--laser-direction", "--laser-point", "--placements", "--placement"})
+          "--out", "--laser-direction", "--laser-point", "--placement"})
       if (plan_cmd->count(local) > 0) {
         std::cerr << "zerocal: plan " << local << " needs --robot (a plan made here)\n";
         return kBadInput;
@@ -336,6 +336,7 @@ int main(int argc, char** argv) {
     if (poses_option->count() > 0) plan_client.poses = plan_options.poses;
     if (target_option->count() > 0) plan_client.target = target;
     if (noise_option->count() > 0) plan_client.noise_mm = plan_noise;
+    if (plan_cmd->count("--placements") > 0) plan_client.placements = plan_placements;
     return cli::runClient(plan_client, std::cout, std::cerr, isatty(1));
   }
 

@@ -12,8 +12,19 @@ using nlohmann::json;
 
 namespace {
 
-const std::set<std::string> kStartMembers{"id",    "cmd",       "token",     "plan",
-                                          "poses", "plan_file", "target_mm", "noise_mm"};
+const std::set<std::string> kStartMembers{
+    "id", "cmd", "token", "plan", "poses", "plan_file", "target_mm", "noise_mm", "placements"};
+const std::set<std::string> kContinueMembers{"id", "cmd", "token", "centre_mm"};
+
+// [x, y, z] in mm, finite. Throws BadRequest naming `member`.
+Eigen::Vector3d pointMember(const json& value, const std::string& member) {
+  if (!value.is_array() || value.size() != 3 || !value[0].is_number() || !value[1].is_number() ||
+      !value[2].is_number())
+    throw BadRequest(member + ": expected [x, y, z] in mm");
+  const Eigen::Vector3d p(value[0].get<double>(), value[1].get<double>(), value[2].get<double>());
+  if (!p.allFinite()) throw BadRequest(member + ": not finite");
+  return p;
+}
 
 const std::set<std::string> kResumeMembers{"id", "cmd", "token", "session", "skip_pose"};
 
@@ -60,14 +71,8 @@ service::StartRequest parseStartRequest(const json& request,
     r.poses = p.get<int>();
   }
   r.plan_file = optionalString(request, "plan_file", r.plan_file);
-  if (request.contains("target_mm") && !request["target_mm"].is_null()) {
-    const auto& t = request["target_mm"];
-    if (!t.is_array() || t.size() != 3 || !t[0].is_number() || !t[1].is_number() ||
-        !t[2].is_number())
-      throw BadRequest("target_mm: expected [x, y, z] in mm");
-    r.target_mm = Eigen::Vector3d(t[0].get<double>(), t[1].get<double>(), t[2].get<double>());
-    if (!r.target_mm->allFinite()) throw BadRequest("target_mm: not finite");
-  }
+  if (request.contains("target_mm") && !request["target_mm"].is_null())
+    r.target_mm = pointMember(request["target_mm"], "target_mm");
   if (request.contains("noise_mm") && !request["noise_mm"].is_null()) {
     const auto& n = request["noise_mm"];
     if (!n.is_number()) throw BadRequest("noise_mm: expected a number");
@@ -75,6 +80,24 @@ service::StartRequest parseStartRequest(const json& request,
     if (!(v > 0 && v <= 10)) throw BadRequest("noise_mm: " + n.dump() + " is outside (0, 10]");
     r.noise_mm = v;
   }
+  if (request.contains("placements")) {
+    const auto& p = request["placements"];
+    if (!p.is_number_integer() || p.get<long long>() < 1 ||
+        p.get<long long>() > kMaxDefaultPlacements)
+      throw BadRequest("placements: expected an integer 1.." +
+                       std::to_string(kMaxDefaultPlacements));
+    r.placements = p.get<int>();
+  }
+  return r;
+}
+
+service::ContinueRequest parseContinueRequest(const json& request) {
+  for (const auto& item : request.items())
+    if (!kContinueMembers.count(item.key()))
+      throw BadRequest("unknown member '" + item.key() + "'");
+  service::ContinueRequest r;
+  if (request.contains("centre_mm") && !request["centre_mm"].is_null())
+    r.centre_mm = pointMember(request["centre_mm"], "centre_mm");
   return r;
 }
 
@@ -137,6 +160,14 @@ json toJson(const service::SessionStatus& s) {
   if (!s.message.empty()) j["message"] = s.message;
   if (s.skippable_pose > 0) j["skippable_pose"] = s.skippable_pose;
   if (!s.apply.empty()) j["apply"] = s.apply;
+  if (s.placement_count > 1) {
+    j["placement_count"] = s.placement_count;
+    j["placement"] = s.placement;
+  }
+  if (s.state == service::SessionState::kAwaitingPlacement) {
+    j["next_placement"] = s.next_placement;
+    j["next_centre_mm"] = {s.next_centre_mm.x(), s.next_centre_mm.y(), s.next_centre_mm.z()};
+  }
   return j;
 }
 
@@ -203,6 +234,14 @@ struct EventJson {
     if (r.remeasure_of >= 0) j["again"] = true;
     j["pose_count"] = e.pose_count;
     return j;
+  }
+  json operator()(const service::PlacementEvent& e) const {
+    return {{"event", "placement"},
+            {"session", e.session},
+            {"placement", e.placement},
+            {"placement_count", e.placement_count},
+            {"centre_mm", {e.centre_mm.x(), e.centre_mm.y(), e.centre_mm.z()}},
+            {"message", e.message}};
   }
   json operator()(const service::RemeasureEvent& e) const {
     return {{"event", "remeasure"}, {"session", e.session}, {"poses", e.poses}};

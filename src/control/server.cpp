@@ -76,7 +76,7 @@ service::StartRequest planFileInPlanDir(service::StartRequest start, const json&
 
 const std::vector<std::string> kCommands{
     "hello",  "version",   "auth",        "status", "start", "abort", "resume", "sessions",
-    "result", "subscribe", "unsubscribe", "psd",    "plan",  "apply", "verify"};
+    "result", "subscribe", "unsubscribe", "psd",    "plan",  "apply", "verify", "continue"};
 
 }  // namespace
 
@@ -314,6 +314,10 @@ class Connection : public std::enable_shared_from_this<Connection> {
                             resume.skip_pose);
       else
         server_->log_->info("{}: resumed session {}", peer_, session_id);
+      r["session"] = session_id;
+    } else if (cmd == "continue") {
+      const auto session_id = session.continueSession(parseContinueRequest(request));
+      server_->log_->info("{}: continued session {} at its next PSD placement", peer_, session_id);
       r["session"] = session_id;
     } else if (cmd == "apply") {
       const service::ApplyRequest apply = parseApplyRequest(request);

@@ -15,6 +15,7 @@
 #include <utility>
 
 #include "zerocal/calib/cell_model.h"
+#include "zerocal/calib/planner.h"
 #include "zerocal/error.h"
 
 namespace zerocal {
@@ -323,6 +324,7 @@ std::vector<Field> schema(DaemonConfig& c) {
                                      {"file", PlanKind::kFile}}));
   f.push_back(pathField("session.plan_file", c.session.plan_file));
   f.push_back(integerField("session.poses", c.session.poses));
+  f.push_back(integerField("session.placements", c.session.placements));
   f.push_back(vec3Field("session.target_mm", c.session.target_mm));
   f.push_back(vec3Field("session.psd_rpy_deg", c.session.psd_rpy_deg));
   f.push_back(realField("session.noise_mm", c.session.noise_mm));
@@ -613,6 +615,11 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
     check.fail("session.plan_file", "only used with session.plan: file");
   }
   check.range("session.poses", n.poses, kMinimumPoses, kMaxPlanPoses);
+  check.range("session.placements", n.placements, 1, kMaxDefaultPlacements);
+  if (n.placements > 1 && n.plan == PlanKind::kFile)
+    check.fail("session.placements",
+               "not used with session.plan: file (the plan file's "
+               "placement column says where each pose is)");
   check.positive("session.noise_mm", n.noise_mm, 10.0);
   // Beyond a degree the offsets would be mastering errors, not a calibration's business.
   check.positive("session.required_accuracy_deg", n.required_accuracy_deg, 1.0);

@@ -174,9 +174,10 @@ ResultFile SessionManager::verificationRun(const CalibrationParameters& found, s
   StartRequest request = defaultRequest();
   request.target_mm = found.target_mm;
   request.found_before = found;
+  request.placements = 1;  // a verification runs unattended: the PSD stays where it is
   const NewSession n = createSession(request);
   id = n.id;
-  runSession(n.id, n.poses, n.target, n.noise_mm, {}, n.found_before);
+  runSession(n.id, n.plan, {}, n.found_before);
   const SessionStatus end = board_.status();
   if (end.state != SessionState::kDone)
     throw Error("verification session " + n.id + " " + stateName(end.state) + ": " + end.message);

@@ -92,6 +92,66 @@ void SessionBoard::finish(SessionState state, const std::string& message) {
   emit(event);
 }
 
+bool SessionBoard::awaitPlacement(int placement, const Eigen::Vector3d& centre_mm,
+                                  const std::string& message) {
+  StateEvent event;
+  bool waiting = false;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    // An abort asked for while the run was stopping ends the session: nobody would end it once
+    // it waits with no worker.
+    waiting = !abort_;
+    status_.state = waiting ? SessionState::kAwaitingPlacement : SessionState::kAborted;
+    status_.message = waiting ? message : "aborted before placement " + std::to_string(placement);
+    status_.next_placement = waiting ? placement : 0;
+    status_.next_centre_mm = centre_mm;
+    event = stateEvent();
+  }
+  changed_.notify_all();
+  emit(event);
+  return waiting;
+}
+
+SessionStatus SessionBoard::leaveWaiting() {
+  StateEvent event;
+  SessionStatus status;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (closed_) throw Refused("busy", "the daemon is stopping");
+    if (status_.state != SessionState::kAwaitingPlacement)
+      throw Refused("not_waiting",
+                    status_.session_id.empty()
+                        ? std::string("no session is waiting for the PSD to be moved")
+                        : "no session is waiting for the PSD to be moved (session " +
+                              status_.session_id + " is " + stateName(status_.state) + ")");
+    status_.state = SessionState::kConnecting;
+    status_.message.clear();
+    status_.placement = status_.next_placement;
+    status_.next_placement = 0;
+    status = status_;
+    event = stateEvent();
+  }
+  changed_.notify_all();
+  emit(event);
+  return status;
+}
+
+bool SessionBoard::abortWaiting() {
+  StateEvent event;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (status_.state != SessionState::kAwaitingPlacement) return false;
+    status_.state = SessionState::kAborted;
+    status_.message =
+        "aborted while waiting for the PSD at placement " + std::to_string(status_.next_placement);
+    status_.next_placement = 0;
+    event = stateEvent();
+  }
+  changed_.notify_all();
+  emit(event);
+  return true;
+}
+
 void SessionBoard::update(const std::function<void(SessionStatus&)>& change) {
   std::lock_guard<std::mutex> lock(mutex_);
   change(status_);

@@ -7,6 +7,7 @@
 #include <regex>
 
 #include "zerocal/calib/format.h"
+#include "zerocal/calib/identifiability.h"
 #include "zerocal/calib/solver.h"
 #include "zerocal/cell/link_error.h"
 #include "zerocal/daemon/logging.h"
@@ -26,6 +27,8 @@ const char* stateName(SessionState state) {
       return "servoing";
     case SessionState::kRecording:
       return "recording";
+    case SessionState::kAwaitingPlacement:
+      return "awaiting_placement";
     case SessionState::kSolving:
       return "solving";
     case SessionState::kApplying:
@@ -197,6 +200,32 @@ std::vector<Pose> posesKept(const std::vector<Pose>& plan, const std::vector<boo
   return kept;
 }
 
+// Where the technician is to put the PSD for each placement of the poses: the target for the
+// first, for the others the point their nominal lines cross (a planned placement's centre, which
+// its poses aim at). Empty with one placement.
+std::vector<Eigen::Vector3d> plannedCentres(const CellModel& cell, const std::vector<Pose>& poses,
+                                            const Eigen::Vector3d& target) {
+  const PlacementLayout layout(poses);
+  if (layout.count() < 2) return {};
+  CalibrationParameters nominal;
+  nominal.target_mm = target;
+  std::vector<Eigen::Vector3d> centres = placementTargets(cell, poses, layout, nominal, false);
+  centres.front() = target;
+  return centres;
+}
+
+// Several placements need a cell whose PSD can be moved between them.
+void refuseUnlessPlaceable(const CellBackend& backend) {
+  const std::string why = backend.placementsRefusal();
+  if (!why.empty()) throw Refused("unsupported", why);
+}
+
+std::string centreText(const Eigen::Vector3d& c) {
+  char text[96];
+  std::snprintf(text, sizeof text, "(%.1f, %.1f, %.1f) mm", c.x(), c.y(), c.z());
+  return text;
+}
+
 std::vector<bool> skippedPoses(const std::vector<PoseRecord>& records, std::size_t plan_size) {
   std::vector<bool> skipped(plan_size, false);
   for (const PoseRecord& r : records)
@@ -252,6 +281,7 @@ StartRequest SessionManager::defaultRequest() const {
   r.plan_file = settings_.session.plan_file;
   r.target_mm = settings_.target_mm;
   r.noise_mm = settings_.session.noise_mm;
+  r.placements = settings_.session.placements;
   return r;
 }
 
@@ -278,6 +308,13 @@ Plan SessionManager::makePlan(const StartRequest& request, Eigen::Vector3d& targ
     options.poses = request.poses;
     options.noise_mm = noise_mm;
     options.psd_normal = knowledge_.cell.psd_rotation.col(2);
+    if (request.placements < 1 || request.placements > kMaxDefaultPlacements)
+      throw InputError("placements: " + std::to_string(request.placements) + " is outside 1.." +
+                       std::to_string(kMaxDefaultPlacements));
+    if (request.placements > 1) {
+      refuseUnlessPlaceable(backend_);
+      options.more_placements = defaultPlacements(target, request.placements);
+    }
     Plan plan = planPoses(knowledge_.cell, target, options);
     if (request.found_before)
       leastSensitiveFirst(plan.poses, knowledge_.cell, *request.found_before);
@@ -295,15 +332,18 @@ Plan SessionManager::preview(const StartRequest& request) const {
 
 SessionManager::NewSession SessionManager::createSession(const StartRequest& request) {
   NewSession n;
-  const Plan plan = makePlan(request, n.target, n.noise_mm);
+  const Plan plan = makePlan(request, n.plan.target, n.plan.noise_mm);
   refuseUnlessIdentifiable(plan.prediction);
-  n.poses = plan.poses;
+  n.plan.poses = plan.poses;
+  n.plan.centres = plannedCentres(knowledge_.cell, plan.poses, n.plan.target);
+  if (!n.plan.centres.empty()) refuseUnlessPlaceable(backend_);  // a plan file's placements
   n.found_before = request.found_before;
 
   SessionFile draft;
   draft.plan = plan;
-  draft.target_mm = n.target;
-  draft.noise_mm = n.noise_mm;
+  draft.target_mm = n.plan.target;
+  draft.noise_mm = n.plan.noise_mm;
+  draft.placement_centres_mm = n.plan.centres;
   draft.config = settings_.config_snapshot;
   const SessionFile created = store_.create(std::move(draft));
   n.id = created.id;
@@ -314,6 +354,8 @@ SessionManager::NewSession SessionManager::createSession(const StartRequest& req
   s.state = SessionState::kConnecting;
   s.session_id = created.id;
   s.pose_count = static_cast<int>(plan.poses.size());
+  s.placement_count = n.plan.centres.empty() ? 0 : static_cast<int>(n.plan.centres.size());
+  s.placement = s.placement_count > 0 ? 1 : 0;
   s.predicted_sigma_deg.assign(plan.prediction.sigma.begin(),
                                plan.prediction.sigma.begin() + kOffsetCount);
   s.apply = board_.status().apply;  // the latest apply stays in the status
@@ -329,9 +371,31 @@ std::string SessionManager::start(const StartRequest& request) {
   NewSession n = createSession(request);
   worker_.post([this, n](bool cancelled) {
     if (cancelled) return finish(SessionState::kAborted, "the daemon stopped before it began");
-    runSession(n.id, n.poses, n.target, n.noise_mm, {}, n.found_before);
+    runSession(n.id, n.plan, {}, n.found_before);
   });
   return n.id;
+}
+
+SessionManager::RunPlan SessionManager::runPlanOf(const std::string& id,
+                                                  const SessionFile& session) const {
+  RunPlan plan{session.plan.poses, session.target_mm, session.noise_mm,
+               session.placement_centres_mm};
+  // session.json is a file anyone with access may have edited: what it asks of the robot is
+  // checked exactly as a new plan is.
+  try {
+    checkPlanInput(plan.target, plan.noise_mm);
+    checkPoses(knowledge_.cell, plan.poses);
+    if (plan.centres.empty())
+      plan.centres = plannedCentres(knowledge_.cell, plan.poses, plan.target);
+    if (placementCount(plan.poses) > 1 &&
+        static_cast<int>(plan.centres.size()) != placementCount(plan.poses))
+      throw InputError("its plan has " + std::to_string(placementCount(plan.poses)) +
+                       " placements but " + std::to_string(plan.centres.size()) + " centres");
+    for (const Eigen::Vector3d& c : plan.centres) checkPlanInput(c, plan.noise_mm);
+  } catch (const InputError& e) {
+    throw Refused("bad_session", "session " + id + " cannot be resumed: " + e.what());
+  }
+  return plan;
 }
 
 std::string SessionManager::resume(const ResumeRequest& request) {
@@ -361,17 +425,11 @@ std::string SessionManager::resume(const ResumeRequest& request) {
                                      "lacks the plan's poses, target_mm or noise_mm (" + e.what() +
                                      ")");
   }
-  const std::vector<Pose>& poses = session.plan.poses;
-  const Eigen::Vector3d target = session.target_mm;
-  const double noise_mm = session.noise_mm;
-  // session.json is a file anyone with access may have edited: what it asks of the robot is
-  // checked exactly as a new plan is.
-  try {
-    checkPlanInput(target, noise_mm);
-    checkPoses(knowledge_.cell, poses);
-  } catch (const InputError& e) {
-    throw Refused("bad_session", "session " + id + " cannot be resumed: " + e.what());
-  }
+  const RunPlan plan = runPlanOf(id, session);
+  const std::vector<Pose>& poses = plan.poses;
+  const Eigen::Vector3d target = plan.target;
+  const double noise_mm = plan.noise_mm;
+  if (!plan.centres.empty()) refuseUnlessPlaceable(backend_);
   std::vector<bool> skipped;
   try {
     skipped = skippedPoses(readJournal(store_.journalPath(id)).records, poses.size());
@@ -419,6 +477,7 @@ std::string SessionManager::resume(const ResumeRequest& request) {
     s.pose_count = static_cast<int>(poses.size());
     s.recorded = info->recorded_poses;
     s.resumed_from = info->recorded_poses;
+    s.placement_count = plan.centres.empty() ? 0 : static_cast<int>(plan.centres.size());
     s.apply = board_.status().apply;
     // NaN where a hand-edited session.json predicts nothing.
     s.predicted_sigma_deg.assign(session.plan.prediction.sigma.begin(),
@@ -427,14 +486,51 @@ std::string SessionManager::resume(const ResumeRequest& request) {
   }
   live_->clear();
   board_.announce();
-  worker_.post([this, id, poses, target, noise_mm, skip_index, skip_reason](bool cancelled) {
+  worker_.post([this, id, plan, skip_index, skip_reason](bool cancelled) {
     if (cancelled) return finish(SessionState::kAborted, "the daemon stopped before it resumed");
-    runSession(id, poses, target, noise_mm, {skip_index, skip_reason});
+    runSession(id, plan, {skip_index, skip_reason});
+  });
+  return id;
+}
+
+std::string SessionManager::continueSession(const ContinueRequest& request) {
+  if (request.centre_mm) {
+    try {
+      checkPlanInput(*request.centre_mm, settings_.session.noise_mm);
+    } catch (const InputError& e) {
+      throw Refused("bad_request", std::string("centre_mm: ") + e.what());
+    }
+  }
+  const SessionStatus s = board_.leaveWaiting();  // from here on the session is ours to go on
+  const std::string& id = s.session_id;
+  RunPlan plan;
+  try {
+    plan = runPlanOf(id, store_.readSession(id));
+    if (s.placement < 2 || s.placement > static_cast<int>(plan.centres.size()))
+      throw Error("its plan has no placement " + std::to_string(s.placement));
+  } catch (const Error& e) {
+    // Its session.json changed on disk since it was read at the start: nothing moves.
+    board_.finish(SessionState::kFaulted, std::string("cannot go on: ") + e.what());
+    throw Refused("bad_session", "session " + id + " cannot go on: " + e.what());
+  }
+  const Eigen::Vector3d centre = request.centre_mm.value_or(plan.centres[s.placement - 1]);
+  makeLogger("session")->info("session {}: the PSD is at placement {} of {}, taught at {}", id,
+                              s.placement, plan.centres.size(), centreText(centre));
+  live_->clear();
+  worker_.post([this, id, plan, centre](bool cancelled) {
+    if (cancelled) return finish(SessionState::kAborted, "the daemon stopped before it went on");
+    runSession(id, plan, {}, std::nullopt, centre);
   });
   return id;
 }
 
 bool SessionManager::abort() {
+  // A waiting session has no worker to stop: it ends here.
+  if (board_.abortWaiting()) {
+    makeLogger("session")->warn("session {} aborted while waiting for a PSD placement",
+                                board_.status().session_id);
+    return true;
+  }
   if (!board_.requestAbort()) return false;
   const SessionStatus s = board_.status();
   if (isActive(s.state))
@@ -462,11 +558,18 @@ void SessionManager::finish(SessionState state, const std::string& message) {
   board_.finish(state, message);
 }
 
-void SessionManager::runSession(const std::string& id, const std::vector<Pose>& plan,
-                                const Eigen::Vector3d& target, double noise_mm,
+void SessionManager::runSession(const std::string& id, const RunPlan& run_plan,
                                 const PoseSkip& skip,
-                                const std::optional<CalibrationParameters>& found_before) {
+                                const std::optional<CalibrationParameters>& found_before,
+                                const std::optional<Eigen::Vector3d>& place_next) {
   auto log = makeLogger("session");
+  const std::vector<Pose>& plan = run_plan.poses;
+  const Eigen::Vector3d& target = run_plan.target;
+  const double noise_mm = run_plan.noise_mm;
+  // Every placement's planned centre, placement 1's first: the target alone with one.
+  const std::vector<Eigen::Vector3d> centres =
+      run_plan.centres.empty() ? std::vector<Eigen::Vector3d>{target} : run_plan.centres;
+  const int placement_count = static_cast<int>(centres.size());
   if (board_.abortRequested()) return finish(SessionState::kAborted, "aborted before connecting");
   try {
     if (!cell_) {
@@ -524,6 +627,15 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
     run_settings.reopen_sensor = [this] { cell_->reopenPsd(); };
     CalibrationRun run(knowledge_.cell, target, plan, run_settings, journal);
     run.found_before = found_before;
+    if (place_next) run.placeNext(*place_next);
+    // The cell's PSD where the journal has it: the simulated cell moves its detector there (back
+    // to placement 1 for a session of one); on a real cell the technician has, and nothing
+    // happens. Again at every placement an unattended run goes on to.
+    const auto placed = [&](int placement) {
+      cell_->placePsd(placement, centres);
+      board_.update([&](SessionStatus& s) { s.placement = placement_count > 1 ? placement : 0; });
+    };
+    placed(journal.placement());
     const double start_s = cell_->clock().nowS();
     run.on_phase = [this, start_s](int i, RunPhase phase) {
       // The cell's clock is the worker's to read: the status gets its time at each phase.
@@ -555,6 +667,21 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
     }
     ObservedReader<LiveSlot> reader(cell_->psd(), *live_, worker_);
     outcome = run.run(cell_->robot(), reader, cell_->clock(), board_.abortRequested());
+    while (outcome->state == RunState::kAwaitingPlacement && settings_.unattended_placements) {
+      const int next = outcome->next_placement;
+      log->info("session {}: no technician; the PSD goes on to placement {} at {}", id, next,
+                centreText(centres[next - 1]));
+      board_.emit(PlacementEvent{id, next, placement_count, centres[next - 1],
+                                 "placement " + std::to_string(next) + " of " +
+                                     std::to_string(placement_count) + " at its planned centre"});
+      run.placeNext(centres[next - 1]);
+      placed(next);
+      RunOutcome then = run.run(cell_->robot(), reader, cell_->clock(), board_.abortRequested());
+      then.resumed_from = outcome->resumed_from;
+      then.reconnects += outcome->reconnects;
+      then.reopens += outcome->reopens;
+      outcome = std::move(then);
+    }
     cell_time_s = cell_->clock().nowS() - start_s;
   } catch (const std::exception& e) {
     cell_.reset();
@@ -565,6 +692,22 @@ void SessionManager::runSession(const std::string& id, const std::vector<Pose>& 
     s.resumed_from = outcome->resumed_from;
   });
   if (outcome->state == RunState::kAborted) return finish(SessionState::kAborted, outcome->message);
+  if (outcome->state == RunState::kAwaitingPlacement) {
+    const int next = outcome->next_placement;
+    const Eigen::Vector3d& centre = centres[next - 1];
+    const std::string message =
+        "move the PSD to placement " + std::to_string(next) + " of " +
+        std::to_string(placement_count) + ": its centre at " + centreText(centre) +
+        " in the robot base frame, facing as before; then `zerocal continue` (with `--centre X Y "
+        "Z` when it is taught elsewhere)";
+    if (board_.awaitPlacement(next, centre, message)) {
+      log->info("session {}: {}", id, message);
+      board_.emit(PlacementEvent{id, next, placement_count, centre, message});
+    } else {
+      log->warn("session {} aborted before placement {}", id, next);
+    }
+    return;
+  }
   if (outcome->state == RunState::kFaulted) {
     std::string message = outcome->message;
     // Only the next plan pose can be skipped (not one measured again after the plan).
@@ -682,7 +825,10 @@ ResultFile SessionManager::result(const std::string& requested) const {
 }
 
 void SessionManager::readPsd(ReadingDone done) {
-  if (board_.activeOrClaimed()) {  // the board belongs to the session: report what it last read
+  // The board belongs to a running session: report what it last read. A session waiting for the
+  // PSD to be moved reads nothing meanwhile, so a reading is taken now (the technician placing
+  // the detector may want one).
+  if (board_.activeOrClaimed() && board_.status().state != SessionState::kAwaitingPlacement) {
     if (const std::optional<PsdReading> r = live_->load())
       done(LiveReading{*r, true}, "");
     else

@@ -86,7 +86,7 @@ void CalibrationRun::journalFault(const servo::ServoFault& fault, int plan_index
 std::vector<Pose> posesOf(const std::vector<PoseRecord>& records) {
   std::vector<Pose> poses;
   for (const PoseRecord* r : latestOf(records))
-    if (r && r->measured()) poses.push_back({r->joints_deg, r->reading.spot, 0});
+    if (r && r->measured()) poses.push_back({r->joints_deg, r->reading.spot, 0, r->placement});
   return poses;
 }
 
@@ -106,6 +106,53 @@ CalibrationRun::CalibrationRun(CellModel knowledge, Eigen::Vector3d taught_centr
   if (plan_lines > static_cast<int>(plan_.size()))
     throw InputError("the journal holds " + std::to_string(plan_lines) +
                      " poses but the plan only " + std::to_string(plan_.size()));
+  // The technician is guided from one placement to the next, never back.
+  int placement = 1;
+  for (std::size_t i = 0; i < plan_.size(); ++i) {
+    const int p = plan_[i].placement;
+    if (p != placement && p != placement + 1)
+      throw InputError("plan pose " + std::to_string(i + 1) + " is at placement " +
+                       std::to_string(p) + " after placement " + std::to_string(placement) +
+                       ": a plan's placements must be 1, 2, ... in turn");
+    placement = p;
+  }
+  if (plan_.empty() || plan_.front().placement != 1)
+    throw InputError("a plan's first pose must be at placement 1");
+  if (plan_lines < static_cast<int>(plan_.size()) &&
+      journal_.placement() > plan_[plan_lines].placement)
+    throw InputError("the journal has the PSD at placement " +
+                     std::to_string(journal_.placement()) + " but its next pose, " +
+                     std::to_string(plan_lines + 1) + ", is at placement " +
+                     std::to_string(plan_[plan_lines].placement));
+}
+
+int CalibrationRun::awaitedPlacement() const {
+  const int next = planLines(journal_.records());
+  if (next != journal_.nextIndex() || next >= static_cast<int>(plan_.size())) return 0;
+  return plan_[next].placement > journal_.placement() ? plan_[next].placement : 0;
+}
+
+void CalibrationRun::placeNext(const Eigen::Vector3d& centre_mm) {
+  const int placement = awaitedPlacement();
+  if (placement == 0) throw InputError("the run does not wait for the PSD to be moved");
+  if (!centre_mm.allFinite()) throw InputError("the placement's centre must be finite");
+  PlacementRecord record;
+  record.placement = placement;
+  record.centre_mm = {centre_mm.x(), centre_mm.y(), centre_mm.z()};
+  record.recorded_ns = unixNanoseconds();
+  journal_.append(record);
+}
+
+CellModel CalibrationRun::placementModel(int placement) const {
+  CellModel model = knowledge_;
+  model.psd_rotation = knowledge_.psdRotation(placement);
+  return model;
+}
+
+Eigen::Vector3d CalibrationRun::placementCentre(int placement) const {
+  for (const PlacementRecord& p : journal_.placements())
+    if (p.placement == placement) return Eigen::Vector3d(p.centre_mm.data());
+  return taught_centre_;
 }
 
 void CalibrationRun::skipNextPose(const std::string& reason) {
@@ -127,12 +174,18 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
   out.resumed_from = journal_.nextIndex();
   servo::ServoOptions servo_options = settings_.servo;
   servo_options.abort = &abort;
-  servo::PsdServo servo(knowledge_, taught_centre_, servo_options);
-  servo::SpotPredictor predictor(knowledge_, taught_centre_);
+  // The servo and the predictor know the PSD where it stands now: its placement's orientation
+  // and taught centre. The predictor learns from the poses at this placement only, since each
+  // placement has a centre of its own.
+  const int placement = journal_.placement();
+  const CellModel model = placementModel(placement);
+  const Eigen::Vector3d centre = placementCentre(placement);
+  servo::PsdServo servo(model, centre, servo_options);
+  servo::SpotPredictor predictor(model, centre);
   if (found_before) predictor.startFrom(*found_before);
   // Resumed poses teach the predictor where the spot falls, as if they had just been servoed.
   for (const PoseRecord& r : out.records)
-    if (r.measured()) predictor.addPose(r.joints_deg, r.reading.spot);
+    if (r.measured() && r.placement == placement) predictor.addPose(r.joints_deg, r.reading.spot);
   const int n = static_cast<int>(plan_.size());
   const auto phase = [&](int i, RunPhase p) {
     if (on_phase) on_phase(i, p);
@@ -236,6 +289,7 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
       if (again) record.remeasure_of = i;
       record.joints_deg = r.q_deg;
       record.reading = r.reading;
+      record.placement = placement;
       record.move_started_ns = move_started_ns;
       record.recorded_ns = unixNanoseconds();
       record.servo.moves = r.moves;
@@ -256,8 +310,18 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
     }
   };
 
-  for (int i = journal_.nextIndex(); i < n; ++i)
+  for (int i = journal_.nextIndex(); i < n; ++i) {
+    if (plan_[i].placement != placement) {
+      // The robot rests at the last pose of this placement; the technician moves the PSD.
+      out.state = RunState::kAwaitingPlacement;
+      out.next_placement = plan_[i].placement;
+      out.stopped_at = i;
+      out.message = "waiting for the PSD to be moved to placement " +
+                    std::to_string(out.next_placement) + " before pose " + std::to_string(i + 1);
+      return out;
+    }
     if (!measure(i, false)) return out;
+  }
 
   phase(n, RunPhase::kSolving);
   SolveOptions solve_options = settings_.solve;
@@ -270,14 +334,17 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
   const bool remeasured_before =
       std::any_of(out.records.begin(), out.records.end(),
                   [](const PoseRecord& r) { return r.remeasure_of >= 0; });
-  if (!abort.load() && !remeasured_before && settings_.remeasure_most > 0 &&
-      !out.report->remeasure.empty()) {
+  if (!abort.load() && !remeasured_before && settings_.remeasure_most > 0) {
     const std::vector<int> solved = planIndicesOf(out.records);
     for (const int pose : out.report->remeasure)
+      // Only where the PSD stands now: an earlier placement's pose would aim at a PSD gone.
       if (static_cast<int>(out.remeasured.size()) < settings_.remeasure_most &&
+          plan_[solved[pose - 1]].placement == placement &&
           std::find(out.remeasured.begin(), out.remeasured.end(), solved[pose - 1]) ==
               out.remeasured.end())
         out.remeasured.push_back(solved[pose - 1]);
+  }
+  if (!out.remeasured.empty()) {
     if (on_remeasure) on_remeasure(out.remeasured);
     for (const int i : out.remeasured) {
       if (measure(i, true)) continue;

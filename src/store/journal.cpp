@@ -93,7 +93,31 @@ Json toJson(const PoseRecord& r) {
       path.push_back(Json::array({p.t_s, p.spot.u_mm, p.spot.v_mm}));
   }
   if (r.remeasure_of >= 0) line["remeasure_of"] = r.remeasure_of;
+  if (r.placement != 1) line["placement"] = r.placement;
   return line;
+}
+
+Json toJson(const PlacementRecord& r) {
+  return Json{
+      {"placement", r.placement}, {"centre_mm", r.centre_mm}, {"recorded_ns", r.recorded_ns}};
+}
+
+PlacementRecord placementRecordFromJson(const Json& j) {
+  try {
+    PlacementRecord r;
+    j.at("placement").get_to(r.placement);
+    j.at("centre_mm").get_to(r.centre_mm);
+    j.at("recorded_ns").get_to(r.recorded_ns);
+    for (const double c : r.centre_mm)
+      if (!std::isfinite(c)) throw JournalError("placement record: centre_mm is not finite");
+    return r;
+  } catch (const Json::exception& e) {
+    throw JournalError(std::string("placement record: ") + e.what());
+  }
+}
+
+int placementInForce(const std::vector<PlacementRecord>& placements) {
+  return placements.empty() ? 1 : placements.back().placement;
 }
 
 PoseRecord poseRecordFromJson(const Json& j) {
@@ -127,6 +151,10 @@ PoseRecord poseRecordFromJson(const Json& j) {
     if (j.contains("servo_path"))
       for (const auto& point : j.at("servo_path").get<std::vector<std::array<double, 3>>>())
         r.servo_path.push_back({point[0], {point[1], point[2]}});
+    if (j.contains("placement")) {
+      j.at("placement").get_to(r.placement);
+      if (r.placement < 1) throw JournalError("pose record: placement must be 1 or more");
+    }
     if (j.contains("remeasure_of")) {
       j.at("remeasure_of").get_to(r.remeasure_of);
       if (r.remeasure_of < 0 || r.remeasure_of >= r.index)
@@ -155,13 +183,18 @@ JournalContents readJournal(const std::string& path) {
         text.substr(start, (newline == std::string::npos ? text.size() : newline) - start);
     std::string problem;
     PoseRecord record;
+    std::optional<PlacementRecord> placement;  // a placement line instead of a pose
     if (newline == std::string::npos) {
       // append() acknowledges a pose only after its newline is on disk, so a line without one
       // was never acknowledged, however complete it looks.
       problem = "no newline";
     } else {
       try {
-        record = poseRecordFromJson(Json::parse(line));
+        const Json j = Json::parse(line);
+        if (j.is_object() && !j.contains("index") && j.contains("placement"))
+          placement = placementRecordFromJson(j);
+        else
+          record = poseRecordFromJson(j);
       } catch (const std::exception& e) {
         problem = e.what();
       }
@@ -173,6 +206,21 @@ JournalContents readJournal(const std::string& path) {
       makeLogger("journal")->warn("{}", out.dropped);
       break;
     }
+    const std::string where = path + ":" + std::to_string(line_number) + ": ";
+    if (placement) {
+      if (placement->placement != placementInForce(out.placements) + 1)
+        throw JournalError(where + "placement " + std::to_string(placement->placement) + " where " +
+                           std::to_string(placementInForce(out.placements) + 1) + " was due");
+      placement->first_index = out.nextIndex();
+      out.placements.push_back(*placement);
+      out.committed_bytes = newline + 1;
+      start = newline + 1;
+      continue;
+    }
+    if (record.measured() && record.placement != placementInForce(out.placements))
+      throw JournalError(where + "pose at placement " + std::to_string(record.placement) +
+                         " while the PSD is at placement " +
+                         std::to_string(placementInForce(out.placements)));
     if (record.index != out.nextIndex())
       throw JournalError(path + ":" + std::to_string(line_number) + ": pose index " +
                          std::to_string(record.index) + " where " +
@@ -187,6 +235,7 @@ JournalContents readJournal(const std::string& path) {
 Journal::Journal(const std::string& path) : path_(path) {
   JournalContents contents = readJournal(path);
   records_ = std::move(contents.records);
+  placements_ = std::move(contents.placements);
   dropped_ = std::move(contents.dropped);
 
   const fs::path file(path);
@@ -227,7 +276,29 @@ void Journal::append(const PoseRecord& record) {
   if (!allFinite(record))
     throw JournalError("journal " + path_ + ": pose " + std::to_string(record.index) +
                        " has a value that is not a finite number");
-  const std::string line = toJson(record).dump() + "\n";
+  if (record.measured() && record.placement != placement())
+    throw JournalError("journal " + path_ + ": pose " + std::to_string(record.index) +
+                       " at placement " + std::to_string(record.placement) +
+                       " while the PSD is at placement " + std::to_string(placement()));
+  writeLine(toJson(record).dump() + "\n");
+  records_.push_back(record);
+}
+
+void Journal::append(const PlacementRecord& record) {
+  if (record.placement != placement() + 1)
+    throw JournalError("journal " + path_ + ": placement " + std::to_string(record.placement) +
+                       " where " + std::to_string(placement() + 1) + " is due");
+  for (const double c : record.centre_mm)
+    if (!std::isfinite(c))
+      throw JournalError("journal " + path_ + ": placement centre is not a finite number");
+  writeLine(toJson(record).dump() + "\n");
+  PlacementRecord kept = record;
+  kept.first_index = nextIndex();
+  placements_.push_back(kept);
+}
+
+void Journal::writeLine(const std::string& line) {
+  if (broken_) throw JournalError("journal " + path_ + " is unusable after a failed write");
   try {
     // One write() per line: with O_APPEND a crash leaves at most this line torn.
     writeAllDurably(fd_, line, path_);
@@ -236,7 +307,6 @@ void Journal::append(const PoseRecord& record) {
     broken_ = true;
     throw JournalError(e.what());
   }
-  records_.push_back(record);
 }
 
 Json toJson(const FaultRecord& r) {

@@ -72,6 +72,9 @@ int runOnce(SessionManager& manager, asio::io_context& io, bool json) {
       else
         std::fprintf(stderr, "pose %d of %d skipped: %s\n", pose->record.planIndex() + 1,
                      pose->pose_count, pose->record.skipped.c_str());
+    } else if (const auto* placement = std::get_if<service::PlacementEvent>(&event)) {
+      std::fprintf(stderr, "PSD placement %d of %d: %s\n", placement->placement,
+                   placement->placement_count, placement->message.c_str());
     } else if (const auto* state = std::get_if<service::StateEvent>(&event)) {
       if (!service::isActive(state->state) && state->state != SessionState::kIdle)
         asio::post(io, [&io] { io.stop(); });
@@ -166,7 +169,17 @@ int main(int argc, char** argv) {
     // manager's destructor has joined the worker.
     asio::io_context io;
     std::unique_ptr<CellBackend> backend = service::makeBackend(cfg);
-    service::SessionManager manager(*backend, service::managerSettingsOf(cfg));
+    service::ManagerSettings settings = service::managerSettingsOf(cfg);
+    if (once && cfg.session.placements > 1) {
+      // Nobody continues a --once session: the simulated cell moves its PSD itself; a real
+      // cell's needs a technician at the control port.
+      if (cfg.backend.kind != BackendKind::kSim)
+        throw ConfigError("zerocald", {"session.placements: --once has nobody to move the PSD "
+                                       "between placements; serve the control port (without "
+                                       "--once) and `zerocal continue` at each placement"});
+      settings.unattended_placements = true;
+    }
+    service::SessionManager manager(*backend, std::move(settings));
     log->info("backend {}; sessions in {}", backend->name(), cfg.session.data_dir);
     logUnfinished(manager);
 

@@ -253,6 +253,36 @@ TEST_F(ClientCommandsTest, WatchFollowsTheSessionToItsEnd) {
   EXPECT_EQ(text.substr(done).find(" um now"), std::string::npos) << text;
 }
 
+// A watch ends when the session waits for the PSD, saying where it goes (exit 0: nothing went
+// wrong); `zerocal continue` goes on, with the centre as taught when given, and is refused with
+// exit code 2 when nothing waits.
+TEST_F(ClientCommandsTest, WatchStopsAtAPlacementAndContinueGoesOn) {
+  auto start = args("start");
+  start.placements = 2;
+  EXPECT_EQ(run(start), 0);
+  EXPECT_EQ(session_.lastRequest().placements, 2);
+  EXPECT_EQ(run(args("continue")), cli::kClientBadRequest);
+  EXPECT_THAT(err_.str(), HasSubstr("not_waiting"));
+  session_.setState(SessionState::kRecording, 8, 16);
+  std::thread cell([this] {
+    std::this_thread::sleep_for(200ms);
+    session_.awaitPlacement(2, 2, Eigen::Vector3d(613, 652.5, 585));
+  });
+  EXPECT_EQ(run(args("watch")), 0);
+  cell.join();
+  EXPECT_THAT(out_.str(), HasSubstr("awaiting_placement"));
+  EXPECT_THAT(out_.str(), HasSubstr("placement 1 of 2"));
+  EXPECT_THAT(out_.str(), HasSubstr("move the PSD to placement 2"));
+  EXPECT_EQ(run(args("status")), 0);
+  EXPECT_THAT(out_.str(), HasSubstr("placement:  1 of 2"));
+  auto go_on = args("continue");
+  go_on.centre = {614, 652.5, 585};
+  EXPECT_EQ(run(go_on), 0);
+  EXPECT_THAT(out_.str(), HasSubstr("continued at its next PSD placement"));
+  ASSERT_TRUE(session_.lastContinue().centre_mm);
+  EXPECT_EQ(session_.lastContinue().centre_mm->x(), 614);
+}
+
 TEST_F(ClientCommandsTest, WatchEndsWithTheVerdictAndTheOffsets) {
   session_.start({});
   session_.result_session = "20261122-0001";

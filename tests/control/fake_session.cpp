@@ -79,6 +79,18 @@ std::string FakeSession::resume(const service::ResumeRequest& request) {
   return status_.session_id;
 }
 
+// As the manager: only a session awaiting a placement goes on.
+std::string FakeSession::continueSession(const service::ContinueRequest& request) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  last_continue_ = request;
+  if (status_.state != SessionState::kAwaitingPlacement)
+    throw Refused("not_waiting", "no session is waiting for the PSD to be moved");
+  status_.state = SessionState::kConnecting;
+  status_.placement = status_.next_placement;
+  status_.next_placement = 0;
+  return status_.session_id;
+}
+
 // As the manager: confirmation first, then busy, then the session.
 std::string FakeSession::apply(const service::ApplyRequest& request) {
   std::lock_guard<std::mutex> lock(mutex_);
@@ -148,6 +160,19 @@ void FakeSession::setEventSink(EventSink sink) {
   sink_ = std::move(sink);
 }
 
+void FakeSession::awaitPlacement(int placement, int placement_count,
+                                 const Eigen::Vector3d& centre_mm) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    status_.placement_count = placement_count;
+    status_.placement = placement - 1;
+    status_.next_placement = placement;
+    status_.next_centre_mm = centre_mm;
+    status_.message = "move the PSD to placement " + std::to_string(placement);
+  }
+  setState(SessionState::kAwaitingPlacement, status_.pose, status_.pose_count);
+}
+
 void FakeSession::setState(SessionState state, int pose, int pose_count) {
   service::StateEvent event;
   {
@@ -175,6 +200,11 @@ void FakeSession::emit(const service::SessionEvent& event) {
 service::StartRequest FakeSession::lastRequest() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return last_request_;
+}
+
+service::ContinueRequest FakeSession::lastContinue() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return last_continue_;
 }
 
 service::ResumeRequest FakeSession::lastResume() const {

@@ -25,6 +25,7 @@ class FakeSession : public service::SessionControl {
   Plan preview(const service::StartRequest& request) const override;
   std::string start(const service::StartRequest& request) override;
   std::string resume(const service::ResumeRequest& request) override;
+  std::string continueSession(const service::ContinueRequest& request) override;
   std::string apply(const service::ApplyRequest& request) override;
   std::string verify(const service::VerifyRequest& request) override;
   bool abort() override;
@@ -35,11 +36,14 @@ class FakeSession : public service::SessionControl {
 
   // Test controls.
   void setState(service::SessionState state, int pose = 0, int pose_count = 0);
+  // The session waits for the PSD at `placement` of `placement_count`, planned at `centre_mm`.
+  void awaitPlacement(int placement, int placement_count, const Eigen::Vector3d& centre_mm);
   void emit(const service::SessionEvent& event);
   int startCalls() const { return start_calls_; }
   int abortCalls() const { return abort_calls_; }
   service::StartRequest lastRequest() const;
   service::ResumeRequest lastResume() const;
+  service::ContinueRequest lastContinue() const;
   int applyCalls() const { return apply_calls_; }
   std::chrono::milliseconds preview_time{0};  // preview() spins this long
   std::chrono::milliseconds start_time{0};    // start() spins this long before it answers
@@ -59,6 +63,7 @@ class FakeSession : public service::SessionControl {
   service::SessionStatus status_;
   service::StartRequest last_request_;
   service::ResumeRequest last_resume_;
+  service::ContinueRequest last_continue_;
   EventSink sink_;
   std::vector<std::thread> readers_;
   std::atomic<int> start_calls_{0};

@@ -305,6 +305,49 @@ TEST_F(ControlServerTest, Resume) {
   EXPECT_TRUE(session_.lastResume().session.empty());
 }
 
+// Only a session waiting for the PSD goes on; the status says where the PSD goes, and the
+// placement's taught centre reaches the session as given.
+TEST_F(ControlServerTest, ContinueGoesOnOnlyWithASessionWaitingForThePsd) {
+  auto c = connect();
+  const json idle = c->request({{"cmd", "continue"}});
+  EXPECT_EQ(idle["error"]["code"], "not_waiting");
+  c->call("start", {{"placements", 3}});
+  EXPECT_EQ(session_.lastRequest().placements, 3);
+  EXPECT_EQ(c->request({{"cmd", "continue"}})["error"]["code"], "not_waiting");  // measuring
+  session_.awaitPlacement(2, 3, Eigen::Vector3d(613, 652.5, 585));
+  const json s = c->call("status")["status"];
+  EXPECT_EQ(s["state"], "awaiting_placement");
+  EXPECT_EQ(s["active"], true);
+  EXPECT_EQ(s["next_placement"], 2);
+  EXPECT_EQ(s["next_centre_mm"], json({613, 652.5, 585}));
+  EXPECT_EQ(s["placement_count"], 3);
+  for (const json& bad : {json({1, 2}), json("613 652 585"), json({1, 2, "x"})})
+    EXPECT_EQ(c->request({{"cmd", "continue"}, {"centre_mm", bad}})["error"]["code"], "bad_request")
+        << bad;
+  EXPECT_EQ(c->request({{"cmd", "continue"}, {"centre", {1, 2, 3}}})["error"]["code"],
+            "bad_request");
+  EXPECT_EQ(c->call("continue", {{"centre_mm", {614, 652.5, 585.25}}})["session"], "20261122-0001");
+  ASSERT_TRUE(session_.lastContinue().centre_mm);
+  EXPECT_EQ(*session_.lastContinue().centre_mm, Eigen::Vector3d(614, 652.5, 585.25));
+  const json after = c->call("status")["status"];
+  EXPECT_EQ(after["placement"], 2);
+  EXPECT_FALSE(after.contains("next_placement"));
+  for (const json& bad : {json(0), json(6), json(2.5), json("2")})
+    EXPECT_EQ(c->request({{"cmd", "start"}, {"placements", bad}})["error"]["code"], "bad_request")
+        << bad;
+}
+
+TEST_F(ControlServerTest, ThePlacementEventSaysWhereThePsdGoes) {
+  const json e = toJson(service::SessionEvent(service::PlacementEvent{
+      "20261122-0001", 2, 3, Eigen::Vector3d(613, 652.5, 585), "move the PSD"}));
+  EXPECT_EQ(e, (json{{"event", "placement"},
+                     {"session", "20261122-0001"},
+                     {"placement", 2},
+                     {"placement_count", 3},
+                     {"centre_mm", {613, 652.5, 585}},
+                     {"message", "move the PSD"}}));
+}
+
 TEST_F(ControlServerTest, ApplyNeedsTheConfirmationAndIsRefusedWhileBusy) {
   auto c = connect();
   EXPECT_EQ(c->request({{"cmd", "apply"}})["error"]["code"], "not_confirmed");

@@ -265,6 +265,20 @@ TEST_F(ConfigTest, SeveralErrorsInSeveralSourcesAllReportedAtOnce) {
   EXPECT_TRUE(reported(p, {"command line 'session.poses=2'", "at least 6"}));
 }
 
+TEST_F(ConfigTest, PlacementsAreOneToFiveAndNotWithAPlanFile) {
+  write("main.yaml", "session:\n  poses: 8\n");
+  EXPECT_EQ(loadDaemonConfig(sources()).session.placements, 1);
+  EXPECT_EQ(loadDaemonConfig(sources({"session.placements=3"})).session.placements, 3);
+  EXPECT_TRUE(
+      reported(problems(sources({"session.placements=0"})), {"session.placements", "at least 1"}));
+  EXPECT_TRUE(
+      reported(problems(sources({"session.placements=6"})), {"session.placements", "at most 5"}));
+  write("plan.txt", "q1,q2,q3,q4,q5,q6\n");
+  write("main.yaml", "session:\n  plan: file\n  plan_file: plan.txt\n  placements: 2\n");
+  EXPECT_TRUE(reported(problems(sources()), {"main.yaml:4", "session.placements", "plan file"}))
+      << joined(problems(sources()));
+}
+
 TEST_F(ConfigTest, ErrorMessageListsEveryProblem) {
   write("main.yaml", "servo:\n  a: 1\n  b: 2\n");
   try {

@@ -313,6 +313,46 @@ TEST(WorldFile, TheTruthFileReadsBackToTheSameWorld) {
   EXPECT_NEAR(a->spot.v_mm, b->spot.v_mm, 1e-9);
 }
 
+// A further PSD placement is off its planned pose by the world's own kind and size of error
+// (placement 1's taught-centre distance and orientation angle), reproducibly; the beam meets the
+// PSD where it stands; the truth file lists every placement.
+TEST(WorldFile, FurtherPlacementsHaveTheWorldsErrorAndComeBackFromTheTruthFile) {
+  World w = randomWorld(12);
+  const Eigen::Vector3d planned(600, 650, 600);
+  const PsdPlacement p = drawPlacement(w, 12, 2, planned);
+  EXPECT_EQ(p.placement, 2);
+  EXPECT_EQ(p.planned_mm, planned);
+  const double off_mm = (w.psd_centre_taught_mm - w.psd_position_mm).norm();
+  EXPECT_GT(off_mm, 0.9);
+  EXPECT_NEAR((p.position_mm - planned).norm(), off_mm, 1e-9);
+  EXPECT_NEAR(angleDeg(p.rotation, w.psd_rotation_configured),
+              angleDeg(w.psd_rotation, w.psd_rotation_configured), 1e-9);
+  EXPECT_EQ(drawPlacement(w, 12, 2, planned).position_mm, p.position_mm);  // reproducible
+  EXPECT_NE(drawPlacement(w, 12, 3, planned).position_mm, p.position_mm);
+  EXPECT_NE(drawPlacement(w, 13, 2, planned).position_mm, p.position_mm);
+  const World ideal = randomWorld(12, WorldKind::kIdeal);  // orientation known exactly there
+  EXPECT_LT(angleDeg(drawPlacement(ideal, 12, 2, planned).rotation, ideal.psd_rotation_configured),
+            1e-9);
+
+  // The beam aimed at placement 1 misses placement 2's plane where placement 1's would be hit.
+  const Joints q{5, 25, -15, 20, 50, 10};
+  const auto at1 = beamHit(w, q, {}, 0);
+  w.placements.push_back(p);
+  w.active_placement = 2;
+  const auto at2 = beamHit(w, q, {}, 0);
+  ASSERT_TRUE(at1 && at2);
+  EXPECT_GT(std::hypot(at1->spot.u_mm - at2->spot.u_mm, at1->spot.v_mm - at2->spot.v_mm), 10.0);
+  EXPECT_EQ(worldHash(w), worldHash(randomWorld(12)));  // the same cell, its PSD moved
+
+  const World back = parseWorld(worldYaml(w), "truth");
+  ASSERT_EQ(back.placements.size(), 1u);
+  EXPECT_EQ(back.placements[0].placement, 2);
+  EXPECT_EQ(back.placements[0].planned_mm, planned);
+  EXPECT_EQ(back.placements[0].position_mm, p.position_mm);
+  EXPECT_LT(angleDeg(back.placements[0].rotation, p.rotation), 1e-10);
+  EXPECT_EQ(back.active_placement, 1);  // read with the PSD at placement 1
+}
+
 TEST(WorldFile, RejectsUnknownKeysAndImpossibleRatesAllAtOnce) {
   try {
     parseWorld(R"(

@@ -189,6 +189,61 @@ TEST_F(ZerocaldProcess, Kill9MidSessionThenRestartAndResumeLosesAndRepeatsNothin
   EXPECT_EQ(second.signalAndWait(SIGTERM), 0);
 }
 
+// kill -9 while a session waits for the PSD to be moved: the restarted daemon's resume waits
+// again (nothing measured with the PSD where it was), and `continue` finishes the session at both
+// placements.
+TEST_F(ZerocaldProcess, Kill9WhileWaitingForThePsdWaitsAgainOnResume) {
+  const std::vector<std::string> two_placements = {"--set", "session.plan=optimal",
+                                                   "--set", "session.plan_file=\"\"",
+                                                   "--set", "session.placements=2"};
+  const auto untilWaitingOrEnded = [](ControlClient& c) {
+    const auto deadline = std::chrono::steady_clock::now() + 120s;
+    for (;;) {
+      const nlohmann::json s = c.call("status")["status"];
+      if (s["state"] == "awaiting_placement" || !s["active"].get<bool>() ||
+          std::chrono::steady_clock::now() > deadline)
+        return s;
+      std::this_thread::sleep_for(20ms);
+    }
+  };
+  const auto lines = [this](const std::string& id) {
+    std::vector<nlohmann::json> out;
+    std::ifstream in(journalOf(id));
+    for (std::string line; std::getline(in, line);) out.push_back(nlohmann::json::parse(line));
+    return out;
+  };
+  std::string id;
+  {
+    Daemon first(dir_.path, "first", two_placements);
+    ControlClient c;
+    connect(c, first);
+    id = c.call("start", nlohmann::json::object(), 60s)["session"];
+    const nlohmann::json waiting = untilWaitingOrEnded(c);
+    ASSERT_EQ(waiting["state"], "awaiting_placement") << waiting.dump();
+    EXPECT_EQ(waiting["next_placement"], 2);
+    EXPECT_EQ(first.signalAndWait(SIGKILL), 128 + SIGKILL);
+  }
+  ASSERT_EQ(lines(id).size(), 8u);  // placement 1's poses, no move of the PSD
+  Daemon second(dir_.path, "second", two_placements);
+  ControlClient c;
+  connect(c, second);
+  EXPECT_EQ(c.call("resume")["session"], id);
+  const nlohmann::json again = untilWaitingOrEnded(c);
+  ASSERT_EQ(again["state"], "awaiting_placement") << again.dump();
+  EXPECT_EQ(again["recorded"], 8);
+  EXPECT_EQ(lines(id).size(), 8u);
+  EXPECT_EQ(c.call("continue")["session"], id);
+  const nlohmann::json end = waitEnd(c, 120s);
+  ASSERT_EQ(end["state"], "done") << end.dump();
+  const std::vector<nlohmann::json> journal = lines(id);
+  ASSERT_GE(journal.size(), 17u);
+  EXPECT_FALSE(journal[8].contains("index"));  // the move of the PSD, then placement 2's poses
+  EXPECT_EQ(journal[8]["placement"], 2);
+  EXPECT_EQ(journal[9]["placement"], 2);
+  EXPECT_EQ(c.call("result", {{"session", id}})["result"]["placements"].size(), 2u);
+  EXPECT_EQ(second.signalAndWait(SIGTERM), 0);
+}
+
 TEST_F(ZerocaldProcess, SigtermDuringASessionStopsTheRobotKeepsTheJournalAndExitsCleanly) {
   Daemon daemon(dir_.path, "daemon");
   ControlClient c;

@@ -152,6 +152,28 @@ TEST(ExternalSim, AMismatchedWorldIsRefusedBeforeAnythingMoves) {
   EXPECT_EQ(sim.commandedJoints(), before);
 }
 
+// zerocal-sim's world is fixed: a session at several PSD placements is refused before anything
+// is planned or created, with the reason; one placement runs as ever.
+TEST(ExternalSim, SeveralPlacementsAreRefusedWithTheReason) {
+  TempDir dir;
+  SimController sim(externalSim(7));
+  sim.start();
+  const DaemonConfig config = configFor(sim, 7, dir.path);
+  const std::unique_ptr<CellBackend> backend = makeBackend(config);
+  EXPECT_NE(backend->placementsRefusal().find("in-process"), std::string::npos);
+  SessionManager manager(*backend, managerSettingsOf(config));
+  StartRequest request = manager.defaultRequest();
+  request.placements = 2;
+  try {
+    manager.start(request);
+    FAIL() << "a session at two placements was started on an external zerocal-sim";
+  } catch (const Refused& e) {
+    EXPECT_EQ(e.code(), "unsupported");
+    EXPECT_NE(std::string(e.what()).find("cannot move its PSD"), std::string::npos) << e.what();
+  }
+  EXPECT_TRUE(manager.sessions().empty());
+}
+
 // By default both sides draw the seed's realistic world with the same gross-error rate: they
 // agree; and a daemon on the ideal world is refused by a zerocal-sim on the realistic one.
 TEST(ExternalSim, TheDefaultRealisticWorldsOfDaemonAndZerocalSimAgree) {

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <Eigen/Geometry>
 #include <atomic>
 #include <cmath>
 #include <filesystem>
@@ -326,6 +327,200 @@ TEST(SessionManager, AnAbortedSessionResumesWithoutLosingOrRepeatingAPose) {
   }
 }
 
+// Waits until the session waits for the PSD to be moved or is no longer active; its status.
+SessionStatus untilWaitingOrEnded(const SessionManager& manager) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::minutes(3);
+  for (;;) {
+    const SessionStatus s = manager.status();
+    if (s.state == SessionState::kAwaitingPlacement || !isActive(s.state) ||
+        std::chrono::steady_clock::now() > deadline)
+      return s;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+}
+
+std::string refusalOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Refused& e) {
+    return e.code();
+  }
+  return "accepted";
+}
+
+// Two PSD placements of 8 poses (tests/data/plans/ideal-5-2-placements): the session waits after
+// the first placement's last pose, says where the PSD goes, and only a continue moves it on; the
+// simulated PSD moves when continued, and the result is the several-placement solve's.
+TEST(SessionManagerPlacements, WaitsForThePsdAtEachPlacementAndSolvesWithEveryPlacement) {
+  const TempDir dir;
+  sim::SimBackend backend(cellFor(5));
+  SessionManager manager(backend, settingsIn(dir.path));
+  EventLog log;
+  manager.setEventSink(log.sink());
+  EXPECT_EQ(refusalOf([&] { manager.continueSession({}); }), "not_waiting");  // nothing waits
+
+  const std::string id =
+      manager.start(testing::onStoredPlan(manager.defaultRequest(), "ideal-5-2-placements"));
+  const SessionFile session = SessionStore(dir.path).readSession(id);
+  ASSERT_EQ(session.placement_centres_mm.size(), 2u);
+  EXPECT_EQ(session.placement_centres_mm[0], session.target_mm);
+
+  SessionStatus waiting = untilWaitingOrEnded(manager);
+  ASSERT_EQ(waiting.state, SessionState::kAwaitingPlacement) << waiting.message;
+  EXPECT_EQ(waiting.recorded, 8);  // every pose of placement 1, none of placement 2
+  EXPECT_EQ(waiting.placement, 1);
+  EXPECT_EQ(waiting.placement_count, 2);
+  EXPECT_EQ(waiting.next_placement, 2);
+  // The planned centre the plan's placement-2 poses aim at (where their nominal lines cross).
+  EXPECT_LT((waiting.next_centre_mm - session.placement_centres_mm[1]).norm(), 1e-9);
+  EXPECT_LT((waiting.next_centre_mm - Eigen::Vector3d(613.177, 652.763, 585.079)).norm(), 0.01);
+  EXPECT_NE(waiting.message.find("placement 2 of 2"), std::string::npos) << waiting.message;
+  EXPECT_NE(waiting.message.find("zerocal continue"), std::string::npos) << waiting.message;
+  const auto placed = log.of<PlacementEvent>();
+  ASSERT_EQ(placed.size(), 1u);
+  EXPECT_EQ(placed[0].placement, 2);
+  EXPECT_EQ(placed[0].centre_mm, waiting.next_centre_mm);
+  EXPECT_EQ(backend.cell().world().active_placement, 1);  // not moved before the continue
+  // The technician placing the PSD may read it: a reading is taken now, not the session's last.
+  std::promise<std::optional<LiveReading>> now;
+  manager.readPsd([&now](std::optional<LiveReading> r, const std::string&) { now.set_value(r); });
+  const std::optional<LiveReading> reading = now.get_future().get();
+  ASSERT_TRUE(reading);
+  EXPECT_FALSE(reading->during_session);
+  // Still one session at a time while it waits.
+  EXPECT_EQ(refusalOf([&] { manager.start(manager.defaultRequest()); }), "busy");
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  EXPECT_EQ(manager.status().state, SessionState::kAwaitingPlacement);  // nothing moves meanwhile
+  EXPECT_EQ(manager.status().recorded, 8);
+
+  EXPECT_EQ(manager.continueSession({}), id);
+  EXPECT_EQ(refusalOf([&] { manager.continueSession({}); }), "not_waiting");
+  const SessionStatus end = manager.waitIdle();
+  ASSERT_EQ(end.state, SessionState::kDone) << end.message;
+  EXPECT_EQ(end.placement, 2);
+
+  // The simulated PSD moved to placement 2's truth: off its planned centre by as much as the
+  // world's own is off its taught centre, and the truth file says where.
+  const World& world = backend.cell().world();
+  EXPECT_EQ(world.active_placement, 2);
+  ASSERT_EQ(world.placements.size(), 1u);
+  const double off_mm = (world.psd_centre_taught_mm - world.psd_position_mm).norm();
+  EXPECT_NEAR((world.placements[0].position_mm - waiting.next_centre_mm).norm(), off_mm, 1e-9);
+  const World truth = loadWorld(dir.path + "/" + id + "/truth-world.yaml");
+  ASSERT_EQ(truth.placements.size(), 1u);
+  EXPECT_LT((truth.placements[0].position_mm - world.placements[0].position_mm).norm(), 1e-9);
+
+  // The journal: placement 1's poses, the move of the PSD, placement 2's poses.
+  const JournalContents journal = readJournal(dir.path + "/" + id + "/journal.jsonl");
+  ASSERT_EQ(journal.placements.size(), 1u);
+  EXPECT_EQ(journal.placements[0].first_index, 8);
+  EXPECT_EQ(Eigen::Vector3d(journal.placements[0].centre_mm.data()), waiting.next_centre_mm);
+  ASSERT_GE(journal.records.size(), 16u);
+  for (int i = 0; i < 16; ++i) EXPECT_EQ(journal.records[i].placement, i < 8 ? 1 : 2) << i;
+
+  // result.json: each placement's centre, the link errors identified or not with the reason,
+  // and offsets near the truth.
+  const nlohmann::json result = toJson(manager.result(id));
+  ASSERT_EQ(result["placements"].size(), 2u);
+  EXPECT_EQ(result["placements"][1]["placement"], 2);
+  EXPECT_EQ(result["placements"][1]["poses"], 8);
+  const Eigen::Vector3d centre2(result["placements"][1]["target_mm"][0].get<double>(),
+                                result["placements"][1]["target_mm"][1].get<double>(),
+                                result["placements"][1]["target_mm"][2].get<double>());
+  // The PSD found where it stands, as the controller's joint 1 sees it: turned by delta1, which
+  // no measurement at the PSD determines.
+  const Eigen::Matrix3d turn =
+      Eigen::AngleAxisd(-world.true_offsets_deg[0] * kDegToRad, Eigen::Vector3d::UnitZ())
+          .toRotationMatrix();
+  EXPECT_LT((centre2 - turn * world.placements[0].position_mm).norm(), 0.5)
+      << centre2.transpose() << " against " << (turn * world.placements[0].position_mm).transpose();
+  int links_identified = 0, links_named = 0;
+  for (int l = 0; l < kLinkParamCount; ++l) {
+    const nlohmann::json& p = result["parameters"].at(linkParamName(l));
+    links_identified += p["identifiable"].get<bool>() ? 1 : 0;
+  }
+  for (const auto& n : result["not_identifiable"])
+    if (n["name"].get<std::string>().rfind("d", 0) == 0 &&
+        n["name"].get<std::string>().find("delta") == std::string::npos) {
+      ++links_named;
+      EXPECT_FALSE(n["reason"].get<std::string>().empty());
+    }
+  EXPECT_GE(links_identified, 10);
+  EXPECT_EQ(links_identified + links_named, kLinkParamCount);
+  EXPECT_GT(result["rank"].get<int>(), kIdentifiedCount);
+  ASSERT_TRUE(result.contains("truth"));
+  for (int k = 0; k < kOffsetCount; ++k) {
+    const nlohmann::json& p = result["parameters"][unknownName(k)];
+    ASSERT_TRUE(p["identifiable"].get<bool>()) << unknownName(k);
+    const double error = p["value"].get<double>() - result["truth"][unknownName(k)].get<double>();
+    EXPECT_LT(std::abs(error), 4 * p["sigma"].get<double>())
+        << unknownName(k) << " error " << error << " sigma " << p["sigma"];
+  }
+}
+
+// Aborted while waiting, the session ends at once (no worker runs it); resumed, or resumed by a
+// daemon restarted meanwhile, it waits again for the PSD rather than measuring placement 2's
+// poses with the PSD at placement 1; a continue then finishes it.
+TEST(SessionManagerPlacements, AbortedOrRestartedWhileWaitingItWaitsAgainOnResume) {
+  const TempDir dir;
+  std::string id;
+  {
+    sim::SimBackend backend(cellFor(5));
+    SessionManager manager(backend, settingsIn(dir.path));
+    id = manager.start(testing::onStoredPlan(manager.defaultRequest(), "ideal-5-2-placements"));
+    ASSERT_EQ(untilWaitingOrEnded(manager).state, SessionState::kAwaitingPlacement);
+    EXPECT_TRUE(manager.abort());
+    const SessionStatus aborted = manager.status();
+    EXPECT_EQ(aborted.state, SessionState::kAborted);
+    EXPECT_NE(aborted.message.find("placement 2"), std::string::npos) << aborted.message;
+    EXPECT_EQ(refusalOf([&] { manager.continueSession({}); }), "not_waiting");
+    EXPECT_FALSE(manager.abort());  // nothing runs now
+
+    EXPECT_EQ(manager.resume({id}), id);
+    const SessionStatus again = untilWaitingOrEnded(manager);
+    ASSERT_EQ(again.state, SessionState::kAwaitingPlacement) << again.message;
+    EXPECT_EQ(again.recorded, 8);
+    EXPECT_EQ(again.resumed_from, 8);
+    EXPECT_EQ(again.next_placement, 2);
+    // The daemon is killed while it waits: the manager and the cell go, the folder stays.
+  }
+  sim::SimBackend backend(cellFor(5));
+  SessionManager manager(backend, settingsIn(dir.path));
+  EventLog log;
+  manager.setEventSink(log.sink());
+  EXPECT_EQ(refusalOf([&] { manager.continueSession({}); }), "not_waiting");  // not resumed yet
+  EXPECT_EQ(manager.resume({}), id);
+  const SessionStatus waiting = untilWaitingOrEnded(manager);
+  ASSERT_EQ(waiting.state, SessionState::kAwaitingPlacement) << waiting.message;
+  EXPECT_EQ(waiting.recorded, 8);
+  EXPECT_TRUE(log.of<PoseEvent>().empty());  // nothing measured with the PSD where it was
+  // Taught 2 mm off the planned centre: the servo's search finds the spot all the same.
+  const Eigen::Vector3d taught = waiting.next_centre_mm + Eigen::Vector3d(2, 0, 0);
+  ContinueRequest request;
+  request.centre_mm = taught;
+  EXPECT_EQ(manager.continueSession(request), id);
+  const SessionStatus end = manager.waitIdle();
+  ASSERT_EQ(end.state, SessionState::kDone) << end.message;
+  const JournalContents journal = readJournal(dir.path + "/" + id + "/journal.jsonl");
+  ASSERT_EQ(journal.placements.size(), 1u);
+  EXPECT_EQ(Eigen::Vector3d(journal.placements[0].centre_mm.data()), taught);
+  EXPECT_EQ(toJson(manager.result(id))["placements"].size(), 2u);
+}
+
+TEST(SessionManagerPlacements,
+     PlacementsAreRefusedOutsideTheirRangeAndOnACellThatCannotMoveThePsd) {
+  const TempDir dir;
+  sim::SimBackend backend(cellFor(5));
+  SessionManager manager(backend, settingsIn(dir.path));
+  StartRequest request = manager.defaultRequest();
+  EXPECT_EQ(request.placements, 1);
+  request.placements = kMaxDefaultPlacements + 1;
+  EXPECT_EQ(refusalOf([&] { manager.preview(request); }), "bad_request");
+  request.placements = 0;
+  EXPECT_EQ(refusalOf([&] { manager.start(request); }), "bad_request");
+  EXPECT_TRUE(manager.sessions().empty());
+}
+
 TEST(SessionManager, APlanThatCannotIdentifyEveryOffsetIsRefusedBeforeAnything) {
   const TempDir dir;
   sim::SimBackend backend(cellFor(8));
@@ -552,20 +747,12 @@ TEST(SessionManager, IdsThatAreNotSessionIdsAndUnknownSessionsAreRefused) {
   const TempDir dir;
   sim::SimBackend backend(cellFor(9));
   SessionManager manager(backend, settingsIn(dir.path));
-  const auto codeOf = [](const std::function<void()>& f) -> std::string {
-    try {
-      f();
-    } catch (const Refused& e) {
-      return e.code();
-    }
-    return "accepted";
-  };
-  EXPECT_EQ(codeOf([&] { toJson(manager.result("../../etc")); }), "bad_request");
-  EXPECT_EQ(codeOf([&] { manager.resume({"/tmp"}); }), "bad_request");
-  EXPECT_EQ(codeOf([&] { toJson(manager.result("20200101T000000Z")); }), "not_found");
-  EXPECT_EQ(codeOf([&] { manager.resume({"20200101T000000Z"}); }), "not_found");
-  EXPECT_EQ(codeOf([&] { manager.resume({}); }), "not_found");
-  EXPECT_EQ(codeOf([&] { toJson(manager.result("")); }), "not_found");
+  EXPECT_EQ(refusalOf([&] { toJson(manager.result("../../etc")); }), "bad_request");
+  EXPECT_EQ(refusalOf([&] { manager.resume({"/tmp"}); }), "bad_request");
+  EXPECT_EQ(refusalOf([&] { toJson(manager.result("20200101T000000Z")); }), "not_found");
+  EXPECT_EQ(refusalOf([&] { manager.resume({"20200101T000000Z"}); }), "not_found");
+  EXPECT_EQ(refusalOf([&] { manager.resume({}); }), "not_found");
+  EXPECT_EQ(refusalOf([&] { toJson(manager.result("")); }), "not_found");
 }
 
 TEST(SessionManager, ReadsThePsdWhenIdleAndReportsTheSessionsLatestReadingDuringOne) {

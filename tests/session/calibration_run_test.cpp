@@ -103,5 +103,47 @@ TEST(CalibrationRun, RefusesAJournalLongerThanThePlan) {
   EXPECT_THROW(CalibrationRun(knowledge, Eigen::Vector3d::Zero(), plan, {}, journal), InputError);
 }
 
+// A plan's placements come 1, 2, ... in turn: the technician is guided forward only. The run
+// waits for the next one only once every pose of the one before is recorded, and a placement
+// is journalled only while awaited.
+TEST(CalibrationRun, APlanAtSeveralPlacementsIsGuidedForwardOnlyAndWaitsBetweenThem) {
+  const sim::SessionKnowledge given = sim::knowledgeOf(randomWorld(5, WorldKind::kIdeal));
+  const std::vector<Pose> plan = testing::storedPlan("ideal-5-2-placements");
+  const TempDir dir;
+  Journal journal(dir.path + "/journal.jsonl");
+  const auto at = [&](std::vector<int> placements) {
+    std::vector<Pose> poses;
+    for (int p : placements) poses.push_back({plan[poses.size()].q_deg, std::nullopt, 0, p});
+    return poses;
+  };
+  for (const std::vector<int>& wrong :
+       {std::vector<int>{1, 1, 1, 3, 3, 3}, {1, 1, 2, 2, 1, 1}, {2, 2, 2, 2, 2, 2}})
+    EXPECT_THROW(CalibrationRun(given.cell, given.taught_centre, at(wrong), {}, journal),
+                 InputError);
+
+  CalibrationRun run(given.cell, given.taught_centre, plan, {}, journal);
+  EXPECT_EQ(run.awaitedPlacement(), 0);  // placement 1's poses first
+  EXPECT_THROW(run.placeNext(Eigen::Vector3d(600, 650, 600)), InputError);
+  for (int i = 0; i < 8; ++i) {
+    PoseRecord r;
+    r.index = i;
+    r.joints_deg = plan[i].q_deg;
+    journal.append(r);
+  }
+  EXPECT_EQ(run.awaitedPlacement(), 2);
+  EXPECT_THROW(run.placeNext(Eigen::Vector3d(NAN, 650, 600)), InputError);
+  run.placeNext(Eigen::Vector3d(600, 650, 600));
+  EXPECT_EQ(journal.placement(), 2);
+  EXPECT_EQ(run.awaitedPlacement(), 0);
+  EXPECT_THROW(run.placeNext(Eigen::Vector3d(600, 650, 600)), InputError);
+  // The solver is given each pose's placement.
+  PoseRecord r;
+  r.index = 8;
+  r.placement = 2;
+  journal.append(r);
+  EXPECT_EQ(posesOf(journal.records()).back().placement, 2);
+  EXPECT_EQ(posesOf(journal.records()).front().placement, 1);
+}
+
 }  // namespace
 }  // namespace zerocal

@@ -186,6 +186,78 @@ TEST_F(JournalTest, ASkippedPoseIsALineOfItsOwnThatKeepsTheIndicesConsecutive) {
                JournalError);
 }
 
+// A pose carries its PSD placement ("placement", absent for 1 as in older journals); a move of
+// the PSD is a line of its own, without an index, read back in its place.
+TEST_F(JournalTest, PlacementsOfPosesAndMovesOfThePsdComeBackInTheirPlaces) {
+  const fs::path path = dir_ / "journal.jsonl";
+  {
+    Journal journal(path.string());
+    journal.append(sample(0));
+    EXPECT_EQ(journal.placement(), 1);
+    PoseRecord early = sample(1);
+    early.placement = 2;
+    EXPECT_THROW(journal.append(early), JournalError);  // the PSD is not there yet
+    PlacementRecord moved;
+    moved.placement = 3;
+    EXPECT_THROW(journal.append(moved), JournalError);  // 2 comes first
+    moved.placement = 2;
+    moved.centre_mm = {700.5, 400.25, 200};
+    moved.recorded_ns = 77;
+    journal.append(moved);
+    EXPECT_EQ(journal.placement(), 2);
+    EXPECT_EQ(journal.nextIndex(), 1);  // a placement line takes no pose index
+    journal.append(early);
+    PoseRecord old = sample(2);  // at placement 1, where the PSD no longer is
+    EXPECT_THROW(journal.append(old), JournalError);
+  }
+  std::ifstream in(path);
+  std::string first, second, third;
+  std::getline(in, first);
+  std::getline(in, second);
+  std::getline(in, third);
+  EXPECT_FALSE(nlohmann::json::parse(first).contains("placement"));  // placement 1: as before
+  EXPECT_EQ(
+      nlohmann::json::parse(second),
+      (nlohmann::json{{"placement", 2}, {"centre_mm", {700.5, 400.25, 200}}, {"recorded_ns", 77}}));
+  EXPECT_EQ(nlohmann::json::parse(third)["placement"], 2);
+
+  const JournalContents back = readJournal(path.string());
+  ASSERT_EQ(back.records.size(), 2u);
+  EXPECT_EQ(back.records[0].placement, 1);
+  EXPECT_EQ(back.records[1].placement, 2);
+  expectSame(back.records[1], sample(1));
+  ASSERT_EQ(back.placements.size(), 1u);
+  EXPECT_EQ(back.placements[0].placement, 2);
+  EXPECT_EQ(back.placements[0].first_index, 1);
+  EXPECT_EQ(back.placements[0].centre_mm, (std::array<double, 3>{700.5, 400.25, 200}));
+  EXPECT_EQ(placementInForce(back.placements), 2);
+  Journal reopened(path.string());
+  EXPECT_EQ(reopened.placement(), 2);
+}
+
+TEST_F(JournalTest, APoseAtAPlacementThePsdIsNotAtIsADamagedJournal) {
+  const fs::path path = dir_ / "journal.jsonl";
+  PoseRecord elsewhere = sample(0);
+  elsewhere.placement = 2;  // no placement line before it
+  appendRaw(path, toJson(elsewhere).dump() + "\n" + toJson(sample(1)).dump() + "\n");
+  EXPECT_THROW(readJournal(path.string()), JournalError);
+  fs::remove(path);
+  PlacementRecord third;
+  third.placement = 3;  // after placement 1
+  appendRaw(path, toJson(sample(0)).dump() + "\n" + toJson(third).dump() + "\n" +
+                      toJson(sample(1)).dump() + "\n");
+  EXPECT_THROW(readJournal(path.string()), JournalError);
+  // A move of the PSD torn by a crash is dropped like a torn pose: the session still waits.
+  fs::remove(path);
+  PlacementRecord second;
+  second.placement = 2;
+  const std::string line = toJson(second).dump();
+  appendRaw(path, toJson(sample(0)).dump() + "\n" + line.substr(0, line.size() / 2));
+  const JournalContents back = readJournal(path.string());
+  EXPECT_TRUE(back.placements.empty());
+  EXPECT_FALSE(back.dropped.empty());
+}
+
 TEST_F(JournalTest, RefusesOutOfOrderDuplicateAndNonFiniteRecords) {
   Journal journal((dir_ / "journal.jsonl").string());
   EXPECT_THROW(journal.append(sample(1)), JournalError);

@@ -33,6 +33,43 @@ TEST(SessionFiles, EveryMemberOfAFinishedSessionComesBack) {
   expectRoundTrip(test::sessionFiles(resumed));
 }
 
+// A session at several PSD placements: each pose's placement, the placements' planned centres,
+// the plan's link-error prediction, and the result's placement centres and link errors.
+TEST(SessionFiles, ASessionAtSeveralPlacementsComesBack) {
+  SessionFolder files = test::sessionFiles();
+  SessionFile& s = files.session;
+  for (std::size_t i = 0; i < s.plan.poses.size(); ++i)
+    s.plan.poses[i].placement = 2 * i < s.plan.poses.size() ? 1 : 2;
+  s.plan.prediction.placements = 2;
+  s.plan.prediction.link_sigma.assign(kLinkParamCount, 0.05);
+  s.plan.prediction.link_identifiable.assign(kLinkParamCount, true);
+  s.plan.prediction.link_reason.assign(kLinkParamCount, "");
+  s.plan.prediction.link_sigma[1] = std::nan("");
+  s.plan.prediction.link_identifiable[1] = false;
+  s.plan.prediction.link_reason[1] = "combined with the placement-1 centre";
+  s.placement_centres_mm = {s.target_mm, Eigen::Vector3d(610, 654.5, 583.75)};
+  SolveReport& r = files.result.report;
+  r.placements = {{1, 4, Eigen::Vector3d(900, -50, 400), Eigen::Vector3d(0.1, 0.1, 0.2)},
+                  {2, 4, Eigen::Vector3d(610, 654.5, 583.75), Eigen::Vector3d(0.1, 0.2, 0.2)}};
+  ParameterEstimate link;
+  link.name = linkParamName(2);  // dalpha1_deg
+  link.value = 0.004;
+  link.sigma = 0.001;
+  r.parameters.push_back(link);
+  expectRoundTrip(files);
+
+  const SessionFile back = sessionFileFromJson(toJson(s));
+  ASSERT_EQ(back.placement_centres_mm.size(), 2u);
+  EXPECT_EQ(back.placement_centres_mm[1], Eigen::Vector3d(610, 654.5, 583.75));
+  EXPECT_EQ(back.plan.poses.back().placement, 2);
+  EXPECT_EQ(back.plan.prediction.placements, 2);
+  EXPECT_FALSE(back.plan.prediction.link_identifiable[1]);
+  const SolveReport report = resultFileFromJson(toJson(files.result)).report;
+  ASSERT_EQ(report.placements.size(), 2u);
+  EXPECT_EQ(report.placements[1].target_mm, Eigen::Vector3d(610, 654.5, 583.75));
+  EXPECT_DOUBLE_EQ(report.estimate.link[2], 0.004 * kDegToRad);
+}
+
 TEST(SessionFiles, TheDaemonsMembersComeBack) {
   SessionFolder files = test::sessionFiles();
   ResultFile& r = files.result;

@@ -9,6 +9,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "zerocal/calib/cell_model.h"
 #include "zerocal/cell/controller_link.h"
@@ -46,6 +47,14 @@ class ConnectedCell {
   // The whole simulated world as a world file (docs/simulated-cell.md), on a simulated cell only:
   // written beside the session's result as its truth.
   virtual std::optional<std::string> truthWorldYaml() const { return std::nullopt; }
+  // The PSD stands at `placement` (1-based) of a session whose placements are planned at
+  // `planned_centres_mm` (base frame, mm; placement 1's first). On a real cell the technician
+  // has put it there and this does nothing; the simulated cell moves its detector (placement 1:
+  // where its world has it). Throws Error when the cell cannot.
+  virtual void placePsd(int placement, const std::vector<Eigen::Vector3d>& planned_centres_mm) {
+    (void)placement;
+    (void)planned_centres_mm;
+  }
 };
 
 class CellBackend {
@@ -53,6 +62,9 @@ class CellBackend {
   virtual ~CellBackend() = default;
   virtual const char* name() const = 0;  // "sim" or "hardware", for logs and status
   virtual CellKnowledge knowledge() const = 0;
+  // Why sessions at several PSD placements cannot run on this cell, in a sentence; empty when
+  // they can (a technician moves the PSD, or the simulated cell does).
+  virtual std::string placementsRefusal() const { return {}; }
   // Connects the controller and the board. Throws zerocal::Error (LinkError, the DAQ's errors)
   // with a message a technician can act on.
   virtual std::unique_ptr<ConnectedCell> connect() = 0;

@@ -17,7 +17,7 @@ inline constexpr std::uint16_t kDefaultPort = 7450;
 
 // Error codes of a response {"ok": false, "error": {"code": ..., "message": ...}}. The codes of
 // service::Refused ("busy", "not_identifiable", "not_found", "finished", "bad_request",
-// "bad_session", "damaged") pass through unchanged.
+// "bad_session", "damaged", "not_waiting", ...) pass through unchanged.
 namespace code {
 inline constexpr const char* kBadJson = "bad_json";
 inline constexpr const char* kBadRequest = "bad_request";

@@ -12,7 +12,8 @@
 
 namespace zerocal::control {
 
-// The members of a `start` or `plan` request (plan, poses, plan_file, target_mm, noise_mm; all
+// The members of a `start` or `plan` request (plan, poses, plan_file, target_mm, noise_mm,
+// placements; all
 // optional; those absent keep their value in `defaults`), checked for type and plain range. Other
 // members but id, cmd and token are refused so that a misspelt option is not silently ignored.
 // Throws BadRequest.
@@ -22,6 +23,10 @@ service::StartRequest parseStartRequest(const nlohmann::json& request,
 // The members of a `resume` request: session (the latest unfinished when absent) and skip_pose
 // (1-based, 1..kMaxPlanPoses). Others but id, cmd and token are refused. Throws BadRequest.
 service::ResumeRequest parseResumeRequest(const nlohmann::json& request);
+
+// The members of a `continue` request: centre_mm ([x, y, z] mm, finite; absent or null: the
+// placement's planned centre). Others but id, cmd and token are refused. Throws BadRequest.
+service::ContinueRequest parseContinueRequest(const nlohmann::json& request);
 
 // The members of an `apply` request: session (the latest finished when absent) and confirm (a
 // boolean; the manager refuses the apply unless true), and of a `verify` request: session.
@@ -37,7 +42,7 @@ nlohmann::json toJson(const service::SessionStatus& status);
 nlohmann::json toJson(const service::LiveReading& reading);
 nlohmann::json toJson(const std::vector<SessionInfo>& sessions);
 // An event line's object: {"event": "plan" | "state" | "pose" | "remeasure" | "result" |
-// "apply_progress" | "apply", ...}.
+// "apply_progress" | "apply" | "placement", ...}.
 nlohmann::json toJson(const service::SessionEvent& event);
 
 }  // namespace zerocal::control

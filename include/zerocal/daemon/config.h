@@ -83,7 +83,10 @@ struct ControllerConfig {
 struct SessionConfig {
   PlanKind plan = PlanKind::kOptimal;
   std::string plan_file;  // a joint-set file; required by plan: file, refused otherwise
-  int poses = 8;
+  int poses = 8;          // with several placements: at each
+  // PSD placements of a session: 1, or 2..kMaxDefaultPlacements (the first at target_mm, the
+  // others spread around it; the technician moves the PSD between them, docs/daemon.md).
+  int placements = 1;
   std::array<double, 3> target_mm{900.0, -50.0, 400.0};  // nominal PSD centre, robot base frame
   // The PSD's orientation in the base frame: roll, pitch, yaw (fixed x, y, z); 0 0 0 faces up.
   std::array<double, 3> psd_rpy_deg{0.0, 0.0, 0.0};

@@ -5,8 +5,13 @@
 //   idle/done/aborted/faulted --claim, begin--> connecting --> moving <-> servoing <-> recording
 //     ^                                                          |                       |
 //     +------------------------- finish (done, aborted, faulted) +--> solving -----------+
+//     ^                                                                                  |
+//     +-- abortWaiting -- awaiting_placement <--awaitPlacement--------------------------+
+//                                 |
+//                                 +--leaveWaiting--> connecting (the next placement's poses)
 #pragma once
 
+#include <Eigen/Core>
 #include <atomic>
 #include <condition_variable>
 #include <functional>
@@ -49,6 +54,17 @@ class SessionBoard {
   void setPhase(SessionState state, int pose);
   // The run ended in `state`; `message` says why when it did not finish.
   void finish(SessionState state, const std::string& message);
+  // The run stopped for the PSD to be moved to `placement`, planned at `centre_mm`; `message`
+  // tells the technician. The status says so until leaveWaiting() or abortWaiting(). False (the
+  // session aborted instead) when an abort was requested meanwhile.
+  bool awaitPlacement(int placement, const Eigen::Vector3d& centre_mm, const std::string& message);
+  // For a continue: the waiting session goes on (connecting) and its status is returned. Throws
+  // Refused("not_waiting") when no session awaits a placement, Refused("busy") when the daemon is
+  // stopping.
+  SessionStatus leaveWaiting();
+  // A waiting session ends as aborted; false when none waits (no worker runs a waiting session,
+  // so nothing else would end it).
+  bool abortWaiting();
   // Changes the status without an event (progress figures).
   void update(const std::function<void(SessionStatus&)>& change);
 

@@ -27,6 +27,9 @@ enum class SessionState {
   kMoving,      // to pose i of N
   kServoing,    // the spot onto the PSD at pose i
   kRecording,   // pose i to the journal
+  // Every pose at the PSD's placement is recorded; the technician moves the PSD to the next
+  // placement, then continues the session. The robot is at rest; no worker runs the session.
+  kAwaitingPlacement,
   kSolving,
   kApplying,  // an online apply or a verification: writing, restarting, judging, rolling back
   kDone,
@@ -57,6 +60,16 @@ struct StartRequest {
   // A verification after an apply: the cell as the calibration it verifies found it
   // (CalibrationRun::found_before). Not on the control port: the daemon's own verification.
   std::optional<CalibrationParameters> found_before;
+  // PSD placements (1..kMaxDefaultPlacements): with 2 or more, `poses` at each, the first at the
+  // target and the others spread around it (defaultPlacements). Not used with plan: file, whose
+  // poses carry their placements.
+  int placements = 1;
+};
+
+// Goes on with the session that waits for the PSD at its next placement.
+struct ContinueRequest {
+  // The placement's centre as taught (base frame, mm); default: its planned centre.
+  std::optional<Eigen::Vector3d> centre_mm;
 };
 
 struct ResumeRequest {
@@ -74,7 +87,16 @@ struct SessionStatus {
   int pose_count = 0;
   int recorded = 0;      // poses on disk in this session's journal
   int resumed_from = 0;  // poses found in the journal when the run (re)started
-  std::string message;   // why it stopped, when aborted or faulted
+  // Why it stopped, when aborted or faulted; what the technician is to do, when awaiting a
+  // placement.
+  std::string message;
+  // With two or more PSD placements (0 otherwise): the plan's count, and the placement the PSD
+  // stands at (1-based).
+  int placement_count = 0;
+  int placement = 0;
+  // While awaiting a placement: its number and its planned centre (base frame, mm).
+  int next_placement = 0;
+  Eigen::Vector3d next_centre_mm = Eigen::Vector3d::Zero();
   // When faulted at a pose of its own fault (spot never found, say) that the plan can do
   // without: that pose, 1-based, for `resume` with skip_pose. 0 otherwise.
   int skippable_pose = 0;
@@ -139,6 +161,16 @@ struct PoseEvent {
   PoseRecord record;  // as journalled
 };
 
+// Every pose at the PSD's placement is recorded: the session waits for the PSD to be moved to
+// `placement` (of `placement_count`), its centre planned at `centre_mm` (base frame, mm).
+struct PlacementEvent {
+  std::string session;
+  int placement = 0;
+  int placement_count = 0;
+  Eigen::Vector3d centre_mm = Eigen::Vector3d::Zero();
+  std::string message;  // the same, in a sentence for the technician
+};
+
 // The solve named plan poses that do not fit: they are measured again next.
 struct RemeasureEvent {
   std::string session;
@@ -183,7 +215,7 @@ struct ApplyEvent {
 };
 
 using SessionEvent = std::variant<PlanEvent, StateEvent, PoseEvent, RemeasureEvent, ResultEvent,
-                                  ApplyProgressEvent, ApplyEvent>;
+                                  ApplyProgressEvent, ApplyEvent, PlacementEvent>;
 
 // What the control port needs; SessionManager implements it, protocol tests may fake it.
 class SessionControl {
@@ -200,6 +232,11 @@ class SessionControl {
   // that is not the next one), "not_identifiable" (the plan would not identify every offset
   // without the pose; nothing skipped, nothing moved).
   virtual std::string resume(const ResumeRequest& request) = 0;
+  // Goes on with the session awaiting a PSD placement: journals the placement (its centre as
+  // taught), has a simulated cell move its PSD there, and measures its poses. Returns the
+  // session's id. Throws Refused: "not_waiting" (no session awaits a placement), "busy" (the
+  // daemon is stopping), "bad_request" (a centre not finite or beyond 10 m).
+  virtual std::string continueSession(const ContinueRequest& request) = 0;
   // Applies a finished session's offsets to the controller online (backup, write, restart,
   // verify by a short calibration, roll back when wrong; docs/apply.md) and returns the session's
   // id; progress and the outcome come as ApplyProgressEvent and ApplyEvent. Throws Refused:

@@ -46,6 +46,10 @@ struct ManagerSettings {
   std::chrono::milliseconds controller_restart_timeout{90000};
   // The online apply measures joints 2..5's transmissions before it writes (docs/apply.md).
   apply::TransmissionCheckOptions transmission_check;
+  // No technician to move the PSD (zerocald --once and the experiments on the simulated cell,
+  // whose PSD moves itself): a session at several placements goes on to the next one at once, at
+  // its planned centre, instead of waiting for a continue.
+  bool unattended_placements = false;
 };
 
 class SessionManager final : public SessionControl {
@@ -58,6 +62,7 @@ class SessionManager final : public SessionControl {
   Plan preview(const StartRequest& request) const override;
   std::string start(const StartRequest& request) override;
   std::string resume(const ResumeRequest& request) override;
+  std::string continueSession(const ContinueRequest& request) override;
   std::string apply(const ApplyRequest& request) override;
   std::string verify(const VerifyRequest& request) override;
   bool abort() override;
@@ -84,13 +89,22 @@ class SessionManager final : public SessionControl {
  private:
   class LiveSlot;
   class CellCalibration;
-  struct NewSession {
-    std::string id;
+  // What a run needs of its session: the plan's poses, the nominal target (placement 1's centre),
+  // the measurement sigma, and with several placements each one's planned centre (the first is
+  // the target; empty with one placement).
+  struct RunPlan {
     std::vector<Pose> poses;
     Eigen::Vector3d target = Eigen::Vector3d::Zero();
     double noise_mm = 0;
+    std::vector<Eigen::Vector3d> centres;
+  };
+  struct NewSession {
+    std::string id;
+    RunPlan plan;
     std::optional<CalibrationParameters> found_before;  // StartRequest's
   };
+  // A session's run plan from its session.json. Throws Refused("bad_session").
+  RunPlan runPlanOf(const std::string& id, const SessionFile& session) const;
   // Plans `request` (refusing it as start() does), creates its folder, and begins it on the board.
   NewSession createSession(const StartRequest& request);
   // A finished session's result, checked as an apply needs it: usable, offsets 2..5 given.
@@ -110,9 +124,12 @@ class SessionManager final : public SessionControl {
     int index = -1;  // 0-based pose to journal as skipped before running; -1: none
     std::string reason;
   };
-  void runSession(const std::string& id, const std::vector<Pose>& plan,
-                  const Eigen::Vector3d& target, double noise_mm, const PoseSkip& skip,
-                  const std::optional<CalibrationParameters>& found_before = std::nullopt);
+  // Runs (or resumes) the session's poses and solve. `found_before`: a verification's
+  // calibration (CalibrationRun::found_before). With `place_next`, first journals that the PSD
+  // stands at the placement the session waits for, taught at that centre (a continue).
+  void runSession(const std::string& id, const RunPlan& plan, const PoseSkip& skip,
+                  const std::optional<CalibrationParameters>& found_before = std::nullopt,
+                  const std::optional<Eigen::Vector3d>& place_next = std::nullopt);
   // Ends the run (the robot stopped unless done) and logs why.
   void finish(SessionState state, const std::string& message);
   void setPhase(SessionState state, int pose);

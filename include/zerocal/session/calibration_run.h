@@ -43,7 +43,9 @@ struct RunSettings {
   int remeasure_most = 3;
 };
 
-enum class RunState { kCompleted, kAborted, kFaulted };
+// kAwaitingPlacement: every pose of the PSD's placement is recorded and the next plan pose is at
+// the next placement; the run stopped before moving there, for the technician to move the PSD.
+enum class RunState { kCompleted, kAborted, kFaulted, kAwaitingPlacement };
 
 // Called before each phase; pose_index is 0-based (the plan's size for kSolving).
 enum class RunPhase { kMoving, kServoing, kRecording, kSolving };
@@ -61,13 +63,17 @@ struct RunOutcome {
   // The fault is the pose's own: its spot was never found or lost, the servo did not converge,
   // or the target was refused. Measuring it again would fail again; skipping it may not.
   bool pose_at_fault = false;
+  int next_placement = 0;  // kAwaitingPlacement: the placement the PSD is to be moved to
 };
 
 class CalibrationRun {
  public:
-  // `knowledge`: the nominal robot and laser and the PSD's orientation; `taught_centre_mm`: the
-  // PSD centre as taught (a few mm off is fine); `plan`: the joint targets. The journal must
-  // belong to this plan (its recovered records are taken as its first poses).
+  // `knowledge`: the nominal robot and laser and the PSD's orientation (at each placement);
+  // `taught_centre_mm`: the PSD centre as taught (a few mm off is fine), placement 1's; `plan`:
+  // the joint targets, each with its placement (1, then 2, ... in turn). The journal must belong
+  // to this plan (its recovered records are taken as its first poses); its placement lines give
+  // the later placements' taught centres. Throws InputError when the plan's placements are not
+  // 1, 2, ... in turn or the journal's PSD placement is ahead of its next pose.
   CalibrationRun(CellModel knowledge, Eigen::Vector3d taught_centre_mm, std::vector<Pose> plan,
                  RunSettings settings, Journal& journal);
 
@@ -83,12 +89,15 @@ class CalibrationRun {
   // Called when the solve named poses that are now measured again (0-based plan poses).
   std::function<void(const std::vector<int>& plan_indices)> on_remeasure;
 
-  // Runs the remaining poses and the solve. `abort` is polled before every move (the servo polls
-  // it each cycle: an abort during a long search stops within one servo move) and during the
-  // solve; on abort the robot is left at rest where its last move ended. Link and sensor failures
-  // are recovered through the settings' hooks when set, else (or when recovery fails) end the run
-  // as kFaulted with the pose and the reason; the journal keeps every pose recorded before, and
-  // the robot is at rest (every move is a blocking fine-point move, so none is under way). When
+  // Runs the remaining poses of the PSD's placement; when the next plan pose is at the next
+  // placement, stops there (kAwaitingPlacement, the robot at rest after its last pose) until
+  // placeNext() has journalled the move; after the last pose, the solve (the several-placement
+  // solve when the poses are at two or more placements). `abort` is polled before every move (the
+  // servo polls it each cycle: an abort during a long search stops within one servo move) and
+  // during the solve; on abort the robot is left at rest where its last move ended. Link and sensor
+  // failures are recovered through the settings' hooks when set, else (or when recovery fails) end
+  // the run as kFaulted with the pose and the reason; the journal keeps every pose recorded before,
+  // and the robot is at rest (every move is a blocking fine-point move, so none is under way). When
   // the spot is not found the robot is back at the planned pose, a pose checked against the
   // limits before the run started (the "safe pose"). Every fault the servo latches (an abort
   // excepted) is appended with its recent samples to faults.jsonl beside the journal
@@ -102,9 +111,21 @@ class CalibrationRun {
   // pose is recorded already, JournalError when the line cannot be written.
   void skipNextPose(const std::string& reason);
 
+  // The placement the next plan pose is at when the run waits for the PSD to be moved (run()
+  // returned kAwaitingPlacement, or would at once); 0 when it does not wait.
+  int awaitedPlacement() const;
+  // Journals that the PSD now stands at the awaited placement, with its centre as taught (base
+  // frame, mm), before run() goes on there. Throws InputError when no placement is awaited,
+  // JournalError when the line cannot be written.
+  void placeNext(const Eigen::Vector3d& centre_mm);
+
  private:
   // Appends the servo's latched fault at plan pose `plan_index` to faults.jsonl.
   void journalFault(const servo::ServoFault& fault, int plan_index, bool again) const;
+  // The PSD as the session knows it at a placement: the model with that placement's orientation,
+  // and its taught centre (the journal's placement line; taught_centre_ for the first).
+  CellModel placementModel(int placement) const;
+  Eigen::Vector3d placementCentre(int placement) const;
 
   CellModel knowledge_;
   Eigen::Vector3d taught_centre_;
@@ -113,8 +134,8 @@ class CalibrationRun {
   Journal& journal_;
 };
 
-// The measured poses as the solver takes them (joints with the PSD reading): each plan pose's
-// latest measurement, in plan order; skipped ones left out.
+// The measured poses as the solver takes them (joints with the PSD reading and the placement):
+// each plan pose's latest measurement, in plan order; skipped ones left out.
 std::vector<Pose> posesOf(const std::vector<PoseRecord>& records);
 
 }  // namespace zerocal

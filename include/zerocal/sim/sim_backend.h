@@ -54,6 +54,8 @@ class ExternalSimBackend final : public CellBackend {
   ExternalSimBackend& operator=(const ExternalSimBackend&) = delete;
   const char* name() const override { return "sim"; }
   CellKnowledge knowledge() const override;
+  // Its PSD cannot be moved: zerocal-sim's world is fixed (a session at one placement only).
+  std::string placementsRefusal() const override;
   // Connects the spot link, checks that zerocal-sim simulates options.world (ConfigError naming
   // both worlds otherwise, before anything moves), then the robot link. Throws as
   // Irc5Client::connect.

@@ -15,6 +15,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "zerocal/irc5/motion_time.h"
 #include "zerocal/model/robot.h"
@@ -149,6 +150,13 @@ class SimController {
   // How far each joint's true zero has moved since start (deg): true joint angles are the
   // commanded ones plus world().true_offsets_deg plus this (plus the move's error).
   Joints zeroShiftDeg() const;
+  // The PSD is moved to `placement` (1-based) of a session whose placements are planned at
+  // `planned_centres_mm` (placement 1's first): placement 1 is where the world has it; each
+  // further one's truth is drawPlacement(world, seed, placement, planned centre). world() then
+  // lists the session's placements (none for one) with the PSD at `placement`. Call it from the
+  // thread that drives the cell, between moves. Throws ConfigError for a placement outside
+  // 1..the centres given.
+  void placePsd(int placement, const std::vector<Eigen::Vector3d>& planned_centres_mm);
   // Simulated seconds since construction (advanced by moves only).
   double simTimeS() const;
   MotionTotals motionTotals() const;

@@ -13,6 +13,7 @@
 #include <optional>
 #include <random>
 #include <string>
+#include <vector>
 
 #include "zerocal/model/robot.h"
 #include "zerocal/psd/spot.h"
@@ -85,6 +86,16 @@ constexpr double kLinkLengthSigmaMm = 0.1;   // every a and d
 constexpr double kLinkTwistSigmaDeg = 0.01;  // every alpha
 constexpr double kDefaultGrossRate = 0.01;   // per pose, each kind
 
+// A place a session at several PSD placements had the detector moved to (placement 2, 3, ...):
+// where the session planned it (its taught centre there; the orientation the session knows is
+// psd_rotation_configured) and where it truly stands.
+struct PsdPlacement {
+  int placement = 2;
+  Eigen::Vector3d planned_mm = Eigen::Vector3d::Zero();
+  Eigen::Vector3d position_mm = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
+};
+
 struct World {
   // The nominal robot: what the controller and the session believe.
   Robot robot;
@@ -106,9 +117,22 @@ struct World {
   Eigen::Vector3d psd_centre_taught_mm = Eigen::Vector3d(903, -53, 403);
   WorldNoise noise;
   GrossErrors gross;
+  // A session at several placements: each further placement's truth (empty with one), and the
+  // placement the PSD stands at now (1: psd_position_mm and psd_rotation). Not part of
+  // worldHash: the same cell, its PSD moved.
+  std::vector<PsdPlacement> placements;
+  int active_placement = 1;
 };
 
-// Where the beam crosses the PSD plane.
+// Where the PSD truly stands when a session puts it at `placement` (2, 3, ...) planned at
+// `planned_mm`: as far from the planned centre as the world's taught centre is from its PSD
+// (|psd_centre_taught_mm - psd_position_mm|), and turned from psd_rotation_configured by as much
+// as psd_rotation is, each in a direction drawn from `seed` and the placement number: the same
+// kind and size of error as placement 1's, the same for the same seed, placement and plan.
+PsdPlacement drawPlacement(const World& world, std::uint64_t seed, int placement,
+                           const Eigen::Vector3d& planned_mm);
+
+// Where the beam crosses the PSD plane (at the placement the PSD stands at).
 struct BeamHit {
   PsdSpot spot;         // in the true PSD frame
   double range_mm = 0;  // from the laser point to the hit, along the beam
@@ -161,6 +185,8 @@ std::string worldHash(const World& world);
 //   thermal: {expansion_per_k: x, rise_k: x, time_constant_s: x}
 //   gross_errors: {stray_light_rate: x, stray_light_mm: x, unsettled_rate: x, unsettled_deg: x,
 //                  forced_at_deg: [6 numbers], forced_kind: stray_light | unsettled}
+//   placements: [{placement: 2, planned_mm: [3], position_mm: [3], rpy_deg: [3]}, ...]  # truth
+//        of a session at several placements; the world is read with the PSD at placement 1
 // Throws ConfigError listing every problem found.
 World loadWorld(const std::string& path);
 World parseWorld(const std::string& yaml_text, const std::string& origin,

@@ -72,6 +72,9 @@ struct PoseRecord {
   // recorded_ns: it keeps the indices consecutive and says on disk that the pose was given up on
   // purpose, so that no later resume measures it and no solve uses it.
   std::string skipped;
+  // The PSD placement (1-based) the pose was measured at, JSON "placement": written only when
+  // it is not 1, so that a journal of one placement reads as before and an older one as 1.
+  int placement = 1;
   bool measured() const { return skipped.empty(); }
   int planIndex() const { return remeasure_of >= 0 ? remeasure_of : index; }
 };
@@ -80,17 +83,40 @@ nlohmann::json toJson(const PoseRecord& record);
 // Throws JournalError when a member is missing or of the wrong type.
 PoseRecord poseRecordFromJson(const nlohmann::json& json);
 
+// The PSD was moved to placement `placement` (2, 3, ...) before the pose lines that follow: a
+// line of its own, {"placement": 2, "centre_mm": [x, y, z], "recorded_ns": ...}, with no index
+// (pose lines keep theirs). Written when a technician continues a session waiting for the
+// placement, before any pose there is measured; until it is on disk the session waits, so a
+// daemon restarted meanwhile never measures the next placement's poses with the PSD where it
+// was. centre_mm: the placement's centre as taught (base frame, mm), which the servo starts from.
+struct PlacementRecord {
+  int placement = 2;
+  std::array<double, 3> centre_mm{};
+  std::int64_t recorded_ns = 0;
+  int first_index = 0;  // the index of the next pose line then (not written: its position says)
+};
+
+nlohmann::json toJson(const PlacementRecord& record);
+// Throws JournalError when a member is missing or of the wrong type.
+PlacementRecord placementRecordFromJson(const nlohmann::json& json);
+
 struct JournalContents {
   std::vector<PoseRecord> records;
+  std::vector<PlacementRecord> placements;  // in journal order
   std::size_t committed_bytes = 0;  // length of the file up to the last committed line
   std::string dropped;              // empty, or why a torn last line was dropped (for a warning)
   int nextIndex() const { return static_cast<int>(records.size()); }
 };
 
+// The placement the PSD is at after these placement lines: the last one's, 1 when none.
+int placementInForce(const std::vector<PlacementRecord>& placements);
+
 // Reads a journal back. A last line that has no newline or does not parse is a write cut short by
 // a crash: it is dropped and described in `dropped` (and warned about on the "journal" logger).
 // A missing file is an empty journal. Throws JournalError for anything else: a bad line before
-// the last one, or indices that are not 0, 1, 2, ... (never skips, guesses or renumbers).
+// the last one, indices that are not 0, 1, 2, ... (never skips, guesses or renumbers), placement
+// lines that are not 2, 3, ... in turn, or a measured pose whose placement is not the one in
+// force at its line.
 JournalContents readJournal(const std::string& path);
 
 // The append side of journal.jsonl. Not thread-safe: the session worker owns it.
@@ -108,17 +134,26 @@ class Journal {
   // pose is on disk. record.index must equal nextIndex() and every number must be finite.
   // Throws JournalError (the journal is then unusable if the write itself failed).
   void append(const PoseRecord& record);
+  // Writes a placement line likewise: record.placement must be the one in force plus 1, and its
+  // first_index is set to nextIndex(). Throws JournalError.
+  void append(const PlacementRecord& record);
   int nextIndex() const { return static_cast<int>(records_.size()); }
+  const std::vector<PlacementRecord>& placements() const { return placements_; }
+  int placement() const { return placementInForce(placements_); }
   // Every committed record: those read back at opening, then those appended since.
   const std::vector<PoseRecord>& records() const { return records_; }
   const std::string& dropped() const { return dropped_; }
   const std::string& path() const { return path_; }
 
  private:
+  // One write() of a whole line, fsync()ed. Throws JournalError (and marks the journal broken).
+  void writeLine(const std::string& line);
+
   std::string path_;
   int fd_ = -1;
   bool broken_ = false;
   std::vector<PoseRecord> records_;
+  std::vector<PlacementRecord> placements_;
   std::string dropped_;
 };
 

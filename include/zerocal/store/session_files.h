@@ -37,6 +37,9 @@ struct SessionFile {
   Plan plan;  // the poses (joints only), how they were chosen, the predicted uncertainty
   Eigen::Vector3d target_mm = Eigen::Vector3d::Zero();  // nominal PSD centre, base frame
   double noise_mm = 0;                                  // measurement sigma of the plan and solve
+  // With poses at several PSD placements: every placement's planned centre (base frame, mm),
+  // placement 1's first (target_mm); where the technician is told to put the PSD. Empty with one.
+  std::vector<Eigen::Vector3d> placement_centres_mm;
   nlohmann::json config;  // the daemon's configuration at creation (configToJson), as written
 };
 

@@ -48,41 +48,36 @@ Frame<double> trueFlange(const World& w, const Joints& q_deg, const Joints& delt
 
 }  // namespace
 
+std::vector<LumpedMass> trueMasses(const World& w) {
+  const Compliance& c = w.compliance;
+  // A link's mass between the axis of its joint (the previous frame's origin, seen from the
+  // link's frame) and the next axis; the forearm's reaches the wrist centre (frame 4's origin).
+  const auto between = [](const Eigen::Vector3d& from, const Eigen::Vector3d& to, double at) {
+    const Eigen::Vector3d p = from + at * (to - from);
+    return std::array<double, 3>{p.x(), p.y(), p.z()};
+  };
+  const auto previousOrigin = [&](int joint) {
+    const Frame<double> f = dhLink(w.robot.dh[joint - 1], 0.0);
+    return Eigen::Vector3d(-f.R.transpose() * f.p);
+  };
+  const Eigen::Vector3d wrist_in_3 = dhLink(w.robot.dh[3], 0.0).p;
+  return {
+      {2, c.mass_share[0], between(previousOrigin(2), Eigen::Vector3d::Zero(), c.mass_position[0])},
+      {3, c.mass_share[1], between(previousOrigin(3), wrist_in_3, c.mass_position[1])},
+      {6, c.mass_share[2], {0, 0, 0}}};
+}
+
 Joints gravitySagDeg(const World& w, const Joints& q_deg) {
   Joints sag{};
   const Compliance& c = w.compliance;
   if (c.joint2_sag_deg == 0 && c.joint3_sag_deg == 0) return sag;
-  // Frames 1, 2 (joint 2's and joint 3's axes: z of the frame before the joint), 4 (the wrist
-  // centre) and 6 (the flange) of the nominal arm: the sag is far too small to move them.
-  std::array<Frame<double>, kJointCount + 1> frame;
-  for (int i = 0; i < kJointCount; ++i)
-    frame[i + 1] = frame[i] * dhLink(w.robot.dh[i], q_deg[i] * kDegToRad);
-  // Lumped masses (fractions of the arm's moving mass beyond joint 2; inferred, see
-  // docs/simulated-cell.md): upper arm at its middle, forearm between joint 3 and the wrist
-  // centre, wrist with the laser at the flange.
-  struct Mass {
-    double fraction;
-    Eigen::Vector3d at;
-    int beyond_joint;  // the last joint (1-based) between the base and the mass
-  };
-  const Mass masses[] = {{0.40, 0.5 * (frame[1].p + frame[2].p), 2},
-                         {0.40, 0.5 * (frame[2].p + frame[4].p), 3},
-                         {0.20, frame[6].p, 3}};
-  const Eigen::Vector3d down(0, 0, -1);
-  const auto sagOf = [&](int joint, double sag_deg) {
-    const Frame<double>& axis = frame[joint - 1];
-    const Eigen::Vector3d z = axis.R.col(2);
-    double torque = 0, bound = 0;
-    for (const Mass& m : masses) {
-      if (m.beyond_joint < joint) continue;  // not carried by this joint
-      const Eigen::Vector3d r = m.at - axis.p;
-      torque += m.fraction * r.cross(down).dot(z);
-      bound += m.fraction * (r - r.dot(z) * z).norm();
-    }
-    return bound > 0 ? sag_deg * torque / bound : 0.0;
-  };
-  sag[1] = sagOf(2, c.joint2_sag_deg);
-  sag[2] = sagOf(3, c.joint3_sag_deg);
+  // On the nominal arm: the sag is far too small to move the masses.
+  const std::vector<LumpedMass> masses = trueMasses(w);
+  const auto torque = gravityTorqueKnm(w.robot, masses, q_deg);
+  const auto bound = gravityTorqueBoundKnm(w.robot, masses);
+  const double sag_deg[kComplianceCount] = {c.joint2_sag_deg, c.joint3_sag_deg};
+  for (int k = 0; k < kComplianceCount; ++k)
+    sag[k + 1] = bound[k] > 0 ? sag_deg[k] * torque[k] / bound[k] : 0.0;
   return sag;
 }
 
@@ -192,6 +187,12 @@ std::string worldHash(const World& w) {
   }
   value(w.compliance.joint2_sag_deg);
   value(w.compliance.joint3_sag_deg);
+  // The masses shape a sag only where there is one (and so the hash of a world without sag,
+  // the ideal one, is what it was before they existed).
+  if (w.compliance.joint2_sag_deg != 0 || w.compliance.joint3_sag_deg != 0) {
+    for (double v : w.compliance.mass_share) value(v);
+    for (double v : w.compliance.mass_position) value(v);
+  }
   value(w.thermal.expansion_per_k);
   value(w.thermal.rise_k);
   value(w.thermal.time_constant_s);
@@ -373,9 +374,21 @@ World parseWorld(const std::string& yaml_text, const std::string& origin,
       for (int i = 0; i < 6; ++i) w.dh_errors[i].alpha_deg = v[i];
   }
   if (const YAML::Node c = root["compliance"]) {
-    read.onlyKeys(c, "compliance", {"joint2_sag_deg", "joint3_sag_deg"});
+    read.onlyKeys(c, "compliance",
+                  {"joint2_sag_deg", "joint3_sag_deg", "mass_share", "mass_position"});
     read.number(c, "joint2_sag_deg", "compliance.", &w.compliance.joint2_sag_deg);
     read.number(c, "joint3_sag_deg", "compliance.", &w.compliance.joint3_sag_deg);
+    Eigen::Vector3d share;
+    if (read.optionalVec<3>(c, "mass_share", "compliance.", &share)) {
+      if (!(share.minCoeff() > 0)) problems.push_back("compliance.mass_share: must be > 0");
+      for (int i = 0; i < 3; ++i) w.compliance.mass_share[i] = share[i];
+    }
+    Eigen::Vector2d position;
+    if (read.optionalVec<2>(c, "mass_position", "compliance.", &position)) {
+      if (!(position.minCoeff() >= 0 && position.maxCoeff() <= 1))
+        problems.push_back("compliance.mass_position: must lie within 0..1");
+      for (int i = 0; i < 2; ++i) w.compliance.mass_position[i] = position[i];
+    }
   }
   if (const YAML::Node t = root["thermal"]) {
     read.onlyKeys(t, "thermal", {"expansion_per_k", "rise_k", "time_constant_s"});
@@ -490,6 +503,12 @@ World randomWorld(std::uint64_t seed, WorldKind kind) {
   w.psd_centre_taught_mm = w.psd_position_mm + between(1, 5) * direction();
   w.gross.stray_light_rate = kDefaultGrossRate;
   w.gross.unsettled_rate = kDefaultGrossRate;
+  // Drawn last, so that every draw before stays what it was: the masses' split +-25% of each
+  // share and their places +-0.1 of their link around the robot file's nominal model.
+  double total = 0;
+  for (double& s : w.compliance.mass_share) total += s *= 1 + kMassShareSpread * unit(more);
+  for (double& s : w.compliance.mass_share) s /= total;
+  for (double& p : w.compliance.mass_position) p += kMassPositionSpread * unit(more);
   return w;
 }
 
@@ -563,7 +582,9 @@ std::string worldYaml(const World& w, const std::string& robot_file) {
   o << "dh_errors:\n  a_mm: " << list(a, 6) << "\n  d_mm: " << list(d, 6)
     << "\n  alpha_deg: " << list(alpha, 6) << "\n"
     << "compliance:\n  joint2_sag_deg: " << num(w.compliance.joint2_sag_deg)
-    << "\n  joint3_sag_deg: " << num(w.compliance.joint3_sag_deg) << "\n"
+    << "\n  joint3_sag_deg: " << num(w.compliance.joint3_sag_deg)
+    << "\n  mass_share: " << list(w.compliance.mass_share, 3)
+    << "\n  mass_position: " << list(w.compliance.mass_position, 2) << "\n"
     << "thermal:\n  expansion_per_k: " << num(w.thermal.expansion_per_k)
     << "\n  rise_k: " << num(w.thermal.rise_k)
     << "\n  time_constant_s: " << num(w.thermal.time_constant_s) << "\n"

@@ -3,6 +3,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <sstream>
 #include <tuple>
@@ -62,11 +63,104 @@ double number(const YAML::Node& map, const std::string& key, const std::string& 
 constexpr double kMaxJointTravelDeg = 720;  // two turns either way
 constexpr double kMaxLinkMm = 10000;
 constexpr double kMinJointSpeedDegS = 0.1, kMaxJointSpeedDegS = 2000;
+// An identified link error or compliance beyond these is not a calibration of this arm.
+constexpr double kMaxLinkErrorMm = 10, kMaxLinkErrorDeg = 1;
+constexpr double kMaxComplianceDegPerKnm = 10;
+constexpr double kMaxMassKg = 10000;
 
 std::string fmt(double v) {
   std::ostringstream s;
   s << v;
   return s.str();
+}
+
+// The optional `gravity` section (the lumped masses) and the identified compliance of a
+// calibrated model, which needs them.
+void parseGravity(const YAML::Node& root, Robot& robot, std::vector<std::string>& problems) {
+  if (const YAML::Node g = root["gravity"]) {
+    if (!g.IsMap()) {
+      problems.push_back("gravity: must be a map with 'masses' (and 'inferred')");
+    } else {
+      for (const auto& kv : g) {
+        const auto key = kv.first.as<std::string>();
+        if (key != "masses" && key != "inferred")
+          problems.push_back("gravity: unknown key '" + key + "'");
+      }
+      if (const YAML::Node inferred = g["inferred"]) {
+        try {
+          robot.masses_inferred = inferred.as<bool>();
+        } catch (const YAML::Exception&) {
+          problems.push_back("gravity: 'inferred' must be true or false");
+        }
+      }
+      const YAML::Node masses = g["masses"];
+      if (!masses || !masses.IsSequence() || masses.size() == 0) {
+        problems.push_back("gravity: 'masses' must be a list of {link, kg, at_mm}");
+      } else {
+        for (std::size_t k = 0; k < masses.size(); ++k) {
+          const std::string where = "gravity mass " + std::to_string(k + 1);
+          const YAML::Node m = masses[k];
+          if (!m.IsMap()) {
+            problems.push_back(where + ": must be a map");
+            continue;
+          }
+          LumpedMass mass;
+          const double link = number(m, "link", where, problems);
+          mass.link = static_cast<int>(link);
+          if (m["link"] && !(link == mass.link && mass.link >= 2 && mass.link <= kJointCount))
+            problems.push_back(where +
+                               ": 'link' must be a whole number from 2 to 6 (the DH frame "
+                               "the mass rides in; masses on link 1 load neither joint 2 nor 3)");
+          mass.kg = number(m, "kg", where, problems);
+          if (m["kg"] && !(mass.kg > 0 && mass.kg <= kMaxMassKg))
+            problems.push_back(where + ": 'kg' must lie within 0.." + fmt(kMaxMassKg) +
+                               " (exclusive of 0)");
+          const YAML::Node at = m["at_mm"];
+          if (!at || !at.IsSequence() || at.size() != 3) {
+            problems.push_back(where +
+                               ": 'at_mm' must be a list of 3 numbers (mm, in the link's "
+                               "DH frame)");
+          } else {
+            for (int a = 0; a < 3; ++a) {
+              try {
+                mass.at_mm[a] = at[a].as<double>();
+                if (!(std::abs(mass.at_mm[a]) <= kMaxLinkMm)) throw YAML::Exception({}, "");
+              } catch (const YAML::Exception&) {
+                problems.push_back(where + ": at_mm[" + std::to_string(a) +
+                                   "] must be a number within +-" + fmt(kMaxLinkMm));
+              }
+            }
+          }
+          for (const auto& kv : m) {
+            const auto key = kv.first.as<std::string>();
+            if (key != "link" && key != "kg" && key != "at_mm")
+              problems.push_back(where + ": unknown key '" + key + "'");
+          }
+          robot.masses.push_back(mass);
+        }
+      }
+    }
+  }
+  if (const YAML::Node c = root["compliance_deg_per_knm"]) {
+    if (!c.IsSequence() || c.size() != kComplianceCount) {
+      problems.push_back("compliance_deg_per_knm: must be a list of 2 numbers (joints 2 and 3)");
+    } else {
+      for (int k = 0; k < kComplianceCount; ++k) {
+        try {
+          robot.compliance_deg_per_knm[k] = c[k].as<double>();
+          if (!(std::abs(robot.compliance_deg_per_knm[k]) <= kMaxComplianceDegPerKnm))
+            throw YAML::Exception({}, "");
+        } catch (const YAML::Exception&) {
+          problems.push_back("compliance_deg_per_knm[" + std::to_string(k) +
+                             "]: must be a number within +-" + fmt(kMaxComplianceDegPerKnm));
+        }
+      }
+      if (!root["gravity"])
+        problems.push_back(
+            "compliance_deg_per_knm needs the 'gravity' section: the compliance "
+            "multiplies the gravity torque of its masses");
+    }
+  }
 }
 
 }  // namespace
@@ -133,10 +227,35 @@ Robot parseRobot(const std::string& yaml_text, const std::string& origin) {
         else if (!(std::abs(robot.transmission[i]) >= 1.0))
           problems.push_back(where + ": 'transmission' must be at least 1 in magnitude");
       }
+      // Identified errors of a calibrated model (zerocal solve --save-model): added to the row.
+      auto& error = robot.identified_link_error[i];
+      for (const auto& [key, index, bound] :
+           {std::tuple<const char*, int, double>{"da_mm", 0, kMaxLinkErrorMm},
+            {"dd_mm", 1, kMaxLinkErrorMm},
+            {"dalpha_deg", 2, kMaxLinkErrorDeg}}) {
+        if (!j[key]) continue;
+        const double v = number(j, key, where, problems);
+        if (std::isfinite(v) && !(std::abs(v) <= bound))
+          problems.push_back(where + ": " + key + " must lie within +-" + fmt(bound) +
+                             " (an identified error, not a link length)");
+        else
+          error[index] = index == 2 ? v * kDegToRad : v;
+      }
+      row.a_mm += error[0];
+      row.d_mm += error[1];
+      row.alpha_rad += error[2];
       for (const auto& kv : j) {
-        static const char* known[] = {
-            "a_mm",      "alpha_deg",       "d_mm",        "theta_offset_deg", "lower_deg",
-            "upper_deg", "max_speed_deg_s", "transmission"};
+        static const char* known[] = {"a_mm",
+                                      "alpha_deg",
+                                      "d_mm",
+                                      "theta_offset_deg",
+                                      "lower_deg",
+                                      "upper_deg",
+                                      "max_speed_deg_s",
+                                      "transmission",
+                                      "da_mm",
+                                      "dd_mm",
+                                      "dalpha_deg"};
         const auto key = kv.first.as<std::string>();
         bool ok = false;
         for (const char* k : known) ok = ok || key == k;
@@ -151,13 +270,66 @@ Robot parseRobot(const std::string& yaml_text, const std::string& origin) {
       problems.push_back("'transmission_confirmed' must be true or false");
     }
   }
+  parseGravity(root, robot, problems);
   for (const auto& kv : root) {
     const auto key = kv.first.as<std::string>();
-    if (key != "name" && key != "joints" && key != "description" && key != "transmission_confirmed")
+    if (key != "name" && key != "joints" && key != "description" &&
+        key != "transmission_confirmed" && key != "gravity" && key != "compliance_deg_per_knm")
       problems.push_back("unknown key '" + key + "'");
   }
   if (!problems.empty()) throw ConfigError(origin, std::move(problems));
   return robot;
+}
+
+namespace {
+
+std::string exact(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+
+}  // namespace
+
+std::string robotYaml(const Robot& robot, const std::string& comment) {
+  std::ostringstream o;
+  std::istringstream lines(comment);
+  for (std::string line; std::getline(lines, line);) o << "# " << line << "\n";
+  // A name that YAML would read as something else (a colon, a leading quote) stays a string.
+  std::string name;
+  for (char c : robot.name)
+    name += c == '"' || c == '\\' ? std::string("\\") + c : std::string(1, c);
+  o << "name: \"" << name << "\"\n"
+    << "transmission_confirmed: " << (robot.transmission_confirmed ? "true" : "false") << "\n"
+    << "joints:\n";
+  for (int i = 0; i < kJointCount; ++i) {
+    const DhRow& row = robot.dh[i];
+    const auto& e = robot.identified_link_error[i];
+    o << "  - {a_mm: " << exact(row.a_mm - e[0])
+      << ", alpha_deg: " << exact((row.alpha_rad - e[2]) * kRadToDeg)
+      << ", d_mm: " << exact(row.d_mm - e[1])
+      << ", theta_offset_deg: " << exact(row.theta_offset_rad * kRadToDeg)
+      << ", lower_deg: " << exact(robot.limits[i].lower_deg)
+      << ", upper_deg: " << exact(robot.limits[i].upper_deg)
+      << ", max_speed_deg_s: " << exact(robot.max_speed_deg_s[i]);
+    if (robot.transmission[i] != 0)
+      o << ", transmission: " << (robot.transmission[i] > 0 ? "+" : "")
+        << exact(robot.transmission[i]);
+    if (e[0] != 0 || e[1] != 0 || e[2] != 0)
+      o << ", da_mm: " << exact(e[0]) << ", dd_mm: " << exact(e[1])
+        << ", dalpha_deg: " << exact(e[2] * kRadToDeg);
+    o << "}\n";
+  }
+  if (robot.hasGravityModel()) {
+    o << "gravity:\n  inferred: " << (robot.masses_inferred ? "true" : "false") << "\n  masses:\n";
+    for (const LumpedMass& m : robot.masses)
+      o << "    - {link: " << m.link << ", kg: " << exact(m.kg) << ", at_mm: [" << exact(m.at_mm[0])
+        << ", " << exact(m.at_mm[1]) << ", " << exact(m.at_mm[2]) << "]}\n";
+  }
+  if (robot.hasCompliance())
+    o << "compliance_deg_per_knm: [" << exact(robot.compliance_deg_per_knm[0]) << ", "
+      << exact(robot.compliance_deg_per_knm[1]) << "]\n";
+  return o.str();
 }
 
 Robot loadRobot(const std::string& path) {
@@ -169,8 +341,9 @@ Robot loadRobot(const std::string& path) {
 }
 
 Frame<double> flangePoseDeg(const Robot& robot, const Joints& q_deg, const Joints& delta_deg) {
+  const Joints sag = complianceDeflectionDeg(robot, q_deg);
   double rad[kJointCount];
-  for (int i = 0; i < kJointCount; ++i) rad[i] = (q_deg[i] + delta_deg[i]) * kDegToRad;
+  for (int i = 0; i < kJointCount; ++i) rad[i] = (q_deg[i] + delta_deg[i] + sag[i]) * kDegToRad;
   return flangePose(robot, rad);
 }
 

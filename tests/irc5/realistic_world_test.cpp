@@ -63,6 +63,18 @@ TEST(RealisticWorld, DrawsEveryImperfectionWithItsSpecifiedMagnitude) {
     EXPECT_LE(taught_off_mm, 5 + 1e-9);
     EXPECT_EQ(w.gross.stray_light_rate, kDefaultGrossRate);
     EXPECT_EQ(w.gross.unsettled_rate, kDefaultGrossRate);
+    // The true masses: around the robot file's split, never it exactly.
+    const auto& share = w.compliance.mass_share;
+    EXPECT_NEAR(share[0] + share[1] + share[2], 1.0, 1e-12);
+    const Compliance nominal;
+    for (int i = 0; i < 3; ++i) {
+      EXPECT_NE(share[i], nominal.mass_share[i]);
+      EXPECT_GT(share[i], nominal.mass_share[i] * 0.75 / 1.25 - 1e-12);
+      EXPECT_LT(share[i], nominal.mass_share[i] * 1.25 / 0.75 + 1e-12);
+    }
+    for (int i = 0; i < 2; ++i)
+      EXPECT_LE(std::abs(w.compliance.mass_position[i] - nominal.mass_position[i]),
+                kMassPositionSpread);
   }
   // 480 lengths and 240 twists: the sample sigma within 15% of the specified one.
   EXPECT_NEAR(std::sqrt(sum_len_sq / lengths), kLinkLengthSigmaMm, 0.15 * kLinkLengthSigmaMm);
@@ -124,6 +136,30 @@ TEST(RealisticWorld, GravitySagFollowsTheTorqueOfThePose) {
   EXPECT_LT(std::abs(none[1]), 0.1 * std::abs(sag[1]));
   EXPECT_LT(std::abs(none[2]), 1e-6);
   for (int j : {0, 3, 4, 5}) EXPECT_EQ(sag[j], 0.0);
+}
+
+// The sag is a constant compliance times the gravity torque of the true masses: proportional
+// to the torque the robot file's model computes where the masses are the nominal ones, and
+// never beyond its magnitude.
+TEST(RealisticWorld, GravitySagIsAConstantComplianceTimesTheTorque) {
+  World w = randomWorld(3, WorldKind::kIdeal);
+  w.compliance.joint2_sag_deg = 0.01;
+  w.compliance.joint3_sag_deg = 0.005;
+  std::mt19937_64 rng(21);
+  const Joints stretched{0, 90, -90, 0, 0, 0};
+  const auto torque_stretched = gravityTorqueKnm(w.robot, w.robot.masses, stretched);
+  const Joints sag_stretched = gravitySagDeg(w, stretched);
+  const double ratio2 = sag_stretched[1] / torque_stretched[0];
+  const double ratio3 = sag_stretched[2] / torque_stretched[1];
+  for (int k = 0; k < 30; ++k) {
+    const Joints q = randomPose(rng);
+    const Joints sag = gravitySagDeg(w, q);
+    const auto torque = gravityTorqueKnm(w.robot, w.robot.masses, q);
+    EXPECT_LE(std::abs(sag[1]), 0.01 + 1e-12);
+    EXPECT_LE(std::abs(sag[2]), 0.005 + 1e-12);
+    EXPECT_NEAR(sag[1], ratio2 * torque[0], 1e-12);
+    EXPECT_NEAR(sag[2], ratio3 * torque[1], 1e-12);
+  }
 }
 
 TEST(RealisticWorld, ThermalGrowthScalesTheArmSlowlyOverTheSession) {
@@ -301,6 +337,8 @@ TEST(WorldFile, TheTruthFileReadsBackToTheSameWorld) {
     EXPECT_EQ(back.dh_errors[i].alpha_deg, w.dh_errors[i].alpha_deg);
   }
   EXPECT_EQ(back.compliance.joint2_sag_deg, w.compliance.joint2_sag_deg);
+  EXPECT_EQ(back.compliance.mass_share, w.compliance.mass_share);
+  EXPECT_EQ(back.compliance.mass_position, w.compliance.mass_position);
   EXPECT_EQ(back.thermal.time_constant_s, w.thermal.time_constant_s);
   EXPECT_EQ(back.psd_centre_taught_mm, w.psd_centre_taught_mm);
   EXPECT_EQ(back.gross.unsettled_rate, w.gross.unsettled_rate);
@@ -378,7 +416,9 @@ compliance_of_joints: {}
 TEST(WorldHash, CoversEveryImperfection) {
   const World base = randomWorld(2);
   const std::string h = worldHash(base);
-  std::vector<World> changed(8, base);
+  std::vector<World> changed(10, base);
+  changed[8].compliance.mass_share[1] += 1e-6;
+  changed[9].compliance.mass_position[0] += 1e-6;
   changed[0].dh_errors[3].d_mm += 1e-6;
   changed[1].dh_errors[5].alpha_deg += 1e-6;
   changed[2].compliance.joint3_sag_deg += 1e-6;

@@ -6,6 +6,7 @@
 
 #include "zerocal/error.h"
 #include "zerocal/model/builtin.h"
+#include "zerocal/model/kinematics.h"
 
 namespace zerocal {
 namespace {
@@ -108,6 +109,87 @@ TEST(RobotFile, LimitViolationNamesTheJoint) {
   EXPECT_TRUE(r.withinLimits(Joints{}));
   EXPECT_EQ(r.limitViolation(Joints{0, 0, 70, 0, 0, 0}).rfind("joint 3 = 70", 0), 0u);
   EXPECT_FALSE(r.withinLimits(Joints{0, 0, 63, 0, 0, 0}, 5.0));
+}
+
+}  // namespace
+}  // namespace zerocal
+
+namespace zerocal {
+namespace {
+
+// A calibrated model written and read back has the same kinematics, sag included.
+TEST(RobotFile, ACalibratedModelRoundTripsWithItsKinematics) {
+  Robot calibrated = builtinIrb1600();
+  ASSERT_TRUE(calibrated.hasGravityModel());
+  EXPECT_TRUE(calibrated.masses_inferred);
+  const std::array<std::array<double, 3>, kJointCount> errors = {{{0.1, -0.05, 1e-4},
+                                                                  {-0.2, 0.0, -2e-4},
+                                                                  {0.07, 0.0, 5e-5},
+                                                                  {0, 0.12, 0},
+                                                                  {0, 0, 0},
+                                                                  {0, 0, 0}}};
+  for (int j = 0; j < kJointCount; ++j) {
+    calibrated.dh[j].a_mm += errors[j][0];
+    calibrated.dh[j].d_mm += errors[j][1];
+    calibrated.dh[j].alpha_rad += errors[j][2];
+  }
+  calibrated.identified_link_error = errors;
+  calibrated.compliance_deg_per_knm = {0.012, -0.004};
+  const std::string text = robotYaml(calibrated, "calibrated from a test\nsecond line");
+  EXPECT_EQ(text.rfind("# calibrated from a test\n# second line\n", 0), 0u) << text;
+  const Robot back = parseRobot(text, "saved.yaml");
+  EXPECT_EQ(back.name, calibrated.name);
+  EXPECT_EQ(back.masses.size(), calibrated.masses.size());
+  EXPECT_EQ(back.compliance_deg_per_knm, calibrated.compliance_deg_per_knm);
+  EXPECT_EQ(back.transmission, calibrated.transmission);
+  for (int j = 0; j < kJointCount; ++j)
+    for (int k = 0; k < 3; ++k)
+      EXPECT_NEAR(back.identified_link_error[j][k], errors[j][k], 1e-15) << j << " " << k;
+  const Joints qs[] = {{0, 0, 0, 0, 0, 0}, {20, 40, -30, 50, -60, 70}, {-45, 80, -100, 10, 90, 0}};
+  for (const Joints& q : qs) {
+    const Frame<double> a = flangePoseDeg(calibrated, q), b = flangePoseDeg(back, q);
+    EXPECT_LT((a.p - b.p).norm(), 1e-9);
+    EXPECT_LT((a.R - b.R).norm(), 1e-12);
+    // The compliance is in the kinematics: without it the flange is elsewhere.
+    Robot stiff = back;
+    stiff.compliance_deg_per_knm = {0, 0};
+    if (std::abs(gravityTorqueKnm(back, back.masses, q)[0]) > 0.05)
+      EXPECT_GT((flangePoseDeg(stiff, q).p - b.p).norm(), 1e-3);
+  }
+  // The nominal rows are what they were: the errors sit beside them, not in them.
+  EXPECT_NE(text.find("a_mm: 150, alpha_deg: -90"), std::string::npos) << text;
+  EXPECT_NE(text.find("da_mm: 0.10000000000000001"), std::string::npos) << text;
+}
+
+TEST(RobotFile, IdentifiedKinematicsAndMassesAreValidatedAllAtOnce) {
+  std::string yaml = builtinIrb1600Yaml();
+  // A link error that is a length, a mass on link 1, a negative mass, a compliance list of 3.
+  yaml.replace(yaml.find("transmission: +120}"), 19,
+               "transmission: +120, da_mm: 150, dalpha_deg: x}");
+  yaml.replace(yaml.find("{link: 2, kg: 24"), 16, "{link: 1, kg: 24");
+  yaml.replace(yaml.find("kg: 12"), 6, "kg: -12");
+  yaml += "compliance_deg_per_knm: [0.01, 0.02, 0.03]\n";
+  try {
+    parseRobot(yaml, "bad.yaml");
+    FAIL() << "expected ConfigError";
+  } catch (const ConfigError& e) {
+    const std::string what = e.what();
+    for (const char* expected :
+         {"joint 1: da_mm must lie within +-10", "joint 1: 'dalpha_deg' is not a number",
+          "gravity mass 1: 'link' must be a whole number from 2 to 6",
+          "gravity mass 3: 'kg' must lie within", "compliance_deg_per_knm: must be a list of 2"})
+      EXPECT_NE(what.find(expected), std::string::npos) << expected << " in " << what;
+  }
+  std::string without_gravity = builtinIrb1600Yaml();
+  without_gravity = without_gravity.substr(0, without_gravity.find("\ngravity:") + 1) +
+                    "compliance_deg_per_knm: [0.01, 0.02]\n";
+  try {
+    parseRobot(without_gravity, "no-gravity.yaml");
+    FAIL() << "expected ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("needs the 'gravity' section"), std::string::npos)
+        << e.what();
+  }
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 
 #include <array>
 #include <string>
+#include <vector>
 
 namespace zerocal {
 
@@ -28,6 +29,17 @@ struct JointLimit {
   double upper_deg = 0;
 };
 
+// A lumped mass of the arm for its gravity torques: `kg` at `at_mm` in DH frame `link` (2..6;
+// frame j turns with joint j, so the mass is carried by joints 1..j).
+struct LumpedMass {
+  int link = 0;
+  double kg = 0;
+  std::array<double, 3> at_mm{};
+};
+
+// The compliance of joints 2 and 3 is identified against the gravity torque of these joints.
+constexpr int kComplianceCount = 2;
+
 struct Robot {
   std::string name;
   std::array<DhRow, kJointCount> dh;
@@ -39,6 +51,22 @@ struct Robot {
   std::array<double, kJointCount> transmission{};
   // false: the values above are placeholders to be confirmed on the robot before they are used.
   bool transmission_confirmed = false;
+  // The arm's lumped masses (robot file's `gravity` section; empty: no gravity model, and the
+  // compliance of joints 2 and 3 is not identified). masses_inferred: the values are estimates,
+  // not the manufacturer's data.
+  std::vector<LumpedMass> masses;
+  bool masses_inferred = false;
+  // Identified kinematics (a calibrated model, `zerocal solve --save-model`): the DH errors
+  // already added to `dh` (a, d in mm, alpha in rad; kept so that the file can be written back
+  // with its nominal rows), and the compliance of joints 2 and 3 in deg per kN m: the true
+  // joint angle is the commanded one plus compliance x gravity torque (gravityTorqueKnm).
+  std::array<std::array<double, 3>, kJointCount> identified_link_error{};
+  std::array<double, kComplianceCount> compliance_deg_per_knm{};
+
+  bool hasGravityModel() const { return !masses.empty(); }
+  bool hasCompliance() const {
+    return compliance_deg_per_knm[0] != 0 || compliance_deg_per_knm[1] != 0;
+  }
 
   // True when every joint lies inside its limits shrunk by margin_deg on both sides.
   bool withinLimits(const Joints& q_deg, double margin_deg = 0.0) const;
@@ -47,10 +75,27 @@ struct Robot {
   std::string limitViolation(const Joints& q_deg, double margin_deg = 0.0) const;
 };
 
+// The gravity torque (kN m) about the axes of joints 2 and 3 of the masses at controller joints
+// q_deg, on the arm of robot.dh (the base z axis up): positive where it turns the joint
+// forwards. A mass counts for joint j when it rides on link j or beyond.
+std::array<double, kComplianceCount> gravityTorqueKnm(const Robot& robot,
+                                                      const std::vector<LumpedMass>& masses,
+                                                      const Joints& q_deg);
+// Its bound over every pose: each mass's lever arm at most the sum of the link lengths between
+// the joint's axis and the mass (reached with the arm stretched out horizontally).
+std::array<double, kComplianceCount> gravityTorqueBoundKnm(const Robot& robot,
+                                                           const std::vector<LumpedMass>& masses);
+// The joint deflection (deg, joints 1..6) of the robot's identified compliance at q_deg.
+Joints complianceDeflectionDeg(const Robot& robot, const Joints& q_deg);
+
 // Reads and validates a robot file. Throws ConfigError listing every problem found
 // (missing fields, wrong types, lower >= upper limits, non-positive speeds, ...).
 Robot loadRobot(const std::string& path);
 // The same from YAML text; origin names the source in error messages.
 Robot parseRobot(const std::string& yaml_text, const std::string& origin);
+// The robot as a robot file that parseRobot reads back to the same kinematics: the nominal DH
+// rows with the identified errors beside them (da_mm, dd_mm, dalpha_deg), the gravity model
+// and the identified compliance, every number to 17 digits. `comment` heads it ('#' lines).
+std::string robotYaml(const Robot& robot, const std::string& comment = "");
 
 }  // namespace zerocal

@@ -41,10 +41,18 @@ struct DhError {
 // Gravity sag of joints 2 and 3: the gearboxes yield to the gravity torque of the arm beyond
 // them, so the true joint angle is the commanded one plus sag * tau(q) / tau_max, tau(q) the
 // gravity torque about the joint's axis at pose q (a lumped-mass model of the IRB 1600's arm:
-// upper arm, forearm, wrist and tool) and tau_max its bound with every lever arm horizontal.
+// upper arm, forearm, wrist and tool; gravityTorqueKnm) and tau_max its bound with the arm
+// stretched out horizontally (gravityTorqueBoundKnm): a constant compliance.
 struct Compliance {
   double joint2_sag_deg = 0;  // at tau_max
   double joint3_sag_deg = 0;
+  // The true arm's masses: the shares of the upper arm, the forearm and the wrist with the tool
+  // (at the flange) in its moving mass, and where along their link the first two sit (0: at the
+  // joint's axis, 1: at the next joint's axis, the forearm's next being the wrist centre). The
+  // robot file's gravity model is the nominal (0.4, 0.4, 0.2) at the middles; a real arm's are
+  // not known that well, so the realistic world draws them around it.
+  std::array<double, 3> mass_share = {0.4, 0.4, 0.2};
+  std::array<double, 2> mass_position = {0.5, 0.5};
 };
 
 // Thermal growth of the arm: every DH length (a, d) grows by expansion_per_k * dT(t), where
@@ -85,6 +93,8 @@ constexpr double kGrossPoseExtentDeg = 5.0;
 constexpr double kLinkLengthSigmaMm = 0.1;   // every a and d
 constexpr double kLinkTwistSigmaDeg = 0.01;  // every alpha
 constexpr double kDefaultGrossRate = 0.01;   // per pose, each kind
+constexpr double kMassShareSpread = 0.25;    // each share of the arm's mass, relative
+constexpr double kMassPositionSpread = 0.1;  // a mass's place along its link, of its length
 
 // A place a session at several PSD placements had the detector moved to (placement 2, 3, ...):
 // where the session planned it (its taught centre there; the orientation the session knows is
@@ -147,6 +157,9 @@ std::optional<BeamHit> beamHit(const World& world, const Joints& q_deg,
 
 // The true arm's joint deflection (deg) under gravity at controller joints q_deg.
 Joints gravitySagDeg(const World& world, const Joints& q_deg);
+// The true arm's lumped masses (Compliance's shares and positions; 1 kg in all) on the nominal
+// arm's links.
+std::vector<LumpedMass> trueMasses(const World& world);
 
 // The flange pose of the true arm (links, offsets, sag, thermal state at time_s), in mm.
 Eigen::Vector3d trueFlangePositionMm(const World& world, const Joints& q_deg, double time_s = 0);
@@ -181,7 +194,7 @@ std::string worldHash(const World& world);
 //   noise: {repeatability_deg: 1.5e-3, psd_mm: 0.001}           # optional
 //   optional, each absent = none (the ideal arm):
 //   dh_errors: {a_mm: [6], d_mm: [6], alpha_deg: [6]}
-//   compliance: {joint2_sag_deg: x, joint3_sag_deg: x}
+//   compliance: {joint2_sag_deg: x, joint3_sag_deg: x, mass_share: [3], mass_position: [2]}
 //   thermal: {expansion_per_k: x, rise_k: x, time_constant_s: x}
 //   gross_errors: {stray_light_rate: x, stray_light_mm: x, unsettled_rate: x, unsettled_deg: x,
 //                  forced_at_deg: [6 numbers], forced_kind: stray_light | unsettled}

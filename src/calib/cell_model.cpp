@@ -27,13 +27,25 @@ std::string linkParamName(int k) {
   return kinds[k % 3] + std::to_string(k / 3 + 1) + (k % 3 == 2 ? "_deg" : "_mm");
 }
 
+std::string complianceParamName(int k) {
+  return "compliance" + std::to_string(k + 2) + "_deg_per_knm";
+}
+
 Robot withLinkErrors(const Robot& robot, const Eigen::Matrix<double, kLinkParamCount, 1>& link) {
   Robot out = robot;
   for (int j = 0; j < kJointCount; ++j) {
     out.dh[j].a_mm += link[3 * j];
     out.dh[j].d_mm += link[3 * j + 1];
     out.dh[j].alpha_rad += link[3 * j + 2];
+    for (int kind = 0; kind < 3; ++kind) out.identified_link_error[j][kind] += link[3 * j + kind];
   }
+  return out;
+}
+
+Robot calibratedRobot(const Robot& robot, const CalibrationParameters& params) {
+  Robot out = withLinkErrors(robot, params.link);
+  for (int k = 0; k < kComplianceCount; ++k)
+    out.compliance_deg_per_knm[k] += params.compliance[k] * kRadToDeg;
   return out;
 }
 
@@ -44,14 +56,16 @@ const Eigen::Matrix3d& CellModel::psdRotation(int placement) const {
 
 Line laserLine(const CellModel& cell, const Joints& q_deg, const CalibrationParameters& params) {
   double q_rad[kJointCount];
-  for (int i = 0; i < kJointCount; ++i) q_rad[i] = q_deg[i] * kDegToRad;
+  jointsRad(cell.robot, q_deg, q_rad);
   Line line;
-  if (params.link.isZero(0)) {
+  if (params.link.isZero(0) && params.compliance.isZero(0)) {
     laserLineInBase(cell, q_rad, params.delta_rad.data(), params.laser.data(), &line.point,
                     &line.direction);
   } else {
+    const auto torque = gravityTorqueKnm(cell.robot, cell.robot.masses, q_deg);
     const Frame<double> flange =
-        flangeWithLinkErrors(cell.robot, q_rad, params.delta_rad.data(), params.link.data());
+        flangeWithLinkErrors(cell.robot, q_rad, params.delta_rad.data(), params.link.data(),
+                             params.compliance.data(), torque.data());
     Eigen::Vector3d p, d;
     cell.laser.line(params.laser.data(), &p, &d);
     line.point = flange.apply(p);

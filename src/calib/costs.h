@@ -11,6 +11,13 @@
 
 namespace zerocal {
 
+// Controller joints (deg) as the radians the kinematics turns, with the deflection of the robot
+// file's identified compliance (a calibrated model) added: constant per pose.
+inline void jointsRad(const Robot& robot, const Joints& q_deg, double* q_rad) {
+  const Joints sag = complianceDeflectionDeg(robot, q_deg);
+  for (int i = 0; i < kJointCount; ++i) q_rad[i] = (q_deg[i] + sag[i]) * kDegToRad;
+}
+
 // Flange pose for controller joints q (radians) with the offsets delta2..delta5 added.
 template <typename T>
 Frame<T> flangeWithOffsets(const Robot& robot, const double* q_rad, const T* delta) {
@@ -41,14 +48,15 @@ Frame<T> dhLinkWithErrors(const DhRow& row, const T& joint_rad, const T* error) 
   return f;
 }
 
-// Flange pose with the offsets delta2..delta5 and the link errors (kLinkParamCount, in
-// linkParamName order) added.
+// Flange pose with the offsets delta2..delta5, the link errors (kLinkParamCount, in
+// linkParamName order) and the compliance of joints 2 and 3 (rad per kN m, times the pose's
+// gravity torque in kN m) added.
 template <typename T>
 Frame<T> flangeWithLinkErrors(const Robot& robot, const double* q_rad, const T* delta,
-                              const T* link) {
+                              const T* link, const T* compliance, const double* torque_knm) {
   const T joints[kJointCount] = {T(q_rad[0]),
-                                 T(q_rad[1]) + delta[0],
-                                 T(q_rad[2]) + delta[1],
+                                 T(q_rad[1]) + delta[0] + compliance[0] * torque_knm[0],
+                                 T(q_rad[2]) + delta[1] + compliance[1] * torque_knm[1],
                                  T(q_rad[3]) + delta[2],
                                  T(q_rad[4]) + delta[3],
                                  T(q_rad[5])};
@@ -100,7 +108,7 @@ class PointToLineCost {
   PointToLineCost(const CellModel& cell, const Joints& q_deg, const Eigen::Vector3d& hit_offset,
                   double sigma_mm)
       : cell_(cell), offset_(hit_offset), inv_sigma_(1.0 / sigma_mm) {
-    for (int i = 0; i < kJointCount; ++i) q_rad_[i] = q_deg[i] * kDegToRad;
+    jointsRad(cell.robot, q_deg, q_rad_);
   }
 
   template <typename T>
@@ -124,25 +132,33 @@ class PointToLineCost {
   double inv_sigma_;
 };
 
-// Point-to-line with the link errors as unknowns too (several PSD placements, each with its own
-// target c_p): the same residual as PointToLineCost,
+// Point-to-line with the link errors and the compliance of joints 2 and 3 as unknowns too
+// (several PSD placements, each with its own target c_p): the same residual as PointToLineCost,
 //
-//   w   = R_6(q_i, delta, lambda)^T (c_p + o_i - t_6(q_i, delta, lambda)) - p_E(kappa)
+//   theta_j = q_j + delta_j + c_j tau_j(q)         j = 2, 3 (the other joints: q_j + delta_j)
+//   w   = R_6(theta, lambda)^T (c_p + o_i - t_6(theta, lambda)) - p_E(kappa)
 //   r_i = [ b1 . w ; b2 . w ] / sigma
 //
-// with lambda the 18 link errors (da, dd, dalpha of each joint) in the DH rows.
+// with lambda the 18 link errors (da, dd, dalpha of each joint) in the DH rows, c_j the
+// compliance (rad per kN m) and tau_j(q) the gravity torque of the robot file's masses at the
+// commanded joints (kN m; zero without a gravity model): a joint yields in proportion to the
+// torque it carries. The torque is computed once per pose on the nominal arm; the link errors
+// and offsets change it by far less than the compliance can resolve.
 class LinkPointToLineCost {
  public:
   LinkPointToLineCost(const CellModel& cell, const Joints& q_deg, const Eigen::Vector3d& hit_offset,
                       double sigma_mm)
       : cell_(cell), offset_(hit_offset), inv_sigma_(1.0 / sigma_mm) {
-    for (int i = 0; i < kJointCount; ++i) q_rad_[i] = q_deg[i] * kDegToRad;
+    jointsRad(cell.robot, q_deg, q_rad_);
+    const auto torque = gravityTorqueKnm(cell.robot, cell.robot.masses, q_deg);
+    for (int k = 0; k < kComplianceCount; ++k) torque_knm_[k] = torque[k];
   }
 
   template <typename T>
-  bool operator()(const T* delta, const T* kappa, const T* link, const T* target,
-                  T* residual) const {
-    const Frame<T> flange = flangeWithLinkErrors(cell_.robot, q_rad_, delta, link);
+  bool operator()(const T* delta, const T* kappa, const T* link, const T* compliance,
+                  const T* target, T* residual) const {
+    const Frame<T> flange =
+        flangeWithLinkErrors(cell_.robot, q_rad_, delta, link, compliance, torque_knm_);
     pointToLineMiss(cell_, flange, kappa, target, offset_, inv_sigma_, residual);
     return true;
   }
@@ -150,13 +166,14 @@ class LinkPointToLineCost {
   static ceres::CostFunction* create(const CellModel& cell, const Joints& q_deg,
                                      const Eigen::Vector3d& hit_offset, double sigma_mm) {
     return new ceres::AutoDiffCostFunction<LinkPointToLineCost, 2, kOffsetCount, kLaserParamCount,
-                                           kLinkParamCount, kTargetCount>(
+                                           kLinkParamCount, kComplianceCount, kTargetCount>(
         new LinkPointToLineCost(cell, q_deg, hit_offset, sigma_mm));
   }
 
  private:
   const CellModel& cell_;
   double q_rad_[kJointCount];
+  double torque_knm_[kComplianceCount];
   Eigen::Vector3d offset_;
   double inv_sigma_;
 };
@@ -176,7 +193,7 @@ class PairwiseCost {
       : cell_(cell), inv_sigma_(1.0 / sigma_mm) {
     for (const auto& pose : poses) {
       std::array<double, kJointCount> q;
-      for (int i = 0; i < kJointCount; ++i) q[i] = pose.q_deg[i] * kDegToRad;
+      jointsRad(cell.robot, pose.q_deg, q.data());
       q_rad_.push_back(q);
     }
   }

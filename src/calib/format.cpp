@@ -58,6 +58,7 @@ nlohmann::json toJson(const SolveReport& r) {
   j["poses_used"] = r.poses_used;
   j["required_accuracy_deg"] = r.required_accuracy_deg;
   j["model_tolerance"] = {{"length_mm", r.model_length_mm}, {"angle_deg", r.model_angle_deg}};
+  if (r.model_sag_deg > 0) j["model_tolerance"]["sag_deg"] = r.model_sag_deg;
   nlohmann::json params = nlohmann::json::object();
   for (const auto& p : r.parameters) {
     nlohmann::json e;
@@ -188,7 +189,7 @@ std::string toText(const SolveReport& r) {
                 c.target_sigma_mm.x(), c.target_sigma_mm.y(), c.target_sigma_mm.z());
   if (!r.placements.empty())
     o << "identified " << r.rank << " of "
-      << kIdentifiedCount + kLinkParamCount + kTargetCount * static_cast<int>(r.placements.size())
+      << r.parameters.size() + kTargetCount * r.placements.size()
       << " unknowns (the others are named above), condition number "
       << printf("%.1f", r.condition_number) << " (column-scaled Jacobian)\n";
   else
@@ -445,6 +446,7 @@ SolveReport solveReportFromJson(const nlohmann::json& json, const std::string& w
     const JsonReader m = j.object("model_tolerance");
     r.model_length_mm = m.number("length_mm");
     r.model_angle_deg = m.number("angle_deg");
+    r.model_sag_deg = m.has("sag_deg") ? m.number("sag_deg") : 0;
   }
   const nlohmann::json& params = j.at("parameters");
   if (!params.is_object()) throw InputError(where + ": 'parameters' is not an object");

@@ -231,7 +231,8 @@ int PlacementLayout::slot(int placement) const {
 
 std::string PlacementLayout::name(int k) const {
   if (k < kIdentifiedCount) return unknownName(k);
-  if (k < firstTarget()) return linkParamName(k - firstLink());
+  if (isLink(k)) return linkParamName(k - firstLink());
+  if (isCompliance(k)) return complianceParamName(k - firstCompliance());
   const int t = k - firstTarget();
   return "target" + std::to_string(placements[t / kTargetCount]) + "_" + "xyz"[t % kTargetCount] +
          "_mm";
@@ -240,10 +241,12 @@ std::string PlacementLayout::name(int k) const {
 std::string PlacementLayout::readable(int k) const {
   if (k < kOffsetCount) return "delta" + std::to_string(k + 2);
   if (k < kIdentifiedCount) return "the laser line";
-  if (k < firstTarget()) {
+  if (isLink(k)) {
     const std::string n = linkParamName(k - firstLink());
     return n.substr(0, n.rfind('_'));
   }
+  if (isCompliance(k))
+    return "the compliance of joint " + std::to_string(k - firstCompliance() + 2);
   return "the placement-" + std::to_string(placements[(k - firstTarget()) / kTargetCount]) +
          " centre";
 }
@@ -259,23 +262,26 @@ Eigen::MatrixXd placementJacobian(const CellModel& cell, const std::vector<Pose>
   Eigen::Matrix<double, 2, kOffsetCount, Eigen::RowMajor> jd;
   Eigen::Matrix<double, 2, kLaserParamCount, Eigen::RowMajor> jl;
   Eigen::Matrix<double, 2, kLinkParamCount, Eigen::RowMajor> jk;
+  Eigen::Matrix<double, 2, kComplianceCount, Eigen::RowMajor> jc;
   Eigen::Matrix<double, 2, kTargetCount, Eigen::RowMajor> jt;
-  double* jacobians[4] = {jd.data(), jl.data(), jk.data(), jt.data()};
+  double* jacobians[5] = {jd.data(), jl.data(), jk.data(), jc.data(), jt.data()};
   double r[2];
   for (int i = 0; i < n; ++i) {
     const int slot = layout.slot(poses[i].placement);
-    const double* blocks[4] = {params.delta_rad.data(), params.laser.data(), params.link.data(),
-                               targets[slot].data()};
+    const double* blocks[5] = {params.delta_rad.data(), params.laser.data(), params.link.data(),
+                               params.compliance.data(), targets[slot].data()};
     LinkPointToLineCost functor(cell, poses[i].q_deg, hitPointOffset(cell, poses[i], use_readings),
                                 sigma_mm);
     ceres::AutoDiffCostFunction<LinkPointToLineCost, 2, kOffsetCount, kLaserParamCount,
-                                kLinkParamCount, kTargetCount>
+                                kLinkParamCount, kComplianceCount, kTargetCount>
         cost(&functor, ceres::DO_NOT_TAKE_OWNERSHIP);
     cost.Evaluate(blocks, r, jacobians);
     jac.block(2 * i, 0, 2, kOffsetCount) = jd;
     jac.block(2 * i, kOffsetCount, 2, kLaserParamCount) = jl;
     jac.block(2 * i, PlacementLayout::firstLink(), 2, kLinkParamCount) = jk;
-    jac.block(2 * i, PlacementLayout::firstTarget() + kTargetCount * slot, 2, kTargetCount) = jt;
+    jac.block(2 * i, PlacementLayout::firstCompliance(), 2, layout.compliance) =
+        jc.leftCols(layout.compliance);
+    jac.block(2 * i, layout.firstTarget() + kTargetCount * slot, 2, kTargetCount) = jt;
     if (residuals) residuals->segment<2>(2 * i) = Eigen::Vector2d(r[0], r[1]);
   }
   return jac;
@@ -292,8 +298,10 @@ BaseParameters analyseBaseParameters(const Eigen::MatrixXd& jacobian,
   const int n = static_cast<int>(jacobian.cols());
   std::vector<int> order;
   for (int k = 0; k < kIdentifiedCount; ++k) order.push_back(k);
-  for (int k = PlacementLayout::firstTarget(); k < n; ++k) order.push_back(k);
-  for (int k = PlacementLayout::firstLink(); k < PlacementLayout::firstTarget(); ++k)
+  for (int k = layout.firstTarget(); k < n; ++k) order.push_back(k);
+  for (int k = PlacementLayout::firstCompliance(); k < layout.firstTarget(); ++k)
+    order.push_back(k);
+  for (int k = PlacementLayout::firstLink(); k < PlacementLayout::firstCompliance(); ++k)
     order.push_back(k);
   BaseParameters out;
   out.identified.assign(n, false);

@@ -22,6 +22,15 @@ struct MultiFit {
   int iterations = 0;
 };
 
+// The columns of the unknowns the base-parameter analysis kept.
+Eigen::MatrixXd identifiedColumns(const Eigen::MatrixXd& jacobian, const BaseParameters& base) {
+  Eigen::MatrixXd out(jacobian.rows(), base.count);
+  int j = 0;
+  for (int k = 0; k < static_cast<int>(jacobian.cols()); ++k)
+    if (base.identified[k]) out.col(j++) = jacobian.col(k);
+  return out;
+}
+
 // Holds the entries of a parameter block that the base-parameter analysis did not keep.
 void holdUnidentified(ceres::Problem& problem, double* block, int first, int size,
                       const BaseParameters& base) {
@@ -49,13 +58,19 @@ MultiFit fit(const CellModel& cell, const std::vector<Pose>& poses, const Placem
     problem.AddResidualBlock(LinkPointToLineCost::create(
                                  cell, pose.q_deg, hitPointOffset(cell, pose, readings), sigma_in),
                              nullptr, f.est.delta_rad.data(), f.est.laser.data(), f.est.link.data(),
+                             f.est.compliance.data(),
                              f.targets[layout.slot(pose.placement)].data());
   holdUnidentified(problem, f.est.delta_rad.data(), 0, kOffsetCount, base);
   holdUnidentified(problem, f.est.laser.data(), kOffsetCount, kLaserParamCount, base);
   holdUnidentified(problem, f.est.link.data(), PlacementLayout::firstLink(), kLinkParamCount, base);
+  if (layout.compliance == 0)
+    problem.SetParameterBlockConstant(f.est.compliance.data());
+  else
+    holdUnidentified(problem, f.est.compliance.data(), PlacementLayout::firstCompliance(),
+                     kComplianceCount, base);
   for (int p = 0; p < layout.count(); ++p)
-    holdUnidentified(problem, f.targets[p].data(),
-                     PlacementLayout::firstTarget() + kTargetCount * p, kTargetCount, base);
+    holdUnidentified(problem, f.targets[p].data(), layout.firstTarget() + kTargetCount * p,
+                     kTargetCount, base);
 
   CancelCallback cancel(options.cancelled);
   const ceres::Solver::Options solver_options = solverOptions(options, &cancel);
@@ -108,7 +123,7 @@ void checkPlacements(const std::vector<Pose>& poses, const PlacementLayout& layo
 SolveReport solveMultiPlacement(const CellModel& cell, const std::vector<Pose>& poses,
                                 const SolveOptions& options) {
   const auto started = std::chrono::steady_clock::now();
-  const PlacementLayout layout(poses);
+  const PlacementLayout layout(poses, cell.robot, options.identify_compliance);
   checkPlacements(poses, layout, options);
   const int n = static_cast<int>(poses.size());
   SolveReport report = startReport(poses, options);
@@ -117,27 +132,81 @@ SolveReport solveMultiPlacement(const CellModel& cell, const std::vector<Pose>& 
   report.model_angle_deg = options.model_angle_deg;
 
   const std::vector<int> duplicate_of = findDuplicates(poses);
-  std::vector<Pose> used;
+  std::vector<int> active;
   for (int i = 0; i < n; ++i)
-    if (duplicate_of[i] < 0) used.push_back(poses[i]);
-  throwUnlessEnoughDistinct(poses, duplicate_of, static_cast<int>(used.size()));
-  const int m = static_cast<int>(used.size());
-  report.poses_used = m;
+    if (duplicate_of[i] < 0) active.push_back(i);
+  throwUnlessEnoughDistinct(poses, duplicate_of, static_cast<int>(active.size()));
+  const std::vector<Pose> distinct = subset(poses, active);
 
   // Start: zero offsets and link errors, nominal laser, each centre where its nominal lines
   // pass closest. The base parameters are found there: which unknowns the poses can separate
   // is a property of the poses, not of small changes of the parameters.
   CalibrationParameters start;
   const std::vector<Eigen::Vector3d> start_targets =
-      placementTargets(cell, used, layout, start, readings);
+      placementTargets(cell, distinct, layout, start, readings);
   const BaseParameters base = analyseBaseParameters(
-      placementJacobian(cell, onTheirCentres(cell, used, layout, start_targets), layout, start,
+      placementJacobian(cell, onTheirCentres(cell, distinct, layout, start_targets), layout, start,
                         start_targets, 1.0, false),
       layout);
-  const MultiFit f = fit(cell, used, layout, base, options, readings, start, start_targets);
+  std::vector<MultiFit> fits{
+      fit(cell, distinct, layout, base, options, readings, start, start_targets)};
+  int iterations = fits[0].iterations;
+
+  // Gross errors: the single-placement solve's deletion diagnostics, on the identified unknowns.
+  const auto describe = [&](const std::vector<int>& subset_of, int handle) {
+    const MultiFit& mf = fits[handle];
+    const std::vector<Pose> chosen = subset(poses, subset_of);
+    TrialFit t;
+    t.converged = mf.converged;
+    t.iterations = mf.iterations;
+    t.estimate = handle;
+    const Eigen::MatrixXd full =
+        placementJacobian(cell, chosen, layout, mf.est, mf.targets, 1.0, readings, &t.misses_mm);
+    t.jacobian_mm = identifiedColumns(full, base);
+    for (const Pose& p : chosen) {
+      const Line l = laserLine(cell, p.q_deg, mf.est);
+      t.beam_points_away = t.beam_points_away ||
+                           !(l.direction.dot(mf.targets[layout.slot(p.placement)] - l.point) > 0);
+    }
+    return t;
+  };
+  const auto refit = [&](const std::vector<int>& subset_of, int from) {
+    const MultiFit start_fit = fits[from];
+    fits.push_back(fit(cell, subset(poses, subset_of), layout, base, options, readings,
+                       start_fit.est, start_fit.targets));
+    return describe(subset_of, static_cast<int>(fits.size()) - 1);
+  };
+  // Each placement's centre needs its poses.
+  const auto cannotLeaveOut = [&](const std::vector<int>& remaining, int i) {
+    const int placement = poses[i].placement;
+    const auto left = std::count_if(remaining.begin(), remaining.end(),
+                                    [&](int k) { return poses[k].placement == placement; });
+    return left < kMinimumPosesPerPlacement
+               ? "placement " + std::to_string(placement) + " would keep only " +
+                     std::to_string(left) + " poses, too few for its centre"
+               : std::string();
+  };
+  std::vector<int> left_out;
+  std::vector<std::string> gross_problems;
+  int chosen_fit = 0;
+  if (options.find_gross_errors && fits[0].converged) {
+    const GrossErrorSearch g =
+        findGrossErrors(poses, active, describe(active, 0), options, refit, cannotLeaveOut);
+    iterations += g.iterations;
+    active = g.active;
+    left_out = g.left_out;
+    gross_problems = g.problems;
+    report.suspect_poses = g.suspects;
+    report.remeasure = g.remeasure;
+    chosen_fit = g.fit.estimate;
+  }
+  const MultiFit& f = fits[chosen_fit];
+  const std::vector<Pose> used = subset(poses, active);
+  const int m = static_cast<int>(used.size());
+  report.poses_used = m;
   report.converged = f.converged;
   report.message = f.message;
-  report.iterations = f.iterations;
+  report.iterations = iterations;
   report.estimate = f.est;
   report.estimate.target_mm = f.targets[0];
 
@@ -153,20 +222,41 @@ SolveReport solveMultiPlacement(const CellModel& cell, const std::vector<Pose>& 
   // The link errors the poses cannot identify are held at nominal; known to the tolerances,
   // their effect on the identified unknowns is a consider covariance (as with one placement).
   // An error combined only with the laser or a centre moves nothing else: its part is zero.
+  // The gravity sag, when its compliance is not identified, counts the same way: theta_j moves
+  // by c_j tau_j(q), so its column is delta_j's times the pose's torque, and c_j is known to the
+  // sag tolerance at the largest torque.
   const int unknowns = layout.unknownCount();
   Eigen::MatrixXd model_cov = Eigen::MatrixXd::Zero(unknowns, unknowns);
-  if (options.model_length_mm > 0 || options.model_angle_deg > 0) {
-    std::vector<int> held;
-    for (int k = PlacementLayout::firstLink(); k < PlacementLayout::firstTarget(); ++k)
-      if (!base.identified[k]) held.push_back(k);
-    if (!held.empty()) {
-      Eigen::MatrixXd g(jac.rows(), static_cast<Eigen::Index>(held.size()));
+  const bool count_sag =
+      layout.compliance == 0 && options.model_sag_deg > 0 && cell.robot.hasGravityModel();
+  report.model_sag_deg = count_sag ? options.model_sag_deg : 0;
+  if (options.model_length_mm > 0 || options.model_angle_deg > 0 || count_sag) {
+    std::vector<Eigen::VectorXd> columns;
+    std::vector<double> tolerances;
+    for (int k = PlacementLayout::firstLink(); k < PlacementLayout::firstCompliance(); ++k)
+      if (!base.identified[k]) {
+        columns.push_back(jac.col(k));
+        tolerances.push_back((k - PlacementLayout::firstLink()) % 3 == 2
+                                 ? options.model_angle_deg * kDegToRad
+                                 : options.model_length_mm);
+      }
+    if (count_sag) {
+      const auto bound = gravityTorqueBoundKnm(cell.robot, cell.robot.masses);
+      for (int c = 0; c < kComplianceCount; ++c) {
+        Eigen::VectorXd column = jac.col(c);  // delta2, delta3
+        for (int i = 0; i < m; ++i)
+          column.segment<2>(2 * i) *=
+              gravityTorqueKnm(cell.robot, cell.robot.masses, used[i].q_deg)[c];
+        columns.push_back(column);
+        tolerances.push_back(options.model_sag_deg * kDegToRad / bound[c]);
+      }
+    }
+    if (!columns.empty()) {
+      Eigen::MatrixXd g(jac.rows(), static_cast<Eigen::Index>(columns.size()));
       Eigen::VectorXd tolerance(g.cols());
-      for (std::size_t j = 0; j < held.size(); ++j) {
-        g.col(static_cast<Eigen::Index>(j)) = jac.col(held[j]);
-        tolerance[static_cast<Eigen::Index>(j)] = (held[j] - PlacementLayout::firstLink()) % 3 == 2
-                                                      ? options.model_angle_deg * kDegToRad
-                                                      : options.model_length_mm;
+      for (std::size_t j = 0; j < columns.size(); ++j) {
+        g.col(static_cast<Eigen::Index>(j)) = columns[j];
+        tolerance[static_cast<Eigen::Index>(j)] = tolerances[j];
       }
       const Eigen::MatrixXd unit =
           (cov / (sigma * sigma)).unaryExpr([](double x) { return std::isfinite(x) ? x : 0.0; });
@@ -179,29 +269,33 @@ SolveReport solveMultiPlacement(const CellModel& cell, const std::vector<Pose>& 
   const double quantile = intervalQuantile(report);
   report.not_identifiable.push_back({"delta1_deg", delta1Reason()});
   report.not_identifiable.push_back({"delta6_deg", delta6Reason()});
-  const auto value = [&](int k) {
-    if (k < kOffsetCount) return f.est.delta_rad[k] * kRadToDeg;
-    if (k < kIdentifiedCount) return f.est.laser[k - kOffsetCount];
-    const int l = k - PlacementLayout::firstLink();
-    return f.est.link[l] * (l % 3 == 2 ? kRadToDeg : 1.0);
+  // Reported in degrees: the offsets, the link twists, the compliance (deg per kN m).
+  const auto unitOf = [&](int k) {
+    const bool angle = k < kOffsetCount || layout.isCompliance(k) ||
+                       (layout.isLink(k) && (k - PlacementLayout::firstLink()) % 3 == 2);
+    return angle ? kRadToDeg : 1.0;
   };
-  for (int k = 0; k < PlacementLayout::firstTarget(); ++k) {
+  const auto value = [&](int k) {
+    if (k < kOffsetCount) return f.est.delta_rad[k];
+    if (k < kIdentifiedCount) return f.est.laser[k - kOffsetCount];
+    if (layout.isLink(k)) return f.est.link[k - PlacementLayout::firstLink()];
+    return f.est.compliance[k - PlacementLayout::firstCompliance()];
+  };
+  for (int k = 0; k < layout.firstTarget(); ++k) {
     ParameterEstimate pe;
     pe.name = layout.name(k);
     pe.identifiable = base.identified[k];
     pe.reason = base.reason[k];
-    const bool angle = k < kOffsetCount || (k >= PlacementLayout::firstLink() &&
-                                            (k - PlacementLayout::firstLink()) % 3 == 2);
-    const double unit = angle ? kRadToDeg : 1.0;
-    pe.value = value(k);
+    const double unit = unitOf(k);
+    pe.value = value(k) * unit;
     pe.sigma = std::sqrt(cov(k, k)) * unit;
     pe.model_sigma = std::sqrt(model_cov(k, k)) * unit;
     if (k < kOffsetCount && pe.identifiable && !(pe.sigma <= options.required_accuracy_deg)) {
       pe.identifiable = false;
       pe.reason = "known only to " + fixedText(pe.sigma, 4) + " deg (one standard deviation" +
                   (pe.model_sigma > 0 ? ", " + fixedText(pe.model_sigma, 4) +
-                                            " deg of it from the link tolerances of what the "
-                                            "poses cannot identify"
+                                            " deg of it from the tolerances of what the "
+                                            "poses do not identify"
                                       : std::string()) +
                   "); the required accuracy is " + fixedText(options.required_accuracy_deg, 4) +
                   " deg";
@@ -218,7 +312,7 @@ SolveReport solveMultiPlacement(const CellModel& cell, const std::vector<Pose>& 
         poses.begin(), poses.end(), [&](const Pose& q) { return q.placement == c.placement; }));
     c.target_mm = f.targets[p];
     for (int a = 0; a < kTargetCount; ++a) {
-      const int k = PlacementLayout::firstTarget() + kTargetCount * p + a;
+      const int k = layout.firstTarget() + kTargetCount * p + a;
       c.target_sigma_mm[a] = std::sqrt(cov(k, k));
       if (!base.identified[k]) report.not_identifiable.push_back({layout.name(k), base.reason[k]});
     }
@@ -240,7 +334,8 @@ SolveReport solveMultiPlacement(const CellModel& cell, const std::vector<Pose>& 
     pr.miss_mm = r_all.segment<2>(2 * i);
     pr.miss_norm_mm = pr.miss_mm.norm();
     pr.normalised = pr.miss_norm_mm / sigma;
-    pr.used = duplicate_of[i] < 0;
+    pr.used = std::binary_search(active.begin(), active.end(), i);
+    pr.outlier = std::find(left_out.begin(), left_out.end(), i) != left_out.end();
     pr.duplicate_of = duplicate_of[i] + 1;
     const Line l = laserLine(cell, poses[i].q_deg, f.est);
     pr.standoff_mm = l.direction.dot(f.targets[layout.slot(poses[i].placement)] - l.point);
@@ -248,6 +343,8 @@ SolveReport solveMultiPlacement(const CellModel& cell, const std::vector<Pose>& 
     report.poses.push_back(pr);
   }
   report.rms_miss_mm = std::sqrt(rss / m);
+  const double unit = options.noise_mm ? *options.noise_mm : sigma;
+  for (SuspectPose& sp : report.suspect_poses) sp.chi2_without /= unit * unit;
   for (int i = 0; i < n; ++i)
     if (duplicate_of[i] >= 0)
       report.suspect_poses.push_back(
@@ -255,7 +352,7 @@ SolveReport solveMultiPlacement(const CellModel& cell, const std::vector<Pose>& 
            "repeats " + poseLabel(poses, duplicate_of[i]) +
                " exactly (the same joints, reading and placement): one measurement, counted once",
            report.chi2_per_dof.value_or(1.0)});
-  report.verdict = judge(report, options, {});
+  report.verdict = judge(report, options, gross_problems);
   report.solve_time_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started).count();
   return report;

@@ -59,8 +59,12 @@ Vector6d toRadians(const Joints& q) {
 
 // Frame of the flange with Jets: derivative of everything with respect to the six joints.
 Frame<Jet6> flangeJet(const CellModel& cell, const Vector6d& q_rad, const Joints& delta_deg) {
+  // A calibrated robot's compliance turns joints 2 and 3 with the pose: its change with the
+  // joints is far below what the Gauss-Newton steps need, so the deflection is a constant here.
+  const Joints sag = complianceDeflectionDeg(cell.robot, toDegrees(q_rad));
   Jet6 joints[kJointCount];
-  for (int i = 0; i < kJointCount; ++i) joints[i] = Jet6(q_rad[i] + delta_deg[i] * kDegToRad, i);
+  for (int i = 0; i < kJointCount; ++i)
+    joints[i] = Jet6(q_rad[i] + (delta_deg[i] + sag[i]) * kDegToRad, i);
   return flangePose(cell.robot, joints);
 }
 
@@ -124,7 +128,7 @@ namespace {
 
 Prediction predictSeveralPlacements(const CellModel& cell, const std::vector<Pose>& poses,
                                     const CalibrationParameters& at, double sigma_mm) {
-  const PlacementLayout layout(poses);
+  const PlacementLayout layout(poses, cell.robot);
   const auto targets = placementTargets(cell, poses, layout, at, false);
   // Planned poses aim the nominal lines exactly at their centres: the structural Jacobian.
   const Eigen::MatrixXd jac = placementJacobian(cell, poses, layout, at, targets, sigma_mm, false);

@@ -18,6 +18,8 @@
 #include "zerocal/error.h"
 
 namespace zerocal {
+using detail::subset;
+
 void checkPoses(const CellModel& cell, const std::vector<Pose>& poses) {
   if (poses.size() < static_cast<std::size_t>(kMinimumPoses))
     throw InputError(std::to_string(poses.size()) + " poses given; identifying " +
@@ -108,6 +110,7 @@ std::string SolveOptions::validate() const {
   if (!(model_length_mm >= 0 && model_length_mm <= 10 && model_angle_deg >= 0 &&
         model_angle_deg <= 1))
     return "the link tolerances must be 0..10 mm and 0..1 deg";
+  if (!(model_sag_deg >= 0 && model_sag_deg <= 1)) return "the sag tolerance must be 0..1 deg";
   if (loss != RobustLoss::kNone && !noise_mm)
     return "a robust loss needs the noise level (--noise), to know what counts as large";
   if (max_iterations < 1) return "max_iterations must be at least 1";
@@ -216,12 +219,6 @@ Deletion deletionDrops(const Eigen::MatrixXd& jac_mm, const Eigen::VectorXd& r) 
   return out;
 }
 
-std::vector<Pose> subset(const std::vector<Pose>& poses, const std::vector<int>& indices) {
-  std::vector<Pose> out;
-  for (int i : indices) out.push_back(poses[i]);
-  return out;
-}
-
 std::string poseName(const std::vector<Pose>& poses, int i) {
   return "pose " + std::to_string(i + 1) +
          (poses[i].source_line ? " (line " + std::to_string(poses[i].source_line) + ")"
@@ -240,22 +237,20 @@ std::string general(double v) {
   return buf;
 }
 
-// One round of the deletion test on the poses `active` fitted by `fit`.
+// One round of the deletion test on a fit: its misses (mm, 2 per pose) and their Jacobian.
 struct DeletionTest {
   bool checkable = false;         // enough redundancy to test at all
-  int best = -1, runner_up = -1;  // positions in `active`, by decreasing statistic
-  std::vector<double> ratio;      // statistic over its threshold, per active pose (NaN: unchecked)
+  int best = -1, runner_up = -1;  // positions in the fitted poses, by decreasing statistic
+  std::vector<double> ratio;      // statistic over its threshold, per fitted pose (NaN: unchecked)
   double rss_mm2 = 0;
   int dof = 0;
 };
-DeletionTest deletionTest(const CellModel& cell, const std::vector<Pose>& active,
-                          const CalibrationParameters& est, bool readings,
+DeletionTest deletionTest(const Eigen::VectorXd& r, const Eigen::MatrixXd& jac_mm,
                           const SolveOptions& options) {
   DeletionTest t;
-  const Eigen::VectorXd r = misses(cell, active, est, readings);
-  const Deletion d = deletionDrops(pointToLineJacobian(cell, active, est, 1.0, readings), r);
+  const Deletion d = deletionDrops(jac_mm, r);
   t.rss_mm2 = r.squaredNorm();
-  t.dof = 2 * static_cast<int>(active.size()) - d.rank;
+  t.dof = static_cast<int>(r.size()) - d.rank;
   const int rest_dof = t.dof - 2;  // of the fit without one pose
   if (rest_dof < 1) return t;
   int checked = 0;
@@ -347,6 +342,104 @@ Verdict judge(const SolveReport& r, const SolveOptions& o,
   return v;
 }
 
+GrossErrorSearch findGrossErrors(
+    const std::vector<Pose>& poses, std::vector<int> active, TrialFit fit,
+    const SolveOptions& options, const SubsetFitter& refit,
+    const std::function<std::string(const std::vector<int>&, int)>& cannot_leave_out) {
+  // Leave out, one at a time, the pose whose removal explains the most misfit, while it explains
+  // more than chance and the rest keeps the redundancy to check it.
+  GrossErrorSearch g;
+  constexpr int kMostLeftOut = 2;
+  while (fit.converged) {
+    // A beam fitted pointing away from the PSD is a wrong model at every pose, not one bad pose.
+    if (fit.beam_points_away) break;
+    const DeletionTest t = deletionTest(fit.misses_mm, fit.jacobian_mm, options);
+    if (!significant(t, t.best)) break;
+    const int worst = active[t.best];
+    if (static_cast<int>(g.left_out.size()) == kMostLeftOut) {
+      g.problems.push_back(poseName(poses, worst) + " does not fit either, after " +
+                           std::to_string(kMostLeftOut) +
+                           " poses were left out: the poses do not describe one cell (a "
+                           "wrong model or a disturbed session), measure them again");
+      g.remeasure.push_back(worst + 1);
+      break;
+    }
+    // Leaving it out must keep a check on the rest: 2 (N-1) - unknowns >= 3.
+    if (t.dof - 2 < 3) {
+      g.problems.push_back(poseName(poses, worst) +
+                           " does not fit the others, but there are too few poses to leave "
+                           "it out and still check the rest: measure it again or add poses");
+      g.remeasure.push_back(worst + 1);
+      break;
+    }
+    std::vector<int> without = active;
+    without.erase(without.begin() + t.best);
+    if (cannot_leave_out) {
+      const std::string why = cannot_leave_out(without, worst);
+      if (!why.empty()) {
+        g.problems.push_back(poseName(poses, worst) + " does not fit the others, but " + why +
+                             ": measure it again or add poses");
+        g.remeasure.push_back(worst + 1);
+        break;
+      }
+    }
+    const TrialFit next = refit(without, fit.estimate);
+    g.iterations += next.iterations;
+    if (!next.converged) break;
+    // The same misfit may be explained by another pose: then the data cannot say which is wrong.
+    if (significant(t, t.runner_up)) {
+      std::vector<int> other = active;
+      other.erase(other.begin() + t.runner_up);
+      const bool possible =
+          !cannot_leave_out || cannot_leave_out(other, active[t.runner_up]).empty();
+      if (possible) {
+        const TrialFit alt = refit(other, fit.estimate);
+        g.iterations += alt.iterations;
+        if (alt.converged) {
+          const DeletionTest ta = deletionTest(alt.misses_mm, alt.jacobian_mm, options);
+          const int pos = t.best < t.runner_up ? t.best : t.best - 1;
+          if (ta.checkable && !significant(ta, pos)) {
+            g.problems.push_back(
+                poseName(poses, worst) + " or " + poseName(poses, active[t.runner_up]) +
+                " does not fit, and the poses cannot tell which: leaving out either one leaves a "
+                "consistent set; measure both again or add poses");
+            g.remeasure.push_back(worst + 1);
+            g.remeasure.push_back(active[t.runner_up] + 1);
+            break;
+          }
+        }
+      }
+    }
+    const double rss_without = next.misses_mm.squaredNorm();
+    const int dof_without = t.dof - 2;
+    SuspectPose sp;
+    sp.pose = worst + 1;
+    sp.source_line = poses[worst].source_line;
+    const double before = t.rss_mm2 / t.dof, after = rss_without / dof_without;
+    sp.chi2_without = after;  // in mm^2: the caller rescales it to the noise in force
+    sp.reason =
+        "does not fit the other poses: leaving it out lowers the misfit (RMS miss per "
+        "degree of freedom) from " +
+        fixed(1e3 * std::sqrt(before), 1) + " to " + fixed(1e3 * std::sqrt(after), 1) +
+        " um (test statistic " + fixed(t.ratio[t.best], 1) + " times its " +
+        general(options.gross_error_alpha) + " family-wise threshold); left out of the result";
+    g.suspects.push_back(sp);
+    g.remeasure.push_back(worst + 1);
+    g.left_out.push_back(worst);
+    active = std::move(without);
+    fit = next;
+  }
+  g.active = std::move(active);
+  g.fit = std::move(fit);
+  return g;
+}
+
+std::vector<Pose> subset(const std::vector<Pose>& poses, const std::vector<int>& indices) {
+  std::vector<Pose> out;
+  for (int i : indices) out.push_back(poses[i]);
+  return out;
+}
+
 std::vector<int> findDuplicates(const std::vector<Pose>& poses) {
   const int n = static_cast<int>(poses.size());
   std::vector<int> duplicate_of(n, -1);
@@ -433,84 +526,44 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
   CalibrationParameters nominal;
   nominal.target_mm = bestTarget(cell, subset(poses, active), nominal, readings);
   Fit fit = runFit(cell, subset(poses, active), options, readings, nominal);
-  int iterations = fit.iterations;
 
-  // Gross errors: leave out, one at a time, the pose whose removal explains the most misfit, while
-  // it explains more than chance and the rest keeps the redundancy to check it.
+  // Gross errors: the deletion diagnostics on the maximum-likelihood fit.
+  std::vector<CalibrationParameters> estimates;
+  const auto describe = [&](const std::vector<int>& subset_of, const Fit& f) {
+    const std::vector<Pose> chosen = subset(poses, subset_of);
+    detail::TrialFit t;
+    t.converged = f.converged;
+    t.iterations = f.iterations;
+    t.message = f.message;
+    t.estimate = static_cast<int>(estimates.size());
+    estimates.push_back(f.est);
+    t.misses_mm = misses(cell, chosen, f.est, readings);
+    t.jacobian_mm = pointToLineJacobian(cell, chosen, f.est, 1.0, readings);
+    const auto s = standoffs(cell, chosen, f.est);
+    t.beam_points_away = *std::min_element(s.begin(), s.end()) <= 0;
+    return t;
+  };
+  const auto trial = [&](const std::vector<int>& subset_of, int start) {
+    return describe(subset_of,
+                    runFit(cell, subset(poses, subset_of), options, readings, estimates[start]));
+  };
   std::vector<int> left_out;
   std::vector<std::string> gross_problems;
-  constexpr int kMostLeftOut = 2;
+  int iterations = fit.iterations;
   const bool diagnose = options.find_gross_errors && options.cost == CostKind::kMaximumLikelihood &&
                         options.loss == RobustLoss::kNone;
-  while (diagnose && fit.converged) {
-    const std::vector<Pose> current = subset(poses, active);
-    // A beam fitted pointing away from the PSD is a wrong model at every pose, not one bad pose.
-    const auto current_standoffs = standoffs(cell, current, fit.est);
-    if (*std::min_element(current_standoffs.begin(), current_standoffs.end()) <= 0) break;
-    const DeletionTest t = deletionTest(cell, current, fit.est, readings, options);
-    if (!significant(t, t.best)) break;
-    const int worst = active[t.best];
-    if (static_cast<int>(left_out.size()) == kMostLeftOut) {
-      gross_problems.push_back(poseName(poses, worst) + " does not fit either, after " +
-                               std::to_string(kMostLeftOut) +
-                               " poses were left out: the poses do not describe one cell (a "
-                               "wrong model or a disturbed session), measure them again");
-      report.remeasure.push_back(worst + 1);
-      break;
-    }
-    // Leaving it out must keep a check on the rest: 2 (N-1) - 11 >= 3.
-    if (t.dof - 2 < 3) {
-      gross_problems.push_back(poseName(poses, worst) +
-                               " does not fit the others, but there are too few poses to leave "
-                               "it out and still check the rest: measure it again or add poses");
-      report.remeasure.push_back(worst + 1);
-      break;
-    }
-    std::vector<int> without = active;
-    without.erase(without.begin() + t.best);
-    const Fit refit = runFit(cell, subset(poses, without), options, readings, fit.est);
-    iterations += refit.iterations;
-    if (!refit.converged) break;
-    // The same misfit may be explained by another pose: then the data cannot say which is wrong.
-    if (significant(t, t.runner_up)) {
-      std::vector<int> other = active;
-      other.erase(other.begin() + t.runner_up);
-      const Fit alt = runFit(cell, subset(poses, other), options, readings, fit.est);
-      iterations += alt.iterations;
-      if (alt.converged) {
-        const DeletionTest ta =
-            deletionTest(cell, subset(poses, other), alt.est, readings, options);
-        const int pos = t.best < t.runner_up ? t.best : t.best - 1;
-        if (ta.checkable && !significant(ta, pos)) {
-          gross_problems.push_back(
-              poseName(poses, worst) + " or " + poseName(poses, active[t.runner_up]) +
-              " does not fit, and the poses cannot tell which: leaving out either one leaves a "
-              "consistent set; measure both again or add poses");
-          report.remeasure.push_back(worst + 1);
-          report.remeasure.push_back(active[t.runner_up] + 1);
-          break;
-        }
-      }
-    }
-    const double rss_without =
-        misses(cell, subset(poses, without), refit.est, readings).squaredNorm();
-    const int dof_without = t.dof - 2;
-    SuspectPose sp;
-    sp.pose = worst + 1;
-    sp.source_line = poses[worst].source_line;
-    const double before = t.rss_mm2 / t.dof, after = rss_without / dof_without;
-    sp.chi2_without = after;  // rescaled below to the noise in force
-    sp.reason =
-        "does not fit the other poses: leaving it out lowers the misfit (RMS miss per "
-        "degree of freedom) from " +
-        fixed(1e3 * std::sqrt(before), 1) + " to " + fixed(1e3 * std::sqrt(after), 1) +
-        " um (test statistic " + fixed(t.ratio[t.best], 1) + " times its " +
-        general(options.gross_error_alpha) + " family-wise threshold); left out of the result";
-    report.suspect_poses.push_back(sp);
-    report.remeasure.push_back(worst + 1);
-    left_out.push_back(worst);
-    active = std::move(without);
-    fit = refit;
+  if (diagnose && fit.converged) {
+    detail::TrialFit first = describe(active, fit);
+    detail::GrossErrorSearch g = detail::findGrossErrors(poses, active, first, options, trial, {});
+    iterations += g.iterations;
+    active = g.active;
+    left_out = g.left_out;
+    gross_problems = g.problems;
+    report.suspect_poses = g.suspects;
+    report.remeasure = g.remeasure;
+    fit.est = estimates[g.fit.estimate];
+    fit.converged = g.fit.converged;
+    fit.message = g.fit.message;
   }
   report.iterations = iterations;
   report.converged = fit.converged;

@@ -3,6 +3,7 @@
 
 #include <ceres/ceres.h>
 
+#include <Eigen/Core>
 #include <functional>
 #include <string>
 #include <vector>
@@ -31,6 +32,9 @@ ceres::Solver::Options solverOptions(const SolveOptions& options, CancelCallback
 Verdict judge(const SolveReport& r, const SolveOptions& o,
               const std::vector<std::string>& gross_problems);
 
+// The poses at the given indices, in that order.
+std::vector<Pose> subset(const std::vector<Pose>& poses, const std::vector<int>& indices);
+
 // Per pose, the earlier pose it repeats exactly (joints, reading and placement), or -1.
 std::vector<int> findDuplicates(const std::vector<Pose>& poses);
 // Throws InputError when fewer than kMinimumPoses of the poses are distinct.
@@ -52,6 +56,39 @@ SolveReport startReport(const std::vector<Pose>& poses, const SolveOptions& opti
 std::string fixedText(double v, int precision);
 // "pose 3 (line 5)".
 std::string poseLabel(const std::vector<Pose>& poses, int i);
+
+// A fit of a subset of the poses, for the deletion diagnostics (docs/maths.md section 5).
+struct TrialFit {
+  bool converged = false;
+  int iterations = 0;
+  Eigen::VectorXd misses_mm;      // 2 per fitted pose, in their order
+  Eigen::MatrixXd jacobian_mm;    // of the misses in the identified unknowns
+  bool beam_points_away = false;  // a fitted stand-off <= 0
+  int estimate = -1;              // the caller's handle of the estimate it reached
+  std::string message;            // the solver's
+};
+// Fits the poses `active` (indices into the given poses, ascending) from the estimate `start`.
+using SubsetFitter = std::function<TrialFit(const std::vector<int>& active, int start)>;
+
+struct GrossErrorSearch {
+  std::vector<int> active;            // the poses the result rests on
+  std::vector<int> left_out;          // 0-based, in the order they were left out
+  std::vector<std::string> problems;  // for the verdict: what cannot be attributed
+  std::vector<SuspectPose> suspects;  // chi2_without in mm^2 per degree of freedom
+  std::vector<int> remeasure;         // 1-based
+  int iterations = 0;                 // of the refits
+  TrialFit fit;                       // of `active`
+};
+
+// The deletion diagnostics: leaves out, at most twice, the pose that does not fit the others
+// while the rest can check it, and refuses what the poses cannot attribute (two poses either
+// of which explains the misfit, a third misfit, too few poses). `fit` is the fit of `active`.
+// cannot_leave_out (optional) says why the poses `remaining` cannot do without pose `i`
+// (empty: they can).
+GrossErrorSearch findGrossErrors(
+    const std::vector<Pose>& poses, std::vector<int> active, TrialFit fit,
+    const SolveOptions& options, const SubsetFitter& refit,
+    const std::function<std::string(const std::vector<int>& remaining, int i)>& cannot_leave_out);
 
 // solve() for poses at two or more PSD placements (docs/maths.md section 8).
 SolveReport solveMultiPlacement(const CellModel& cell, const std::vector<Pose>& poses,

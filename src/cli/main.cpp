@@ -118,6 +118,16 @@ bool refuseUnknownCommand(const CLI::App& app, const std::string& word, std::ost
   return true;
 }
 
+// Writes a calibrated robot file, after checking that it reads back (a model that the loader
+// refuses must not be left behind as if it were one).
+void saveCalibratedModel(const std::string& path, const Robot& robot, const std::string& comment) {
+  const std::string text = robotYaml(robot, comment);
+  parseRobot(text, path);
+  std::ofstream out(path);
+  out << text;
+  if (!out) throw InputError(path + ": cannot write the robot model");
+}
+
 }  // namespace
 }  // namespace zerocal
 
@@ -169,6 +179,21 @@ int main(int argc, char** argv) {
                    "largest plausible zero offset, deg; beyond it the result is refused (the "
                    "model is wrong, not the zero)")
       ->default_val(max_offset);
+  bool identify_compliance = false;
+  double sag_tolerance = 0;
+  std::string save_model;
+  solve_cmd->add_flag("--identify-compliance", identify_compliance,
+                      "several placements: identify the compliance of joints 2 and 3 against the "
+                      "robot file's gravity model");
+  solve_cmd
+      ->add_option("--sag-tolerance", sag_tolerance,
+                   "several placements: the gravity sag's one-sigma tolerance at the largest "
+                   "torque, deg, counted in every sigma when the compliance is not identified")
+      ->check(CLI::Range(0.0, 1.0));
+  solve_cmd->add_option("--save-model", save_model,
+                        "several placements: write the robot file with the identified link "
+                        "errors and compliance (a calibrated model) to this path, when the "
+                        "result is usable");
   solve_cmd->add_flag("--json", solve_json, "print one JSON object instead of text");
   std::optional<int> holdout_count;
   std::vector<int> holdout_poses;
@@ -357,6 +382,8 @@ int main(int argc, char** argv) {
       options.loss_scale_sigmas = loss_scale;
       options.required_accuracy_deg = required_accuracy;
       options.max_offset_deg = max_offset;
+      options.identify_compliance = identify_compliance;
+      options.model_sag_deg = sag_tolerance;
       bool has_readings = !poses.empty() && poses.front().spot.has_value();
       options.use_readings = has_readings && !ignore_readings;
       if (options.use_readings) {
@@ -378,6 +405,20 @@ int main(int argc, char** argv) {
       } else {
         std::cout << toText(report);
         if (validation) std::cout << toText(*validation);
+      }
+      if (!save_model.empty()) {
+        if (report.placements.empty())
+          throw InputError(
+              "--save-model needs poses at two or more PSD placements: one "
+              "placement identifies no link error");
+        if (report.verdict.usable) {
+          saveCalibratedModel(save_model, calibratedRobot(cell.robot, report.estimate),
+                              "calibrated from " + joints_file + " by zerocal solve");
+          std::cerr << "zerocal: calibrated robot model written to " << save_model << "\n";
+        } else {
+          std::cerr << "zerocal: the result is not usable: no robot model written to " << save_model
+                    << "\n";
+        }
       }
       if (!report.converged) return kNotConverged;
       for (int k = 0; k < kOffsetCount; ++k)

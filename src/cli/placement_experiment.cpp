@@ -116,18 +116,64 @@ std::vector<Pose> record(const World& world, const std::vector<SimPlacement>& pl
   return out;
 }
 
+// One gross error put into a recorded session, at a pose drawn from `rng`: returns its index.
+int injectGrossError(std::vector<Pose>& poses, const PlacementExperimentArgs& args,
+                     std::mt19937_64& rng) {
+  std::uniform_int_distribution<int> which_pose(0, static_cast<int>(poses.size()) - 1),
+      which_joint(1, 4);
+  std::uniform_real_distribution<double> angle(0, 2 * kPi);
+  const int bad = which_pose(rng);
+  if (args.gross == "spot") {
+    const double a = angle(rng);
+    poses[bad].spot->u_mm += args.gross_spot_mm * std::cos(a);
+    poses[bad].spot->v_mm += args.gross_spot_mm * std::sin(a);
+  } else {
+    const int joint = which_joint(rng);
+    poses[bad].q_deg[joint] += angle(rng) < kPi ? args.gross_joint_deg : -args.gross_joint_deg;
+  }
+  return bad;
+}
+
+// What the gross-error search made of a session with one gross error at pose `bad`.
+struct GrossTally {
+  int named = 0;    // the corrupted pose, and only it, left out; verdict usable
+  int wrong = 0;    // another pose left out, or more than the corrupted one; verdict usable
+  int refused = 0;  // verdict not usable
+  int missed = 0;   // nothing left out, verdict usable
+  void add(const SolveReport& r, int bad) {
+    int left_out = 0;
+    bool bad_left_out = false;
+    for (std::size_t i = 0; i < r.poses.size(); ++i)
+      if (r.poses[i].outlier) ++left_out, bad_left_out = bad_left_out || static_cast<int>(i) == bad;
+    if (!r.verdict.usable)
+      ++refused;
+    else if (bad_left_out && left_out == 1)
+      ++named;
+    else if (left_out > 0)
+      ++wrong;
+    else
+      ++missed;
+  }
+  nlohmann::json json() const {
+    return {{"named", named}, {"wrong_pose", wrong}, {"refused", refused}, {"missed", missed}};
+  }
+};
+
 struct Tally {
   std::vector<double> errors_deg;  // every estimate of delta2..delta5
   double worst_sigmas = 0;
   int within = 0, offered = 0, usable = 0, solved = 0;
+  int compliances = 0;                   // compliance unknowns identified, over the sessions
   std::vector<double> identified_links;  // per session
 
   void add(const SolveReport& r, const World& world, double max_sigmas) {
     ++solved;
     usable += r.verdict.usable ? 1 : 0;
     int links = 0;
-    for (std::size_t k = kIdentifiedCount; k < r.parameters.size(); ++k)
-      links += r.parameters[k].identifiable ? 1 : 0;
+    for (std::size_t k = kIdentifiedCount; k < r.parameters.size(); ++k) {
+      const bool compliance = r.parameters[k].name.rfind("compliance", 0) == 0;
+      if (r.parameters[k].identifiable) ++(compliance ? compliances : links);
+    }
     identified_links.push_back(links);
     for (int k = 0; k < kOffsetCount; ++k) {
       const ParameterEstimate& p = r.parameters[k];
@@ -150,10 +196,15 @@ struct Tally {
     return identified_links.empty() ? 0 : s / identified_links.size();
   }
   nlohmann::json json() const {
-    return {{"sessions", solved},           {"usable", usable},
-            {"offsets", errors_deg.size()}, {"offsets_offered", offered},
-            {"within_3_sigma", within},     {"worst_error_sigmas", worst_sigmas},
-            {"rms_error_deg", rms()},       {"mean_identified_link_errors", meanLinks()}};
+    return {{"sessions", solved},
+            {"usable", usable},
+            {"offsets", errors_deg.size()},
+            {"offsets_offered", offered},
+            {"within_3_sigma", within},
+            {"worst_error_sigmas", worst_sigmas},
+            {"rms_error_deg", rms()},
+            {"mean_identified_link_errors", meanLinks()},
+            {"compliances_identified", compliances}};
   }
 };
 
@@ -190,6 +241,20 @@ void addPlacementExperiment(CLI::App& experiment, PlacementExperimentArgs& args)
   cmd->add_flag("--without-sag", args.without_sag,
                 "the worlds without the gravity sag of joints 2 and 3, which the solve does not "
                 "model (to see what it costs)");
+  cmd->add_option("--sag-tolerance", args.model_sag_deg,
+                  "the gravity sag's one-sigma tolerance at the largest torque, deg, counted "
+                  "when the compliance is not identified (realistic worlds with their sag)")
+      ->default_val(args.model_sag_deg)
+      ->check(CLI::Range(0.0, 1.0));
+  cmd->add_flag("--identify-compliance", args.identify_compliance,
+                "identify the compliance of joints 2 and 3 (robot file's gravity model) instead "
+                "of counting the sag as a tolerance");
+  cmd->add_option("--gross", args.gross,
+                  "one gross error per session at a random pose: spot (the reading 0.5 mm off) "
+                  "or joint (one of joints 2..5 recorded 0.05 deg off); counts how often the "
+                  "solve names the pose")
+      ->default_val(args.gross)
+      ->check(CLI::IsMember({"none", "spot", "joint"}));
   cmd->add_flag("--json", args.json, "print one JSON object instead of text");
 }
 
@@ -197,11 +262,14 @@ int runPlacementExperiment(const PlacementExperimentArgs& args) {
   const WorldKind kind = args.ideal_world ? WorldKind::kIdeal : WorldKind::kRealistic;
   SolveOptions options;
   options.noise_mm = args.noise_mm;
+  options.identify_compliance = args.identify_compliance;
   if (!args.ideal_world) {
     options.model_length_mm = args.model_length_mm;
     options.model_angle_deg = args.model_angle_deg;
+    if (!args.without_sag) options.model_sag_deg = args.model_sag_deg;
   }
   Tally several, one;
+  GrossTally gross_several, gross_one;
   nlohmann::json per_world = nlohmann::json::array();
   for (int w = 0; w < args.worlds; ++w) {
     const std::uint64_t seed = args.seed0 + static_cast<std::uint64_t>(w);
@@ -229,14 +297,32 @@ int runPlacementExperiment(const PlacementExperimentArgs& args) {
     const Plan single_plan = planPoses(known, placements[0].taught, single_options);
 
     std::mt19937_64 rng(seed * 7919 + 17);
-    const SolveReport r_several = solve(known, record(world, placements, plan.poses, rng), options);
-    const SolveReport r_one =
-        solve(known, record(world, placements, single_plan.poses, rng), options);
+    std::vector<Pose> rec_several = record(world, placements, plan.poses, rng);
+    std::vector<Pose> rec_one = record(world, placements, single_plan.poses, rng);
+    // Its own stream: the recordings stay those of the clean sessions.
+    std::mt19937_64 gross_rng(seed * 104729 + 3);
+    const bool inject = args.gross != "none";
+    const int bad_several = inject ? injectGrossError(rec_several, args, gross_rng) : -1;
+    const int bad_one = inject ? injectGrossError(rec_one, args, gross_rng) : -1;
+    const SolveReport r_several = solve(known, rec_several, options);
+    const SolveReport r_one = solve(known, rec_one, options);
     several.add(r_several, world, args.max_sigmas);
     one.add(r_one, world, args.max_sigmas);
+    if (inject) {
+      gross_several.add(r_several, bad_several);
+      gross_one.add(r_one, bad_one);
+    }
     nlohmann::json row{{"seed", seed},
                        {"several_usable", r_several.verdict.usable},
                        {"one_usable", r_one.verdict.usable}};
+    if (inject) {
+      row["gross_pose"] = {bad_several + 1, bad_one + 1};
+      for (const auto& [key, r] :
+           {std::pair<const char*, const SolveReport*>{"several", &r_several}, {"one", &r_one}})
+        for (const SuspectPose& sp : r->suspect_poses)
+          row[std::string(key) + "_suspects"].push_back(
+              {{"pose", sp.pose}, {"chi2_without", sp.chi2_without}});
+    }
     for (int k = 0; k < kOffsetCount; ++k) {
       const double truth = world.true_offsets_deg[k + 1];
       row["several_error_deg"].push_back(r_several.parameters[k].value - truth);
@@ -254,13 +340,20 @@ int runPlacementExperiment(const PlacementExperimentArgs& args) {
                      {"seed0", args.seed0},
                      {"world", args.ideal_world ? "ideal" : "realistic"},
                      {"without_sag", args.without_sag},
+                     {"identify_compliance", args.identify_compliance},
+                     {"sag_tolerance_deg", options.model_sag_deg},
                      {"placements", args.placements},
                      {"poses_per_placement", args.poses},
                      {"noise_mm", args.noise_mm},
                      {"several_placements", several.json()},
                      {"one_placement", one.json()},
                      {"requirements_met", ok},
+                     {"gross", args.gross},
                      {"per_world", per_world}};
+    if (args.gross != "none") {
+      j["several_placements"]["gross_errors"] = gross_several.json();
+      j["one_placement"]["gross_errors"] = gross_one.json();
+    }
     std::cout << j.dump(2) << "\n";
   } else {
     char line[300];
@@ -280,6 +373,15 @@ int runPlacementExperiment(const PlacementExperimentArgs& args) {
                     name, t->usable, t->solved, t->offered, t->errors_deg.size(), t->within,
                     t->errors_deg.size(), t->worst_sigmas, t->rms(), t->meanLinks());
       std::cout << line << "\n";
+    }
+    if (args.gross != "none") {
+      std::printf("one gross error per session (%s): %-22s %8s %8s %8s %8s\n",
+                  args.gross == "spot" ? "the reading 0.5 mm off" : "a joint 0.05 deg off", "",
+                  "named", "wrong", "refused", "missed");
+      for (const auto& [name, g] :
+           {std::pair<const char*, const GrossTally*>{"several placements", &gross_several},
+            {"one placement", &gross_one}})
+        std::printf("  %-22s %8d %8d %8d %8d\n", name, g->named, g->wrong, g->refused, g->missed);
     }
     std::printf(
         "requirement (several placements: RMS <= %.4f deg, every offset within %.0f "

@@ -4,6 +4,7 @@
 
 #include <CLI/CLI.hpp>
 #include <cstdint>
+#include <string>
 
 namespace zerocal::cli {
 
@@ -15,6 +16,15 @@ struct PlacementExperimentArgs {
   double noise_mm = 0.020;       // the measurement sigma given to the solve (the daemon's)
   double model_length_mm = 0.1;  // link tolerances counted (the daemon's defaults)
   double model_angle_deg = 0.01;
+  // The gravity sag's tolerance at the largest torque, counted when the compliance is not
+  // identified (the realistic world's sag is 0.003..0.010 deg on joint 2: RMS 0.007).
+  double model_sag_deg = 0.007;
+  bool identify_compliance = false;
+  // One gross error per session at a random pose: "none", "spot" (the reading gross_spot_mm off
+  // in a random direction) or "joint" (one of joints 2..5 recorded gross_joint_deg off).
+  std::string gross = "none";
+  double gross_spot_mm = 0.5;
+  double gross_joint_deg = 0.05;
   bool ideal_world = false;
   bool without_sag = false;  // the realistic world less its gravity sag (what the sag costs)
   bool json = false;

@@ -55,13 +55,36 @@ TEST_F(CostGradients, PointToLineWithHitPointOffset) {
   check(*cost, {delta.data(), laser.data(), target.data()});
 }
 
-TEST_F(CostGradients, PointToLineWithLinkErrors) {
+TEST_F(CostGradients, PointToLineWithLinkErrorsAndCompliance) {
+  ASSERT_TRUE(sc.cell.robot.hasGravityModel());  // the shipped robot's: the torque is not zero
   Eigen::Matrix<double, kLinkParamCount, 1> link;
   for (int k = 0; k < kLinkParamCount; ++k) link[k] = (k % 3 == 2 ? 1e-4 : 0.1) * (k % 2 ? -1 : 1);
+  const Eigen::Vector2d compliance(2e-4, -1e-4);  // rad per kN m
   for (const auto& pose : poses) {
     std::unique_ptr<ceres::CostFunction> cost(
         LinkPointToLineCost::create(sc.cell, pose.q_deg, Eigen::Vector3d(0.2, 0.1, 0), 0.03));
-    check(*cost, {delta.data(), laser.data(), link.data(), target.data()});
+    check(*cost, {delta.data(), laser.data(), link.data(), compliance.data(), target.data()});
+  }
+}
+
+// The compliance turns joint j by c_j tau_j(q): the same residual as the offset turned so.
+TEST_F(CostGradients, ComplianceActsAsTheTorqueTimesItOnTheJoint) {
+  const Eigen::Matrix<double, kLinkParamCount, 1> zero_link =
+      Eigen::Matrix<double, kLinkParamCount, 1>::Zero();
+  const Eigen::Vector2d compliance(3e-4, -2e-4);
+  for (const auto& pose : poses) {
+    const auto torque = gravityTorqueKnm(sc.cell.robot, sc.cell.robot.masses, pose.q_deg);
+    EXPECT_GT(std::abs(torque[0]), 1e-3);
+    Eigen::Vector4d turned = delta;
+    turned[0] += compliance[0] * torque[0];
+    turned[1] += compliance[1] * torque[1];
+    double expected[2], with[2];
+    PointToLineCost(sc.cell, pose.q_deg, Eigen::Vector3d::Zero(), 0.03)(turned.data(), laser.data(),
+                                                                        target.data(), expected);
+    LinkPointToLineCost(sc.cell, pose.q_deg, Eigen::Vector3d::Zero(), 0.03)(
+        delta.data(), laser.data(), zero_link.data(), compliance.data(), target.data(), with);
+    EXPECT_NEAR(expected[0], with[0], 1e-9);
+    EXPECT_NEAR(expected[1], with[1], 1e-9);
   }
 }
 
@@ -73,8 +96,9 @@ TEST_F(CostGradients, LinkErrorsOfZeroGiveThePointToLineResidual) {
     double plain[2], with_links[2];
     PointToLineCost(sc.cell, pose.q_deg, offset, 0.03)(delta.data(), laser.data(), target.data(),
                                                        plain);
-    LinkPointToLineCost(sc.cell, pose.q_deg, offset, 0.03)(delta.data(), laser.data(), zero.data(),
-                                                           target.data(), with_links);
+    const Eigen::Vector2d no_compliance = Eigen::Vector2d::Zero();
+    LinkPointToLineCost(sc.cell, pose.q_deg, offset, 0.03)(
+        delta.data(), laser.data(), zero.data(), no_compliance.data(), target.data(), with_links);
     EXPECT_NEAR(plain[0], with_links[0], 1e-9);
     EXPECT_NEAR(plain[1], with_links[1], 1e-9);
   }

@@ -66,7 +66,7 @@ const ParameterEstimate* find(const SolveReport& r, const std::string& name) {
 
 TEST(BaseParameters, NamesAZeroColumnAndACombinationWithWhatItCombinesWith) {
   const std::vector<Pose> poses = atPlacement(testing::storedPlan("table2-8"), 1);
-  const PlacementLayout layout(poses);
+  const PlacementLayout layout(poses, Robot{});
   const int n = layout.unknownCount();
   std::mt19937_64 rng(3);
   std::normal_distribution<double> normal;
@@ -75,7 +75,7 @@ TEST(BaseParameters, NamesAZeroColumnAndACombinationWithWhatItCombinesWith) {
     for (int c = 0; c < n; ++c) jac(r, c) = normal(rng);
   const int da3 = PlacementLayout::firstLink() + 6, dd4 = PlacementLayout::firstLink() + 10;
   jac.col(da3).setZero();
-  jac.col(dd4) = 2 * jac.col(1) - 0.5 * jac.col(PlacementLayout::firstTarget());
+  jac.col(dd4) = 2 * jac.col(1) - 0.5 * jac.col(layout.firstTarget());
   const BaseParameters base = analyseBaseParameters(jac, layout);
   EXPECT_EQ(base.count, n - 2);
   EXPECT_FALSE(base.identified[da3]);
@@ -98,7 +98,7 @@ TEST(SeveralPlacements, RecoverTheOffsetsAndTheIdentifiableLinkErrorsWithoutNois
   ASSERT_EQ(placementCount(planned), 3);
   // The link errors the poses identify: found first, so that the truth is what can be recovered
   // one by one (an unidentifiable error is recovered only as its combination with others).
-  const PlacementLayout layout(planned);
+  const PlacementLayout layout(planned, sc.cell.robot);
   const BaseParameters base = analyseBaseParameters(
       placementJacobian(sc.cell, planned, layout, {},
                         placementTargets(sc.cell, planned, layout, {}, false), 1.0, false),
@@ -194,6 +194,116 @@ TEST(SeveralPlacements, NameWhatThePosesCannotIdentifyAndWhy) {
   const ParameterEstimate* a2 = find(r, "da2_mm");
   ASSERT_NE(a2, nullptr);
   EXPECT_TRUE(a2->identifiable) << a2->reason;
+}
+
+TEST(BaseParameters, NameTheComplianceWhenThePosesCannotTellItFromAnOffset) {
+  const std::vector<Pose> poses = atPlacement(testing::storedPlan("table2-8"), 1);
+  const PlacementLayout layout(poses, table2Scenario().cell.robot, true);
+  ASSERT_EQ(layout.compliance, kComplianceCount);
+  std::mt19937_64 rng(4);
+  std::normal_distribution<double> normal;
+  Eigen::MatrixXd jac(60, layout.unknownCount());
+  for (int r = 0; r < jac.rows(); ++r)
+    for (int c = 0; c < jac.cols(); ++c) jac(r, c) = normal(rng);
+  // A pose set whose torque on joint 3 is the same at every pose: its compliance is its offset.
+  const int c3 = PlacementLayout::firstCompliance() + 1;
+  jac.col(c3) = 0.3 * jac.col(1);
+  const BaseParameters base = analyseBaseParameters(jac, layout);
+  EXPECT_TRUE(base.identified[PlacementLayout::firstCompliance()]);
+  EXPECT_FALSE(base.identified[c3]);
+  EXPECT_EQ(layout.name(c3), "compliance3_deg_per_knm");
+  EXPECT_NE(base.reason[c3].find("combined with delta3"), std::string::npos) << base.reason[c3];
+}
+
+// A robot file with the true compliance: its sag on the recorded poses (servoOnto turns joints 2
+// and 3 by it), identified back when asked, else counted in the offsets' sigmas as a tolerance.
+TEST(SeveralPlacements, IdentifyTheComplianceOfJoints2And3OrCountItsSag) {
+  Table2Scenario sc = table2Scenario();
+  CellModel sagging = sc.cell;
+  sagging.robot.compliance_deg_per_knm = {0.015, 0.02};  // about 0.007 and 0.003 deg at most
+  const auto recorded = record(sagging, sc.truth, centresOf(sc), threePlacementPlan());
+  SolveOptions options;
+  options.noise_mm = 0.01;
+  options.identify_compliance = true;
+  const SolveReport r = solve(sc.cell, recorded, options);
+  ASSERT_TRUE(r.converged) << r.message;
+  EXPECT_LT(r.rms_miss_mm, 1e-7);
+  for (int k = 0; k < kOffsetCount; ++k)
+    EXPECT_NEAR(r.parameters[k].value, sc.truth.delta_rad[k] * kRadToDeg, 1e-6) << k;
+  for (int c = 0; c < kComplianceCount; ++c) {
+    const ParameterEstimate* p = find(r, complianceParamName(c));
+    ASSERT_NE(p, nullptr);
+    EXPECT_TRUE(p->identifiable) << p->reason;
+    EXPECT_NEAR(p->value, sagging.robot.compliance_deg_per_knm[c], 1e-6);
+  }
+
+  // Not identified: the sag biases delta2 and delta3, and its tolerance widens their sigmas.
+  options.identify_compliance = false;
+  const SolveReport plain = solve(sc.cell, recorded, options);
+  options.model_sag_deg = 0.01;
+  const SolveReport counted = solve(sc.cell, recorded, options);
+  EXPECT_EQ(find(plain, "compliance2_deg_per_knm"), nullptr);
+  EXPECT_EQ(counted.model_sag_deg, 0.01);
+  for (int k = 0; k < 2; ++k) {
+    const double error = std::abs(plain.parameters[k].value - sc.truth.delta_rad[k] * kRadToDeg);
+    EXPECT_GT(error, 3 * plain.parameters[k].sigma) << k;  // the bias a tolerance must cover
+    EXPECT_GT(counted.parameters[k].model_sigma, plain.parameters[k].model_sigma) << k;
+    EXPECT_LT(error, 3 * counted.parameters[k].sigma) << k;
+  }
+}
+
+// One pose recorded with a joint 0.05 deg off (read before the arm settled): named, left out,
+// and the result rests on the others.
+TEST(SeveralPlacements, NameAndLeaveOutAPoseThatDoesNotFit) {
+  const Table2Scenario sc = table2Scenario();
+  auto recorded = record(sc.cell, sc.truth, centresOf(sc), threePlacementPlan());
+  std::mt19937_64 rng(8);
+  std::normal_distribution<double> normal;
+  for (Pose& p : recorded)  // a little noise, so that the misfit has a scale
+    for (int j = 1; j < 5; ++j) p.q_deg[j] += 2e-4 * normal(rng);
+  constexpr int kBad = 13;  // placement 2
+  recorded[kBad].q_deg[2] += 0.05;
+  SolveOptions options;
+  options.noise_mm = 0.01;
+  const SolveReport r = solve(sc.cell, recorded, options);
+  ASSERT_TRUE(r.converged) << r.message;
+  EXPECT_TRUE(r.verdict.usable) << ::testing::PrintToString(r.verdict.reasons);
+  ASSERT_EQ(r.suspect_poses.size(), 1u);
+  EXPECT_EQ(r.suspect_poses[0].pose, kBad + 1);
+  EXPECT_GT(r.suspect_poses[0].chi2_without, 0);
+  EXPECT_NE(r.suspect_poses[0].reason.find("does not fit the other poses"), std::string::npos);
+  EXPECT_TRUE(r.poses[kBad].outlier);
+  EXPECT_FALSE(r.poses[kBad].used);
+  EXPECT_EQ(r.poses_used, static_cast<int>(recorded.size()) - 1);
+  for (int k = 0; k < kOffsetCount; ++k)
+    EXPECT_NEAR(r.parameters[k].value, sc.truth.delta_rad[k] * kRadToDeg, 3 * r.parameters[k].sigma)
+        << k;
+}
+
+// The same error at a placement of only 3 poses: leaving it out would leave that centre
+// without its check, so the result is refused and the pose is named to be measured again.
+TEST(SeveralPlacements, RefuseAPoseThatDoesNotFitWhenItsPlacementCannotSpareIt) {
+  const Table2Scenario sc = table2Scenario();
+  std::vector<Pose> planned;
+  int at_third = 0;
+  for (const Pose& p : threePlacementPlan())
+    if (p.placement != 3 || at_third++ < 3) planned.push_back(p);
+  auto recorded = record(sc.cell, sc.truth, centresOf(sc), planned);
+  std::mt19937_64 rng(8);
+  std::normal_distribution<double> normal;
+  for (Pose& p : recorded)
+    for (int j = 1; j < 5; ++j) p.q_deg[j] += 2e-4 * normal(rng);
+  const int bad = static_cast<int>(recorded.size()) - 2;  // placement 3
+  ASSERT_EQ(recorded[bad].placement, 3);
+  recorded[bad].q_deg[1] += 0.05;
+  SolveOptions options;
+  options.noise_mm = 0.01;
+  const SolveReport r = solve(sc.cell, recorded, options);
+  ASSERT_TRUE(r.converged) << r.message;
+  EXPECT_FALSE(r.verdict.usable);
+  const std::string reasons = ::testing::PrintToString(r.verdict.reasons);
+  EXPECT_NE(reasons.find("placement 3 would keep only 2 poses"), std::string::npos) << reasons;
+  EXPECT_EQ(r.remeasure, std::vector<int>{bad + 1});
 }
 
 TEST(SeveralPlacements, OnePlacementNumberedOtherThanOneSolvesAsBefore) {

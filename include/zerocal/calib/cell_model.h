@@ -47,6 +47,9 @@ struct CalibrationParameters {
   // zero unless identified from several placements.
   Eigen::Matrix<double, kLinkParamCount, 1> link =
       Eigen::Matrix<double, kLinkParamCount, 1>::Zero();
+  // The compliance of joints 2 and 3 (rad per kN m of gravity torque, added to the robot file's
+  // own): zero unless identified from several placements with a gravity model.
+  Eigen::Vector2d compliance = Eigen::Vector2d::Zero();
 
   // All six joint offsets in degrees (delta1 = delta6 = 0).
   Joints offsetsDeg() const;
@@ -58,8 +61,15 @@ std::string unknownName(int i);
 // "da1_mm", "dd1_mm", "dalpha1_deg", "da2_mm", ...: the link error k of CalibrationParameters.
 std::string linkParamName(int k);
 
-// The robot with the link errors added to its DH rows.
+// "compliance2_deg_per_knm", "compliance3_deg_per_knm": the compliance k of
+// CalibrationParameters, in reports in deg per kN m.
+std::string complianceParamName(int k);
+
+// The robot with the link errors added to its DH rows (and kept as its identified errors).
 Robot withLinkErrors(const Robot& robot, const Eigen::Matrix<double, kLinkParamCount, 1>& link);
+// The robot as calibrated: the identified link errors and compliance of `params` added to its
+// own (a robot file written with them reproduces the identified kinematics).
+Robot calibratedRobot(const Robot& robot, const CalibrationParameters& params);
 
 // A laser line in the base frame: point and unit direction.
 struct Line {

@@ -46,28 +46,37 @@ std::vector<double> standoffs(const CellModel& cell, const std::vector<Pose>& po
 // ---- Several PSD placements (docs/maths.md section 8) ----
 //
 // The unknowns of a session with P placements: delta2..delta5, the laser's four, the 18 link
-// errors (linkParamName order), then the centre (3) of each placement in ascending placement
-// number.
+// errors (linkParamName order), the compliance of joints 2 and 3 when the robot has a gravity
+// model, then the centre (3) of each placement in ascending placement number.
 struct PlacementLayout {
   std::vector<int> placements;  // the placement numbers, ascending
+  int compliance = 0;           // kComplianceCount with a gravity model, else 0
 
-  explicit PlacementLayout(const std::vector<Pose>& poses) : placements(placementsOf(poses)) {}
+  // With the compliance unknowns when `identify_compliance` and the robot has a gravity model.
+  PlacementLayout(const std::vector<Pose>& poses, const Robot& robot,
+                  bool identify_compliance = true)
+      : placements(placementsOf(poses)),
+        compliance(identify_compliance && robot.hasGravityModel() ? kComplianceCount : 0) {}
   int count() const { return static_cast<int>(placements.size()); }
   static constexpr int firstLink() { return kIdentifiedCount; }
-  static constexpr int firstTarget() { return kIdentifiedCount + kLinkParamCount; }
+  static constexpr int firstCompliance() { return kIdentifiedCount + kLinkParamCount; }
+  int firstTarget() const { return firstCompliance() + compliance; }
   int unknownCount() const { return firstTarget() + kTargetCount * count(); }
+  bool isLink(int k) const { return k >= firstLink() && k < firstCompliance(); }
+  bool isCompliance(int k) const { return k >= firstCompliance() && k < firstTarget(); }
   // 0-based position of a placement number; throws std::out_of_range for an unknown one.
   int slot(int placement) const;
-  // unknownName, linkParamName, or "target2_x_mm" (placement 2's centre).
+  // unknownName, linkParamName, complianceParamName, or "target2_x_mm" (placement 2's centre).
   std::string name(int k) const;
-  // In words, for reasons: "delta3", "the laser line", "da2", "the placement-2 centre".
+  // In words, for reasons: "delta3", "the laser line", "da2", "the compliance of joint 2",
+  // "the placement-2 centre".
   std::string readable(int k) const;
 };
 
 // Whitened point-to-line Jacobian with the link errors, 2N x layout.unknownCount() (columns:
-// delta2..5 in rad, laser, link errors in mm and rad, the centres in mm), at `params` (its
-// target_mm unused) with targets[slot] the centre of each placement. With `residuals`, also the
-// whitened misses (2N).
+// delta2..5 in rad, laser, link errors in mm and rad, the compliance in rad per kN m when the
+// layout has it, the centres in mm), at `params` (its target_mm unused) with targets[slot] the
+// centre of each placement. With `residuals`, also the whitened misses (2N).
 Eigen::MatrixXd placementJacobian(const CellModel& cell, const std::vector<Pose>& poses,
                                   const PlacementLayout& layout,
                                   const CalibrationParameters& params,
@@ -78,13 +87,13 @@ Eigen::MatrixXd placementJacobian(const CellModel& cell, const std::vector<Pose>
 // exactly through their centres (where the lines miss, a change that keeps an exact fit exact,
 // the arm's scale or a turn about the beam, still moves the misses and would look identifiable):
 // the columns of the column-scaled Jacobian are taken
-// in order of preference (the offsets, the laser, the centres, then the link errors joint by
-// joint) and an unknown is kept when its column adds a direction to those kept before it (the
-// diagonal of R in a QR decomposition without pivoting, relative to the column, above 1e-6).
-// An unknown whose column is zero has "no effect on the measurements"; one whose column is a
-// combination of kept ones is "not identifiable: combined with ..." the kept unknowns that
-// combination leans on (R1^-1 R2, FIGAROH's regrouping). Such unknowns are held at their nominal
-// value; the kept ones form a full-rank problem.
+// in order of preference (the offsets, the laser, the centres, the compliance, then the link
+// errors joint by joint) and an unknown is kept when its column adds a direction to those kept
+// before it (the diagonal of R in a QR decomposition without pivoting, relative to the column,
+// above 1e-6). An unknown whose column is zero has "no effect on the measurements"; one whose
+// column is a combination of kept ones is "not identifiable: combined with ..." the kept unknowns
+// that combination leans on (R1^-1 R2, FIGAROH's regrouping). Such unknowns are held at their
+// nominal value; the kept ones form a full-rank problem.
 struct BaseParameters {
   std::vector<bool> identified;     // per unknown, layout order
   std::vector<std::string> reason;  // why not, empty when identified

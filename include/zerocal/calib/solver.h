@@ -45,6 +45,12 @@ struct SolveOptions {
   // consider covariance (ParameterEstimate::model_sigma). 0: the model is taken as exact.
   double model_length_mm = 0;
   double model_angle_deg = 0;
+  // The gravity sag of joints 2 and 3 (several placements, a robot file with a gravity model):
+  // identify_compliance makes their compliance unknowns of the solve (docs/maths.md section 8);
+  // otherwise the sag is a model error known to this one-sigma tolerance at the largest gravity
+  // torque (deg), counted in the consider covariance as the link tolerances are.
+  bool identify_compliance = false;
+  double model_sag_deg = 0;
   // Deletion diagnostics (maximum-likelihood cost): a pose whose removal lowers the misfit by
   // more than chance allows at this family-wise level is named and left out of the result.
   bool find_gross_errors = true;
@@ -107,6 +113,7 @@ struct SolveReport {
   int poses_used = 0;  // in the fit
   double required_accuracy_deg = 0;
   double model_length_mm = 0, model_angle_deg = 0;  // the link tolerances counted (SolveOptions)
+  double model_sag_deg = 0;  // the sag tolerance counted (several placements, SolveOptions)
 
   // The 8 of unknownName order; with several placements then the 18 link errors
   // (linkParamName order), each identified or named in not_identifiable with the reason.

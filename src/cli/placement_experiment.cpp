@@ -364,6 +364,10 @@ int runPlacementExperiment(const PlacementExperimentArgs& args) {
         args.without_sag ? " without gravity sag" : "", static_cast<unsigned long long>(args.seed0),
         args.placements, args.poses, args.placements * args.poses, args.noise_mm,
         args.ideal_world ? "" : ", link tolerances 0.1 mm and 0.01 deg counted");
+    if (options.model_sag_deg > 0)
+      std::printf("gravity sag of joints 2 and 3 counted as a tolerance of %.4f deg\n",
+                  options.model_sag_deg);
+    if (args.identify_compliance) std::printf("compliance of joints 2 and 3 identified\n");
     std::printf("%-22s %8s %8s %10s %14s %12s %14s %12s\n", "session", "usable", "offered",
                 "within 3s", "worst (sigma)", "RMS (deg)", "links ident.", "");
     for (const auto& [name, t] :

@@ -128,7 +128,8 @@ namespace {
 
 Prediction predictSeveralPlacements(const CellModel& cell, const std::vector<Pose>& poses,
                                     const CalibrationParameters& at, double sigma_mm) {
-  const PlacementLayout layout(poses, cell.robot);
+  // As the solve by default: the sag counted, not identified (docs/maths.md section 8).
+  const PlacementLayout layout(poses, cell.robot, false);
   const auto targets = placementTargets(cell, poses, layout, at, false);
   // Planned poses aim the nominal lines exactly at their centres: the structural Jacobian.
   const Eigen::MatrixXd jac = placementJacobian(cell, poses, layout, at, targets, sigma_mm, false);

@@ -66,7 +66,7 @@ const ParameterEstimate* find(const SolveReport& r, const std::string& name) {
 
 TEST(BaseParameters, NamesAZeroColumnAndACombinationWithWhatItCombinesWith) {
   const std::vector<Pose> poses = atPlacement(testing::storedPlan("table2-8"), 1);
-  const PlacementLayout layout(poses, Robot{});
+  const PlacementLayout layout(poses, Robot{}, false);
   const int n = layout.unknownCount();
   std::mt19937_64 rng(3);
   std::normal_distribution<double> normal;
@@ -98,7 +98,7 @@ TEST(SeveralPlacements, RecoverTheOffsetsAndTheIdentifiableLinkErrorsWithoutNois
   ASSERT_EQ(placementCount(planned), 3);
   // The link errors the poses identify: found first, so that the truth is what can be recovered
   // one by one (an unidentifiable error is recovered only as its combination with others).
-  const PlacementLayout layout(planned, sc.cell.robot);
+  const PlacementLayout layout(planned, sc.cell.robot, false);
   const BaseParameters base = analyseBaseParameters(
       placementJacobian(sc.cell, planned, layout, {},
                         placementTargets(sc.cell, planned, layout, {}, false), 1.0, false),

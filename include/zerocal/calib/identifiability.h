@@ -53,8 +53,7 @@ struct PlacementLayout {
   int compliance = 0;           // kComplianceCount with a gravity model, else 0
 
   // With the compliance unknowns when `identify_compliance` and the robot has a gravity model.
-  PlacementLayout(const std::vector<Pose>& poses, const Robot& robot,
-                  bool identify_compliance = true)
+  PlacementLayout(const std::vector<Pose>& poses, const Robot& robot, bool identify_compliance)
       : placements(placementsOf(poses)),
         compliance(identify_compliance && robot.hasGravityModel() ? kComplianceCount : 0) {}
   int count() const { return static_cast<int>(placements.size()); }

@@ -205,7 +205,7 @@ std::vector<Pose> posesKept(const std::vector<Pose>& plan, const std::vector<boo
 // its poses aim at). Empty with one placement.
 std::vector<Eigen::Vector3d> plannedCentres(const CellModel& cell, const std::vector<Pose>& poses,
                                             const Eigen::Vector3d& target) {
-  const PlacementLayout layout(poses);
+  const PlacementLayout layout(poses, cell.robot, false);
   if (layout.count() < 2) return {};
   CalibrationParameters nominal;
   nominal.target_mm = target;

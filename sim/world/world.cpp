@@ -48,7 +48,10 @@ Frame<double> trueFlange(const World& w, const Joints& q_deg, const Joints& delt
 
 }  // namespace
 
-std::vector<LumpedMass> trueMasses(const World& w) {
+namespace {
+
+// trueMasses into `out`, which allocates only the first time (beamHit allocates nothing).
+void fillTrueMasses(const World& w, std::vector<LumpedMass>& out) {
   const Compliance& c = w.compliance;
   // A link's mass between the axis of its joint (the previous frame's origin, seen from the
   // link's frame) and the next axis; the forearm's reaches the wrist centre (frame 4's origin).
@@ -61,10 +64,19 @@ std::vector<LumpedMass> trueMasses(const World& w) {
     return Eigen::Vector3d(-f.R.transpose() * f.p);
   };
   const Eigen::Vector3d wrist_in_3 = dhLink(w.robot.dh[3], 0.0).p;
-  return {
-      {2, c.mass_share[0], between(previousOrigin(2), Eigen::Vector3d::Zero(), c.mass_position[0])},
-      {3, c.mass_share[1], between(previousOrigin(3), wrist_in_3, c.mass_position[1])},
-      {6, c.mass_share[2], {0, 0, 0}}};
+  out.resize(3);
+  out[0] = {2, c.mass_share[0],
+            between(previousOrigin(2), Eigen::Vector3d::Zero(), c.mass_position[0])};
+  out[1] = {3, c.mass_share[1], between(previousOrigin(3), wrist_in_3, c.mass_position[1])};
+  out[2] = {6, c.mass_share[2], {0, 0, 0}};
+}
+
+}  // namespace
+
+std::vector<LumpedMass> trueMasses(const World& w) {
+  std::vector<LumpedMass> out;
+  fillTrueMasses(w, out);
+  return out;
 }
 
 Joints gravitySagDeg(const World& w, const Joints& q_deg) {
@@ -72,7 +84,8 @@ Joints gravitySagDeg(const World& w, const Joints& q_deg) {
   const Compliance& c = w.compliance;
   if (c.joint2_sag_deg == 0 && c.joint3_sag_deg == 0) return sag;
   // On the nominal arm: the sag is far too small to move the masses.
-  const std::vector<LumpedMass> masses = trueMasses(w);
+  thread_local std::vector<LumpedMass> masses;
+  fillTrueMasses(w, masses);
   const auto torque = gravityTorqueKnm(w.robot, masses, q_deg);
   const auto bound = gravityTorqueBoundKnm(w.robot, masses);
   const double sag_deg[kComplianceCount] = {c.joint2_sag_deg, c.joint3_sag_deg};

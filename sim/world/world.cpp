@@ -12,6 +12,7 @@
 
 #include "zerocal/error.h"
 #include "zerocal/model/builtin.h"
+#include "zerocal/model/gravity.h"
 #include "zerocal/model/kinematics.h"
 
 namespace zerocal {
@@ -50,8 +51,8 @@ Frame<double> trueFlange(const World& w, const Joints& q_deg, const Joints& delt
 
 namespace {
 
-// trueMasses into `out`, which allocates only the first time (beamHit allocates nothing).
-void fillTrueMasses(const World& w, std::vector<LumpedMass>& out) {
+// The world's three lumped masses (trueMasses), in a fixed array: beamHit allocates nothing.
+std::array<LumpedMass, 3> trueMassArray(const World& w) {
   const Compliance& c = w.compliance;
   // A link's mass between the axis of its joint (the previous frame's origin, seen from the
   // link's frame) and the next axis; the forearm's reaches the wrist centre (frame 4's origin).
@@ -64,19 +65,19 @@ void fillTrueMasses(const World& w, std::vector<LumpedMass>& out) {
     return Eigen::Vector3d(-f.R.transpose() * f.p);
   };
   const Eigen::Vector3d wrist_in_3 = dhLink(w.robot.dh[3], 0.0).p;
-  out.resize(3);
+  std::array<LumpedMass, 3> out;
   out[0] = {2, c.mass_share[0],
             between(previousOrigin(2), Eigen::Vector3d::Zero(), c.mass_position[0])};
   out[1] = {3, c.mass_share[1], between(previousOrigin(3), wrist_in_3, c.mass_position[1])};
   out[2] = {6, c.mass_share[2], {0, 0, 0}};
+  return out;
 }
 
 }  // namespace
 
 std::vector<LumpedMass> trueMasses(const World& w) {
-  std::vector<LumpedMass> out;
-  fillTrueMasses(w, out);
-  return out;
+  const std::array<LumpedMass, 3> masses = trueMassArray(w);
+  return {masses.begin(), masses.end()};
 }
 
 Joints gravitySagDeg(const World& w, const Joints& q_deg) {
@@ -84,10 +85,9 @@ Joints gravitySagDeg(const World& w, const Joints& q_deg) {
   const Compliance& c = w.compliance;
   if (c.joint2_sag_deg == 0 && c.joint3_sag_deg == 0) return sag;
   // On the nominal arm: the sag is far too small to move the masses.
-  thread_local std::vector<LumpedMass> masses;
-  fillTrueMasses(w, masses);
-  const auto torque = gravityTorqueKnm(w.robot, masses, q_deg);
-  const auto bound = gravityTorqueBoundKnm(w.robot, masses);
+  const std::array<LumpedMass, 3> masses = trueMassArray(w);
+  const auto torque = gravityTorqueKnm(w.robot, masses.data(), masses.size(), q_deg);
+  const auto bound = gravityTorqueBoundKnm(w.robot, masses.data(), masses.size());
   const double sag_deg[kComplianceCount] = {c.joint2_sag_deg, c.joint3_sag_deg};
   for (int k = 0; k < kComplianceCount; ++k)
     sag[k + 1] = bound[k] > 0 ? sag_deg[k] * torque[k] / bound[k] : 0.0;

@@ -1,9 +1,10 @@
 // The gravity torques of joints 2 and 3 from a lumped-mass model (docs/maths.md section 8): the
 // regressor of the joints' compliance, and the simulated world's gravity sag.
+#include "zerocal/model/gravity.h"
+
 #include <cmath>
 
 #include "zerocal/model/kinematics.h"
-#include "zerocal/model/robot.h"
 
 namespace zerocal {
 namespace {
@@ -22,20 +23,38 @@ std::array<Frame<double>, kJointCount + 1> framesAt(const Robot& robot, const Jo
 
 Eigen::Vector3d point(const std::array<double, 3>& v) { return {v[0], v[1], v[2]}; }
 
+// masses[0 .. count) for a range-for.
+struct Masses {
+  const LumpedMass* first;
+  std::size_t count;
+  const LumpedMass* begin() const { return first; }
+  const LumpedMass* end() const { return first + count; }
+};
+
 }  // namespace
 
 std::array<double, kComplianceCount> gravityTorqueKnm(const Robot& robot,
                                                       const std::vector<LumpedMass>& masses,
                                                       const Joints& q_deg) {
+  return gravityTorqueKnm(robot, masses.data(), masses.size(), q_deg);
+}
+
+std::array<double, kComplianceCount> gravityTorqueBoundKnm(const Robot& robot,
+                                                           const std::vector<LumpedMass>& masses) {
+  return gravityTorqueBoundKnm(robot, masses.data(), masses.size());
+}
+
+std::array<double, kComplianceCount> gravityTorqueKnm(const Robot& robot, const LumpedMass* masses,
+                                                      std::size_t count, const Joints& q_deg) {
   std::array<double, kComplianceCount> torque{};
-  if (masses.empty()) return torque;
+  if (count == 0) return torque;
   const auto frame = framesAt(robot, q_deg);
   const Eigen::Vector3d down(0, 0, -1);
   for (int c = 0; c < kComplianceCount; ++c) {
     const int joint = c + 2;
     // Joint j turns about z of frame j-1, through its origin.
     const Frame<double>& axis = frame[joint - 1];
-    for (const LumpedMass& m : masses) {
+    for (const LumpedMass& m : Masses{masses, count}) {
       if (m.link < joint) continue;  // not carried by this joint
       const Eigen::Vector3d r = frame[m.link].apply(point(m.at_mm)) - axis.p;
       torque[c] += m.kg * kToKnm * r.cross(down).dot(axis.R.col(2));
@@ -45,7 +64,8 @@ std::array<double, kComplianceCount> gravityTorqueKnm(const Robot& robot,
 }
 
 std::array<double, kComplianceCount> gravityTorqueBoundKnm(const Robot& robot,
-                                                           const std::vector<LumpedMass>& masses) {
+                                                           const LumpedMass* masses,
+                                                           std::size_t count) {
   // The distances between successive frame origins, and from a link's frame origin before the
   // joint to its mass, are the same at every pose: a mass's distance from joint j's axis is at
   // most the sum of those from the axis' origin out to it.
@@ -53,7 +73,7 @@ std::array<double, kComplianceCount> gravityTorqueBoundKnm(const Robot& robot,
   std::array<double, kComplianceCount> bound{};
   for (int c = 0; c < kComplianceCount; ++c) {
     const int joint = c + 2;
-    for (const LumpedMass& m : masses) {
+    for (const LumpedMass& m : Masses{masses, count}) {
       if (m.link < joint) continue;
       double lever = (frame[m.link].apply(point(m.at_mm)) - frame[m.link - 1].p).norm();
       for (int i = joint; i < m.link; ++i) lever += (frame[i].p - frame[i - 1].p).norm();

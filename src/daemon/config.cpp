@@ -331,6 +331,7 @@ std::vector<Field> schema(DaemonConfig& c) {
   f.push_back(realField("session.required_accuracy_deg", c.session.required_accuracy_deg));
   f.push_back(realField("session.model_length_mm", c.session.model_length_mm));
   f.push_back(realField("session.model_angle_deg", c.session.model_angle_deg));
+  f.push_back(realField("session.model_sag_deg", c.session.model_sag_deg));
   f.push_back(pathField("session.data_dir", c.session.data_dir));
 
   auto& o = c.control;
@@ -625,6 +626,7 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
   check.positive("session.required_accuracy_deg", n.required_accuracy_deg, 1.0);
   check.range("session.model_length_mm", n.model_length_mm, 0.0, 10.0);
   check.range("session.model_angle_deg", n.model_angle_deg, 0.0, 1.0);
+  check.range("session.model_sag_deg", n.model_sag_deg, 0.0, 1.0);
   if (n.data_dir.empty()) check.fail("session.data_dir", "must not be empty");
 
   const auto& o = c.control;

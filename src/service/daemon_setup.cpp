@@ -16,10 +16,12 @@ RunSettings runSettingsOf(const DaemonConfig& config) {
   s.solve.required_accuracy_deg = config.session.required_accuracy_deg;
   s.solve.model_length_mm = config.session.model_length_mm;
   s.solve.model_angle_deg = config.session.model_angle_deg;
-  // The simulated cell's ideal world has the robot file's links exactly: nothing to count.
+  s.solve.model_sag_deg = config.session.model_sag_deg;
+  // The simulated cell's ideal world has the robot file's links exactly and no sag: nothing to
+  // count.
   if (config.backend.kind == BackendKind::kSim && config.backend.sim_ideal_world &&
       config.backend.sim_world.empty())
-    s.solve.model_length_mm = s.solve.model_angle_deg = 0;
+    s.solve.model_length_mm = s.solve.model_angle_deg = s.solve.model_sag_deg = 0;
   return s;
 }
 

@@ -137,7 +137,7 @@ struct SimController::Impl {
   std::optional<BeamHit> spotNow() const;
 
   std::mt19937_64 rng;
-  std::mt19937_64 gross_rng;  // its own stream: the repeatability draws stay those of the seed
+  std::mt19937_64 gross_rng;   // its own stream: the repeatability draws stay those of the seed
   std::mt19937_64 search_rng;  // the search signal's latency, its own stream for the same reason
   SpotSearch search;           // the spiral given by 47
   int search_rows = 0;         // bit r: row r of 47 received

@@ -61,7 +61,7 @@ struct Calibration {
 // plan, journal, solve and result).
 Calibration calibrate(const DaemonConfig& config) {
   service::ManagerSettings settings = service::managerSettingsOf(config);
-  settings.write_reports = nullptr;  // figures only
+  settings.write_reports = nullptr;       // figures only
   settings.unattended_placements = true;  // --set session.placements=N: the cell moves its PSD
   const std::unique_ptr<CellBackend> backend = service::makeBackend(config);
   service::SessionManager manager(*backend, settings);

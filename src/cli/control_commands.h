@@ -44,7 +44,7 @@ struct ClientArgs {
   std::optional<double> noise_mm;
   std::optional<int> placements;  // start, plan: PSD placements (default the daemon's)
   std::vector<double> centre;     // continue: empty or the placement's taught centre X Y Z, mm
-  double timeout_s = 10;  // per request; `plan` takes its own time on the daemon
+  double timeout_s = 10;          // per request; `plan` takes its own time on the daemon
 };
 
 struct ClientCommands {

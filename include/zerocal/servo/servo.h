@@ -106,8 +106,8 @@ struct ServoOptions {
   // distance between its turns.
   double sweep_speed_mm_s = 100.0;
   double sweep_pitch_mm = 8.0;
-  double gain = 0.9;           // below 1: no overshoot from a slightly wrong Jacobian
-  double damping_mm = 1e-3;    // Tikhonov term of the pseudo-inverse (mm/deg)^2 scale
+  double gain = 0.9;         // below 1: no overshoot from a slightly wrong Jacobian
+  double damping_mm = 1e-3;  // Tikhonov term of the pseudo-inverse (mm/deg)^2 scale
 
   PsdSpot target;             // where the fine servo brings the spot, PSD frame (mm)
   double hit_zone_mm = 0.05;  // kZone

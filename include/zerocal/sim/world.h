@@ -170,7 +170,7 @@ struct GrossState {
   Joints anchor_deg{};  // the pose of the last draw
   Eigen::Vector2d stray_light_mm = Eigen::Vector2d::Zero();
   Joints unsettled_deg{};
-  long draws = 0;  // poses drawn so far
+  long draws = 0;            // poses drawn so far
   bool forced_done = false;  // GrossErrors::forced_at_deg has had its error
 };
 

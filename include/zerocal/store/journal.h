@@ -103,8 +103,8 @@ PlacementRecord placementRecordFromJson(const nlohmann::json& json);
 struct JournalContents {
   std::vector<PoseRecord> records;
   std::vector<PlacementRecord> placements;  // in journal order
-  std::size_t committed_bytes = 0;  // length of the file up to the last committed line
-  std::string dropped;              // empty, or why a torn last line was dropped (for a warning)
+  std::size_t committed_bytes = 0;          // length of the file up to the last committed line
+  std::string dropped;  // empty, or why a torn last line was dropped (for a warning)
   int nextIndex() const { return static_cast<int>(records.size()); }
 };
 

@@ -188,33 +188,81 @@ Eigen::VectorXd misses(const CellModel& cell, const std::vector<Pose>& poses,
   return r;
 }
 
+// The misses' derivatives by each link length and twist (a, d, alpha of every joint) times its
+// tolerance in the options, mm: 2 rows per pose, 3 columns per joint. What the link errors the
+// tolerances allow do to the misses, one standard deviation per column.
+Eigen::MatrixXd linkSpread(const CellModel& cell, const std::vector<Pose>& poses,
+                           const CalibrationParameters& est, bool readings,
+                           const SolveOptions& options) {
+  const Eigen::VectorXd r0 = misses(cell, poses, est, readings);
+  Eigen::MatrixXd g(r0.size(), 3 * kJointCount);
+  for (int j = 0; j < kJointCount; ++j)
+    for (int kind = 0; kind < 3; ++kind) {
+      CellModel perturbed = cell;
+      DhRow& row = perturbed.robot.dh[j];
+      const double h = kind == 2 ? 1e-6 : 1e-3;  // rad, mm
+      (kind == 0 ? row.a_mm : kind == 1 ? row.d_mm : row.alpha_rad) += h;
+      const double tolerance =
+          kind == 2 ? options.model_angle_deg * kDegToRad : options.model_length_mm;
+      g.col(3 * j + kind) = (misses(perturbed, poses, est, readings) - r0) / h * tolerance;
+    }
+  return g;
+}
+
 // Deletion diagnostics, to first order: how much the sum of squared misses drops when pose i is
-// left out, D_i = r_i^T (I - H_ii)^-1 r_i with H the hat matrix of the (column-scaled) Jacobian.
-// NaN where the pose cannot be checked: the others do not determine what it measures (I - H_ii
-// singular).
+// given a free shift of its own (which is leaving it out), D_i = r_i^T (I - H_ii)^-1 r_i with H
+// the hat matrix of the (column-scaled) Jacobian. NaN where the pose cannot be checked: the others
+// do not determine what it measures (I - H_ii singular).
+//
+// When the model is known only to a tolerance (`spread_mm`: the misses' derivatives by the link
+// parameters times their tolerances, 2 rows per pose), the link errors leave misses at every pose
+// that are larger than the noise and correlated from pose to pose, and a pose would be blamed for
+// what the arm's geometry does at all of them. The test is then the generalised one: misses and
+// Jacobian weighed by W with W^T W = (I + spread spread^T / sigma0^2)^-1, and pose i's shift a
+// column pair of W. What the tolerances can explain across the poses no longer counts against one
+// pose; what sets one pose apart still does. The sums stay in mm^2 at the noise sigma0.
 struct Deletion {
   std::vector<double> drop_mm2;
+  double rss_mm2 = 0;  // weighted, at the weighted fit
   int rank = 0;
 };
-Deletion deletionDrops(const Eigen::MatrixXd& jac_mm, const Eigen::VectorXd& r) {
-  const int m = static_cast<int>(jac_mm.rows()) / 2;
-  Eigen::VectorXd scale = jac_mm.colwise().norm().transpose();
+Deletion deletionDrops(const Eigen::MatrixXd& jac_mm, const Eigen::VectorXd& r,
+                       const Eigen::MatrixXd& spread_mm, double sigma0_mm) {
+  const int rows = static_cast<int>(jac_mm.rows());
+  const int m = rows / 2;
+  const bool weighed = spread_mm.cols() > 0 && sigma0_mm > 0;
+  Eigen::MatrixXd w = Eigen::MatrixXd::Identity(rows, rows);
+  if (weighed) {
+    const Eigen::MatrixXd cov = Eigen::MatrixXd::Identity(rows, rows) +
+                                spread_mm * spread_mm.transpose() / (sigma0_mm * sigma0_mm);
+    w = cov.llt().matrixL().solve(Eigen::MatrixXd::Identity(rows, rows));
+  }
+  const Eigen::MatrixXd jw = weighed ? Eigen::MatrixXd(w * jac_mm) : jac_mm;
+  Eigen::VectorXd scale = jw.colwise().norm().transpose();
   for (int k = 0; k < scale.size(); ++k)
     if (!(scale[k] > 0)) scale[k] = 1;
-  const Eigen::MatrixXd scaled = jac_mm * scale.cwiseInverse().asDiagonal();
+  const Eigen::MatrixXd scaled = jw * scale.cwiseInverse().asDiagonal();
   Eigen::BDCSVD<Eigen::MatrixXd> svd(scaled, Eigen::ComputeThinU);
   const Eigen::VectorXd s = svd.singularValues();
   Deletion out;
   for (int i = 0; i < s.size(); ++i) out.rank += s[i] > 1e-8 * std::max(s[0], 1e-300) ? 1 : 0;
   const Eigen::MatrixXd u = svd.matrixU().leftCols(out.rank);
+  // The weighted fit's misses (r is the unweighted fit's; to first order the weighted fit moves
+  // them by the projection), and each pose's shift columns with the fit projected out.
+  const Eigen::VectorXd rw = weighed ? Eigen::VectorXd(w * r) : r;
+  const Eigen::VectorXd e = weighed ? Eigen::VectorXd(rw - u * (u.transpose() * rw)) : r;
+  out.rss_mm2 = e.squaredNorm();
+  const Eigen::MatrixXd free_w = w - u * (u.transpose() * w);
   for (int i = 0; i < m; ++i) {
-    const Eigen::Matrix2d h = u.middleRows(2 * i, 2) * u.middleRows(2 * i, 2).transpose();
-    const Eigen::Matrix2d free = Eigen::Matrix2d::Identity() - h;
+    const Eigen::Matrix2d c2 = w.middleCols(2 * i, 2).transpose() * w.middleCols(2 * i, 2);
+    const Eigen::Matrix2d free =
+        free_w.middleCols(2 * i, 2).transpose() * free_w.middleCols(2 * i, 2);
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(free);
-    const Eigen::Vector2d ri = r.segment<2>(2 * i);
-    out.drop_mm2.push_back(eig.eigenvalues().minCoeff() < 1e-6
+    const Eigen::Vector2d b = weighed ? Eigen::Vector2d(free_w.middleCols(2 * i, 2).transpose() * e)
+                                      : Eigen::Vector2d(r.segment<2>(2 * i));
+    out.drop_mm2.push_back(eig.eigenvalues().minCoeff() < 1e-6 * c2.diagonal().maxCoeff()
                                ? std::numeric_limits<double>::quiet_NaN()
-                               : ri.dot(free.ldlt().solve(ri)));
+                               : b.dot(free.ldlt().solve(b)));
   }
   return out;
 }
@@ -245,11 +293,12 @@ struct DeletionTest {
   double rss_mm2 = 0;
   int dof = 0;
 };
-DeletionTest deletionTest(const Eigen::VectorXd& r, const Eigen::MatrixXd& jac_mm,
-                          const SolveOptions& options) {
+DeletionTest deletionTest(const detail::TrialFit& fit, const SolveOptions& options) {
   DeletionTest t;
-  const Deletion d = deletionDrops(jac_mm, r);
-  t.rss_mm2 = r.squaredNorm();
+  const Deletion d =
+      deletionDrops(fit.jacobian_mm, fit.misses_mm, fit.spread_mm, options.noise_mm.value_or(0.0));
+  const Eigen::VectorXd& r = fit.misses_mm;
+  t.rss_mm2 = d.rss_mm2;
   t.dof = static_cast<int>(r.size()) - d.rank;
   const int rest_dof = t.dof - 2;  // of the fit without one pose
   if (rest_dof < 1) return t;
@@ -353,7 +402,7 @@ GrossErrorSearch findGrossErrors(
   while (fit.converged) {
     // A beam fitted pointing away from the PSD is a wrong model at every pose, not one bad pose.
     if (fit.beam_points_away) break;
-    const DeletionTest t = deletionTest(fit.misses_mm, fit.jacobian_mm, options);
+    const DeletionTest t = deletionTest(fit, options);
     if (!significant(t, t.best)) break;
     const int worst = active[t.best];
     if (static_cast<int>(g.left_out.size()) == kMostLeftOut) {
@@ -396,7 +445,7 @@ GrossErrorSearch findGrossErrors(
         const TrialFit alt = refit(other, fit.estimate);
         g.iterations += alt.iterations;
         if (alt.converged) {
-          const DeletionTest ta = deletionTest(alt.misses_mm, alt.jacobian_mm, options);
+          const DeletionTest ta = deletionTest(alt, options);
           const int pos = t.best < t.runner_up ? t.best : t.best - 1;
           if (ta.checkable && !significant(ta, pos)) {
             g.problems.push_back(
@@ -539,6 +588,8 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
     estimates.push_back(f.est);
     t.misses_mm = misses(cell, chosen, f.est, readings);
     t.jacobian_mm = pointToLineJacobian(cell, chosen, f.est, 1.0, readings);
+    if (options.model_length_mm > 0 || options.model_angle_deg > 0)
+      t.spread_mm = linkSpread(cell, chosen, f.est, readings, options);
     const auto s = standoffs(cell, chosen, f.est);
     t.beam_points_away = *std::min_element(s.begin(), s.end()) <= 0;
     return t;
@@ -637,26 +688,13 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
   report.model_length_mm = options.model_length_mm;
   report.model_angle_deg = options.model_angle_deg;
   if (options.model_length_mm > 0 || options.model_angle_deg > 0) {
-    const Eigen::VectorXd r0 = misses(cell, used, est, readings);
-    constexpr int kLinkParams = 3 * kJointCount;
-    Eigen::MatrixXd g(r0.size(), kLinkParams);
-    Eigen::VectorXd tolerance(kLinkParams);
-    for (int j = 0; j < kJointCount; ++j)
-      for (int kind = 0; kind < 3; ++kind) {
-        CellModel perturbed = cell;
-        DhRow& row = perturbed.robot.dh[j];
-        const double h = kind == 2 ? 1e-6 : 1e-3;  // rad, mm
-        (kind == 0 ? row.a_mm : kind == 1 ? row.d_mm : row.alpha_rad) += h;
-        g.col(3 * j + kind) = (misses(perturbed, used, est, readings) - r0) / h;
-        tolerance[3 * j + kind] =
-            kind == 2 ? options.model_angle_deg * kDegToRad : options.model_length_mm;
-      }
     // A parameter the poses do not determine has no covariance (NaN) and no model part either.
     const Eigen::MatrixXd u =
         ident.unit_covariance.unaryExpr([](double x) { return std::isfinite(x) ? x : 0.0; });
-    const Eigen::MatrixXd s_matrix = u * jac_mm.transpose() * g;
+    const Eigen::MatrixXd s_matrix =
+        u * jac_mm.transpose() * linkSpread(cell, used, est, readings, options);
     if (s_matrix.allFinite()) {
-      model_cov = s_matrix * tolerance.cwiseAbs2().asDiagonal() * s_matrix.transpose();
+      model_cov = s_matrix * s_matrix.transpose();
       cov += model_cov;
     }
   }

@@ -63,6 +63,9 @@ struct TrialFit {
   int iterations = 0;
   Eigen::VectorXd misses_mm;      // 2 per fitted pose, in their order
   Eigen::MatrixXd jacobian_mm;    // of the misses in the identified unknowns
+  // The misses' derivatives by the model parameters known only to a tolerance, times those
+  // tolerances (mm); the deletion test then weighs the misses by their covariance. Empty: none.
+  Eigen::MatrixXd spread_mm;
   bool beam_points_away = false;  // a fitted stand-off <= 0
   int estimate = -1;              // the caller's handle of the estimate it reached
   std::string message;            // the solver's

@@ -145,9 +145,12 @@ int runGrossErrorExperiment(const CellExperimentArgs& args) {
       incomplete("with the gross error: " + gross.message);
       continue;
     }
-    // Named: the daemon measured the pose again because the first solve named it.
+    // Named: the daemon measured the pose again because the first solve named it, or (a pose at
+    // an earlier PSD placement, which cannot be measured again) the result leaves it out.
     const std::vector<int> again = gross.result.remeasured.value_or(std::vector<int>{});
-    const bool found = std::find(again.begin(), again.end(), pose) != again.end();
+    const std::vector<PoseResidual>& fitted = gross.result.report.poses;
+    const bool left_out = pose <= static_cast<int>(fitted.size()) && fitted[pose - 1].outlier;
+    const bool found = left_out || std::find(again.begin(), again.end(), pose) != again.end();
     named += found;
     other_named += !found && !again.empty();
     std::string line;

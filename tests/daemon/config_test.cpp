@@ -224,7 +224,7 @@ TEST_F(ConfigTest, InconsistentCombinations) {
   write("main.yaml",
         "backend:\n  kind: sim\n  sim_world: /nonexistent/world.yaml\n  sim_seed: 3\n"
         "  sim_host: localhost\n"
-        "servo:\n  max_step_deg: 4\n  search_step_mm: 70\n"
+        "servo:\n  max_step_deg: 4\n  search_step_mm: 70\n  search_radius_mm: 60\n"
         "controller:\n  max_step_deg: 3\n"
         "session:\n  plan: file\n"
         "control:\n  bind_address: 0.0.0.0\n"

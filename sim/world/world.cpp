@@ -134,7 +134,17 @@ GrossErrors::Kind parseGrossKind(const std::string& word) {
 
 void updateGross(const GrossErrors& gross, const Joints& q_deg, std::mt19937_64& rng,
                  GrossState* state) {
-  if (state->anchored) {
+  // The forced error's pose is the one the arm arrives at exactly (the planned move ends at the
+  // commanded joints), not any pose within the extent of it: another plan pose a few degrees
+  // away would otherwise take the error first.
+  bool forced = false;
+  if (gross.forced_at_deg && !state->forced_done) {
+    double off = 0;
+    for (int i = 0; i < kJointCount; ++i)
+      off = std::max(off, std::abs(q_deg[i] - (*gross.forced_at_deg)[i]));
+    forced = state->forced_done = off <= kForcedPoseMatchDeg;
+  }
+  if (state->anchored && !forced) {
     double moved = 0;
     for (int i = 0; i < kJointCount; ++i)
       moved = std::max(moved, std::abs(q_deg[i] - state->anchor_deg[i]));
@@ -147,13 +157,6 @@ void updateGross(const GrossErrors& gross, const Joints& q_deg, std::mt19937_64&
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   const double stray = unit(rng), angle = 2 * kPi * unit(rng);
   const double unsettled = unit(rng), which = unit(rng), sign = unit(rng);
-  bool forced = false;
-  if (gross.forced_at_deg && !state->forced_done) {
-    double off = 0;
-    for (int i = 0; i < kJointCount; ++i)
-      off = std::max(off, std::abs(q_deg[i] - (*gross.forced_at_deg)[i]));
-    forced = state->forced_done = off <= kGrossPoseExtentDeg;
-  }
   const bool forced_stray = forced && gross.forced_kind == GrossErrors::Kind::kStrayLight;
   const bool forced_unsettled = forced && gross.forced_kind == GrossErrors::Kind::kUnsettled;
   state->stray_light_mm = Eigen::Vector2d::Zero();

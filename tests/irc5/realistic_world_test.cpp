@@ -223,14 +223,15 @@ TEST(GrossErrors, OneForcedErrorStrikesItsPoseOnceAndNothingElse) {
     forced.forced_kind = kind;
     std::mt19937_64 rng_plain(5), rng_forced(5);
     GrossState s_plain, s_forced;
-    // Poses 0, 1 (near), 2, then 1 again.
-    const std::vector<int> visits = {0, 1, 2, 1};
+    // Pose 0; 3 deg from pose 1 (a pose of its own: not struck); pose 1 itself, within 5 deg of
+    // the pose before (struck, on a draw of its own); pose 2; pose 1 again (not struck twice).
+    const std::vector<int> visits = {0, 1, 1, 2, 1};
     for (std::size_t v = 0; v < visits.size(); ++v) {
       Joints q = poses[visits[v]];
-      q[5] += 3.0;  // within the 5 deg of the forced pose
+      if (v == 1) q[5] += 3.0;
       updateGross(plain, q, rng_plain, &s_plain);
       updateGross(forced, q, rng_forced, &s_forced);
-      const bool struck = v == 1;
+      const bool struck = v == 2;
       const bool stray = s_forced.stray_light_mm.norm() > 0;
       const bool unsettled =
           Eigen::Map<const Eigen::Matrix<double, 6, 1>>(s_forced.unsettled_deg.data())
@@ -240,7 +241,9 @@ TEST(GrossErrors, OneForcedErrorStrikesItsPoseOnceAndNothingElse) {
       EXPECT_EQ(unsettled, struck && kind == GrossErrors::Kind::kUnsettled) << v;
       EXPECT_EQ(s_plain.stray_light_mm.norm(), 0.0);
     }
-    // The same draws were consumed: the streams are still in step.
+    // The forced pose took one draw (five numbers) more than the plain world; no other changed.
+    EXPECT_EQ(s_forced.draws, s_plain.draws + 1);
+    for (int k = 0; k < 5; ++k) rng_plain();
     EXPECT_EQ(rng_plain(), rng_forced());
   }
   // A world file says it, and the hash tells the two worlds apart.

@@ -77,9 +77,10 @@ struct GrossErrors {
   double unsettled_rate = 0;
   double unsettled_deg = 0.05;
   // Besides the rates: exactly one error of `forced_kind`, the first time the arm comes to rest
-  // within kGrossPoseExtentDeg of `forced_at_deg` (a plan's pose). For measuring what a session
-  // does with one gross error against the same session without it (`zerocal experiment cell
-  // --gross-error`); its direction or joint comes from that pose's own draws.
+  // within kForcedPoseMatchDeg of `forced_at_deg` (a plan's pose, where its planned move ends).
+  // For measuring what a session does with one gross error against the same session without it
+  // (`zerocal experiment cell --gross-error`); its direction or joint comes from that pose's own
+  // draws (an extra draw when the pose lies within kGrossPoseExtentDeg of the one before).
   enum class Kind { kStrayLight, kUnsettled };
   std::optional<Joints> forced_at_deg;
   Kind forced_kind = Kind::kStrayLight;
@@ -88,6 +89,7 @@ struct GrossErrors {
 const char* grossKindName(GrossErrors::Kind kind);
 GrossErrors::Kind parseGrossKind(const std::string& word);
 constexpr double kGrossPoseExtentDeg = 5.0;
+constexpr double kForcedPoseMatchDeg = 0.01;
 
 // The realistic world's draws (randomWorld); docs/simulated-cell.md gives the evidence.
 constexpr double kLinkLengthSigmaMm = 0.1;   // every a and d

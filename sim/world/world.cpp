@@ -134,9 +134,9 @@ GrossErrors::Kind parseGrossKind(const std::string& word) {
 
 void updateGross(const GrossErrors& gross, const Joints& q_deg, std::mt19937_64& rng,
                  GrossState* state) {
-  // The forced error's pose is the one the arm arrives at exactly (the planned move ends at the
-  // commanded joints), not any pose within the extent of it: another plan pose a few degrees
-  // away would otherwise take the error first.
+  // The forced error's pose is the one the arm comes to rest at within a fraction of a degree,
+  // not any pose within the extent of it: another plan pose a few degrees away would otherwise
+  // take the error first.
   bool forced = false;
   if (gross.forced_at_deg && !state->forced_done) {
     double off = 0;

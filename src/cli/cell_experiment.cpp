@@ -14,6 +14,7 @@
 #include "zerocal/io/durable_file.h"
 #include "zerocal/service/daemon_setup.h"
 #include "zerocal/sim/world.h"
+#include "zerocal/store/journal.h"
 
 namespace zerocal::cli {
 namespace {
@@ -54,6 +55,7 @@ struct Calibration {
   ResultFile result;    // when completed
   double cell_time_s = 0;
   std::vector<Pose> plan;
+  std::vector<PoseRecord> records;  // the journal's, when completed
 };
 
 // One calibration exactly as zerocald runs one: the daemon's own parts, from the same
@@ -76,7 +78,11 @@ Calibration calibrate(const DaemonConfig& config) {
   out.state = end.state;
   out.completed = out.message.empty() && end.state == service::SessionState::kDone;
   if (out.message.empty()) out.message = end.message;
-  if (out.completed) out.result = manager.result(end.session_id);
+  if (out.completed) {
+    out.result = manager.result(end.session_id);
+    out.records =
+        readJournal(config.session.data_dir + "/" + end.session_id + "/journal.jsonl").records;
+  }
   out.cell_time_s = end.cell_time_s;
   return out;
 }
@@ -139,7 +145,9 @@ int runGrossErrorExperiment(const CellExperimentArgs& args) {
       incomplete("without the gross error: " + clean.message);
       continue;
     }
-    world.gross.forced_at_deg = clean.plan[pose - 1].q_deg;
+    // Where the clean session recorded the pose: the gross one comes to rest there too, its
+    // moves the same until then (the planned joints once the spot is aimed at are not).
+    world.gross.forced_at_deg = clean.records[pose - 1].joints_deg;
     const Calibration gross = runOn(world, "gross");
     if (!gross.completed) {
       incomplete("with the gross error: " + gross.message);

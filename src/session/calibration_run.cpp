@@ -186,6 +186,20 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
   // Resumed poses teach the predictor where the spot falls, as if they had just been servoed.
   for (const PoseRecord& r : out.records)
     if (r.measured() && r.placement == placement) predictor.addPose(r.joints_deg, r.reading.spot);
+  // Once the predictor knows the cell, a pose's move ends where the spot is predicted on the
+  // detector's centre rather than at the planned joints: the servo then starts on the detector
+  // instead of walking to the prediction in max_step_deg steps (seconds of cell time a pose).
+  // The planned joints when that lies beyond the limits less the servo's margin, or more than
+  // kMostAimDeg from them (a prediction that far off is not to be trusted with a move).
+  constexpr double kMostAimDeg = 6.0;  // about the 100 mm search radius at a 1 m beam
+  const auto aimed = [&](const Joints& planned) {
+    const Joints q = predictor.aimedJoints(planned, servo_options.damping_mm);
+    double change = 0;
+    for (int k = 0; k < kJointCount; ++k) change = std::max(change, std::abs(q[k] - planned[k]));
+    return change <= kMostAimDeg && model.robot.withinLimits(q, servo_options.limit_margin_deg)
+               ? q
+               : planned;
+  };
   const int n = static_cast<int>(plan_.size());
   const auto phase = [&](int i, RunPhase p) {
     if (on_phase) on_phase(i, p);
@@ -208,7 +222,7 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
       Failure failure = Failure::kOther;
       bool pose_at_fault = false;  // the pose itself failed, not the link or the board
       std::string why;
-      const Joints& target = plan_[i].q_deg;
+      const Joints target = aimed(plan_[i].q_deg);
       phase(i, RunPhase::kMoving);
       const double move_start = clock.nowS();
       const std::int64_t move_started_ns = unixNanoseconds();

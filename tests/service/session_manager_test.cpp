@@ -205,13 +205,15 @@ TEST(SessionManager, RunsASessionToDoneThroughEveryStateWithAResultNearTheTruth)
 }
 
 // A pose that does not fit the others: the solve names it, the run measures it again (both lines
-// stay in the journal) and the result rests on the new measurement. On this seed and plan the
-// first solve names one pose (which one follows the noise draws: pose 2 with the point-by-point
-// search, pose 3 with the continuous one; why a reading does not fit in the ideal world is not
-// known yet); measured again, it fits.
+// stay in the journal) and the result rests on the new measurement. Stray light strikes pose 2
+// once (the world's forced gross error; the run's move ends at pose 2's planned joints, as the
+// spot is aimed at from the third pose on); measured again, it fits.
 TEST(SessionManager, APoseTheSolveNamesIsMeasuredAgainAndBothMeasurementsStayInTheJournal) {
   const TempDir dir;
-  sim::SimBackend backend(cellFor(5));
+  sim::SimulatedCellOptions cell = cellFor(5);
+  cell.world.gross.forced_at_deg = testing::storedPlan("ideal-5-10-poses")[1].q_deg;
+  cell.world.gross.forced_kind = GrossErrors::Kind::kStrayLight;
+  sim::SimBackend backend(cell);
   SessionManager manager(backend, settingsIn(dir.path));
   EventLog log;
   manager.setEventSink(log.sink());
@@ -222,6 +224,7 @@ TEST(SessionManager, APoseTheSolveNamesIsMeasuredAgainAndBothMeasurementsStayInT
   const nlohmann::json result = toJson(manager.result(id));
   const nlohmann::json remeasured = result["remeasured"];
   ASSERT_EQ(remeasured.size(), 1u) << remeasured.dump();
+  EXPECT_EQ(remeasured[0], 2);
   ASSERT_EQ(log.of<RemeasureEvent>().size(), 1u);
   EXPECT_EQ(nlohmann::json(log.of<RemeasureEvent>()[0].poses), remeasured);
 

@@ -156,9 +156,11 @@ TEST(SessionFaults, LinkThatStaysDownFaultsNamingThePoseWithTheRobotAtRest) {
   SimController& controller = s.rig.cell.controller();
   s.settings.reconnect_link = [&] { s.rig.client.reconnect(); };
   s.settings.recovery_attempts = 2;
+  Joints move_end{};
   const RunOutcome out = s.run(s.rig.client, s.rig.psd, [&](CalibrationRun& run) {
     run.on_phase = [&](int i, RunPhase phase) {
       if (i != 2 || phase != RunPhase::kServoing) return;
+      move_end = controller.commandedJoints();
       SimFaults f;
       f.drop_after_requests = 0;  // this connection and every new one close at once
       controller.setFaults(f);
@@ -169,11 +171,13 @@ TEST(SessionFaults, LinkThatStaysDownFaultsNamingThePoseWithTheRobotAtRest) {
   EXPECT_NE(out.message.find("reconnecting failed 2 times"), std::string::npos) << out.message;
   EXPECT_EQ(out.reconnects, 0);
   expectPosesOnceEach(s.journalled(), 2);
-  // The servo's first move was never executed: the robot stands at the third planned pose, a
-  // pose checked against the limits, and nothing moves it.
+  // The servo's first move was never executed: the robot stands where the third pose's move
+  // ended (the planned pose aimed at the predicted spot, checked against the limits), and
+  // nothing moves it.
   const Joints at_rest = controller.commandedJoints();
-  expectAt(at_rest, s.plan[2].q_deg);
-  EXPECT_TRUE(s.rig.cell.world().robot.withinLimits(at_rest, 0));
+  expectAt(at_rest, move_end);
+  for (int j = 0; j < kJointCount; ++j) EXPECT_NEAR(at_rest[j], s.plan[2].q_deg[j], 6.0);
+  EXPECT_TRUE(s.rig.cell.world().robot.withinLimits(at_rest, 1.0));
 }
 
 TEST(SessionFaults, BoardUnpluggedMidServoIsReopenedOnceReplugged) {

@@ -43,6 +43,12 @@ class SpotPredictor {
   // seed 40's second search more than 60 mm from the spot (spot not found); from two poses on,
   // 30 of 30 worlds (seeds 11..40) and 10 of 10 (1..10) complete (`zerocal experiment cell`).
   PsdSpot searchCentre(const Joints& q_deg) const;
+  // Joints near `planned` where the spot is predicted on the PSD's centre: `planned` moved along
+  // the image Jacobian's pseudo-inverse (damping_mm as the servo's) until the prediction is
+  // there. The planned move then ends on the detector instead of tens of millimetres off it, and
+  // the search's walk to the prediction (in steps of at most the servo's max_step_deg) is not
+  // needed. `planned` itself until confident(); the caller checks the limits.
+  Joints aimedJoints(const Joints& planned, double damping_mm) const;
   static constexpr int kConfidentPoses = 2;
   int poseCount() const { return static_cast<int>(poses_.size()); }
   bool confident() const { return started_from_calibration_ || poseCount() >= kConfidentPoses; }

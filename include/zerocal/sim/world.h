@@ -77,7 +77,8 @@ struct GrossErrors {
   double unsettled_rate = 0;
   double unsettled_deg = 0.05;
   // Besides the rates: exactly one error of `forced_kind`, the first time the arm comes to rest
-  // within kForcedPoseMatchDeg of `forced_at_deg` (a plan's pose, where its planned move ends).
+  // within kForcedPoseMatchDeg of `forced_at_deg` (the joints a session recorded at a pose: its
+  // move ends there or, aimed at a predicted spot, within a fraction of a degree of them).
   // For measuring what a session does with one gross error against the same session without it
   // (`zerocal experiment cell --gross-error`); its direction or joint comes from that pose's own
   // draws (an extra draw when the pose lies within kGrossPoseExtentDeg of the one before).
@@ -89,7 +90,7 @@ struct GrossErrors {
 const char* grossKindName(GrossErrors::Kind kind);
 GrossErrors::Kind parseGrossKind(const std::string& word);
 constexpr double kGrossPoseExtentDeg = 5.0;
-constexpr double kForcedPoseMatchDeg = 0.01;
+constexpr double kForcedPoseMatchDeg = 0.5;
 
 // The realistic world's draws (randomWorld); docs/simulated-cell.md gives the evidence.
 constexpr double kLinkLengthSigmaMm = 0.1;   // every a and d

@@ -24,16 +24,18 @@ std::optional<std::string> truthFile(const World& world) {
 }
 
 // The simulated controller's calibration: the client's requests, and the revolution counter
-// updated by the simulator itself (on a real IRC5 a technician at the FlexPendant does it).
+// updated by the simulator itself when the cell allows it (on a real IRC5 a technician at the
+// FlexPendant does it: remote_counter_update false).
 class SimCalibration final : public ControllerCalibration {
  public:
-  SimCalibration(ControllerCalibration& link, SimController& controller)
-      : link_(link), controller_(controller) {}
+  SimCalibration(ControllerCalibration& link, SimController& controller, bool remote_update)
+      : link_(link), controller_(controller), remote_update_(remote_update) {}
   std::array<double, 6> readCalOffsets() override { return link_.readCalOffsets(); }
   void writeCalOffset(int joint, double rad) override { link_.writeCalOffset(joint, rad); }
   std::array<double, 6> readMotorAngles() override { return link_.readMotorAngles(); }
   void restart() override { link_.restart(); }
   bool updateRevolutionCounter(int joint) override {
+    if (!remote_update_) return false;
     controller_.updateRevolutionCounter(joint);
     return true;
   }
@@ -41,6 +43,7 @@ class SimCalibration final : public ControllerCalibration {
  private:
   ControllerCalibration& link_;
   SimController& controller_;
+  bool remote_update_;
 };
 
 class SimulatedLinkedCell final : public service::LinkedCell {
@@ -51,7 +54,8 @@ class SimulatedLinkedCell final : public service::LinkedCell {
                                                                  cell, simulatedReadout()),
                    cell),
         cell_(cell),
-        calibration_(*LinkedCell::calibration(), cell.controller()) {}
+        calibration_(*LinkedCell::calibration(), cell.controller(),
+                     cell.options().remote_counter_update) {}
   ControllerCalibration* calibration() override { return &calibration_; }
   std::optional<std::array<double, 4>> truthDeg() const override {
     // The world's offsets and what calibration values applied since moved the zeros by.

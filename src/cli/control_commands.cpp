@@ -440,6 +440,11 @@ int run(const ClientArgs& args, std::ostream& out, std::ostream& err, bool tty) 
   if (cmd == "start" || cmd == "resume" || cmd == "continue") {
     json continued = json::object();
     if (!args.centre.empty()) continued["centre_mm"] = args.centre;
+    // What a continue goes on with: a session's next placement, or an apply that waited for a
+    // revolution counter.
+    const bool counter =
+        cmd == "continue" && client.call("status", json::object(), timeout)["status"].value(
+                                 "state", "") == "awaiting_counter";
     const auto r = cmd == "start"    ? client.call("start", startMembers(args), timeout)
                    : cmd == "resume" ? client.call("resume", resumeMembers(args), timeout)
                                      : client.call("continue", continued, timeout);
@@ -451,6 +456,7 @@ int run(const ClientArgs& args, std::ostream& out, std::ostream& err, bool tty) 
         out << "session " << id
             << (cmd == "start"    ? " started"
                 : cmd == "resume" ? " resumed"
+                : counter         ? ": the apply goes on with the revolution counter updated"
                                   : " continued at its next PSD placement")
             << "\n";
       return kClientOk;
@@ -576,7 +582,8 @@ void addClientCommands(CLI::App& app, ClientCommands& commands) {
   resume->add_flag("--watch", a.watch, "then show its progress until it ends");
   auto* go_on = add("continue",
                     "go on with the session waiting for the PSD at its next placement, once the "
-                    "PSD is there");
+                    "PSD is there, or with the apply waiting for a revolution counter, once the "
+                    "technician has updated it at the FlexPendant");
   go_on
       ->add_option("--centre", a.centre,
                    "the placement's centre as taught, X Y Z in mm, robot base frame (default "

@@ -4,6 +4,7 @@
 // the configured plan (its own folder, events and result).
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <thread>
 
@@ -252,8 +253,28 @@ void SessionManager::runApply(const std::string& id, const ResultFile& result) {
     apply::OnlineApplyOptions options;
     options.required_deg = settings_.session.required_accuracy_deg;
     options.progress = progress;
-    options.update_revolution_counter = [&](int joint, double) {
-      return calibration.updateRevolutionCounter(joint);
+    // A controller that cannot update a revolution counter remotely (an IRC5 over RAPID) has the
+    // technician do it on the FlexPendant, the arm at the joint's synchronisation mark; the
+    // verification then finds a counter left on its old turn as a whole motor turn.
+    options.update_revolution_counter = [&](int joint, double turn_error_deg) {
+      if (calibration.updateRevolutionCounter(joint)) return true;
+      char off[32];
+      std::snprintf(off, sizeof off, "%+.4f", turn_error_deg);
+      const std::string message =
+          "update joint " + std::to_string(joint) +
+          "'s revolution counter: its calibration value crossed the motor's turn, and until the "
+          "counter is updated the joint is " +
+          off + " deg off. On the FlexPendant, jog joint " + std::to_string(joint) +
+          " to its synchronisation mark, update its revolution counter (Calibrate, Update "
+          "revolution counters), start the zerocal RAPID module again, then `zerocal continue`; "
+          "`zerocal abort` restores the values from before the apply";
+      progress(message);
+      const bool went_on = board_.awaitTechnician(message, [this] { worker_.markProgress(); });
+      progress(went_on ? "joint " + std::to_string(joint) +
+                             "'s revolution counter updated by the technician; going on"
+                       : "aborted while waiting for joint " + std::to_string(joint) +
+                             "'s revolution counter");
+      return went_on;
     };
     options.verify = [&]() {
       std::string vid;

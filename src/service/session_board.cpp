@@ -1,6 +1,7 @@
 #include "zerocal/service/session_board.h"
 
 #include <algorithm>
+#include <chrono>
 
 namespace zerocal::service {
 
@@ -152,6 +153,47 @@ bool SessionBoard::abortWaiting() {
   return true;
 }
 
+bool SessionBoard::awaitTechnician(const std::string& message, const std::function<void()>& tick) {
+  const auto set = [this](SessionState state, const std::string& text) {
+    StateEvent event;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      status_.state = state;
+      status_.message = text;
+      event = stateEvent();
+    }
+    changed_.notify_all();
+    emit(event);
+  };
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    go_ahead_ = false;
+  }
+  set(SessionState::kAwaitingCounter, message);
+  bool went_on = false;
+  for (;;) {
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      changed_.wait_for(lock, std::chrono::seconds(1), [this] { return go_ahead_ || abort_; });
+      went_on = go_ahead_ && !abort_;
+      if (go_ahead_ || abort_) break;
+    }
+    if (tick) tick();
+  }
+  set(SessionState::kApplying, "");
+  return went_on;
+}
+
+bool SessionBoard::goAhead() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (status_.state != SessionState::kAwaitingCounter || go_ahead_) return false;
+    go_ahead_ = true;
+  }
+  changed_.notify_all();
+  return true;
+}
+
 void SessionBoard::update(const std::function<void(SessionStatus&)>& change) {
   std::lock_guard<std::mutex> lock(mutex_);
   change(status_);
@@ -174,6 +216,7 @@ bool SessionBoard::requestAbort() {
   std::lock_guard<std::mutex> lock(mutex_);
   if (!claimed_ && held_.empty() && !isActive(status_.state)) return false;
   abort_ = true;
+  changed_.notify_all();  // an apply waiting for the technician rolls back at once
   return true;
 }
 
@@ -181,6 +224,7 @@ void SessionBoard::abortAll() {
   std::lock_guard<std::mutex> lock(mutex_);
   closed_ = true;
   abort_ = true;
+  changed_.notify_all();
 }
 
 bool SessionBoard::activeOrClaimed() const {

@@ -33,6 +33,8 @@ const char* stateName(SessionState state) {
       return "solving";
     case SessionState::kApplying:
       return "applying";
+    case SessionState::kAwaitingCounter:
+      return "awaiting_counter";
     case SessionState::kDone:
       return "done";
     case SessionState::kAborted:
@@ -494,6 +496,17 @@ std::string SessionManager::resume(const ResumeRequest& request) {
 }
 
 std::string SessionManager::continueSession(const ContinueRequest& request) {
+  // An apply waiting for the technician at the FlexPendant: its worker goes on.
+  if (board_.status().state == SessionState::kAwaitingCounter) {
+    if (request.centre_mm)
+      throw Refused("bad_request",
+                    "centre_mm is for a PSD placement; the apply waits for a revolution counter");
+    if (board_.goAhead()) {
+      makeLogger("session")->info("apply of session {}: the technician continued",
+                                  board_.status().session_id);
+      return board_.status().session_id;
+    }
+  }
   if (request.centre_mm) {
     try {
       checkPlanInput(*request.centre_mm, settings_.session.noise_mm);

@@ -1018,6 +1018,93 @@ TEST(SessionManagerApply, AppliesVerifiesAndKeepsTheNewValues) {
   EXPECT_NE(updated.find("Verified again later"), std::string::npos) << updated;
 }
 
+// The joint (1-based) an awaiting_counter message asks the technician to update.
+int counterJoint(const std::string& message) {
+  const std::string key = "update joint ";
+  const std::size_t at = message.find(key);
+  return at == std::string::npos ? 0 : message[at + key.size()] - '0';
+}
+
+// Waits until the session is no longer applying: awaiting the technician, or ended.
+SessionStatus untilTechnicianOrEnd(SessionManager& manager) {
+  SessionStatus s = manager.status();
+  for (int i = 0; i < 6000 && s.state == SessionState::kApplying; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    s = manager.status();
+  }
+  return s;
+}
+
+// An IRC5 over RAPID cannot update a revolution counter remotely. An apply whose new value crosses
+// a joint's seam waits (awaiting_counter) for the technician to update the counter at the
+// FlexPendant and continue; updated, the verification passes.
+TEST(SessionManagerApply, ASeamCrossingWaitsForTheTechnicianToUpdateTheCounter) {
+  const TempDir dir;
+  sim::SimulatedCellOptions cell = cellFor(6);
+  cell.remote_counter_update = false;
+  sim::SimBackend backend(cell);
+  SessionManager manager(backend, applySettingsIn(dir.path));
+  EventLog log;
+  manager.setEventSink(log.sink());
+  const std::string id = manager.start(manager.defaultRequest());
+  ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
+  EXPECT_EQ(manager.apply({id, true}), id);
+  int waits = 0;
+  for (SessionStatus s = untilTechnicianOrEnd(manager); s.state == SessionState::kAwaitingCounter;
+       s = untilTechnicianOrEnd(manager)) {
+    ++waits;
+    const int joint = counterJoint(s.message);
+    ASSERT_GE(joint, 2) << s.message;
+    EXPECT_NE(s.message.find("zerocal continue"), std::string::npos) << s.message;
+    // A centre is for a PSD placement, not for this wait.
+    EXPECT_EQ(refusalOf([&] { manager.continueSession({Eigen::Vector3d(0, 0, 0)}); }),
+              "bad_request");
+    backend.cell().controller().updateRevolutionCounter(joint);  // the technician, at the mark
+    EXPECT_EQ(manager.continueSession({}), id);
+  }
+  EXPECT_GE(waits, 1) << "seed 6 crosses no seam: the wait went untested";
+  const SessionStatus end = manager.waitIdle();
+  EXPECT_EQ(end.state, SessionState::kDone) << end.message;
+  const auto applied = log.of<ApplyEvent>();
+  ASSERT_EQ(applied.size(), 1u);
+  EXPECT_EQ(applied[0].outcome, ApplyOutcome::kVerified) << applied[0].message;
+  bool announced = false;
+  for (const StateEvent& e : log.of<StateEvent>())
+    announced |= e.state == SessionState::kAwaitingCounter;
+  EXPECT_TRUE(announced);
+}
+
+// Aborted while it waits for the technician, the apply restores the values from before it.
+TEST(SessionManagerApply, AnAbortWhileWaitingForTheTechnicianRollsTheApplyBack) {
+  const TempDir dir;
+  sim::SimulatedCellOptions cell = cellFor(6);
+  cell.remote_counter_update = false;
+  sim::SimBackend backend(cell);
+  SessionManager manager(backend, applySettingsIn(dir.path));
+  EventLog log;
+  manager.setEventSink(log.sink());
+  const std::string id = manager.start(manager.defaultRequest());
+  ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
+  const Joints shift_before = backend.cell().controller().zeroShiftDeg();
+  manager.apply({id, true});
+  const SessionStatus waiting = untilTechnicianOrEnd(manager);
+  ASSERT_EQ(waiting.state, SessionState::kAwaitingCounter) << waiting.message;
+  EXPECT_TRUE(manager.abort());
+  manager.waitIdle();
+  const auto applied = log.of<ApplyEvent>();
+  ASSERT_EQ(applied.size(), 1u);
+  EXPECT_EQ(applied[0].outcome, ApplyOutcome::kRolledBack) << applied[0].message;
+  // The values from before are back: the zeros where they were, but for the counter's turn,
+  // which the technician must move back at the mark (the rollback says so).
+  const Joints shift = backend.cell().controller().zeroShiftDeg();
+  EXPECT_NE(applied[0].message.find("revolution counter"), std::string::npos) << applied[0].message;
+  const int joint = counterJoint(waiting.message);
+  for (int j = 2; j <= 5; ++j)
+    if (j != joint) {
+      EXPECT_NEAR(shift[j - 1], shift_before[j - 1], 1e-6) << "joint " << j;
+    }
+}
+
 // A transmission sign wrong in the robot model would double delta3 on the arm: the apply measures
 // the transmissions first and refuses, naming joint 3 with both ratios, before anything is
 // written; the robot is back where it stood, the controller untouched, and the journal and the

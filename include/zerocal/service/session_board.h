@@ -65,6 +65,13 @@ class SessionBoard {
   // A waiting session ends as aborted; false when none waits (no worker runs a waiting session,
   // so nothing else would end it).
   bool abortWaiting();
+  // An online apply's worker waits for the technician: the status says awaiting_counter with
+  // `message` until goAhead() (a continue) or an abort; `tick` is called about every second
+  // meanwhile (the watchdog's progress mark). True when the technician went on, false on an
+  // abort; the state is applying again either way.
+  bool awaitTechnician(const std::string& message, const std::function<void()>& tick);
+  // For a continue: the apply waiting for the technician goes on. False when none waits.
+  bool goAhead();
   // Changes the status without an event (progress figures).
   void update(const std::function<void(SessionStatus&)>& change);
 
@@ -94,6 +101,7 @@ class SessionBoard {
   bool claimed_ = false;
   std::string held_;  // why the board is held; empty: not held
   bool closed_ = false;
+  bool go_ahead_ = false;  // awaitTechnician: the technician continued
   std::atomic<bool> abort_{false};
   SessionControl::EventSink sink_;
 };

@@ -32,6 +32,10 @@ enum class SessionState {
   kAwaitingPlacement,
   kSolving,
   kApplying,  // an online apply or a verification: writing, restarting, judging, rolling back
+  // An online apply waits for the technician to update a joint's revolution counter at its
+  // synchronisation mark on the FlexPendant (the controller cannot do it remotely), then to
+  // continue. The apply's worker waits; an abort rolls the apply back.
+  kAwaitingCounter,
   kDone,
   kAborted,
   kFaulted,

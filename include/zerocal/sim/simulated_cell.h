@@ -34,6 +34,11 @@ struct SimulatedCellOptions {
   PsdModelOptions psd;       // detector, board noise and its seed
   std::uint32_t board_seed = 1408;  // the board's calibration table
   Joints start_joints{0, 0, 0, 0, 30, 0};
+  // Whether an apply may have a revolution counter updated remotely (the simulator playing the
+  // technician at once), or, as on an IRC5 over RAPID, only a technician at the FlexPendant can
+  // (SimController::updateRevolutionCounter, called by whoever plays the technician): the
+  // daemon's apply then waits for one (docs/apply.md).
+  bool remote_counter_update = true;
   // The stage sweep the PSD map is fitted from (as in the paper: a probe stage over the centre).
   double sweep_half_width_mm = 0.8, sweep_step_mm = 0.04;
 };
@@ -63,6 +68,7 @@ class SimulatedCell final : public CellClock {
   // Options for an Irc5Client pointed at this cell's controller.
   Irc5Options clientOptions() const;
   const World& world() const { return controller_->world(); }
+  const SimulatedCellOptions& options() const { return options_; }
 
   double nowS() noexcept override;
   // Advances the cell's clock; nothing sleeps.

@@ -28,6 +28,49 @@ std::string num(const char* fmt, double v) { return std::isfinite(v) ? format(fm
 
 bool isOffset(const ParameterRow& p) { return p.name.rfind("delta", 0) == 0; }
 
+bool isLaser(const ParameterRow& p) { return p.name.rfind("laser_", 0) == 0; }
+
+std::string rankText(const SessionReport& r) {
+  const SolveReport& s = r.solve();
+  if (s.placements.size() < 2) return format("rank %d of 11", s.rank);
+  // Offsets, laser, link errors (the parameters), and three coordinates per placement's centre.
+  const int unknowns =
+      static_cast<int>(s.parameters.size()) + 3 * static_cast<int>(s.placements.size());
+  return format("%d of %d unknowns identified (offsets, laser line, %zu PSD centres, link errors)",
+                s.rank, unknowns, s.placements.size());
+}
+
+std::vector<std::string> placementCentres(const SessionReport& r) {
+  std::vector<std::string> out;
+  const SolveReport& s = r.solve();
+  if (s.placements.size() < 2) return out;
+  for (const SolveReport::PlacementCentre& c : s.placements)
+    out.push_back(format(
+        "PSD centre at placement %d (%d poses): %.3f %.3f %.3f mm in the base "
+        "frame (sigma %s %s %s mm)",
+        c.placement, c.poses, c.target_mm.x(), c.target_mm.y(), c.target_mm.z(),
+        num("%.3f", c.target_sigma_mm.x()).c_str(), num("%.3f", c.target_sigma_mm.y()).c_str(),
+        num("%.3f", c.target_sigma_mm.z()).c_str()));
+  return out;
+}
+
+std::string toleranceNote(const SessionReport& r) {
+  const SolveReport& s = r.solve();
+  std::string counted;
+  if (s.model_length_mm > 0 || s.model_angle_deg > 0)
+    counted = format(s.placements.size() < 2
+                         ? "the robot's link tolerances (%.3g mm, %.3g deg)"
+                         : "the tolerances (%.3g mm, %.3g deg) of the link errors these poses do "
+                           "not identify",
+                     s.model_length_mm, s.model_angle_deg);
+  if (s.model_sag_deg > 0)
+    counted += (counted.empty() ? "" : " and ") +
+               format("the gravity sag of joints 2 and 3 (%.3g deg)", s.model_sag_deg);
+  if (counted.empty()) return {};
+  return "The achieved sigmas count " + counted +
+         " beside the noise; the plan's prediction counts the noise alone.";
+}
+
 int jointOf(const ParameterRow& p) { return isOffset(p) ? p.name[5] - '0' : 0; }
 
 std::string unitOf(const std::string& name) {

@@ -16,6 +16,7 @@ std::string format(const char* fmt, ...) __attribute__((format(printf, 1, 2)));
 std::string num(const char* fmt, double v);
 
 bool isOffset(const ParameterRow& p);         // delta2_deg .. delta5_deg
+bool isLaser(const ParameterRow& p);          // laser_slope_1 .. laser_offset_2_mm
 int jointOf(const ParameterRow& p);           // 2 for delta2_deg
 std::string unitOf(const std::string& name);  // "deg", "mm" or "" (dimensionless)
 
@@ -47,6 +48,14 @@ std::string remeasuredNote(const SessionReport& r);
 // The latest online apply or verification (before / written / verdict / warnings), as plain
 // sentences; an empty heading when there was none.
 Section applySection(const SessionReport& r);
+
+// "rank 11 of 11" for one PSD placement; with several, how many unknowns the poses identified of
+// how many (offsets, laser line, each placement's centre, the link errors).
+std::string rankText(const SessionReport& r);
+// With several PSD placements, one sentence per placement's identified centre; empty with one.
+std::vector<std::string> placementCentres(const SessionReport& r);
+// What the achieved sigmas count beside the noise (the link or sag tolerances); empty when none.
+std::string toleranceNote(const SessionReport& r);
 
 // Wraps text at `width` columns with `indent` spaces before every line.
 std::string wrap(const std::string& text, std::size_t width, std::size_t indent);

@@ -283,9 +283,8 @@ std::string reportHtml(const SessionReport& r) {
   if (r.solve().chi2_per_dof)
     o << esc(format("chi-square per degree of freedom %.2f (dof %d); ", *r.solve().chi2_per_dof,
                     r.solve().dof));
-  o << esc(format("RMS miss %.1f um; rank %d of 11, condition number %s.",
-                  r.solve().rms_miss_mm * 1000, r.solve().rank,
-                  num("%.1f", r.solve().condition_number).c_str()))
+  o << esc(format("RMS miss %.1f um; %s, condition number %s.", r.solve().rms_miss_mm * 1000,
+                  detail::rankText(r).c_str(), num("%.1f", r.solve().condition_number).c_str()))
     << "</p>\n";
 
   // Offsets.
@@ -349,6 +348,8 @@ std::string reportHtml(const SessionReport& r) {
   o << "<h2>Predicted versus achieved uncertainty</h2>\n"
        "<p>Predicted: the plan's Cramer-Rao bound before any move (session.json). Achieved: the "
        "one-sigma uncertainty of this solve (result.json).</p>\n";
+  if (const std::string note = detail::toleranceNote(r); !note.empty())
+    o << "<p>" << esc(note) << "</p>\n";
   std::vector<std::string> offset_cats, laser_cats;
   Series pred_o{"predicted", "#999999", {}}, ach_o{"achieved", "#2a5db0", {}};
   Series pred_l{"predicted", "#999999", {}}, ach_l{"achieved", "#2a5db0", {}};
@@ -359,8 +360,9 @@ std::string reportHtml(const SessionReport& r) {
       offset_cats.push_back(p.name.substr(0, 6));
       pred_o.values.push_back(pred * 1000);
       ach_o.values.push_back(ach * 1000);
-    } else {
+    } else if (detail::isLaser(p)) {
       // "laser_offset_1_mm" -> "offset 1 (mm)": the axis is narrow, the table has the full name.
+      // (Link errors, with several PSD placements, are in the table only.)
       const std::string unit = detail::unitOf(p.name);
       std::string label = p.name.substr(p.name.rfind("laser_", 0) == 0 ? 6 : 0);
       if (!unit.empty())
@@ -451,10 +453,13 @@ std::string reportHtml(const SessionReport& r) {
       << td(p.solved ? format("%.1f", p.standoff_mm) : "", "n") << "</tr>\n";
   }
   o << "</table>\n";
-  o << "<p>"
-    << esc(format("PSD centre in the base frame: %.3f %.3f %.3f mm.",
-                  r.solve().estimate.target_mm[0], r.solve().estimate.target_mm[1],
-                  r.solve().estimate.target_mm[2]));
+  o << "<p>";
+  const std::vector<std::string> centres = detail::placementCentres(r);
+  if (centres.empty())
+    o << esc(format("PSD centre in the base frame: %.3f %.3f %.3f mm.",
+                    r.solve().estimate.target_mm[0], r.solve().estimate.target_mm[1],
+                    r.solve().estimate.target_mm[2]));
+  for (const std::string& c : centres) o << esc(c) << ". ";
   if (r.result.cell_time_s) o << esc(format(" Cell time %.1f s.", *r.result.cell_time_s));
   o << " Written by zerocal from " << esc(r.dir) << ".</p>\n</body>\n</html>\n";
   return o.str();

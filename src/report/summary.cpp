@@ -31,9 +31,8 @@ std::string summaryText(const SessionReport& r) {
                   r.solve().dof);
   else
     fit += format("dof %d (chi-square needs a given noise level); ", r.solve().dof);
-  fit +=
-      format("RMS miss %.1f um; rank %d of 11, condition number %s.", r.solve().rms_miss_mm * 1000,
-             r.solve().rank, num("%.1f", r.solve().condition_number).c_str());
+  fit += format("RMS miss %.1f um; %s, condition number %s.", r.solve().rms_miss_mm * 1000,
+                detail::rankText(r).c_str(), num("%.1f", r.solve().condition_number).c_str());
   o << detail::wrap(fit, 100, 0);
 
   o << "\nJoint offsets, ARM side (joint angle, not motor angle): the true joint angle is the\n"
@@ -62,21 +61,35 @@ std::string summaryText(const SessionReport& r) {
     o << "  " << n.name << ":\n" << detail::wrap(n.reason, 100, 4);
   }
 
+  const auto rows = [&](bool laser) {
+    for (const ParameterRow& p : r.parameters) {
+      if (detail::isOffset(p) || detail::isLaser(p) != laser) continue;
+      const std::string unit = detail::unitOf(p.name);
+      if (!p.identifiable)
+        o << format("  %-18s not identifiable\n", p.name.c_str());
+      else
+        o << format("  %-18s %+.6g %s (sigma %.3g)\n", p.name.c_str(), p.value, unit.c_str(),
+                    p.sigma);
+    }
+  };
   o << "\nLaser line on the flange (identified with the offsets):\n";
-  for (const ParameterRow& p : r.parameters) {
-    if (detail::isOffset(p)) continue;
-    const std::string unit = detail::unitOf(p.name);
-    if (!p.identifiable)
-      o << format("  %-18s not identifiable\n", p.name.c_str());
-    else
-      o << format("  %-18s %+.6g %s (sigma %.3g)\n", p.name.c_str(), p.value, unit.c_str(),
-                  p.sigma);
+  rows(true);
+  const std::vector<std::string> centres = detail::placementCentres(r);
+  if (centres.empty()) {
+    o << format("PSD centre in the base frame: %.3f %.3f %.3f mm (sigma %s %s %s mm)\n",
+                r.solve().estimate.target_mm[0], r.solve().estimate.target_mm[1],
+                r.solve().estimate.target_mm[2], num("%.3f", r.solve().target_sigma_mm[0]).c_str(),
+                num("%.3f", r.solve().target_sigma_mm[1]).c_str(),
+                num("%.3f", r.solve().target_sigma_mm[2]).c_str());
+  } else {
+    for (const std::string& c : centres) o << detail::wrap(c, 100, 0);
+    o << "\n"
+      << detail::wrap(
+             "Link errors of the arm (lengths in mm, twists in deg), identified with the "
+             "offsets from the several PSD placements; the rest are named above:",
+             100, 0);
+    rows(false);
   }
-  o << format("PSD centre in the base frame: %.3f %.3f %.3f mm (sigma %s %s %s mm)\n",
-              r.solve().estimate.target_mm[0], r.solve().estimate.target_mm[1],
-              r.solve().estimate.target_mm[2], num("%.3f", r.solve().target_sigma_mm[0]).c_str(),
-              num("%.3f", r.solve().target_sigma_mm[1]).c_str(),
-              num("%.3f", r.solve().target_sigma_mm[2]).c_str());
 
   o << "\nWorst poses (normalised residual = miss / noise sigma; SUSPECT: did not fit the "
        "others):\n";
@@ -86,6 +99,8 @@ std::string summaryText(const SessionReport& r) {
                 p->standoff_mm, p->outlier ? "  SUSPECT" : "");
 
   o << "\nPredicted (plan, before any move) versus achieved one-sigma uncertainty:\n";
+  if (const std::string note = detail::toleranceNote(r); !note.empty())
+    o << detail::wrap(note, 100, 2);
   for (const ParameterRow& p : r.parameters) {
     const std::string unit = detail::unitOf(p.name);
     o << format("  %-18s predicted %s, achieved %s %s", p.name.c_str(),

@@ -184,6 +184,42 @@ TEST(Summary, SaysWhatIsNotIdentifiableAndWhy) {
   }
 }
 
+// With several PSD placements: each placement's centre, the link errors under their own heading
+// (not the laser line's), the unknowns counted with them, and what the achieved sigmas count.
+TEST(Summary, SeveralPlacementsShowEachCentreAndTheLinkErrorsApart) {
+  SessionReport r = plainSession();
+  SolveReport& s = r.result.report;
+  s.placements = {{1, 5, Eigen::Vector3d(900, 0, 400), Eigen::Vector3d(0.1, 0.1, 0.1)},
+                  {2, 5, Eigen::Vector3d(600, 600, 500), Eigen::Vector3d(0.2, 0.2, 0.2)}};
+  ParameterRow link;
+  link.name = "da2_mm";
+  link.value = -0.3;
+  link.sigma = 0.1;
+  link.identifiable = true;
+  r.parameters.push_back(link);
+  s.model_sag_deg = 0.007;
+  const std::string text = summaryText(r);
+  EXPECT_TRUE(contains(text, "PSD centre at placement 2 (5 poses): 600.000 600.000 500.000 mm"))
+      << text;
+  EXPECT_FALSE(contains(text, "PSD centre in the base frame"));
+  const auto laser = text.find("Laser line on the flange");
+  const auto links = text.find("Link errors of the arm");
+  ASSERT_NE(links, std::string::npos);
+  EXPECT_LT(laser, links);
+  EXPECT_LT(links, text.find("  da2_mm"));
+  EXPECT_TRUE(contains(text, "unknowns identified")) << text;
+  EXPECT_FALSE(contains(text, "of 11,"));
+  EXPECT_TRUE(contains(text, "gravity sag of joints 2 and 3 (0.007 deg)"));
+  const std::string html = reportHtml(r);
+  EXPECT_TRUE(contains(html, "PSD centre at placement 2 (5 poses)"));
+  EXPECT_TRUE(contains(html, "unknowns identified"));
+  // One placement reads as before.
+  const std::string one = summaryText(plainSession());
+  EXPECT_TRUE(contains(one, "PSD centre in the base frame"));
+  EXPECT_TRUE(contains(one, "of 11,"));
+  EXPECT_FALSE(contains(one, "Link errors of the arm"));
+}
+
 // The robot as its controller identified itself, the map, the version and the local time, in
 // both renderings; a result from before they were recorded says so instead of inventing them.
 TEST(Summary, NamesTheRobotThePsdMapTheVersionAndTheLocalTime) {

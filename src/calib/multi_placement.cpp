@@ -120,6 +120,41 @@ void checkPlacements(const std::vector<Pose>& poses, const PlacementLayout& layo
 
 }  // namespace
 
+Eigen::MatrixXd placementModelCovariance(const CellModel& cell, const std::vector<Pose>& used,
+                                         const PlacementLayout& layout, const BaseParameters& base,
+                                         const Eigen::MatrixXd& jac,
+                                         const Eigen::MatrixXd& unit_cov, double length_mm,
+                                         double angle_deg, double sag_deg) {
+  const int unknowns = layout.unknownCount();
+  const bool count_sag = layout.compliance == 0 && sag_deg > 0 && cell.robot.hasGravityModel();
+  std::vector<Eigen::VectorXd> columns;
+  std::vector<double> tolerances;
+  if (length_mm > 0 || angle_deg > 0)
+    for (int k = PlacementLayout::firstLink(); k < PlacementLayout::firstCompliance(); ++k)
+      if (!base.identified[k]) {
+        columns.push_back(jac.col(k));
+        tolerances.push_back((k - PlacementLayout::firstLink()) % 3 == 2 ? angle_deg * kDegToRad
+                                                                         : length_mm);
+      }
+  if (count_sag) {
+    const auto bound = gravityTorqueBoundKnm(cell.robot, cell.robot.masses);
+    for (int c = 0; c < kComplianceCount; ++c) {
+      Eigen::VectorXd column = jac.col(c);  // delta2, delta3
+      for (std::size_t i = 0; i < used.size(); ++i)
+        column.segment<2>(2 * static_cast<Eigen::Index>(i)) *=
+            gravityTorqueKnm(cell.robot, cell.robot.masses, used[i].q_deg)[c];
+      columns.push_back(column);
+      tolerances.push_back(sag_deg * kDegToRad / bound[c]);
+    }
+  }
+  if (columns.empty()) return Eigen::MatrixXd::Zero(unknowns, unknowns);
+  Eigen::MatrixXd g(jac.rows(), static_cast<Eigen::Index>(columns.size()));
+  for (std::size_t j = 0; j < columns.size(); ++j)
+    g.col(static_cast<Eigen::Index>(j)) = columns[j] * tolerances[j];
+  const Eigen::MatrixXd s_matrix = unit_cov * jac.transpose() * g;
+  return s_matrix * s_matrix.transpose();
+}
+
 SolveReport solveMultiPlacement(const CellModel& cell, const std::vector<Pose>& poses,
                                 const SolveOptions& options) {
   const auto started = std::chrono::steady_clock::now();
@@ -225,46 +260,15 @@ SolveReport solveMultiPlacement(const CellModel& cell, const std::vector<Pose>& 
   // The gravity sag, when its compliance is not identified, counts the same way: theta_j moves
   // by c_j tau_j(q), so its column is delta_j's times the pose's torque, and c_j is known to the
   // sag tolerance at the largest torque.
-  const int unknowns = layout.unknownCount();
-  Eigen::MatrixXd model_cov = Eigen::MatrixXd::Zero(unknowns, unknowns);
   const bool count_sag =
       layout.compliance == 0 && options.model_sag_deg > 0 && cell.robot.hasGravityModel();
   report.model_sag_deg = count_sag ? options.model_sag_deg : 0;
-  if (options.model_length_mm > 0 || options.model_angle_deg > 0 || count_sag) {
-    std::vector<Eigen::VectorXd> columns;
-    std::vector<double> tolerances;
-    for (int k = PlacementLayout::firstLink(); k < PlacementLayout::firstCompliance(); ++k)
-      if (!base.identified[k]) {
-        columns.push_back(jac.col(k));
-        tolerances.push_back((k - PlacementLayout::firstLink()) % 3 == 2
-                                 ? options.model_angle_deg * kDegToRad
-                                 : options.model_length_mm);
-      }
-    if (count_sag) {
-      const auto bound = gravityTorqueBoundKnm(cell.robot, cell.robot.masses);
-      for (int c = 0; c < kComplianceCount; ++c) {
-        Eigen::VectorXd column = jac.col(c);  // delta2, delta3
-        for (int i = 0; i < m; ++i)
-          column.segment<2>(2 * i) *=
-              gravityTorqueKnm(cell.robot, cell.robot.masses, used[i].q_deg)[c];
-        columns.push_back(column);
-        tolerances.push_back(options.model_sag_deg * kDegToRad / bound[c]);
-      }
-    }
-    if (!columns.empty()) {
-      Eigen::MatrixXd g(jac.rows(), static_cast<Eigen::Index>(columns.size()));
-      Eigen::VectorXd tolerance(g.cols());
-      for (std::size_t j = 0; j < columns.size(); ++j) {
-        g.col(static_cast<Eigen::Index>(j)) = columns[j];
-        tolerance[static_cast<Eigen::Index>(j)] = tolerances[j];
-      }
-      const Eigen::MatrixXd unit =
-          (cov / (sigma * sigma)).unaryExpr([](double x) { return std::isfinite(x) ? x : 0.0; });
-      const Eigen::MatrixXd s_matrix = unit * jac.transpose() * g;
-      model_cov = s_matrix * tolerance.cwiseAbs2().asDiagonal() * s_matrix.transpose();
-      cov += model_cov;
-    }
-  }
+  const Eigen::MatrixXd unit_cov =
+      (cov / (sigma * sigma)).unaryExpr([](double x) { return std::isfinite(x) ? x : 0.0; });
+  const Eigen::MatrixXd model_cov =
+      placementModelCovariance(cell, used, layout, base, jac, unit_cov, options.model_length_mm,
+                               options.model_angle_deg, options.model_sag_deg);
+  cov += model_cov;
 
   const double quantile = intervalQuantile(report);
   report.not_identifiable.push_back({"delta1_deg", delta1Reason()});

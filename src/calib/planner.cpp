@@ -11,6 +11,7 @@
 #include <random>
 #include <sstream>
 
+#include "solver_detail.h"
 #include "zerocal/calib/identifiability.h"
 #include "zerocal/error.h"
 #include "zerocal/model/kinematics.h"
@@ -127,7 +128,8 @@ std::optional<Joints> servoOnto(const CellModel& cell, const CalibrationParamete
 namespace {
 
 Prediction predictSeveralPlacements(const CellModel& cell, const std::vector<Pose>& poses,
-                                    const CalibrationParameters& at, double sigma_mm) {
+                                    const CalibrationParameters& at, double sigma_mm,
+                                    const ModelTolerances& tolerances) {
   // As the solve by default: the sag counted, not identified (docs/maths.md section 8).
   const PlacementLayout layout(poses, cell.robot, false);
   const auto targets = placementTargets(cell, poses, layout, at, false);
@@ -137,7 +139,11 @@ Prediction predictSeveralPlacements(const CellModel& cell, const std::vector<Pos
   Prediction out;
   out.placements = layout.count();
   out.rank = base.count;
-  const Eigen::MatrixXd cov = baseCovariance(jac, base, &out.condition_number);
+  Eigen::MatrixXd cov = baseCovariance(jac, base, &out.condition_number);
+  cov += detail::placementModelCovariance(
+      cell, poses, layout, base, jac,
+      cov.unaryExpr([](double x) { return std::isfinite(x) ? x : 0.0; }), tolerances.length_mm,
+      tolerances.angle_deg, tolerances.sag_deg);
   constexpr double kMeaningfulDeg = 0.5;  // as with one placement
   double sum = 0;
   for (int k = 0; k < kIdentifiedCount; ++k) {
@@ -166,20 +172,32 @@ Prediction predictSeveralPlacements(const CellModel& cell, const std::vector<Pos
 }  // namespace
 
 Prediction predictUncertainty(const CellModel& cell, const std::vector<Pose>& poses,
-                              const CalibrationParameters& at, double sigma_mm) {
-  if (placementCount(poses) > 1) return predictSeveralPlacements(cell, poses, at, sigma_mm);
+                              const CalibrationParameters& at, double sigma_mm,
+                              const ModelTolerances& tolerances) {
+  if (placementCount(poses) > 1)
+    return predictSeveralPlacements(cell, poses, at, sigma_mm, tolerances);
   const Eigen::MatrixXd jac = pointToLineJacobian(cell, poses, at, sigma_mm, false);
   // A plan predicts; whether its accuracy is enough is the solve's verdict. Here an offset counts
   // as determined up to the half degree beyond which a value means nothing.
   constexpr double kMeaningfulDeg = 0.5;
   const Identifiability id = analyseIdentifiability(jac, cell, poses, at, 1.0, kMeaningfulDeg);
+  Eigen::MatrixXd cov = id.unit_covariance;  // jac is in noise sigmas: this is the covariance
+  if (tolerances.length_mm > 0 || tolerances.angle_deg > 0) {
+    // As the solve: the link errors' consider covariance, with the misses in noise sigmas.
+    const Eigen::MatrixXd u = cov.unaryExpr([](double x) { return std::isfinite(x) ? x : 0.0; });
+    const Eigen::MatrixXd s =
+        u * jac.transpose() *
+        detail::linkSpread(cell, poses, at, false, tolerances.length_mm, tolerances.angle_deg) /
+        sigma_mm;
+    if (s.allFinite()) cov += s * s.transpose();
+  }
   Prediction out;
   out.rank = id.rank;
   out.condition_number = id.condition_number;
   double sum = 0;
   for (int k = 0; k < kIdentifiedCount; ++k) {
     const double unit = k < kOffsetCount ? kRadToDeg : 1.0;
-    out.sigma.push_back(std::sqrt(id.unit_covariance(k, k)) * unit);
+    out.sigma.push_back(std::sqrt(cov(k, k)) * unit);
     out.identifiable.push_back(id.identifiable[k]);
     out.reason.push_back(id.reason[k]);
     if (k < kOffsetCount) sum += id.identifiable[k] ? out.sigma[k] * out.sigma[k] : INFINITY;

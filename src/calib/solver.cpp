@@ -188,27 +188,6 @@ Eigen::VectorXd misses(const CellModel& cell, const std::vector<Pose>& poses,
   return r;
 }
 
-// The misses' derivatives by each link length and twist (a, d, alpha of every joint) times its
-// tolerance in the options, mm: 2 rows per pose, 3 columns per joint. What the link errors the
-// tolerances allow do to the misses, one standard deviation per column.
-Eigen::MatrixXd linkSpread(const CellModel& cell, const std::vector<Pose>& poses,
-                           const CalibrationParameters& est, bool readings,
-                           const SolveOptions& options) {
-  const Eigen::VectorXd r0 = misses(cell, poses, est, readings);
-  Eigen::MatrixXd g(r0.size(), 3 * kJointCount);
-  for (int j = 0; j < kJointCount; ++j)
-    for (int kind = 0; kind < 3; ++kind) {
-      CellModel perturbed = cell;
-      DhRow& row = perturbed.robot.dh[j];
-      const double h = kind == 2 ? 1e-6 : 1e-3;  // rad, mm
-      (kind == 0 ? row.a_mm : kind == 1 ? row.d_mm : row.alpha_rad) += h;
-      const double tolerance =
-          kind == 2 ? options.model_angle_deg * kDegToRad : options.model_length_mm;
-      g.col(3 * j + kind) = (misses(perturbed, poses, est, readings) - r0) / h * tolerance;
-    }
-  return g;
-}
-
 // Deletion diagnostics, to first order: how much the sum of squared misses drops when pose i is
 // given a free shift of its own (which is leaving it out), D_i = r_i^T (I - H_ii)^-1 r_i with H
 // the hat matrix of the (column-scaled) Jacobian. NaN where the pose cannot be checked: the others
@@ -338,6 +317,23 @@ bool significant(const DeletionTest& t, int i) { return t.checkable && i >= 0 &&
 }  // namespace
 
 namespace detail {
+
+Eigen::MatrixXd linkSpread(const CellModel& cell, const std::vector<Pose>& poses,
+                           const CalibrationParameters& est, bool readings, double length_mm,
+                           double angle_deg) {
+  const Eigen::VectorXd r0 = misses(cell, poses, est, readings);
+  Eigen::MatrixXd g(r0.size(), 3 * kJointCount);
+  for (int j = 0; j < kJointCount; ++j)
+    for (int kind = 0; kind < 3; ++kind) {
+      CellModel perturbed = cell;
+      DhRow& row = perturbed.robot.dh[j];
+      const double h = kind == 2 ? 1e-6 : 1e-3;  // rad, mm
+      (kind == 0 ? row.a_mm : kind == 1 ? row.d_mm : row.alpha_rad) += h;
+      const double tolerance = kind == 2 ? angle_deg * kDegToRad : length_mm;
+      g.col(3 * j + kind) = (misses(perturbed, poses, est, readings) - r0) / h * tolerance;
+    }
+  return g;
+}
 
 ceres::Solver::Options solverOptions(const SolveOptions& options, CancelCallback* cancel) {
   ceres::Solver::Options o;
@@ -589,7 +585,8 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
     t.misses_mm = misses(cell, chosen, f.est, readings);
     t.jacobian_mm = pointToLineJacobian(cell, chosen, f.est, 1.0, readings);
     if (options.model_length_mm > 0 || options.model_angle_deg > 0)
-      t.spread_mm = linkSpread(cell, chosen, f.est, readings, options);
+      t.spread_mm = detail::linkSpread(cell, chosen, f.est, readings, options.model_length_mm,
+                                       options.model_angle_deg);
     const auto s = standoffs(cell, chosen, f.est);
     t.beam_points_away = *std::min_element(s.begin(), s.end()) <= 0;
     return t;
@@ -692,7 +689,9 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
     const Eigen::MatrixXd u =
         ident.unit_covariance.unaryExpr([](double x) { return std::isfinite(x) ? x : 0.0; });
     const Eigen::MatrixXd s_matrix =
-        u * jac_mm.transpose() * linkSpread(cell, used, est, readings, options);
+        u * jac_mm.transpose() *
+        detail::linkSpread(cell, used, est, readings, options.model_length_mm,
+                           options.model_angle_deg);
     if (s_matrix.allFinite()) {
       model_cov = s_matrix * s_matrix.transpose();
       cov += model_cov;

@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "zerocal/calib/identifiability.h"
+#include "zerocal/calib/planner.h"
 #include "zerocal/calib/solver.h"
 
 namespace zerocal::detail {
@@ -92,6 +94,26 @@ GrossErrorSearch findGrossErrors(
     const std::vector<Pose>& poses, std::vector<int> active, TrialFit fit,
     const SolveOptions& options, const SubsetFitter& refit,
     const std::function<std::string(const std::vector<int>& remaining, int i)>& cannot_leave_out);
+
+// The misses' derivatives by each link length and twist (a, d, alpha of every joint) times its
+// tolerance, mm: 2 rows per pose, 3 columns per joint. What the link errors the tolerances allow
+// do to the misses, one standard deviation per column.
+Eigen::MatrixXd linkSpread(const CellModel& cell, const std::vector<Pose>& poses,
+                           const CalibrationParameters& est, bool readings, double length_mm,
+                           double angle_deg);
+
+// The several-placement fit's consider covariance (its unknowns' units: rad, mm): what it holds
+// at nominal but knows only to a tolerance moves the identified unknowns by S = unit_cov J^T G.
+// G: the link errors the poses do not identify (length_mm, angle_deg each) and, when the
+// compliance is not identified and the robot has a gravity model, the sag of joints 2 and 3
+// (sag_deg at the largest torque: theta_j moves by c_j tau_j(q), so its column is delta_j's times
+// the pose's torque). `jac` the Jacobian of the poses `used` (any noise scale), `unit_cov` the
+// pseudo-inverse of its information (the base covariance, zeros where not identified).
+Eigen::MatrixXd placementModelCovariance(const CellModel& cell, const std::vector<Pose>& used,
+                                         const PlacementLayout& layout, const BaseParameters& base,
+                                         const Eigen::MatrixXd& jac,
+                                         const Eigen::MatrixXd& unit_cov, double length_mm,
+                                         double angle_deg, double sag_deg);
 
 // solve() for poses at two or more PSD placements (docs/maths.md section 8).
 SolveReport solveMultiPlacement(const CellModel& cell, const std::vector<Pose>& poses,

@@ -67,8 +67,7 @@ std::string toleranceNote(const SessionReport& r) {
     counted += (counted.empty() ? "" : " and ") +
                format("the gravity sag of joints 2 and 3 (%.3g deg)", s.model_sag_deg);
   if (counted.empty()) return {};
-  return "The achieved sigmas count " + counted +
-         " beside the noise; the plan's prediction counts the noise alone.";
+  return "The achieved sigmas count " + counted + " beside the noise.";
 }
 
 int jointOf(const ParameterRow& p) { return isOffset(p) ? p.name[5] - '0' : 0; }

@@ -55,6 +55,7 @@ std::string rankText(const SessionReport& r);
 // With several PSD placements, one sentence per placement's identified centre; empty with one.
 std::vector<std::string> placementCentres(const SessionReport& r);
 // What the achieved sigmas count beside the noise (the link or sag tolerances); empty when none.
+// (zerocald's plans predict with the same tolerances.)
 std::string toleranceNote(const SessionReport& r);
 
 // Wraps text at `width` columns with `indent` spaces before every line.

@@ -287,6 +287,11 @@ StartRequest SessionManager::defaultRequest() const {
   return r;
 }
 
+ModelTolerances SessionManager::tolerances() const {
+  const SolveOptions& s = settings_.run.solve;
+  return {s.model_length_mm, s.model_angle_deg, s.model_sag_deg};
+}
+
 Plan SessionManager::makePlan(const StartRequest& request, Eigen::Vector3d& target,
                               double& noise_mm) const {
   target = request.target_mm.value_or(settings_.target_mm.value_or(knowledge_.taught_centre_mm));
@@ -302,7 +307,8 @@ Plan SessionManager::makePlan(const StartRequest& request, Eigen::Vector3d& targ
       plan.description = "plan file " + request.plan_file;
       CalibrationParameters nominal;
       nominal.target_mm = target;
-      plan.prediction = predictUncertainty(knowledge_.cell, plan.poses, nominal, noise_mm);
+      plan.prediction =
+          predictUncertainty(knowledge_.cell, plan.poses, nominal, noise_mm, tolerances());
       return plan;
     }
     PlanOptions options;
@@ -318,6 +324,11 @@ Plan SessionManager::makePlan(const StartRequest& request, Eigen::Vector3d& targ
       options.more_placements = defaultPlacements(target, request.placements);
     }
     Plan plan = planPoses(knowledge_.cell, target, options);
+    // The prediction the technician sees counts what the solve will count beside the noise.
+    CalibrationParameters nominal;
+    nominal.target_mm = target;
+    plan.prediction =
+        predictUncertainty(knowledge_.cell, plan.poses, nominal, noise_mm, tolerances());
     if (request.found_before)
       leastSensitiveFirst(plan.poses, knowledge_.cell, *request.found_before);
     return plan;

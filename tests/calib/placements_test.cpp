@@ -381,5 +381,36 @@ TEST(SeveralPlacements, ThePlanPredictsTheLinkErrorsTheyIdentify) {
   EXPECT_TRUE(one.link_sigma.empty());
 }
 
+// The plan's prediction counts what the solve will count beside the noise (the tolerances of the
+// link errors the poses do not identify, the sag), with several placements and with one: the
+// solve's sigmas on noiseless poses are what the plan predicted.
+TEST(SeveralPlacements, ThePlanPredictsWhatTheSolveCountsBesideTheNoise) {
+  const Table2Scenario sc = table2Scenario();
+  const std::vector<Pose>& planned = threePlacementPlan();
+  SolveOptions options;
+  options.noise_mm = 0.02;
+  options.model_length_mm = 0.1;
+  options.model_angle_deg = 0.01;
+  options.model_sag_deg = 0.007;
+  options.required_accuracy_deg = 0.5;
+  const ModelTolerances tolerances{0.1, 0.01, 0.007};
+  const std::vector<Pose> first(planned.begin(), planned.begin() + 10);
+  CalibrationParameters nominal;  // as zerocald predicts: the nominal cell at the first centre
+  nominal.target_mm = sc.truth.target_mm;
+  for (const std::vector<Pose>* plan : {&planned, &first}) {
+    const SolveReport r = solve(sc.cell, record(sc.cell, sc.truth, centresOf(sc), *plan), options);
+    ASSERT_TRUE(r.converged) << r.message;
+    const Prediction counted = predictUncertainty(sc.cell, *plan, nominal, 0.02, tolerances);
+    const Prediction noise_only = predictUncertainty(sc.cell, *plan, nominal, 0.02);
+    for (int k = 0; k < kOffsetCount; ++k) {
+      EXPECT_GE(counted.sigma[k], noise_only.sigma[k]) << plan->size() << " poses, " << k;
+      EXPECT_NEAR(counted.sigma[k] / r.parameters[k].sigma, 1.0, 0.15)
+          << plan->size() << " poses, delta" << k + 2;
+    }
+    // delta2 is what the tolerances widen most (the sag of joint 2; the links with one placement).
+    EXPECT_GT(counted.sigma[0], 1.2 * noise_only.sigma[0]) << plan->size() << " poses";
+  }
+}
+
 }  // namespace
 }  // namespace zerocal

@@ -134,6 +134,8 @@ class SessionManager final : public SessionControl {
   void finish(SessionState state, const std::string& message);
   void setPhase(SessionState state, int pose);
   Plan makePlan(const StartRequest& request, Eigen::Vector3d& target, double& noise_mm) const;
+  // What the session's solve counts beside the noise (its link and sag tolerances).
+  ModelTolerances tolerances() const;
 
   CellBackend& backend_;
   ManagerSettings settings_;

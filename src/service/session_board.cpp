@@ -180,17 +180,24 @@ bool SessionBoard::awaitTechnician(const std::string& message, const std::functi
     }
     if (tick) tick();
   }
-  set(SessionState::kApplying, "");
+  // A continue has set applying already; an abort has not.
+  if (!went_on) set(SessionState::kApplying, "");
   return went_on;
 }
 
 bool SessionBoard::goAhead() {
+  StateEvent event;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (status_.state != SessionState::kAwaitingCounter || go_ahead_) return false;
     go_ahead_ = true;
+    // Applying again from here on, so that a second continue finds nothing waiting.
+    status_.state = SessionState::kApplying;
+    status_.message.clear();
+    event = stateEvent();
   }
   changed_.notify_all();
+  emit(event);
   return true;
 }
 

@@ -431,6 +431,13 @@ void PsdServo::fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& res
   const Eigen::Vector2d target = toVector(options_.target);
   bool settling = false;
   Eigen::Vector2d settle_uv = Eigen::Vector2d::Zero();
+  // Where the arm's repeatability at the detector exceeds the zone (a long beam), each move lands
+  // the spot elsewhere within that scatter and chasing the zone only draws the noise again: the
+  // zone doubles after every kMovesPerZone moves that did not stop, up to kWidestZone times.
+  constexpr int kMovesPerZone = 8;
+  constexpr double kWidestZone = 4.0;
+  double zone_mm = options_.hit_zone_mm;
+  int moves_in_zone = 0;
 
   for (;;) {
     const PsdReading& r = result.reading;
@@ -443,7 +450,7 @@ void PsdServo::fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& res
     }
     if (r.in_valid_zone) {
       if (options_.stop == ServoStop::kCentre && e.norm() <= 1e-3 * options_.tolerance_um) break;
-      if (options_.stop == ServoStop::kZone && e.norm() <= options_.hit_zone_mm) {
+      if (options_.stop == ServoStop::kZone && e.norm() <= zone_mm) {
         if (settling && (uv - settle_uv).norm() <= options_.settle_mm) break;
         // Read again without moving: a reading is only recorded once it repeats.
         settling = true;
@@ -473,6 +480,10 @@ void PsdServo::fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& res
     const JointVector sent = toVector(next) - toVector(q_);
     if (move(robot, next, result) != Step::kOk) return;
     law_->moved(sent);
+    if (++moves_in_zone == kMovesPerZone && zone_mm < kWidestZone * options_.hit_zone_mm) {
+      zone_mm *= 2;
+      moves_in_zone = 0;
+    }
     if (settledRead(psd, result) != Step::kOk) return;
     ++result.iterations;
   }

@@ -31,6 +31,7 @@
 #include "zerocal/calib/solver.h"
 #include "zerocal/calib/validation.h"
 #include "zerocal/error.h"
+#include "zerocal/io/durable_file.h"
 #include "zerocal/io/joint_set.h"
 #include "zerocal/model/builtin.h"
 #include "zerocal/report/session_report.h"
@@ -123,9 +124,8 @@ bool refuseUnknownCommand(const CLI::App& app, const std::string& word, std::ost
 void saveCalibratedModel(const std::string& path, const Robot& robot, const std::string& comment) {
   const std::string text = robotYaml(robot, comment);
   parseRobot(text, path);
-  std::ofstream out(path);
-  out << text;
-  if (!out) throw InputError(path + ": cannot write the robot model");
+  // Whole or not at all: a robot file cut short by a crash would be read as another robot.
+  writeFileDurably(path, text);
 }
 
 }  // namespace

@@ -412,5 +412,39 @@ TEST(SeveralPlacements, ThePlanPredictsWhatTheSolveCountsBesideTheNoise) {
   }
 }
 
+// A result saved as a calibrated robot file (what `zerocal solve --save-model` writes) reads back
+// with the identified link errors in its rows: solved again with it, the same poses leave no link
+// error to find and the same offsets.
+TEST(SeveralPlacements, ACalibratedModelReadsBackAndLeavesNoLinkErrorToFind) {
+  const Table2Scenario sc = table2Scenario();
+  CalibrationParameters truth = sc.truth;
+  truth.link[3 * 1 + 0] = 0.3;               // a2 0.3 mm long
+  truth.link[3 * 2 + 2] = 0.02 * kDegToRad;  // alpha3 twisted 0.02 deg
+  truth.link[3 * 3 + 1] = -0.2;              // d4 0.2 mm short
+  const auto recorded = record(sc.cell, truth, centresOf(sc), threePlacementPlan());
+  SolveOptions options;
+  options.noise_mm = 0.01;
+  const SolveReport first = solve(sc.cell, recorded, options);
+  ASSERT_TRUE(first.verdict.usable) << ::testing::PrintToString(first.verdict.reasons);
+  const Robot saved = calibratedRobot(sc.cell.robot, first.estimate);
+  const Robot back = parseRobot(robotYaml(saved, "calibrated by a test"), "test");
+  for (int j = 0; j < kJointCount; ++j) {
+    EXPECT_NEAR(back.dh[j].a_mm, saved.dh[j].a_mm, 1e-9) << j;
+    EXPECT_NEAR(back.dh[j].d_mm, saved.dh[j].d_mm, 1e-9) << j;
+    EXPECT_NEAR(back.dh[j].alpha_rad, saved.dh[j].alpha_rad, 1e-12) << j;
+  }
+  EXPECT_NEAR(back.dh[1].a_mm - sc.cell.robot.dh[1].a_mm, first.estimate.link[3], 1e-9);
+  CellModel calibrated = sc.cell;
+  calibrated.robot = back;
+  const SolveReport again = solve(calibrated, recorded, options);
+  ASSERT_TRUE(again.converged) << again.message;
+  for (const ParameterEstimate& p : again.parameters)
+    if (p.identifiable && p.name.rfind("d", 0) == 0 && p.name.rfind("delta", 0) != 0) {
+      EXPECT_NEAR(p.value, 0.0, 1e-4) << p.name;
+    }
+  for (int k = 0; k < kOffsetCount; ++k)
+    EXPECT_NEAR(again.parameters[k].value, first.parameters[k].value, 1e-5) << k;
+}
+
 }  // namespace
 }  // namespace zerocal

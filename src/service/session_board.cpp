@@ -82,6 +82,10 @@ void SessionBoard::setPhase(SessionState state, int pose) {
 }
 
 void SessionBoard::finish(SessionState state, const std::string& message) {
+  setState(state, message);
+}
+
+void SessionBoard::setState(SessionState state, const std::string& message) {
   StateEvent event;
   {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -154,22 +158,11 @@ bool SessionBoard::abortWaiting() {
 }
 
 bool SessionBoard::awaitTechnician(const std::string& message, const std::function<void()>& tick) {
-  const auto set = [this](SessionState state, const std::string& text) {
-    StateEvent event;
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      status_.state = state;
-      status_.message = text;
-      event = stateEvent();
-    }
-    changed_.notify_all();
-    emit(event);
-  };
   {
     std::lock_guard<std::mutex> lock(mutex_);
     go_ahead_ = false;
   }
-  set(SessionState::kAwaitingCounter, message);
+  setState(SessionState::kAwaitingCounter, message);
   bool went_on = false;
   for (;;) {
     {
@@ -181,7 +174,7 @@ bool SessionBoard::awaitTechnician(const std::string& message, const std::functi
     if (tick) tick();
   }
   // A continue has set applying already; an abort has not.
-  if (!went_on) set(SessionState::kApplying, "");
+  if (!went_on) setState(SessionState::kApplying, "");
   return went_on;
 }
 

@@ -94,6 +94,8 @@ class SessionBoard {
 
  private:
   StateEvent stateEvent() const;  // mutex_ held
+  // The state and message become these, and the change is announced.
+  void setState(SessionState state, const std::string& message);
 
   mutable std::mutex mutex_;
   mutable std::condition_variable changed_;

@@ -63,8 +63,8 @@ std::string poseLabel(const std::vector<Pose>& poses, int i);
 struct TrialFit {
   bool converged = false;
   int iterations = 0;
-  Eigen::VectorXd misses_mm;      // 2 per fitted pose, in their order
-  Eigen::MatrixXd jacobian_mm;    // of the misses in the identified unknowns
+  Eigen::VectorXd misses_mm;    // 2 per fitted pose, in their order
+  Eigen::MatrixXd jacobian_mm;  // of the misses in the identified unknowns
   // The misses' derivatives by the model parameters known only to a tolerance, times those
   // tolerances (mm); the deletion test then weighs the misses by their covariance. Empty: none.
   Eigen::MatrixXd spread_mm;

@@ -31,7 +31,7 @@ struct SimulatedCellOptions {
   irc5::MotionCosts motion;  // what each move costs the controller (SimControllerOptions::motion)
   // The PSD's light signal wired to the controller (the continuous spot search, SimSearchSignal).
   bool search_signal = true;
-  PsdModelOptions psd;       // detector, board noise and its seed
+  PsdModelOptions psd;              // detector, board noise and its seed
   std::uint32_t board_seed = 1408;  // the board's calibration table
   Joints start_joints{0, 0, 0, 0, 30, 0};
   // Whether an apply may have a revolution counter updated remotely (the simulator playing the

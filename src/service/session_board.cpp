@@ -51,6 +51,19 @@ StateEvent SessionBoard::stateEvent() const {
           status_.pose_count, status_.recorded,   status_.message};
 }
 
+template <class Change>
+bool SessionBoard::changeState(Change&& change) {
+  StateEvent event;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!change()) return false;
+    event = stateEvent();
+  }
+  changed_.notify_all();
+  emit(event);
+  return true;
+}
+
 void SessionBoard::begin(SessionStatus status) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -70,15 +83,11 @@ void SessionBoard::announce() const {
 }
 
 void SessionBoard::setPhase(SessionState state, int pose) {
-  StateEvent event;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
+  changeState([&] {
     status_.state = state;
     status_.pose = std::min(pose, status_.pose_count);
-    event = stateEvent();
-  }
-  changed_.notify_all();
-  emit(event);
+    return true;
+  });
 }
 
 void SessionBoard::finish(SessionState state, const std::string& message) {
@@ -86,23 +95,17 @@ void SessionBoard::finish(SessionState state, const std::string& message) {
 }
 
 void SessionBoard::setState(SessionState state, const std::string& message) {
-  StateEvent event;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
+  changeState([&] {
     status_.state = state;
     status_.message = message;
-    event = stateEvent();
-  }
-  changed_.notify_all();
-  emit(event);
+    return true;
+  });
 }
 
 bool SessionBoard::awaitPlacement(int placement, const Eigen::Vector3d& centre_mm,
                                   const std::string& message) {
-  StateEvent event;
   bool waiting = false;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
+  changeState([&] {
     // An abort asked for while the run was stopping ends the session: nobody would end it once
     // it waits with no worker.
     waiting = !abort_;
@@ -110,18 +113,14 @@ bool SessionBoard::awaitPlacement(int placement, const Eigen::Vector3d& centre_m
     status_.message = waiting ? message : "aborted before placement " + std::to_string(placement);
     status_.next_placement = waiting ? placement : 0;
     status_.next_centre_mm = centre_mm;
-    event = stateEvent();
-  }
-  changed_.notify_all();
-  emit(event);
+    return true;
+  });
   return waiting;
 }
 
 SessionStatus SessionBoard::leaveWaiting() {
-  StateEvent event;
   SessionStatus status;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
+  changeState([&] {
     if (closed_) throw Refused("busy", "the daemon is stopping");
     if (status_.state != SessionState::kAwaitingPlacement)
       throw Refused("not_waiting",
@@ -134,27 +133,20 @@ SessionStatus SessionBoard::leaveWaiting() {
     status_.placement = status_.next_placement;
     status_.next_placement = 0;
     status = status_;
-    event = stateEvent();
-  }
-  changed_.notify_all();
-  emit(event);
+    return true;
+  });
   return status;
 }
 
 bool SessionBoard::abortWaiting() {
-  StateEvent event;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
+  return changeState([&] {
     if (status_.state != SessionState::kAwaitingPlacement) return false;
     status_.state = SessionState::kAborted;
     status_.message =
         "aborted while waiting for the PSD at placement " + std::to_string(status_.next_placement);
     status_.next_placement = 0;
-    event = stateEvent();
-  }
-  changed_.notify_all();
-  emit(event);
-  return true;
+    return true;
+  });
 }
 
 bool SessionBoard::awaitTechnician(const std::string& message, const std::function<void()>& tick) {
@@ -179,19 +171,14 @@ bool SessionBoard::awaitTechnician(const std::string& message, const std::functi
 }
 
 bool SessionBoard::goAhead() {
-  StateEvent event;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
+  return changeState([&] {
     if (status_.state != SessionState::kAwaitingCounter || go_ahead_) return false;
     go_ahead_ = true;
     // Applying again from here on, so that a second continue finds nothing waiting.
     status_.state = SessionState::kApplying;
     status_.message.clear();
-    event = stateEvent();
-  }
-  changed_.notify_all();
-  emit(event);
-  return true;
+    return true;
+  });
 }
 
 void SessionBoard::update(const std::function<void(SessionStatus&)>& change) {

@@ -96,6 +96,11 @@ class SessionBoard {
   StateEvent stateEvent() const;  // mutex_ held
   // The state and message become these, and the change is announced.
   void setState(SessionState state, const std::string& message);
+  // Runs `change` on the status under the lock; when it returns true, wakes the waiters and
+  // announces the new state once the lock is released. Returns what `change` returned (it may
+  // throw, and then nothing is announced). Defined and used in session_board.cpp only.
+  template <class Change>
+  bool changeState(Change&& change);
 
   mutable std::mutex mutex_;
   mutable std::condition_variable changed_;

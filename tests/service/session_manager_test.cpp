@@ -1041,19 +1041,31 @@ SessionStatus untilTechnicianOrEnd(SessionManager& manager) {
   return s;
 }
 
+// A calibrated session on seed 6 (its apply crosses a seam) of a simulated cell that, as an IRC5
+// over RAPID, cannot update a revolution counter remotely.
+class CounterByTechnician : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    manager.setEventSink(log.sink());
+    id = manager.start(manager.defaultRequest());
+    ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
+  }
+  static sim::SimulatedCellOptions cellWithoutRemoteUpdate() {
+    sim::SimulatedCellOptions cell = cellFor(6);
+    cell.remote_counter_update = false;
+    return cell;
+  }
+  const TempDir dir;
+  sim::SimBackend backend{cellWithoutRemoteUpdate()};
+  SessionManager manager{backend, applySettingsIn(dir.path)};
+  EventLog log;
+  std::string id;
+};
+
 // An IRC5 over RAPID cannot update a revolution counter remotely. An apply whose new value crosses
 // a joint's seam waits (awaiting_counter) for the technician to update the counter at the
 // FlexPendant and continue; updated, the verification passes.
-TEST(SessionManagerApply, ASeamCrossingWaitsForTheTechnicianToUpdateTheCounter) {
-  const TempDir dir;
-  sim::SimulatedCellOptions cell = cellFor(6);
-  cell.remote_counter_update = false;
-  sim::SimBackend backend(cell);
-  SessionManager manager(backend, applySettingsIn(dir.path));
-  EventLog log;
-  manager.setEventSink(log.sink());
-  const std::string id = manager.start(manager.defaultRequest());
-  ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
+TEST_F(CounterByTechnician, ASeamCrossingWaitsForTheTechnicianToUpdateTheCounter) {
   EXPECT_EQ(manager.apply({id, true}), id);
   int waits = 0;
   for (SessionStatus s = untilTechnicianOrEnd(manager); s.state == SessionState::kAwaitingCounter;
@@ -1081,16 +1093,7 @@ TEST(SessionManagerApply, ASeamCrossingWaitsForTheTechnicianToUpdateTheCounter) 
 }
 
 // Aborted while it waits for the technician, the apply restores the values from before it.
-TEST(SessionManagerApply, AnAbortWhileWaitingForTheTechnicianRollsTheApplyBack) {
-  const TempDir dir;
-  sim::SimulatedCellOptions cell = cellFor(6);
-  cell.remote_counter_update = false;
-  sim::SimBackend backend(cell);
-  SessionManager manager(backend, applySettingsIn(dir.path));
-  EventLog log;
-  manager.setEventSink(log.sink());
-  const std::string id = manager.start(manager.defaultRequest());
-  ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
+TEST_F(CounterByTechnician, AnAbortWhileWaitingForTheTechnicianRollsTheApplyBack) {
   const Joints shift_before = backend.cell().controller().zeroShiftDeg();
   manager.apply({id, true});
   const SessionStatus waiting = untilTechnicianOrEnd(manager);

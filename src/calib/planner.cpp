@@ -384,6 +384,95 @@ std::vector<int> selectOptimal(
 
 }  // namespace
 
+double tourSeconds(const std::vector<Pose>& poses, const TravelTime& travel_s) {
+  double total = 0;
+  for (std::size_t i = 1; i < poses.size(); ++i)
+    total += travel_s(poses[i - 1].q_deg, poses[i].q_deg);
+  return total;
+}
+
+void orderForTravel(std::vector<Pose>& poses, const TravelTime& travel_s) {
+  const int n = static_cast<int>(poses.size());
+  if (n < 3 || !travel_s) return;
+  Eigen::MatrixXd cost(n, n);
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) cost(i, j) = i == j ? 0 : travel_s(poses[i].q_deg, poses[j].q_deg);
+  const auto length = [&](const std::vector<int>& tour) {
+    double total = 0;
+    for (int k = 1; k < n; ++k) total += cost(tour[k - 1], tour[k]);
+    return total;
+  };
+  // Reversing tour[i..j] changes only the legs into i and out of j (an open tour: the first and
+  // last poses have one leg each); the costs are used as if symmetric, as a joint move's is.
+  const auto twoOpt = [&](std::vector<int>& tour) {
+    for (bool improved = true; improved;) {
+      improved = false;
+      for (int i = 0; i < n - 1; ++i)
+        for (int j = i + 1; j < n; ++j) {
+          const double before = (i > 0 ? cost(tour[i - 1], tour[i]) : 0) +
+                                (j < n - 1 ? cost(tour[j], tour[j + 1]) : 0);
+          const double after = (i > 0 ? cost(tour[i - 1], tour[j]) : 0) +
+                               (j < n - 1 ? cost(tour[i], tour[j + 1]) : 0);
+          if (after < before - 1e-9) {
+            std::reverse(tour.begin() + i, tour.begin() + j + 1);
+            improved = true;
+          }
+        }
+    }
+  };
+  // Moving a stretch of one to three poses elsewhere in the tour, either way round (or-opt):
+  // what reversals alone cannot reach.
+  const auto orOpt = [&](std::vector<int>& tour) {
+    bool improved = false;
+    double current = length(tour);
+    for (int size = 1; size <= 3; ++size)
+      for (int from = 0; from + size <= n; ++from) {
+        std::vector<int> rest = tour;
+        const std::vector<int> stretch(rest.begin() + from, rest.begin() + from + size);
+        rest.erase(rest.begin() + from, rest.begin() + from + size);
+        for (int to = 0; to <= static_cast<int>(rest.size()); ++to)
+          for (const bool reversed : {false, true}) {
+            std::vector<int> candidate = rest;
+            candidate.insert(candidate.begin() + to, stretch.begin(), stretch.end());
+            if (reversed) std::reverse(candidate.begin() + to, candidate.begin() + to + size);
+            if (const double l = length(candidate); l < current - 1e-9) {
+              tour = std::move(candidate);
+              current = l;
+              improved = true;
+              break;
+            }
+          }
+      }
+    return improved;
+  };
+  std::vector<int> best(n);
+  std::iota(best.begin(), best.end(), 0);
+  double best_length = length(best);
+  // Or-opt costs n^3 a pass: plans of more poses than a session has keep the reversals alone,
+  // from a few starts.
+  constexpr int kMostPolished = 40;
+  const bool polish = n <= kMostPolished;
+  for (int start = 0; start < n; start += polish ? 1 : n / 4) {
+    std::vector<int> tour{start};
+    std::vector<bool> visited(n, false);
+    visited[start] = true;
+    while (static_cast<int>(tour.size()) < n) {
+      int next = -1;
+      for (int c = 0; c < n; ++c)
+        if (!visited[c] && (next < 0 || cost(tour.back(), c) < cost(tour.back(), next))) next = c;
+      visited[next] = true;
+      tour.push_back(next);
+    }
+    do twoOpt(tour);
+    while (polish && orOpt(tour));
+    if (const double l = length(tour); l < best_length - 1e-9) best_length = l, best = tour;
+  }
+  std::vector<Pose> ordered;
+  ordered.reserve(n);
+  for (int k : best) ordered.push_back(poses[k]);
+  poses = std::move(ordered);
+}
+
 std::vector<Eigen::Vector3d> defaultPlacements(const Eigen::Vector3d& first, int count) {
   if (count < 1 || count > kMaxDefaultPlacements)
     throw InputError("the default placements are 1 to " + std::to_string(kMaxDefaultPlacements) +
@@ -503,6 +592,10 @@ Plan planPoses(const CellModel& cell, const Eigen::Vector3d& target, const PlanO
                      " are reachable inside the joint limits (less a " +
                      std::to_string(o.margin_deg) + " deg margin); move the target or change " +
                      "the stand-off range or sweep");
+  if (o.travel_s) {
+    orderForTravel(plan.poses, o.travel_s);
+    what << "; in the order of least travel";
+  }
   plan.prediction = predictUncertainty(cell, plan.poses, at, o.noise_mm);
   plan.description = what.str();
   return plan;

@@ -75,6 +75,14 @@ ManagerSettings managerSettingsOf(const DaemonConfig& cfg) {
   if (cfg.backend.kind == BackendKind::kSim && cfg.backend.sim_host.empty()) {
     s.move_overhead = MoveOverhead{cfg.backend.sim_move_overhead_s, irc5::MotionCosts{}.settle_s};
   }
+  // Only the motion differs between two orders of the same poses: every move has the same fixed
+  // cost and settling.
+  s.travel_s = [link = cfg.controller.irc5](const Robot& robot, const Joints& from,
+                                            const Joints& to) {
+    return irc5::jointMoveTime(robot, from, to, link.speed_tcp_mm_s, link.speed_ori_deg_s,
+                               irc5::MotionCosts{})
+        .motion_s;
+  };
   s.write_reports = [](const std::string& dir) { report::writeSessionReport(dir); };
   s.controller_restart_timeout = cfg.controller.irc5.restart_timeout;
   return s;

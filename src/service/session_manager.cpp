@@ -316,6 +316,10 @@ Plan SessionManager::makePlan(const StartRequest& request, Eigen::Vector3d& targ
     options.poses = request.poses;
     options.noise_mm = noise_mm;
     options.psd_normal = knowledge_.cell.psd_rotation.col(2);
+    if (settings_.travel_s)
+      options.travel_s = [this](const Joints& from, const Joints& to) {
+        return settings_.travel_s(knowledge_.cell.robot, from, to);
+      };
     if (request.placements < 1 || request.placements > kMaxDefaultPlacements)
       throw InputError("placements: " + std::to_string(request.placements) + " is outside 1.." +
                        std::to_string(kMaxDefaultPlacements));

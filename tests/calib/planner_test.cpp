@@ -2,6 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+
 #include "zerocal/calib/experiment.h"
 #include "zerocal/calib/identifiability.h"
 #include "zerocal/calib/sensitivity.h"
@@ -88,6 +93,55 @@ TEST(Planner, RejectsBadOptions) {
   EXPECT_EQ(parsePattern("ii"), Pattern::kII);
   // A target out of reach.
   EXPECT_THROW(planPoses(sc.cell, Eigen::Vector3d(4000, 0, 0), PlanOptions{}), InputError);
+}
+
+// A travel time for the tests: the joint that moves most, at 100 deg/s (any metric will do).
+double jointTravelS(const Joints& from, const Joints& to) {
+  double most = 0;
+  for (int i = 0; i < kJointCount; ++i) most = std::max(most, std::abs(to[i] - from[i]));
+  return most / 100.0;
+}
+
+TEST(Planner, VisitsThePosesInTheOrderOfLeastTravel) {
+  const Table2Scenario sc = table2Scenario();
+  PlanOptions o;
+  o.poses = 16;
+  const Plan chosen = planPoses(sc.cell, sc.truth.target_mm, o);
+  o.travel_s = jointTravelS;
+  const Plan ordered = planPoses(sc.cell, sc.truth.target_mm, o);
+  // The same poses, so the same prediction; only their order differs.
+  ASSERT_EQ(ordered.poses.size(), chosen.poses.size());
+  EXPECT_TRUE(std::is_permutation(ordered.poses.begin(), ordered.poses.end(), chosen.poses.begin(),
+                                  [](const Pose& a, const Pose& b) { return a.q_deg == b.q_deg; }));
+  for (int k = 0; k < kOffsetCount; ++k)
+    EXPECT_NEAR(ordered.prediction.sigma[k], chosen.prediction.sigma[k],
+                1e-9 * chosen.prediction.sigma[k]);
+  const double before = tourSeconds(chosen.poses, jointTravelS);
+  const double after = tourSeconds(ordered.poses, jointTravelS);
+  EXPECT_LT(after, 0.8 * before) << before << " s in the chosen order";
+  // No reversal of a stretch of the tour shortens it.
+  for (std::size_t i = 0; i + 1 < ordered.poses.size(); ++i)
+    for (std::size_t j = i + 1; j < ordered.poses.size(); ++j) {
+      std::vector<Pose> other = ordered.poses;
+      std::reverse(other.begin() + i, other.begin() + j + 1);
+      EXPECT_GE(tourSeconds(other, jointTravelS), after - 1e-9) << i << ".." << j;
+    }
+}
+
+TEST(Planner, OrderForTravelFindsTheShortestTourOfAFewPoses) {
+  const Table2Scenario sc = table2Scenario();
+  const std::vector<Pose> planned = planPoses(sc.cell, sc.truth.target_mm, PlanOptions{}).poses;
+  std::vector<Pose> few(planned.begin(), planned.begin() + 7);
+  std::vector<int> order(few.size());
+  std::iota(order.begin(), order.end(), 0);
+  double shortest = std::numeric_limits<double>::infinity();
+  do {
+    std::vector<Pose> tour;
+    for (int k : order) tour.push_back(few[k]);
+    shortest = std::min(shortest, tourSeconds(tour, jointTravelS));
+  } while (std::next_permutation(order.begin(), order.end()));
+  orderForTravel(few, jointTravelS);
+  EXPECT_NEAR(tourSeconds(few, jointTravelS), shortest, 1e-9);
 }
 
 TEST(Sensitivity, WristRotationAt600MmMatchesThePaper) {

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -65,6 +66,19 @@ enum class Pattern { kI, kII, kMixed, kOptimal };
 Pattern parsePattern(const std::string& text);
 std::string patternName(Pattern p);
 
+// Seconds the robot takes to move from one joint set to another.
+using TravelTime = std::function<double(const Joints& from, const Joints& to)>;
+
+// Puts the poses in the order that visits them all in the least time: an open tour (the robot's
+// pose before the first is not known when planning), the best of a nearest-neighbour tour from
+// every pose, each improved by reversing stretches (2-opt) and moving them (or-opt) until
+// neither shortens it. The
+// poses' plan is unchanged, only their order: half the cell time of a calibration is moves
+// between poses, and the order the optimal selection leaves them in crosses the workspace.
+void orderForTravel(std::vector<Pose>& poses, const TravelTime& travel_s);
+// The time of visiting the poses in their order.
+double tourSeconds(const std::vector<Pose>& poses, const TravelTime& travel_s);
+
 struct PlanOptions {
   Pattern pattern = Pattern::kOptimal;
   int poses = 8;
@@ -79,6 +93,9 @@ struct PlanOptions {
   // to planPoses is placement 1's. `poses` are planned at each placement (the same pattern,
   // aimed at that centre), each pose carrying its placement number. Empty: one placement.
   std::vector<Eigen::Vector3d> more_placements;
+  // The controller's time for a move between two poses (s). Given, each placement's poses are
+  // visited in the order that takes least time (orderForTravel); empty, in the order chosen.
+  TravelTime travel_s;
   std::string validate() const;
 };
 

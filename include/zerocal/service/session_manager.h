@@ -39,6 +39,9 @@ struct ManagerSettings {
   // What every move costs the controller beyond its motion, when known (the simulated one's
   // model): the result's pose breakdown then shows it per pose, as moves x cost.
   std::optional<MoveOverhead> move_overhead;
+  // The controller's time for a move of the robot between two poses (s): a plan's poses are then
+  // visited in the order that takes least time (orderForTravel); empty, in the order chosen.
+  std::function<double(const Robot& robot, const Joints& from, const Joints& to)> travel_s;
   // Called with a finished session's folder after result.json is written (summary, report).
   std::function<void(const std::string& session_dir)> write_reports;
   // How long the recovery of an interrupted apply waits for a controller that refuses or ignores

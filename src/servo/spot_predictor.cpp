@@ -103,9 +103,13 @@ void SpotPredictor::refit() {
         j.block<2, 1>(2 * i, k) = (spot(xp, poses_[i].first) - f) / h;
       }
     }
-    // Maximum a posteriori: readings weighted as 0.02 mm (the robot's repeatability, not the
-    // PSD's noise), the prior in units of each spread.
-    constexpr double kReadingMm = 0.02;
+    // Maximum a posteriori, the prior in units of each spread and the readings weighted as
+    // 0.3 mm: not the robot's repeatability (0.02 mm) but what the arm's link errors, which the
+    // model leaves out, make it miss by at every pose (0.1 to 0.3 mm, docs/maths.md section 5).
+    // Weighed as repeatability, a few neighbouring poses were fitted to those misses with
+    // offsets and a laser far from the truth, and the next pose across the workspace was
+    // predicted up to 87 mm off.
+    constexpr double kReadingMm = 0.3;
     j.topRows(m) /= kReadingMm;
     r.head(m) /= kReadingMm;
     j.bottomRows(kN) = s.cwiseInverse().asDiagonal();

@@ -10,8 +10,10 @@
 #include <vector>
 
 #include "stored_plan.h"
+#include "zerocal/calib/planner.h"
 #include "zerocal/calib/solver.h"
 #include "zerocal/irc5/irc5_client.h"
+#include "zerocal/irc5/motion_time.h"
 #include "zerocal/servo/servo.h"
 #include "zerocal/servo/spot_predictor.h"
 #include "zerocal/sim/simulated_rig.h"
@@ -95,6 +97,41 @@ TEST(SimulatedCell, ServoConvergesToTwoMicrometresOfTheCentre) {
                 r.search_moves, r.iterations, r.final_error_um, r.end_s - r.start_s);
     predictor.addPose(r.q_deg, r.reading.spot);
   }
+}
+
+TEST(SimulatedCell, ANeighbourhoodOfPosesDoesNotMisleadThePredictionFarAway) {
+  // The realistic arm's link errors leave misses of tenths of a millimetre that the predictor's
+  // model cannot explain. Weighed as if they were the robot's 0.02 mm of repeatability, a few
+  // neighbouring poses (the daemon's 16-pose plan, visited in the order of least travel) were
+  // fitted with offsets and a laser far from the truth, and the next pose across the workspace
+  // was predicted 87 mm off (seed 2, pose 6: the spot then not found in 40 search moves).
+  Rig rig(sim::seededCellOptions(2, WorldKind::kRealistic));
+  const Knowledge k = knowledgeOf(rig.cell.world());
+  PlanOptions o;
+  o.poses = 16;
+  o.noise_mm = 0.02;
+  o.psd_normal = k.cell.psd_rotation.col(2);
+  o.travel_s = [&k](const Joints& from, const Joints& to) {
+    return irc5::jointMoveTime(k.cell.robot, from, to, 250, 100, irc5::MotionCosts{}).motion_s;
+  };
+  const std::vector<Pose> plan = planPoses(k.cell, k.taught_centre, o).poses;
+  PsdServo servo(k.cell, k.taught_centre, withoutClock(ServoStop::kZone));
+  SpotPredictor predictor(k.cell, k.taught_centre);
+  double worst = 0;
+  for (std::size_t i = 0; i < plan.size(); ++i) {
+    rig.client.moveJoints(plan[i].q_deg);
+    const ServoResult r =
+        servo.run(rig.client, rig.psd, plan[i].q_deg, predictor.searchCentre(plan[i].q_deg));
+    ASSERT_TRUE(r.ok()) << "pose " << i + 1 << ": " << statusName(r.status);
+    if (predictor.confident()) {
+      const PsdSpot p = predictor.predict(r.q_deg);
+      const double miss = std::hypot(p.u_mm - r.reading.spot.u_mm, p.v_mm - r.reading.spot.v_mm);
+      std::printf("pose %zu: predicted %.2f mm off\n", i + 1, miss);
+      worst = std::max(worst, miss);
+    }
+    predictor.addPose(r.q_deg, r.reading.spot);
+  }
+  EXPECT_LT(worst, 30.0);  // under a third of the search's radius
 }
 
 TEST(SimulatedCell, SpotNeverFoundLeavesTheRobotAtThePlannedPose) {

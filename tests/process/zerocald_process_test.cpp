@@ -193,9 +193,9 @@ TEST_F(ZerocaldProcess, Kill9MidSessionThenRestartAndResumeLosesAndRepeatsNothin
 // again (nothing measured with the PSD where it was), and `continue` finishes the session at both
 // placements.
 TEST_F(ZerocaldProcess, Kill9WhileWaitingForThePsdWaitsAgainOnResume) {
-  const std::vector<std::string> two_placements = {"--set", "session.plan=optimal",
-                                                   "--set", "session.plan_file=\"\"",
-                                                   "--set", "session.placements=2"};
+  const std::vector<std::string> two_placements = {
+      "--set", "session.plan=optimal", "--set", "session.plan_file=\"\"",
+      "--set", "session.placements=2", "--set", "session.poses=8"};
   const auto untilWaitingOrEnded = [](ControlClient& c) {
     const auto deadline = std::chrono::steady_clock::now() + 120s;
     for (;;) {

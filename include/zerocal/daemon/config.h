@@ -83,7 +83,7 @@ struct ControllerConfig {
 struct SessionConfig {
   PlanKind plan = PlanKind::kOptimal;
   std::string plan_file;  // a joint-set file; required by plan: file, refused otherwise
-  int poses = 8;          // with several placements: at each
+  int poses = 16;         // with several placements: at each
   // PSD placements of a session: 1, or 2..kMaxDefaultPlacements (the first at target_mm, the
   // others spread around it; the technician moves the PSD between them, docs/daemon.md).
   int placements = 1;

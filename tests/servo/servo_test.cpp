@@ -347,7 +347,6 @@ TEST(PsdServo, AZoneSmallerThanTheArmsScatterWidensInsteadOfTimingOut) {
   o.stop = ServoStop::kZone;
   o.settle_s = 0;
   o.timeout_s = 1e9;  // the iteration bound (40) is the limit here
-  o.hit_zone_mm = 0.05;
   PsdServo servo(s.cell, s.world.psd_position_mm, o);
   const ServoResult r = servo.run(link, psd, s.planned);
   ASSERT_TRUE(r.ok()) << statusName(r.status) << ": " << servo.fault().message;

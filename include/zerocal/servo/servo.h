@@ -115,10 +115,8 @@ struct ServoOptions {
   double damping_mm = 1e-3;  // Tikhonov term of the pseudo-inverse (mm/deg)^2 scale
 
   PsdSpot target;             // where the fine servo brings the spot, PSD frame (mm)
-  // kZone. The arm's repeatability scatters a move's spot by 0.03..0.07 mm at the detector: a
-  // 0.05 mm zone took several moves at most poses (16 poses over 120 s of cell time); the
-  // reading is recorded, so the zone only bounds what using it costs (docs/servo.md).
-  double hit_zone_mm = 0.1;
+  // kZone; widened where the arm's scatter at the detector exceeds it (docs/servo.md).
+  double hit_zone_mm = 0.05;
   // kZone: two readings at the same pose agreeing within this are settled.
   double settle_mm = 0.005;
   double limit_margin_deg = 1.0;   // kept from every joint limit (controller.limit_margin_deg)

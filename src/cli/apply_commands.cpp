@@ -10,6 +10,7 @@
 
 #include "zerocal/apply/moc_file.h"
 #include "zerocal/apply/motor_calibration.h"
+#include "zerocal/daemon/config.h"
 #include "zerocal/error.h"
 #include "zerocal/model/builtin.h"
 #include "zerocal/model/robot.h"
@@ -293,7 +294,9 @@ void addApplyCommands(CLI::App& app, ApplyCommands& commands) {
       ->default_val(e.worlds)
       ->check(CLI::Range(1, 1000));
   x->add_option("--seed0", e.seed0, "seed of the first world")->default_val(e.seed0);
-  x->add_option("--poses", e.poses, "poses per calibration")->default_val(e.poses);
+  e.poses = SessionConfig{}.poses;  // as the daemon calibrates and verifies
+  x->add_option("--poses", e.poses, "poses per calibration (the daemon's session.poses)")
+      ->default_val(e.poses);
   x->add_option("--wrong-sign", e.wrong_sign_joint,
                 "flip joint J's transmission sign in the configuration (2..5)")
       ->check(CLI::Range(2, 5));

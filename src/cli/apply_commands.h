@@ -26,7 +26,7 @@ struct ApplyArgs {
 struct ApplyExperimentArgs {
   int worlds = 10;
   std::uint64_t seed0 = 1;
-  int poses = 8;
+  int poses = 0;             // the command line sets the daemon's session.poses
   int wrong_sign_joint = 0;  // 2..5: that joint's transmission sign flipped in the configuration
   double required_deg = 0.003;
 };

@@ -3,6 +3,9 @@
 
 #include <gtest/gtest.h>
 
+#include "zerocal/irc5/motion_time.h"
+#include "zerocal/model/builtin.h"
+
 namespace zerocal::service {
 namespace {
 
@@ -56,6 +59,23 @@ TEST(DaemonSetup, TheDefaultsAreTheComponentsOwn) {
   EXPECT_EQ(run.servo.settle_s, servo.settle_s);
   EXPECT_EQ(run.servo.timeout_s, servo.timeout_s);
   EXPECT_EQ(run.solve.required_accuracy_deg, SolveOptions{}.required_accuracy_deg);
+}
+
+// The plan's poses are ordered by what a move between them costs the controller at the
+// configured speeds: the same motion model the simulated controller charges.
+TEST(DaemonSetup, PlansAreOrderedByTheControllersMotionAtItsSpeeds) {
+  DaemonConfig config;
+  const Robot robot = builtinIrb1600();
+  const Joints from{0, 0, 0, 0, 30, 0}, to{20, 25, -10, 40, 60, -30};
+  const auto fast = managerSettingsOf(config).travel_s;
+  ASSERT_TRUE(fast);
+  EXPECT_DOUBLE_EQ(fast(robot, from, to),
+                   irc5::jointMoveTime(robot, from, to, config.controller.irc5.speed_tcp_mm_s,
+                                       config.controller.irc5.speed_ori_deg_s, irc5::MotionCosts{})
+                       .motion_s);
+  config.controller.irc5.speed_tcp_mm_s /= 4;
+  config.controller.irc5.speed_ori_deg_s /= 4;
+  EXPECT_GT(managerSettingsOf(config).travel_s(robot, from, to), 2 * fast(robot, from, to));
 }
 
 }  // namespace

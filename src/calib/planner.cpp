@@ -423,27 +423,24 @@ void orderForTravel(std::vector<Pose>& poses, const TravelTime& travel_s) {
   // Moving a stretch of one to three poses elsewhere in the tour, either way round (or-opt):
   // what reversals alone cannot reach.
   const auto orOpt = [&](std::vector<int>& tour) {
-    bool improved = false;
-    double current = length(tour);
+    const double current = length(tour);
     for (int size = 1; size <= 3; ++size)
       for (int from = 0; from + size <= n; ++from) {
         std::vector<int> rest = tour;
-        const std::vector<int> stretch(rest.begin() + from, rest.begin() + from + size);
         rest.erase(rest.begin() + from, rest.begin() + from + size);
         for (int to = 0; to <= static_cast<int>(rest.size()); ++to)
           for (const bool reversed : {false, true}) {
             std::vector<int> candidate = rest;
-            candidate.insert(candidate.begin() + to, stretch.begin(), stretch.end());
+            candidate.insert(candidate.begin() + to, tour.begin() + from,
+                             tour.begin() + from + size);
             if (reversed) std::reverse(candidate.begin() + to, candidate.begin() + to + size);
-            if (const double l = length(candidate); l < current - 1e-9) {
+            if (length(candidate) < current - 1e-9) {
               tour = std::move(candidate);
-              current = l;
-              improved = true;
-              break;
+              return true;
             }
           }
       }
-    return improved;
+    return false;
   };
   std::vector<int> best(n);
   std::iota(best.begin(), best.end(), 0);
@@ -514,7 +511,7 @@ Plan planPoses(const CellModel& cell, const Eigen::Vector3d& target, const PlanO
            << centres[p].y() << ", " << centres[p].z() << ") mm, " << part.description;
     }
     CalibrationParameters at;
-    plan.prediction = predictUncertainty(cell, plan.poses, at, o.noise_mm);
+    plan.prediction = predictUncertainty(cell, plan.poses, at, o.noise_mm, o.tolerances);
     plan.description = what.str();
     return plan;
   }
@@ -596,7 +593,7 @@ Plan planPoses(const CellModel& cell, const Eigen::Vector3d& target, const PlanO
     orderForTravel(plan.poses, o.travel_s);
     what << "; in the order of least travel";
   }
-  plan.prediction = predictUncertainty(cell, plan.poses, at, o.noise_mm);
+  plan.prediction = predictUncertainty(cell, plan.poses, at, o.noise_mm, o.tolerances);
   plan.description = what.str();
   return plan;
 }

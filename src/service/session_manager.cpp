@@ -316,6 +316,7 @@ Plan SessionManager::makePlan(const StartRequest& request, Eigen::Vector3d& targ
     options.poses = request.poses;
     options.noise_mm = noise_mm;
     options.psd_normal = knowledge_.cell.psd_rotation.col(2);
+    options.tolerances = tolerances();  // the prediction the technician sees is the solve's
     if (settings_.travel_s)
       options.travel_s = [this](const Joints& from, const Joints& to) {
         return settings_.travel_s(knowledge_.cell.robot, from, to);
@@ -328,11 +329,6 @@ Plan SessionManager::makePlan(const StartRequest& request, Eigen::Vector3d& targ
       options.more_placements = defaultPlacements(target, request.placements);
     }
     Plan plan = planPoses(knowledge_.cell, target, options);
-    // The prediction the technician sees counts what the solve will count beside the noise.
-    CalibrationParameters nominal;
-    nominal.target_mm = target;
-    plan.prediction =
-        predictUncertainty(knowledge_.cell, plan.poses, nominal, noise_mm, tolerances());
     if (request.found_before)
       leastSensitiveFirst(plan.poses, knowledge_.cell, *request.found_before);
     return plan;

@@ -72,9 +72,8 @@ using TravelTime = std::function<double(const Joints& from, const Joints& to)>;
 // Puts the poses in the order that visits them all in the least time: an open tour (the robot's
 // pose before the first is not known when planning), the best of a nearest-neighbour tour from
 // every pose, each improved by reversing stretches (2-opt) and moving them (or-opt) until
-// neither shortens it. The
-// poses' plan is unchanged, only their order: half the cell time of a calibration is moves
-// between poses, and the order the optimal selection leaves them in crosses the workspace.
+// neither shortens it. The poses are unchanged, only their order: half the cell time of a
+// calibration is moves between poses, and the optimal selection's order crosses the workspace.
 void orderForTravel(std::vector<Pose>& poses, const TravelTime& travel_s);
 // The time of visiting the poses in their order.
 double tourSeconds(const std::vector<Pose>& poses, const TravelTime& travel_s);
@@ -96,6 +95,8 @@ struct PlanOptions {
   // The controller's time for a move between two poses (s). Given, each placement's poses are
   // visited in the order that takes least time (orderForTravel); empty, in the order chosen.
   TravelTime travel_s;
+  // What the solve will count beside the noise, for the plan's prediction (predictUncertainty).
+  ModelTolerances tolerances;
   std::string validate() const;
 };
 

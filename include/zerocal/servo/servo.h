@@ -114,7 +114,7 @@ struct ServoOptions {
   double gain = 0.9;         // below 1: no overshoot from a slightly wrong Jacobian
   double damping_mm = 1e-3;  // Tikhonov term of the pseudo-inverse (mm/deg)^2 scale
 
-  PsdSpot target;             // where the fine servo brings the spot, PSD frame (mm)
+  PsdSpot target;  // where the fine servo brings the spot, PSD frame (mm)
   // kZone; widened where the arm's scatter at the detector exceeds it (docs/servo.md).
   double hit_zone_mm = 0.05;
   // kZone: two readings at the same pose agreeing within this are settled.

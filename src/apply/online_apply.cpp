@@ -42,13 +42,13 @@ void writeAndRestart(ControllerCalibration& store, const std::array<double, 6>& 
                   fmt("%.6f", now[j - 1]) + " after writing " + fmt("%.6f", values[j - 1]));
 }
 
+}  // namespace
+
 std::string valuesText(const std::array<double, 6>& v) {
   std::string s;
   for (int j = 2; j <= 5; ++j) s += "rob1_" + std::to_string(j) + " " + fmt("%.6f", v[j - 1]) + " ";
   return s;
 }
-
-}  // namespace
 
 void ApplyJournal::append(json line) {
   line["time_unix_s"] =
@@ -137,6 +137,10 @@ OnlineApplyOutcome applyOnline(ControllerCalibration& store,
                             {"formula", formulaText(c)}});
   }
   journal.append({{"step", "begin"},
+                  {"controller",
+                   {{"robot_type", options.controller.robot_type},
+                    {"serial", options.controller.serial},
+                    {"software_version", options.controller.software_version}}},
                   {"before_rad", out.before_rad},
                   {"new_rad", out.written_rad},
                   {"changes", changes_json},
@@ -304,6 +308,9 @@ std::optional<ApplyRecord> lastApplyRecord(const ApplyJournal& journal) {
       } else if (step == "error") {
         r->outcome = "error";
         r->message = line.value("message", "");
+      } else if (step == "recovery_refused") {
+        r->outcome = "unrecovered";
+        r->message = line.value("message", "");
       } else if (step == "done") {
         r->outcome = line.value("outcome", "");
         r->message = line.value("message", "");
@@ -315,53 +322,175 @@ std::optional<ApplyRecord> lastApplyRecord(const ApplyJournal& journal) {
   return r;
 }
 
-bool applyInterrupted(const ApplyJournal& journal) {
-  bool inside = false;
-  for (const json& line : journal.read()) {
-    const std::string step = line.value("step", "");
-    if (step == "begin") inside = true;
-    if (step == "done") inside = false;
+const char* recoveryOutcomeName(RecoveryOutcome outcome) {
+  switch (outcome) {
+    case RecoveryOutcome::kNotNeeded:
+      return "not_needed";
+    case RecoveryOutcome::kNothingWritten:
+      return "not_written";
+    case RecoveryOutcome::kRestored:
+      return "recovered";
+    case RecoveryOutcome::kConflict:
+      return "conflict";
+    case RecoveryOutcome::kForeign:
+      return "foreign";
   }
-  return inside;
+  return "?";
 }
 
-Recovery recoverApply(ControllerCalibration& store, ApplyJournal& journal) {
-  const std::vector<json> lines = journal.read();
+namespace {
+
+// The journal's last apply that has no "done" line: its lines from "begin" on; empty when none.
+std::vector<json> openApply(const ApplyJournal& journal) {
+  std::vector<json> lines = journal.read();
   int begin = -1;
-  for (int i = 0; i < static_cast<int>(lines.size()); ++i)
-    if (lines[i].value("step", "") == "begin") begin = i;
-  Recovery r;
-  if (begin < 0) return r;
-  std::string last = "begin";
-  std::set<int> counters;
-  for (int i = begin + 1; i < static_cast<int>(lines.size()); ++i) {
-    last = lines[i].value("step", "");
-    if (last == "done") return r;
-    if (last == "revolution_counter") counters.insert(lines[i].value("joint", 0));
+  for (int i = 0; i < static_cast<int>(lines.size()); ++i) {
+    const std::string step = lines[i].value("step", "");
+    if (step == "begin") begin = i;
+    if (step == "done") begin = -1;
   }
-  r.needed = true;
-  const auto before = lines[begin].at("before_rad").get<std::array<double, 6>>();
-  const std::array<double, 6> now = store.readCalOffsets();
-  bool unchanged = true;
-  for (int j = 2; j <= 5; ++j)
-    unchanged = unchanged && std::abs(now[j - 1] - before[j - 1]) <= 2e-6;
-  journal.append({{"step", "recovering"}, {"found_rad", now}, {"last_step", last}});
-  // Restore even when the configured values look unchanged: a restart may not have happened.
+  if (begin < 0) return {};
+  return {lines.begin() + begin, lines.end()};
+}
+
+bool sameValue(double a, double b) { return std::abs(a - b) <= 2e-6; }
+
+std::string identityText(const std::string& type, const std::string& serial) {
+  return "'" + type + "' serial '" + serial + "'";
+}
+
+}  // namespace
+
+bool applyInterrupted(const ApplyJournal& journal) { return !openApply(journal).empty(); }
+
+std::string interruptedApplyValues(const ApplyJournal& journal) {
   try {
-    writeAndRestart(store, before);
+    const std::vector<json> lines = openApply(journal);
+    if (lines.empty()) return "";
+    return "The controller's MOC MOTOR_CALIB cal_offset values must be this apply's backup " +
+           valuesText(lines.front().at("before_rad").get<std::array<double, 6>>()) +
+           "or its written values " +
+           valuesText(lines.front().at("new_rad").get<std::array<double, 6>>());
+  } catch (const std::exception&) {
+    return "";
+  }
+}
+
+Recovery recoverApply(ControllerCalibration& store, ApplyJournal& journal,
+                      const RobotInfo& controller) {
+  Recovery r;
+  const std::vector<json> lines = openApply(journal);
+  if (lines.empty()) return r;
+  std::string last = "begin";
+  bool restarted = false;
+  std::set<int> counters;
+  for (const json& line : lines) {
+    last = line.value("step", "");
+    restarted = restarted || last == "restarting";
+    if (last == "revolution_counter") counters.insert(line.value("joint", 0));
+  }
+  const json& begin = lines.front();
+  try {
+    r.backup_rad = begin.at("before_rad").get<std::array<double, 6>>();
+    r.written_rad = begin.at("new_rad").get<std::array<double, 6>>();
+  } catch (const json::exception& e) {
+    throw Error(journal.path() + ": the interrupted apply's backup cannot be read (" + e.what() +
+                "); nothing was written");
+  }
+  const auto refuse = [&](RecoveryOutcome outcome, const std::string& why) {
+    r.outcome = outcome;
+    r.message = "an interrupted apply was not recovered: " + why +
+                "; nothing was written. Check the controller's MOC MOTOR_CALIB cal_offset values "
+                "on the FlexPendant: backup " +
+                valuesText(r.backup_rad) + "; written " + valuesText(r.written_rad) +
+                "; the controller holds " + valuesText(r.found_rad);
+    // Once per finding: a recovery tried again and again finds the same.
+    const json previous = journal.read().back();
+    if (previous.value("step", "") != "recovery_refused" ||
+        previous.value("message", "") != r.message)
+      journal.append({{"step", "recovery_refused"},
+                      {"outcome", recoveryOutcomeName(outcome)},
+                      {"found_rad", r.found_rad},
+                      {"differing_joints", r.differing_joints},
+                      {"message", r.message}});
+    return r;
+  };
+
+  // Only into the controller the backup came from: a session folder copied from another cell
+  // carries that cell's values.
+  const json recorded = begin.value("controller", json::object());
+  const std::string type = recorded.value("robot_type", ""), serial = recorded.value("serial", "");
+  r.found_rad = store.readCalOffsets();
+  if (serial.empty() && type.empty())
+    return refuse(RecoveryOutcome::kForeign,
+                  "the apply recorded no controller identity, so it cannot be known that its "
+                  "backup belongs to this controller (" +
+                      identityText(controller.robot_type, controller.serial) + ")");
+  if (type != controller.robot_type || serial != controller.serial)
+    return refuse(RecoveryOutcome::kForeign,
+                  "the apply was made on the controller of robot " + identityText(type, serial) +
+                      ", this one is robot " +
+                      identityText(controller.robot_type, controller.serial));
+
+  bool holds_backup = true;
+  for (int j = 1; j <= 6; ++j) {
+    const double now = r.found_rad[j - 1];
+    holds_backup = holds_backup && sameValue(now, r.backup_rad[j - 1]);
+    if (!sameValue(now, r.backup_rad[j - 1]) && !sameValue(now, r.written_rad[j - 1]))
+      r.differing_joints.push_back(j);
+  }
+  if (!r.differing_joints.empty()) {
+    std::string joints;
+    for (int j : r.differing_joints)
+      joints += (joints.empty() ? "" : ", ") + std::to_string(j) + " (" +
+                fmt("%.6f", r.found_rad[j - 1]) + ")";
+    // Someone or something changed the calibration since (a later apply, a technician): a
+    // backup written over it would undo a calibration nobody asked to undo.
+    return refuse(RecoveryOutcome::kConflict,
+                  "the controller holds, at joint " + joints +
+                      ", neither this apply's backup nor its written value");
+  }
+  if (holds_backup && !restarted) {
+    r.outcome = RecoveryOutcome::kNothingWritten;
+    r.message = "an apply was interrupted after step '" + last +
+                "' before any value it wrote took effect: the controller holds the backed-up "
+                "values " +
+                valuesText(r.backup_rad) + "; nothing to restore";
+    journal.append({{"step", "recovering"}, {"found_rad", r.found_rad}, {"last_step", last}});
+    journal.append(
+        {{"step", "done"}, {"outcome", recoveryOutcomeName(r.outcome)}, {"message", r.message}});
+    return r;
+  }
+  journal.append({{"step", "recovering"}, {"found_rad", r.found_rad}, {"last_step", last}});
+  // Restore even when the configured values are the backup: the restart that takes them may not
+  // have happened.
+  try {
+    writeAndRestart(store, r.backup_rad);
   } catch (const std::exception& e) {
     throw Error(std::string("an interrupted apply could not be rolled back (") + e.what() +
-                "); enter the backed-up values by hand: " + valuesText(before));
+                "); enter the backed-up values by hand: " + valuesText(r.backup_rad));
   }
+  r.outcome = RecoveryOutcome::kRestored;
   r.message = "an apply was interrupted after step '" + last + "' (controller held " +
-              (unchanged ? std::string("the backed-up values") : valuesText(now)) +
-              "); restored the backed-up values " + valuesText(before);
+              (holds_backup ? std::string("the backed-up values") : valuesText(r.found_rad)) +
+              "); restored the backed-up values " + valuesText(r.backup_rad);
   for (int j : counters)
     r.message += "; joint " + std::to_string(j) +
                  "'s revolution counter was updated during the apply: update it again at its "
                  "synchronisation mark";
-  journal.append({{"step", "done"}, {"outcome", "recovered"}, {"message", r.message}});
+  journal.append(
+      {{"step", "done"}, {"outcome", recoveryOutcomeName(r.outcome)}, {"message", r.message}});
   return r;
+}
+
+bool acknowledgeApply(ApplyJournal& journal, const std::optional<std::array<double, 6>>& found_rad,
+                      const std::string& note) {
+  if (openApply(journal).empty()) return false;
+  json line{{"step", "acknowledged"}, {"message", note}};
+  line["found_rad"] = found_rad ? json(*found_rad) : json(nullptr);
+  journal.append(line);
+  journal.append({{"step", "done"}, {"outcome", "acknowledged"}, {"message", note}});
+  return true;
 }
 
 }  // namespace zerocal::apply

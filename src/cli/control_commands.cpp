@@ -24,7 +24,8 @@ namespace {
 const char* const kSigmaNames[] = {"delta2", "delta3", "delta4", "delta5"};
 
 bool isFinal(const std::string& state) {
-  return state == "done" || state == "aborted" || state == "faulted" || state == "idle";
+  return state == "done" || state == "aborted" || state == "faulted" || state == "idle" ||
+         state == "unrecovered";
 }
 
 std::string format(const char* fmt, double value) {
@@ -177,7 +178,8 @@ bool watchEnds(const json& status) {
 }
 
 int exitFor(const std::string& state) {
-  return state == "aborted" || state == "faulted" ? kClientSessionFailed : kClientOk;
+  return state == "aborted" || state == "faulted" || state == "unrecovered" ? kClientSessionFailed
+                                                                            : kClientOk;
 }
 
 // Follows the session until it ends. Events drive the display; a status poll every few seconds
@@ -283,7 +285,10 @@ int followApply(control::ControlClient& client, const std::string& cmd, const js
   client.call("subscribe", json::object(), timeout);
   const std::string id = client.call(cmd, members, timeout).value("session", "");
   if (!args.json)
-    out << (cmd == "apply" ? "applying session " : "verifying session ") << id << "\n"
+    out << (cmd == "apply"    ? "applying session "
+            : cmd == "verify" ? "verifying session "
+                              : "acknowledging the interrupted apply of session ")
+        << id << "\n"
         << std::flush;
   std::string verification;
   auto last_poll = std::chrono::steady_clock::now();
@@ -316,7 +321,9 @@ int followApply(control::ControlClient& client, const std::string& cmd, const js
                    "  - Absolute Accuracy data (MOC ARM_CALIB) and a later fine calibration at the "
                    "synchronisation marks refer to the old zeros: they no longer match.\n";
         }
-        if (outcome == "verified" || outcome == "pass" || outcome == "recovered") return kClientOk;
+        if (outcome == "verified" || outcome == "pass" || outcome == "recovered" ||
+            outcome == "acknowledged")
+          return kClientOk;
         if (outcome == "rolled_back" || outcome == "fail") return kClientVerificationFailed;
         return kClientSessionFailed;
       }
@@ -330,7 +337,9 @@ int followApply(control::ControlClient& client, const std::string& cmd, const js
       if (!status.value("active", false) && apply.rfind(prefix, 0) == 0) {
         if (!args.json) out << apply.substr(prefix.size()) << "\n";
         const std::string outcome = apply.substr(prefix.size(), apply.find(':') - prefix.size());
-        if (outcome == "verified" || outcome == "pass" || outcome == "recovered") return kClientOk;
+        if (outcome == "verified" || outcome == "pass" || outcome == "recovered" ||
+            outcome == "acknowledged")
+          return kClientOk;
         if (outcome == "rolled_back" || outcome == "fail") return kClientVerificationFailed;
         return kClientSessionFailed;
       }
@@ -413,6 +422,12 @@ int version(const ClientArgs& args, std::ostream& out) {
 
 int run(const ClientArgs& args, std::ostream& out, std::ostream& err, bool tty) {
   if (args.command == "version") return version(args, out);
+  if (args.command == "acknowledge" && !args.confirm) {
+    err << "zerocal: acknowledge closes an interrupted apply on your word that the controller's "
+           "cal_offset values were checked on the FlexPendant (zerocal status names them); give "
+           "--confirm to do it\n";
+    return kClientBadRequest;
+  }
   control::ControlClient client;
   client.connect(args.host, args.port, std::chrono::seconds(5));
   const auto timeout = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
@@ -510,6 +525,11 @@ int run(const ClientArgs& args, std::ostream& out, std::ostream& err, bool tty) 
     if (!args.session.empty()) members["session"] = args.session;
     return followApply(client, "apply", members, args, out);
   }
+  if (cmd == "acknowledge") {
+    json members{{"confirm", args.confirm}};
+    if (!args.session.empty()) members["session"] = args.session;
+    return followApply(client, "acknowledge", members, args, out);
+  }
   if (cmd == "verify") {
     return followApply(client, "verify",
                        args.session.empty() ? json::object() : json{{"session", args.session}},
@@ -599,6 +619,16 @@ void addClientCommands(CLI::App& app, ClientCommands& commands) {
                      "measure the offsets left after an apply with a short calibration on zerocald "
                      "and judge them (nothing is written)");
   verify->add_option("session", a.session, "the applied session's id (default the latest applied)");
+  auto* acknowledge =
+      add("acknowledge",
+          "after an interrupted apply the daemon could not recover (state unrecovered): say that "
+          "the controller's cal_offset values were checked by hand on the FlexPendant, so that "
+          "sessions may run again (journalled with the apply)");
+  acknowledge->add_option("session", a.session,
+                          "the interrupted apply's session id (default every one)");
+  acknowledge->add_flag("--confirm", a.confirm,
+                        "the values were checked on the controller and are the ones the robot is "
+                        "to run on");
   add("version", "this zerocal's version, and zerocald's and its protocol when one answers");
 }
 

@@ -127,6 +127,12 @@ service::ApplyRequest parseApplyRequest(const json& request) {
   return r;
 }
 
+service::AcknowledgeRequest parseAcknowledgeRequest(const json& request) {
+  // The same members as an apply: the session and the technician's confirmation.
+  const service::ApplyRequest a = parseApplyRequest(request);
+  return {a.session, a.confirm};
+}
+
 service::VerifyRequest parseVerifyRequest(const json& request) {
   for (const auto& item : request.items())
     if (!kVerifyMembers.count(item.key())) throw BadRequest("unknown member '" + item.key() + "'");
@@ -194,6 +200,9 @@ json toJson(const std::vector<SessionInfo>& sessions) {
                  {"recorded_poses", s.recorded_poses}});
     if (s.skipped_poses > 0) a.back()["skipped_poses"] = s.skipped_poses;
     if (!s.damaged.empty()) a.back()["damaged"] = s.damaged;
+    if (s.kind != SessionKind::kCalibration) a.back()["kind"] = sessionKindName(s.kind);
+    if (!s.verifies.empty()) a.back()["verifies"] = s.verifies;
+    if (!s.closed.empty()) a.back()["closed"] = s.closed;
   }
   return a;
 }

@@ -75,8 +75,9 @@ service::StartRequest planFileInPlanDir(service::StartRequest start, const json&
 }
 
 const std::vector<std::string> kCommands{
-    "hello",  "version",   "auth",        "status", "start", "abort", "resume", "sessions",
-    "result", "subscribe", "unsubscribe", "psd",    "plan",  "apply", "verify", "continue"};
+    "hello",  "version",  "auth",   "status",    "start",       "abort",
+    "resume", "sessions", "result", "subscribe", "unsubscribe", "psd",
+    "plan",   "apply",    "verify", "continue",  "acknowledge"};
 
 }  // namespace
 
@@ -327,6 +328,11 @@ class Connection : public std::enable_shared_from_this<Connection> {
     } else if (cmd == "verify") {
       const auto session_id = session.verify(parseVerifyRequest(request));
       server_->log_->info("{}: verifying session {}", peer_, session_id);
+      r["session"] = session_id;
+    } else if (cmd == "acknowledge") {
+      const auto session_id = session.acknowledge(parseAcknowledgeRequest(request));
+      server_->log_->warn("{}: acknowledged the interrupted apply of session {}", peer_,
+                          session_id);
       r["session"] = session_id;
     } else if (cmd == "abort") {
       const bool aborted = session.abort();

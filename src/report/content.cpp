@@ -280,9 +280,18 @@ Section applySection(const SessionReport& r) {
       {"recovered",
        "RECOVERED: the apply was interrupted; the backed-up values were restored at the daemon's "
        "next start."},
+      {"not_written",
+       "RECOVERED: the apply was interrupted before any value it wrote took effect; nothing was "
+       "restored."},
       {"interrupted",
-       "INTERRUPTED: the apply did not finish; the daemon restores the backed-up values when it "
-       "starts."},
+       "INTERRUPTED: the apply did not finish; the daemon recovers it when it starts (it restores "
+       "the backup only when the controller holds that apply's backup or written values)."},
+      {"unrecovered",
+       "UNRECOVERED: the apply was interrupted and the daemon could not recover it; nothing was "
+       "written; sessions are refused until it is recovered or acknowledged."},
+      {"acknowledged",
+       "ACKNOWLEDGED: the apply was interrupted; the technician checked the controller's values "
+       "by hand and acknowledged them."},
       {"error", "STOPPED with an error after the backup: see the message."},
       {"refused",
        "REFUSED: a transmission measured on the cell disagrees with the robot file; nothing was "

@@ -2,6 +2,7 @@
 // (docs/apply.md): the engine (zerocal/apply/online_apply.h) driven on the worker thread against
 // the connected cell's ControllerCalibration, with a verification that is an ordinary session of
 // the configured plan (its own folder, events and result).
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -68,6 +69,10 @@ const char* applyOutcomeName(ApplyOutcome outcome) {
       return "pass";
     case ApplyOutcome::kNotPassed:
       return "fail";
+    case ApplyOutcome::kUnrecovered:
+      return "unrecovered";
+    case ApplyOutcome::kAcknowledged:
+      return "acknowledged";
   }
   return "?";
 }
@@ -82,6 +87,11 @@ class SessionManager::CellCalibration final : public ControllerCalibration {
   void restart() override { get().restart(); }
   std::array<double, 6> readMotorAngles() override { return get().readMotorAngles(); }
   bool updateRevolutionCounter(int joint) override { return get().updateRevolutionCounter(joint); }
+  // The controller as it names itself (request 98).
+  RobotInfo identity() {
+    get();
+    return manager_.cell_->robot().robotInfo();
+  }
 
  private:
   ControllerCalibration& get() {
@@ -168,7 +178,8 @@ std::string SessionManager::verify(const VerifyRequest& request) {
   return id;
 }
 
-ResultFile SessionManager::verificationRun(const CalibrationParameters& found, std::string& id) {
+ResultFile SessionManager::verificationRun(const std::string& applied,
+                                           const CalibrationParameters& found, std::string& id) {
   // The configured plan around the PSD centre the calibration found, the spot predicted from its
   // laser line: the same code as any session, so the verification's numbers mean what a
   // calibration's mean.
@@ -176,6 +187,7 @@ ResultFile SessionManager::verificationRun(const CalibrationParameters& found, s
   request.target_mm = found.target_mm;
   request.found_before = found;
   request.placements = 1;  // a verification runs unattended: the PSD stays where it is
+  request.verifies = applied;
   const NewSession n = createSession(request);
   id = n.id;
   runSession(n.id, n.plan, {}, n.found_before);
@@ -253,6 +265,7 @@ void SessionManager::runApply(const std::string& id, const ResultFile& result) {
     apply::OnlineApplyOptions options;
     options.required_deg = settings_.session.required_accuracy_deg;
     options.progress = progress;
+    options.controller = calibration.identity();
     // A controller that cannot update a revolution counter remotely (an IRC5 over RAPID) has the
     // technician do it on the FlexPendant, the arm at the joint's synchronisation mark; the
     // verification then finds a counter left on its old turn as a whole motor turn.
@@ -279,7 +292,7 @@ void SessionManager::runApply(const std::string& id, const ResultFile& result) {
     options.verify = [&]() {
       std::string vid;
       try {
-        const ResultFile v = verificationRun(result.report.estimate, vid);
+        const ResultFile v = verificationRun(id, result.report.estimate, vid);
         event.verification = vid;
         journal.append({{"step", "verification"}, {"session", vid}});
         return offsetsOf(v);
@@ -317,6 +330,20 @@ void SessionManager::runApply(const std::string& id, const ResultFile& result) {
     event.outcome = ApplyOutcome::kFailed;
     event.message = e.what();
   }
+  // Stopped inside the apply (the link lost while writing or restarting): the controller holds
+  // values nobody verified. It is recovered now, by the same rules as at a restart, before
+  // anything else may run.
+  bool open = false;
+  try {
+    open = apply::applyInterrupted(apply::ApplyJournal(applyJournalPath(store_, id)));
+  } catch (const std::exception&) {
+    open = true;
+  }
+  if (open) {
+    board_.emit(event);
+    log->error("session {}: {}: recovering the apply", id, event.message);
+    return runRecovery({id}, true);
+  }
   endApply(event, event.outcome == ApplyOutcome::kVerified);
 }
 
@@ -335,7 +362,7 @@ void SessionManager::runVerify(const std::string& id, const ResultFile& result) 
     std::string vid;
     ResultFile v;
     try {
-      v = verificationRun(result.report.estimate, vid);
+      v = verificationRun(id, result.report.estimate, vid);
     } catch (...) {
       event.verification = vid;
       throw;
@@ -372,11 +399,13 @@ void SessionManager::runVerify(const std::string& id, const ResultFile& result) 
   endApply(event, event.outcome == ApplyOutcome::kPassed);
 }
 
-int SessionManager::recoverInterruptedApplies() {
+std::vector<std::string> SessionManager::interruptedApplies() const {
   auto log = makeLogger("apply");
   std::vector<std::string> ids;
+  // By the folder the journal is in: the recovery writes only what that folder's apply backed up
+  // (and only into the controller it recorded).
   for (const SessionInfo& info : store_.list()) {
-    const std::string path = applyJournalPath(store_, info.id);
+    const std::string path = info.dir + "/" + kApplyJournalName;
     if (!std::filesystem::exists(path)) continue;
     try {
       if (apply::applyInterrupted(apply::ApplyJournal(path))) ids.push_back(info.id);
@@ -384,9 +413,15 @@ int SessionManager::recoverInterruptedApplies() {
       log->error("session {}: {} cannot be read: {}", info.id, path, e.what());
     }
   }
+  return ids;
+}
+
+int SessionManager::recoverInterruptedApplies() {
+  auto log = makeLogger("apply");
+  const std::vector<std::string> ids = interruptedApplies();
   if (ids.empty()) return 0;
   try {
-    const SessionBoard::Claim claim(board_);
+    const SessionBoard::Claim claim(board_, SessionBoard::Claim::Purpose::kRecovery);
     board_.hold("an interrupted apply is being recovered");
     SessionStatus s;
     s.state = SessionState::kApplying;
@@ -397,16 +432,17 @@ int SessionManager::recoverInterruptedApplies() {
     for (const std::string& id : ids)
       log->warn(
           "session {}: an online apply was interrupted (the daemon stopped during it); "
-          "restoring the backed-up values",
+          "recovering it before any session runs",
           id);
     worker_.post([this, ids](bool cancelled) {
       if (cancelled) {
         ApplyEvent e;
         e.session = ids.back();
+        e.outcome = ApplyOutcome::kUnrecovered;
         e.message = "the daemon stopped before an interrupted apply was recovered";
         return endApply(e, false);
       }
-      runRecovery(ids);
+      runRecovery(ids, true);
     });
   } catch (const std::exception& e) {
     log->error("an interrupted apply cannot be recovered now: {}", e.what());
@@ -439,29 +475,191 @@ void SessionManager::connectWaitingForRestart() {
   }
 }
 
-void SessionManager::runRecovery(const std::vector<std::string>& ids) {
+namespace {
+
+// What the controller holds and who it is, to tell whether a recovery tried again would find
+// anything new.
+std::string controllerFingerprint(const RobotInfo& controller, const std::array<double, 6>& rad) {
+  std::string f = controller.robot_type + "*" + controller.serial;
+  for (double v : rad) f += " " + std::to_string(std::lround(v / kSameCalOffsetRad));
+  return f;
+}
+
+}  // namespace
+
+void SessionManager::runRecovery(const std::vector<std::string>& ids, bool wait_for_restart) {
+  auto log = makeLogger("apply");
   for (std::size_t i = 0; i < ids.size(); ++i) {
+    const std::string& id = ids[i];
     ApplyEvent event;
-    event.session = ids[i];
+    event.session = id;
+    apply::ApplyJournal journal(applyJournalPath(store_, id));
     try {
-      connectWaitingForRestart();
+      if (wait_for_restart) connectWaitingForRestart();
       CellCalibration calibration(*this);
-      apply::ApplyJournal journal(applyJournalPath(store_, ids[i]));
-      const apply::Recovery r = apply::recoverApply(calibration, journal);
-      event.outcome = ApplyOutcome::kRecovered;
-      event.message = r.needed ? r.message : "nothing to recover";
-      event.before_rad = vec(calibration.readCalOffsets());
+      const RobotInfo controller = calibration.identity();
+      const apply::Recovery r = apply::recoverApply(calibration, journal, controller);
+      event.before_rad = vec(r.found_rad);
+      event.message = r.needed() ? r.message : "nothing to recover";
+      if (r.resolved()) {
+        event.outcome = ApplyOutcome::kRecovered;
+        unrecovered_.erase(id);
+        closeVerifications(
+            id, std::string("recovered (") + apply::recoveryOutcomeName(r.outcome) + ")");
+      } else {
+        event.outcome = ApplyOutcome::kUnrecovered;
+        unrecovered_[id] = r.message;
+      }
+      last_recovery_seen_ = controllerFingerprint(controller, calibration.readCalOffsets());
     } catch (const std::exception& e) {
-      event.outcome = ApplyOutcome::kFailed;
-      event.message = e.what();
+      event.outcome = ApplyOutcome::kUnrecovered;
+      event.message = std::string("an interrupted apply was not recovered: ") + e.what() +
+                      "; nothing was written. The recovery is tried again whenever the "
+                      "controller can be reached. " +
+                      apply::interruptedApplyValues(journal);
+      unrecovered_[id] = event.message;
+      last_recovery_seen_.clear();
       cell_.reset();
     }
+    if (event.outcome == ApplyOutcome::kUnrecovered)
+      log->error("session {}: {}", id, event.message);
     if (i + 1 < ids.size()) {
       board_.emit(event);
       continue;
     }
     endApply(event, event.outcome == ApplyOutcome::kRecovered);
   }
+}
+
+void SessionManager::retryRecovery() {
+  if (!board_.blocked() || board_.activeOrClaimed()) return;
+  const std::vector<std::string> ids = interruptedApplies();
+  if (ids.empty()) return;
+  // Quietly first: a controller still out of reach, or holding what it held at the last attempt,
+  // changes nothing, and the status stays as it is.
+  try {
+    CellCalibration calibration(*this);
+    const std::string seen =
+        controllerFingerprint(calibration.identity(), calibration.readCalOffsets());
+    if (seen == last_recovery_seen_) return;
+  } catch (const std::exception&) {
+    cell_.reset();
+    return;
+  }
+  try {
+    const SessionBoard::Claim claim(board_, SessionBoard::Claim::Purpose::kRecovery);
+    board_.hold("an interrupted apply is being recovered");
+    SessionStatus s = board_.status();
+    s.state = SessionState::kApplying;
+    s.session_id = ids.back();
+    s.apply = "recovering an interrupted apply of session " + ids.back() + " (tried again)";
+    board_.begin(s);
+    board_.announce();
+  } catch (const Refused&) {
+    return;  // a request came first; the next idle moment tries again
+  }
+  makeLogger("apply")->warn("the controller can be reached: trying the recovery again");
+  runRecovery(ids, false);
+}
+
+std::string SessionManager::acknowledge(const AcknowledgeRequest& request) {
+  if (!request.confirm)
+    throw Refused("not_confirmed",
+                  "acknowledging an interrupted apply says that the controller's MOC MOTOR_CALIB "
+                  "cal_offset values were checked by hand (on the FlexPendant) and are the ones "
+                  "the robot is to run on: it needs the technician's confirmation (confirm: true)");
+  const SessionBoard::Claim claim(board_, SessionBoard::Claim::Purpose::kRecovery);
+  std::vector<std::string> ids = interruptedApplies();
+  if (!request.session.empty()) {
+    const bool open = std::find(ids.begin(), ids.end(), request.session) != ids.end();
+    ids.assign(open ? 1 : 0, request.session);
+  }
+  if (ids.empty())
+    throw Refused("not_found", request.session.empty()
+                                   ? std::string("no interrupted apply to acknowledge")
+                                   : "session " + request.session + " has no interrupted apply");
+  board_.hold("an interrupted apply is being acknowledged");
+  SessionStatus s = board_.status();
+  s.state = SessionState::kApplying;
+  s.session_id = ids.back();
+  s.apply = "acknowledging the interrupted apply of session " + ids.back();
+  board_.begin(s);
+  board_.announce();
+  worker_.post([this, ids](bool cancelled) {
+    ApplyEvent event;
+    event.session = ids.back();
+    if (cancelled) {
+      event.outcome = ApplyOutcome::kUnrecovered;
+      event.message = "the daemon stopped before the acknowledgement was journalled";
+      return endApply(event, false);
+    }
+    runAcknowledge(ids);
+  });
+  return ids.back();
+}
+
+void SessionManager::runAcknowledge(const std::vector<std::string>& ids) {
+  auto log = makeLogger("apply");
+  // What the controller holds, for the record, when it can be read; the word is the
+  // technician's either way.
+  std::optional<std::array<double, 6>> found;
+  try {
+    found = CellCalibration(*this).readCalOffsets();
+  } catch (const std::exception& e) {
+    cell_.reset();
+    log->warn("acknowledging without the controller's values: {}", e.what());
+  }
+  ApplyEvent event;
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    const std::string& id = ids[i];
+    event = ApplyEvent{};
+    event.session = id;
+    if (found) event.before_rad = vec(*found);
+    const std::string note =
+        "the technician checked the controller's cal_offset values by hand and acknowledged "
+        "them" +
+        (found ? "; it holds " + apply::valuesText(*found) : std::string());
+    try {
+      apply::ApplyJournal journal(applyJournalPath(store_, id));
+      apply::acknowledgeApply(journal, found, note);
+      unrecovered_.erase(id);
+      closeVerifications(id, "acknowledged");
+      event.outcome = ApplyOutcome::kAcknowledged;
+      event.message = note;
+      log->warn("session {}: interrupted apply acknowledged: {}", id, note);
+    } catch (const std::exception& e) {
+      event.outcome = ApplyOutcome::kUnrecovered;
+      event.message = std::string("the acknowledgement could not be journalled: ") + e.what();
+    }
+    if (i + 1 < ids.size()) board_.emit(event);
+  }
+  endApply(event, event.outcome == ApplyOutcome::kAcknowledged);
+}
+
+void SessionManager::closeVerifications(const std::string& applied, const std::string& how) {
+  for (const SessionInfo& info : store_.list()) {
+    if (info.kind != SessionKind::kVerification || info.verifies != applied || info.finished ||
+        !info.closed.empty())
+      continue;
+    const std::string why = "the verification of an apply that was interrupted, and " + how +
+                            " since; it is not resumed";
+    try {
+      store_.close(info.id, why);
+      makeLogger("apply")->info("session {} closed: {}", info.id, why);
+    } catch (const std::exception& e) {
+      makeLogger("apply")->error("session {} cannot be closed: {}", info.id, e.what());
+    }
+  }
+}
+
+std::string SessionManager::unrecoveredMessage() const {
+  std::string m;
+  for (const auto& [id, why] : unrecovered_)
+    m += (m.empty() ? "" : " | ") + ("session " + id + ": " + why);
+  return m +
+         ". Sessions, applies and verifications are refused until it is recovered (tried "
+         "again whenever the controller can be reached) or, once the values are checked on "
+         "the FlexPendant, acknowledged (`zerocal acknowledge --confirm`)";
 }
 
 void SessionManager::endApply(const ApplyEvent& event, bool ok) {
@@ -484,8 +682,19 @@ void SessionManager::endApply(const ApplyEvent& event, bool ok) {
       log->error("session {}: the report does not show the apply: {}", event.session, e.what());
     }
   }
-  const bool rolled_back_or_failed =
-      event.outcome == ApplyOutcome::kRolledBack || event.outcome == ApplyOutcome::kFailed;
+  // Never run on values nobody verified: while an interrupted apply is open and not recovered,
+  // the board refuses everything but its recovery.
+  if (unrecovered_.empty()) {
+    board_.unblock();
+  } else {
+    board_.block(unrecoveredMessage());
+    board_.finish(SessionState::kUnrecovered, unrecoveredMessage());
+    board_.release();
+    return;
+  }
+  const bool rolled_back_or_failed = event.outcome == ApplyOutcome::kRolledBack ||
+                                     event.outcome == ApplyOutcome::kFailed ||
+                                     event.outcome == ApplyOutcome::kUnrecovered;
   board_.finish(
       rolled_back_or_failed ? SessionState::kFaulted : SessionState::kDone,
       rolled_back_or_failed || event.outcome == ApplyOutcome::kNotPassed ? event.message : "");

@@ -26,10 +26,12 @@ void SessionBoard::emit(const SessionEvent& event) const {
   if (sink) sink(event);
 }
 
-SessionBoard::Claim::Claim(SessionBoard& board) : board_(board) {
+SessionBoard::Claim::Claim(SessionBoard& board, Purpose purpose) : board_(board) {
   std::lock_guard<std::mutex> lock(board_.mutex_);
   const SessionStatus& s = board_.status_;
   if (board_.closed_) throw Refused("busy", "the daemon is stopping");
+  if (!board_.blocked_.empty() && purpose != Purpose::kRecovery)
+    throw Refused("unrecovered", board_.blocked_);
   if (!board_.held_.empty()) throw Refused("busy", board_.held_ + ": one thing at a time");
   if (board_.claimed_ || isActive(s.state))
     throw Refused("busy", "session " + s.session_id + " is " + stateName(s.state) +
@@ -189,6 +191,21 @@ void SessionBoard::update(const std::function<void(SessionStatus&)>& change) {
 void SessionBoard::hold(const std::string& why) {
   std::lock_guard<std::mutex> lock(mutex_);
   held_ = why.empty() ? "held" : why;
+}
+
+void SessionBoard::block(const std::string& why) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  blocked_ = why.empty() ? "an interrupted apply is not recovered" : why;
+}
+
+void SessionBoard::unblock() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  blocked_.clear();
+}
+
+bool SessionBoard::blocked() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return !blocked_.empty();
 }
 
 void SessionBoard::release() {

@@ -41,13 +41,16 @@ const char* stateName(SessionState state) {
       return "aborted";
     case SessionState::kFaulted:
       return "faulted";
+    case SessionState::kUnrecovered:
+      return "unrecovered";
   }
   return "unknown";
 }
 
 bool isActive(SessionState state) {
   return state != SessionState::kIdle && state != SessionState::kDone &&
-         state != SessionState::kAborted && state != SessionState::kFaulted;
+         state != SessionState::kAborted && state != SessionState::kFaulted &&
+         state != SessionState::kUnrecovered;
 }
 
 // The latest reading of the running session, written by the servo's thread and read by the
@@ -244,7 +247,9 @@ SessionManager::SessionManager(CellBackend& backend, ManagerSettings settings)
       store_(settings_.session.data_dir),
       knowledge_(backend.knowledge()),
       live_(std::make_unique<LiveSlot>()),
-      board_(backend.name()) {}
+      board_(backend.name()) {
+  worker_.setIdleTask(settings_.recovery_retry, [this] { retryRecovery(); });
+}
 
 SessionManager::~SessionManager() {
   board_.abortAll();
@@ -358,6 +363,10 @@ SessionManager::NewSession SessionManager::createSession(const StartRequest& req
   draft.noise_mm = n.plan.noise_mm;
   draft.placement_centres_mm = n.plan.centres;
   draft.config = settings_.config_snapshot;
+  if (!request.verifies.empty()) {
+    draft.kind = SessionKind::kVerification;
+    draft.verifies = request.verifies;
+  }
   const SessionFile created = store_.create(std::move(draft));
   n.id = created.id;
   makeLogger("session")->info("session {} created in {}: {} ({} poses)", created.id,
@@ -426,6 +435,14 @@ std::string SessionManager::resume(const ResumeRequest& request) {
     if (s.id == id) info = s;
   if (!info) throw Refused("not_found", "no session " + id + " in " + settings_.session.data_dir);
   if (info->finished) throw Refused("finished", "session " + id + " is finished: see its result");
+  if (info->kind == SessionKind::kVerification)
+    throw Refused("verification",
+                  "session " + id + " is the verification of session " + info->verifies +
+                      "'s apply: it is never resumed as a calibration (measure again with "
+                      "`zerocal verify`)" +
+                      (info->closed.empty() ? "" : "; " + info->closed));
+  if (!info->closed.empty())
+    throw Refused("finished", "session " + id + " was closed: " + info->closed);
   if (!info->damaged.empty())
     throw Refused("damaged", "session " + id + " cannot be resumed, its journal is damaged: " +
                                  info->damaged + " (the files are left as they are)");

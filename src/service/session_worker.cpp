@@ -24,11 +24,21 @@ void SessionWorker::loop() {
     bool cancelled = false;
     {
       std::unique_lock<std::mutex> lock(mutex_);
-      changed_.wait(lock, [this] { return stopping_ || !tasks_.empty(); });
-      if (tasks_.empty()) return;  // stopping, nothing left
-      task = std::move(tasks_.front());
-      tasks_.pop_front();
-      cancelled = stopping_;
+      const auto ready = [this] { return stopping_ || !tasks_.empty(); };
+      if (idle_task_) {
+        if (!changed_.wait_for(lock, idle_period_, ready)) {
+          const std::function<void()> idle = idle_task_;
+          task = [idle](bool) { idle(); };
+        }
+      } else {
+        changed_.wait(lock, ready);
+      }
+      if (!task) {
+        if (tasks_.empty()) return;  // stopping, nothing left
+        task = std::move(tasks_.front());
+        tasks_.pop_front();
+        cancelled = stopping_;
+      }
       busy_ = true;
     }
     markProgress();
@@ -46,6 +56,15 @@ void SessionWorker::post(Task task) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     tasks_.push_back(std::move(task));
+  }
+  changed_.notify_all();
+}
+
+void SessionWorker::setIdleTask(std::chrono::milliseconds period, std::function<void()> task) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    idle_period_ = period;
+    idle_task_ = std::move(task);
   }
   changed_.notify_all();
 }

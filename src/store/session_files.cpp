@@ -57,6 +57,10 @@ PoseTimes poseTimesFromJson(const JsonReader& j) {
 
 }  // namespace
 
+const char* sessionKindName(SessionKind kind) {
+  return kind == SessionKind::kVerification ? "verification" : "calibration";
+}
+
 Json toJson(const SessionFile& s) {
   Json plan = toJson(s.plan);
   plan["target_mm"] = {s.target_mm.x(), s.target_mm.y(), s.target_mm.z()};
@@ -66,11 +70,14 @@ Json toJson(const SessionFile& s) {
     for (const Eigen::Vector3d& c : s.placement_centres_mm)
       centres.push_back({c.x(), c.y(), c.z()});
   }
-  return {{"format", s.format},
-          {"id", s.id},
-          {"created_unix_s", s.created_unix_s},
-          {"plan", plan},
-          {"config", s.config}};
+  Json j{{"format", s.format},
+         {"id", s.id},
+         {"created_unix_s", s.created_unix_s},
+         {"kind", sessionKindName(s.kind)},
+         {"plan", plan},
+         {"config", s.config}};
+  if (!s.verifies.empty()) j["verifies"] = s.verifies;
+  return j;
 }
 
 SessionFile sessionFileFromJson(const Json& json) {
@@ -79,6 +86,15 @@ SessionFile sessionFileFromJson(const Json& json) {
   s.format = j.string("format");
   s.id = j.string("id");
   s.created_unix_s = j.has("created_unix_s") ? j.integer64("created_unix_s") : 0;
+  if (j.has("kind")) {
+    const std::string kind = j.string("kind");
+    if (kind == "verification")
+      s.kind = SessionKind::kVerification;
+    else if (kind != "calibration")
+      throw InputError(std::string(kSessionWhere) + ": kind '" + kind +
+                       "' is not calibration or verification");
+  }
+  s.verifies = j.has("verifies") ? j.string("verifies") : "";
   const JsonReader plan = j.object("plan");
   s.plan = planFromJson(plan.json(), plan.where());
   const std::vector<double> target = plan.numbers("target_mm", 3);

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <mutex>
 
@@ -31,6 +32,18 @@ std::string newSessionId(const fs::path& data_dir) {
     id = std::string(stamp) + suffix;
   }
   return id;
+}
+
+// closed.json's reason; a closed.json that cannot be read still closes the session.
+std::string closedReason(const fs::path& dir) {
+  try {
+    std::ifstream in(dir / kClosedFileName);
+    const nlohmann::json j = nlohmann::json::parse(in);
+    const std::string why = j.value("reason", "");
+    if (!why.empty()) return why;
+  } catch (const std::exception&) {
+  }
+  return "closed";
 }
 
 }  // namespace
@@ -104,7 +117,10 @@ std::vector<SessionInfo> SessionStore::list() const {
       info.id = id;
       info.dir = entry.path().string();
       try {
-        info.planned_poses = static_cast<int>(readSession(info.id).plan.poses.size());
+        const SessionFile session = readSession(info.id);
+        info.planned_poses = static_cast<int>(session.plan.poses.size());
+        info.kind = session.kind;
+        info.verifies = session.verifies;
       } catch (const Error& e) {
         // A session.json cut short by a crash during create(): no pose was recorded there.
         makeLogger("journal")->warn("skipping session {}: {}", info.id, e.what());
@@ -125,6 +141,8 @@ std::vector<SessionInfo> SessionStore::list() const {
     }
     SessionInfo info = cache_->entries[id].info;
     info.finished = fs::exists(entry.path() / kResultFileName, entry_ec);
+    if (fs::exists(entry.path() / kClosedFileName, entry_ec))
+      info.closed = closedReason(entry.path());
     sessions.push_back(std::move(info));
   }
   if (ec) throw FileError("cannot list " + data_dir_ + ": " + ec.message());
@@ -135,11 +153,18 @@ std::vector<SessionInfo> SessionStore::list() const {
 
 std::vector<SessionInfo> SessionStore::unfinished() const {
   auto sessions = list();
-  sessions.erase(
-      std::remove_if(sessions.begin(), sessions.end(),
-                     [](const SessionInfo& s) { return s.finished || !s.damaged.empty(); }),
-      sessions.end());
+  sessions.erase(std::remove_if(sessions.begin(), sessions.end(),
+                                [](const SessionInfo& s) {
+                                  return s.finished || !s.damaged.empty() || !s.closed.empty() ||
+                                         s.kind != SessionKind::kCalibration;
+                                }),
+                 sessions.end());
   return sessions;
+}
+
+void SessionStore::close(const std::string& id, const std::string& why) {
+  writeFileDurably((fs::path(sessionDir(id)) / kClosedFileName).string(),
+                   nlohmann::json{{"reason", why}}.dump(2) + "\n");
 }
 
 void SessionStore::writeFile(const std::string& id, const std::string& name,

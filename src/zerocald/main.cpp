@@ -84,6 +84,7 @@ int runOnce(SessionManager& manager, asio::io_context& io, bool json) {
     manager.start(manager.defaultRequest());
   } catch (const service::Refused& e) {
     std::cerr << "zerocald: " << e.what() << "\n";
+    if (e.code() == "unrecovered") return kStopped;
     return e.code() == "not_identifiable" ? kNotIdentifiable : kBadInput;
   }
   io.run();  // until the session ends or a signal aborts it
@@ -190,6 +191,9 @@ int main(int argc, char** argv) {
         log->warn("signal {}: aborting the session, stopping the robot", signal);
         manager.abort();  // the aborted session's end stops the io_context
       });
+      // A calibration of its own runs on the controller's present values: only once an apply
+      // interrupted earlier is recovered (else the start is refused and says what to check).
+      if (manager.recoverInterruptedApplies() > 0) manager.waitIdle();
       return runOnce(manager, io, json);
     }
 

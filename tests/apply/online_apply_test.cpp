@@ -69,8 +69,10 @@ struct Cell {
                                  transmission[j - 1], present[j - 1]);
     return c;
   }
+  RobotInfo identity() { return client->robotInfo(); }
   OnlineApplyOptions options() {
     OnlineApplyOptions o;
+    o.controller = identity();
     o.verify = [this] { return truth(); };
     o.update_revolution_counter = [this](int joint, double) {
       sim->updateRevolutionCounter(joint);  // the technician at the mark
@@ -104,7 +106,7 @@ TEST(OnlineApply, RightTransmissionIsVerifiedAndKept) {
   EXPECT_EQ(lines.front()["step"], "begin");
   EXPECT_EQ(lines.back()["step"], "done");
   EXPECT_EQ(lines.back()["outcome"], "verified");
-  EXPECT_FALSE(recoverApply(*cell.store, journal).needed);
+  EXPECT_FALSE(recoverApply(*cell.store, journal, cell.identity()).needed());
 }
 
 TEST(OnlineApply, AWrongSignIsRolledBackNamingTheJoint) {
@@ -193,14 +195,16 @@ TEST(OnlineApply, AnApplyInterruptedAtAnyStepIsRecoveredToTheBackup) {
     if (restarted) cell.client->restartController();
     ApplyJournal journal(journalPath("cut.jsonl"));
     for (std::size_t i = 0; i < cut; ++i) journal.append(lines[i]);
-    const Recovery r = recoverApply(*cell.store, journal);
-    EXPECT_TRUE(r.needed) << "cut after " << step;
+    const Recovery r = recoverApply(*cell.store, journal, cell.identity());
+    EXPECT_TRUE(r.needed()) << "cut after " << step;
     EXPECT_NE(r.message.find("interrupted after step '" + step + "'"), std::string::npos)
         << r.message;
     for (int i = 0; i < 6; ++i) EXPECT_NEAR(cell.sim->calOffsets()[i], before[i], 1e-6) << step;
     for (double s : cell.sim->zeroShiftDeg()) EXPECT_NEAR(s, 0.0, 1e-6) << step;
-    EXPECT_EQ(journal.read().back()["outcome"], "recovered");
-    EXPECT_FALSE(recoverApply(*cell.store, journal).needed);  // once is enough
+    // Cut after the backup alone, nothing was written: nothing is restored, nothing restarted.
+    EXPECT_EQ(journal.read().back()["outcome"], wrote ? "recovered" : "not_written") << step;
+    EXPECT_EQ(r.outcome, wrote ? RecoveryOutcome::kRestored : RecoveryOutcome::kNothingWritten);
+    EXPECT_FALSE(recoverApply(*cell.store, journal, cell.identity()).needed());  // once is enough
   }
 }
 
@@ -214,8 +218,109 @@ TEST(OnlineApply, ALinkLostWhileWritingIsJournalledAndRecovered) {
                Error);
   EXPECT_EQ(journal.read().back()["step"], "error");
   cell.store->writes_left_ = -1;
-  EXPECT_TRUE(recoverApply(*cell.store, journal).needed);
+  const Recovery r = recoverApply(*cell.store, journal, cell.identity());
+  EXPECT_EQ(r.outcome, RecoveryOutcome::kRestored) << r.message;  // two joints were written
   for (int i = 0; i < 6; ++i) EXPECT_NEAR(cell.sim->calOffsets()[i], before[i], 1e-6);
+}
+
+// The journal of an apply killed right after its backup: "begin" with the controller's values
+// and those it was about to write (joint 3 changed).
+struct BeganApply {
+  explicit BeganApply(Cell& cell, const std::string& name, RobotInfo controller)
+      : journal(journalPath(name)) {
+    before = cell.sim->calOffsets();
+    written = before;
+    written[2] = before[2] + 0.01;
+    journal.append({{"step", "begin"},
+                    {"controller",
+                     {{"robot_type", controller.robot_type},
+                      {"serial", controller.serial},
+                      {"software_version", controller.software_version}}},
+                    {"before_rad", before},
+                    {"new_rad", written},
+                    {"changes", nlohmann::json::array()}});
+  }
+  ApplyJournal journal;
+  std::array<double, 6> before{}, written{};
+};
+
+// Killed after the backup and before any write: the controller holds the backup, nothing is
+// written and no restart is made (a restart of a robot cell costs a minute and is never needed).
+TEST(OnlineApplyRecovery, AnApplyThatWroteNothingNeedsNoRestore) {
+  Cell cell(8);
+  BeganApply began(cell, "began.jsonl", cell.identity());
+  const long restarts = cell.sim->restartCount();
+  const Recovery r = recoverApply(*cell.store, began.journal, cell.identity());
+  EXPECT_EQ(r.outcome, RecoveryOutcome::kNothingWritten) << r.message;
+  EXPECT_EQ(cell.sim->restartCount(), restarts);
+  EXPECT_FALSE(applyInterrupted(began.journal));
+  EXPECT_EQ(began.journal.read().back()["outcome"], "not_written");
+}
+
+// Killed between two writes, before the "written" line: a joint holds the new value. Every joint
+// holds the backup or the written value, so the backup is restored.
+TEST(OnlineApplyRecovery, AnApplyKilledBetweenTwoWritesIsRestored) {
+  Cell cell(8);
+  BeganApply began(cell, "half.jsonl", cell.identity());
+  cell.client->writeCalOffset(3, began.written[2]);
+  const Recovery r = recoverApply(*cell.store, began.journal, cell.identity());
+  EXPECT_EQ(r.outcome, RecoveryOutcome::kRestored) << r.message;
+  for (int i = 0; i < 6; ++i) EXPECT_NEAR(cell.sim->calOffsets()[i], began.before[i], 1e-6);
+}
+
+// The controller holds values that are neither this apply's backup nor its written ones (a later
+// apply was verified since): the recovery writes nothing, says what differs, and stays open.
+TEST(OnlineApplyRecovery, ValuesThatAreNeitherBackupNorWrittenAreNeverWrittenOver) {
+  Cell cell(8);
+  BeganApply began(cell, "conflict.jsonl", cell.identity());
+  const double verified = began.before[3] + 0.02;  // joint 4, calibrated and verified since
+  cell.client->writeCalOffset(4, verified);
+  cell.client->restartController();
+  const long restarts = cell.sim->restartCount();
+  const Recovery r = recoverApply(*cell.store, began.journal, cell.identity());
+  EXPECT_EQ(r.outcome, RecoveryOutcome::kConflict);
+  EXPECT_FALSE(r.resolved());
+  EXPECT_EQ(r.differing_joints, std::vector<int>{4});
+  EXPECT_NEAR(cell.sim->calOffsets()[3], verified, 1e-6);
+  EXPECT_EQ(cell.sim->restartCount(), restarts);
+  // Both sets of values and what the controller holds, for the FlexPendant.
+  EXPECT_NE(r.message.find("backup " + valuesText(began.before)), std::string::npos) << r.message;
+  EXPECT_NE(r.message.find("written " + valuesText(began.written)), std::string::npos) << r.message;
+  EXPECT_NE(r.message.find("holds " + valuesText(cell.sim->calOffsets())), std::string::npos)
+      << r.message;
+  EXPECT_NE(r.message.find("joint 4"), std::string::npos) << r.message;
+  EXPECT_TRUE(applyInterrupted(began.journal));
+  // Tried again, it finds the same and journals it once.
+  recoverApply(*cell.store, began.journal, cell.identity());
+  int refused = 0;
+  for (const auto& line : began.journal.read()) refused += line["step"] == "recovery_refused";
+  EXPECT_EQ(refused, 1);
+  // The technician checks the values on the FlexPendant and acknowledges them: closed.
+  EXPECT_TRUE(acknowledgeApply(began.journal, cell.sim->calOffsets(), "checked (test)"));
+  EXPECT_FALSE(applyInterrupted(began.journal));
+  EXPECT_EQ(began.journal.read().back()["outcome"], "acknowledged");
+  EXPECT_FALSE(acknowledgeApply(began.journal, std::nullopt, "again"));
+  EXPECT_EQ(lastApplyRecord(began.journal)->outcome, "acknowledged");
+}
+
+// An apply journalled on another controller (a session folder copied from another cell), or one
+// that recorded no controller: nothing is written into this one.
+TEST(OnlineApplyRecovery, AnotherControllersApplyIsNeverWrittenIntoThisOne) {
+  Cell cell(8);
+  RobotInfo other = cell.identity();
+  other.serial = "6400-500123";
+  BeganApply began(cell, "foreign.jsonl", other);
+  cell.client->writeCalOffset(3, began.written[2]);  // it even holds the "written" value
+  const Recovery r = recoverApply(*cell.store, began.journal, cell.identity());
+  EXPECT_EQ(r.outcome, RecoveryOutcome::kForeign);
+  EXPECT_NE(r.message.find("6400-500123"), std::string::npos) << r.message;
+  EXPECT_NEAR(cell.client->readCalOffsets()[2], began.written[2], 1e-6);  // left as it is
+  EXPECT_TRUE(applyInterrupted(began.journal));
+  EXPECT_EQ(lastApplyRecord(began.journal)->outcome, "unrecovered");
+
+  BeganApply anonymous(cell, "anonymous.jsonl", RobotInfo{});
+  EXPECT_EQ(recoverApply(*cell.store, anonymous.journal, cell.identity()).outcome,
+            RecoveryOutcome::kForeign);
 }
 
 }  // namespace

@@ -253,6 +253,16 @@ TEST_F(ClientCommandsTest, WatchFollowsTheSessionToItsEnd) {
   EXPECT_EQ(text.substr(done).find(" um now"), std::string::npos) << text;
 }
 
+// `zerocal acknowledge` without --confirm sends nothing (exit 2); a daemon whose interrupted
+// apply is not recovered is a failure to `watch` (exit 3), not a finished session.
+TEST_F(ClientCommandsTest, AcknowledgeNeedsTheConfirmationAndUnrecoveredIsAFailure) {
+  session_.setState(SessionState::kUnrecovered);
+  EXPECT_EQ(run(args("acknowledge")), cli::kClientBadRequest);
+  EXPECT_THAT(err_.str(), HasSubstr("--confirm"));
+  EXPECT_EQ(run(args("watch")), cli::kClientSessionFailed);
+  EXPECT_EQ(session_.status().state, SessionState::kUnrecovered);  // nothing reached the daemon
+}
+
 // A watch ends when the session waits for the PSD, saying where it goes (exit 0: nothing went
 // wrong); `zerocal continue` goes on, with the centre as taught when given, and is refused with
 // exit code 2 when nothing waits.

@@ -114,6 +114,15 @@ std::string FakeSession::verify(const service::VerifyRequest& request) {
   return status_.session_id;
 }
 
+std::string FakeSession::acknowledge(const service::AcknowledgeRequest& request) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (!request.confirm) throw Refused("not_confirmed", "confirm: true needed");
+  if (status_.state != SessionState::kUnrecovered)
+    throw Refused("not_found", "no interrupted apply to acknowledge");
+  status_.state = SessionState::kDone;
+  return status_.session_id;
+}
+
 bool FakeSession::abort() {
   ++abort_calls_;
   service::StateEvent event;

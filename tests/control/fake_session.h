@@ -28,6 +28,8 @@ class FakeSession : public service::SessionControl {
   std::string continueSession(const service::ContinueRequest& request) override;
   std::string apply(const service::ApplyRequest& request) override;
   std::string verify(const service::VerifyRequest& request) override;
+  // Closes an unrecovered state (set through setState) when confirmed.
+  std::string acknowledge(const service::AcknowledgeRequest& request) override;
   bool abort() override;
   std::vector<SessionInfo> sessions() const override;
   ResultFile result(const std::string& id) const override;

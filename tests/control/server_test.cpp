@@ -305,6 +305,25 @@ TEST_F(ControlServerTest, Resume) {
   EXPECT_TRUE(session_.lastResume().session.empty());
 }
 
+// An interrupted apply the daemon could not recover: the status says so, and `acknowledge`
+// needs the technician's confirmation; a misspelt or mistyped member never reaches the session.
+TEST_F(ControlServerTest, AcknowledgeNeedsTheConfirmationAndClosesAnUnrecoveredApply) {
+  auto c = connect();
+  EXPECT_EQ(c->request({{"cmd", "acknowledge"}, {"confirm", true}})["error"]["code"], "not_found");
+  session_.setState(SessionState::kUnrecovered);
+  const json s = c->call("status")["status"];
+  EXPECT_EQ(s["state"], "unrecovered");
+  EXPECT_EQ(s["active"], false);
+  EXPECT_EQ(c->request({{"cmd", "acknowledge"}})["error"]["code"], "not_confirmed");
+  EXPECT_EQ(c->request({{"cmd", "acknowledge"}, {"confirm", "yes"}})["error"]["code"],
+            "bad_request");
+  EXPECT_EQ(c->request({{"cmd", "acknowledge"}, {"confirmed", true}})["error"]["code"],
+            "bad_request");
+  EXPECT_EQ(c->call("status")["status"]["state"], "unrecovered");
+  EXPECT_TRUE(c->call("acknowledge", {{"confirm", true}}).contains("session"));
+  EXPECT_EQ(c->call("status")["status"]["state"], "done");
+}
+
 // Only a session waiting for the PSD goes on; the status says where the PSD goes, and the
 // placement's taught centre reaches the session as given.
 TEST_F(ControlServerTest, ContinueGoesOnOnlyWithASessionWaitingForThePsd) {

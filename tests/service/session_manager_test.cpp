@@ -17,6 +17,7 @@
 
 #include "stored_plan_request.h"
 #include "zerocal/apply/online_apply.h"
+#include "zerocal/cell/link_error.h"
 #include "zerocal/io/joint_set.h"
 #include "zerocal/report/session_report.h"
 #include "zerocal/sim/sim_backend.h"
@@ -988,6 +989,10 @@ TEST(SessionManagerApply, AppliesVerifiesAndKeepsTheNewValues) {
     EXPECT_NEAR(shift[k + 1] - shift_before[k + 1], -calibrated.report.parameters[k].value, 1e-3);
     EXPECT_LT(std::abs(applied[0].remaining_deg[k]), 0.02);
   }
+  // The verification session says what it is for.
+  const SessionFile verification_file = SessionStore(dir.path).readSession(applied[0].verification);
+  EXPECT_EQ(verification_file.kind, SessionKind::kVerification);
+  EXPECT_EQ(verification_file.verifies, id);
   // What is left on the arm is the calibration's own error, exactly.
   const ResultFile verification = manager.result(applied[0].verification);
   ASSERT_TRUE(verification.truth && calibrated.truth);
@@ -1170,6 +1175,247 @@ TEST(SessionManagerApply, AWrongTransmissionSignIsRefusedBeforeAnyWrite) {
   EXPECT_NE(summary.find("REFUSED"), std::string::npos) << summary;
   EXPECT_NE(summary.find("Transmissions measured"), std::string::npos) << summary;
   EXPECT_NE(summary.find("(DISAGREES)"), std::string::npos) << summary;
+}
+
+// A controller that does not serve while `reachable` is false: one still booting after a power
+// cut (an IRC5 cold boot can outlast controller.restart_timeout_ms).
+class GatedBackend final : public CellBackend {
+ public:
+  explicit GatedBackend(sim::SimulatedCellOptions options) : inner_(std::move(options)) {}
+  const char* name() const override { return inner_.name(); }
+  CellKnowledge knowledge() const override { return inner_.knowledge(); }
+  std::unique_ptr<ConnectedCell> connect() override {
+    if (!reachable) throw LinkError(LinkError::Kind::kTransient, "connection refused (booting)");
+    return inner_.connect();
+  }
+  SimController& controller() { return inner_.cell().controller(); }
+  RobotInfo identity() { return inner_.connect()->robot().robotInfo(); }
+  std::atomic<bool> reachable{true};
+
+ private:
+  sim::SimBackend inner_;
+};
+
+ManagerSettings recoverySettingsIn(const std::string& dir) {
+  ManagerSettings s = applySettingsIn(dir);
+  s.controller_restart_timeout = std::chrono::milliseconds(300);
+  s.recovery_retry = std::chrono::milliseconds(50);
+  return s;
+}
+
+// The journal of an apply of `session` killed right after its backup (a power cut): the
+// controller's values then, and joint 3's new value it was about to write.
+std::array<double, 6> journalBegunApply(const std::string& dir, const std::string& session,
+                                        const std::array<double, 6>& before,
+                                        const RobotInfo& controller) {
+  std::array<double, 6> written = before;
+  written[2] = before[2] + 0.01;
+  apply::ApplyJournal(dir + "/" + session + "/apply.jsonl")
+      .append({{"step", "begin"},
+               {"controller",
+                {{"robot_type", controller.robot_type},
+                 {"serial", controller.serial},
+                 {"software_version", controller.software_version}}},
+               {"before_rad", before},
+               {"new_rad", written},
+               {"changes", nlohmann::json::array()}});
+  return written;
+}
+
+// Polls the status until `done` says so (at most 20 s).
+SessionStatus until(SessionManager& manager,
+                    const std::function<bool(const SessionStatus&)>& done) {
+  SessionStatus s = manager.status();
+  for (int i = 0; i < 2000 && !done(s); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    s = manager.status();
+  }
+  return s;
+}
+
+// The refusal code of `request`, or "" when it was accepted.
+std::string refusal(const std::function<void()>& request) {
+  try {
+    request();
+  } catch (const Refused& e) {
+    return e.code();
+  }
+  return "";
+}
+
+// Killed inside an apply, restarted while the controller still boots: the recovery cannot run.
+// The daemon refuses every session, apply and verification meanwhile, tries again by itself once
+// the controller serves, finds that nothing was written and closes the apply without a write or
+// a restart. A later apply, verified, then survives the next restart of the daemon untouched.
+TEST(SessionManagerRecovery, AnApplyInterruptedWhileTheControllerBootsNeverUndoesALaterOne) {
+  const TempDir dir;
+  GatedBackend backend(cellFor(6));
+  const ManagerSettings settings = recoverySettingsIn(dir.path);
+  std::string first;
+  {
+    SessionManager manager(backend, settings);
+    first = manager.start(manager.defaultRequest());
+    ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
+  }
+  const std::array<double, 6> before = backend.controller().calOffsets();
+  journalBegunApply(dir.path, first, before, backend.identity());
+  const long restarts = backend.controller().restartCount();
+
+  backend.reachable = false;
+  SessionManager manager(backend, settings);
+  EXPECT_EQ(manager.recoverInterruptedApplies(), 1);
+  SessionStatus s = until(
+      manager, [](const SessionStatus& st) { return st.state == SessionState::kUnrecovered; });
+  ASSERT_EQ(s.state, SessionState::kUnrecovered) << s.message;
+  // What to check on the FlexPendant: the apply's backup.
+  char backup[32];
+  std::snprintf(backup, sizeof backup, "rob1_3 %.6f", before[2]);
+  EXPECT_NE(s.message.find(backup), std::string::npos) << s.message;
+  EXPECT_NE(s.message.find("acknowledge"), std::string::npos) << s.message;
+  EXPECT_EQ(refusal([&] { manager.start(manager.defaultRequest()); }), "unrecovered");
+  EXPECT_EQ(refusal([&] { manager.apply({first, true}); }), "unrecovered");
+  EXPECT_EQ(refusal([&] { manager.verify({first}); }), "unrecovered");
+  EXPECT_EQ(refusal([&] { manager.resume({}); }), "unrecovered");
+  EXPECT_TRUE(
+      apply::applyInterrupted(apply::ApplyJournal(dir.path + "/" + first + "/apply.jsonl")));
+
+  backend.reachable = true;  // booted: the recovery is tried again without a command
+  s = until(manager, [](const SessionStatus& st) {
+    return st.state != SessionState::kUnrecovered && !isActive(st.state);
+  });
+  EXPECT_EQ(s.state, SessionState::kDone) << s.message;
+  const auto lines = applyLines(dir.path + "/" + first + "/apply.jsonl");
+  EXPECT_EQ(lines.back()["outcome"], "not_written");
+  EXPECT_EQ(backend.controller().calOffsets(), before);
+  EXPECT_EQ(backend.controller().restartCount(), restarts);  // nothing to take: no restart
+
+  const std::string second = manager.start(manager.defaultRequest());
+  ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
+  manager.apply({second, true});
+  const SessionStatus applied = manager.waitIdle();
+  ASSERT_EQ(applied.state, SessionState::kDone) << applied.message;
+  ASSERT_NE(applied.apply.find("verified"), std::string::npos) << applied.apply;
+  const std::array<double, 6> verified = backend.controller().calOffsets();
+  EXPECT_NE(verified, before);
+
+  SessionManager restarted(backend, settings);
+  EXPECT_EQ(restarted.recoverInterruptedApplies(), 0);
+  EXPECT_EQ(restarted.waitIdle().state, SessionState::kIdle);
+  EXPECT_EQ(backend.controller().calOffsets(), verified);
+}
+
+// The controller holds values an interrupted apply neither backed up nor wrote (joint 4 was
+// calibrated since), and a session folder copied from another cell holds that cell's
+// interrupted apply: nothing is written over either, the daemon refuses sessions and says which
+// values to check, and the technician, having checked them, acknowledges; then sessions run.
+TEST(SessionManagerRecovery, ValuesNeitherBackedUpNorWrittenAreKeptUntilAcknowledged) {
+  const TempDir dir;
+  GatedBackend backend(cellFor(6));
+  const ManagerSettings settings = recoverySettingsIn(dir.path);
+  std::string first;
+  {
+    SessionManager manager(backend, settings);
+    first = manager.start(manager.defaultRequest());
+    ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
+  }
+  const std::array<double, 6> before = backend.controller().calOffsets();
+  journalBegunApply(dir.path, first, before, backend.identity());
+  const double joint4 = before[3] + 0.02;
+  backend.controller().writeCalOffset(4, joint4);
+  // A session folder from another cell, its apply interrupted there.
+  const std::string copied = "20200101T000000Z";
+  std::filesystem::create_directory(dir.path + "/" + copied);
+  std::filesystem::copy_file(dir.path + "/" + first + "/session.json",
+                             dir.path + "/" + copied + "/session.json");
+  RobotInfo other = backend.identity();
+  other.serial = "6400-500123";
+  journalBegunApply(dir.path, copied, before, other);
+
+  SessionManager manager(backend, settings);
+  EventLog log;
+  manager.setEventSink(log.sink());
+  EXPECT_EQ(manager.recoverInterruptedApplies(), 2);
+  manager.waitIdle();
+  SessionStatus s = manager.status();
+  ASSERT_EQ(s.state, SessionState::kUnrecovered) << s.message;
+  EXPECT_NE(s.message.find("6400-500123"), std::string::npos) << s.message;
+  EXPECT_NE(s.message.find("neither this apply's backup nor its written value"), std::string::npos)
+      << s.message;
+  EXPECT_NEAR(backend.controller().calOffsets()[3], joint4, 1e-6);
+  EXPECT_EQ(backend.controller().calOffsets()[2], before[2]);
+  const auto events = log.of<ApplyEvent>();
+  ASSERT_EQ(events.size(), 2u);
+  for (const ApplyEvent& e : events) EXPECT_EQ(e.outcome, ApplyOutcome::kUnrecovered);
+  // Tried again and again by the idle worker, it journals each finding once.
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  EXPECT_EQ(applyLines(dir.path + "/" + first + "/apply.jsonl").size(), 2u);
+  EXPECT_EQ(refusal([&] { manager.start(manager.defaultRequest()); }), "unrecovered");
+
+  EXPECT_EQ(refusal([&] { manager.acknowledge({"", false}); }), "not_confirmed");
+  EXPECT_EQ(refusal([&] { manager.acknowledge({"20990101T000000Z", true}); }), "not_found");
+  EXPECT_EQ(manager.acknowledge({copied, true}), copied);
+  EXPECT_EQ(manager.waitIdle().state, SessionState::kUnrecovered);  // the other one is still open
+  EXPECT_EQ(manager.acknowledge({"", true}), first);
+  EXPECT_EQ(manager.waitIdle().state, SessionState::kDone);
+  for (const std::string& id : {first, copied}) {
+    const auto lines = applyLines(dir.path + "/" + id + "/apply.jsonl");
+    EXPECT_EQ(lines.back()["outcome"], "acknowledged") << id;
+    EXPECT_EQ(lines[lines.size() - 2]["step"], "acknowledged") << id;
+  }
+  EXPECT_NEAR(backend.controller().calOffsets()[3], joint4, 1e-6);
+  const std::string next = manager.start(manager.defaultRequest());
+  EXPECT_FALSE(next.empty());
+  manager.abort();
+  manager.waitIdle();
+}
+
+// A verification session the daemon was killed in, mid-apply, is never resumed as a
+// calibration (nor picked by a resume without an id), and is closed when its apply is recovered.
+TEST(SessionManagerRecovery, AVerificationKilledMidApplyIsNeverResumedAndClosedOnRecovery) {
+  const TempDir dir;
+  GatedBackend backend(cellFor(6));
+  const ManagerSettings settings = recoverySettingsIn(dir.path);
+  std::string first;
+  {
+    SessionManager manager(backend, settings);
+    first = manager.start(manager.defaultRequest());
+    ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
+  }
+  // The apply had written, restarted and begun its verification: two poses on disk.
+  const std::array<double, 6> before = backend.controller().calOffsets();
+  const std::array<double, 6> written =
+      journalBegunApply(dir.path, first, before, backend.identity());
+  backend.controller().writeCalOffset(3, written[2]);
+  apply::ApplyJournal journal(dir.path + "/" + first + "/apply.jsonl");
+  for (const char* step : {"written", "restarting", "restarted"}) journal.append({{"step", step}});
+  SessionStore store(dir.path);
+  SessionFile verification = store.readSession(first);
+  verification.kind = SessionKind::kVerification;
+  verification.verifies = first;
+  const std::string vid = store.create(verification).id;
+  {
+    std::ifstream in(store.journalPath(first));
+    std::ofstream out(store.journalPath(vid));
+    std::string line;
+    for (int i = 0; i < 2 && std::getline(in, line); ++i) out << line << "\n";
+  }
+
+  SessionManager manager(backend, settings);
+  EXPECT_EQ(manager.recoverInterruptedApplies(), 1);
+  EXPECT_EQ(manager.waitIdle().state, SessionState::kDone);
+  for (int i = 0; i < 6; ++i)  // the backup restored
+    EXPECT_NEAR(backend.controller().calOffsets()[i], before[i], 1e-6) << i;
+  EXPECT_EQ(refusal([&] { manager.resume({}); }), "not_found");
+  EXPECT_EQ(refusal([&] { manager.resume({vid}); }), "verification");
+  bool listed = false;
+  for (const SessionInfo& info : manager.sessions())
+    if (info.id == vid) {
+      listed = true;
+      EXPECT_EQ(info.kind, SessionKind::kVerification);
+      EXPECT_EQ(info.verifies, first);
+      EXPECT_NE(info.closed.find("recovered"), std::string::npos) << info.closed;
+    }
+  EXPECT_TRUE(listed);
 }
 
 }  // namespace

@@ -33,6 +33,27 @@ TEST(SessionFiles, EveryMemberOfAFinishedSessionComesBack) {
   expectRoundTrip(test::sessionFiles(resumed));
 }
 
+// What a session is for: a verification names the session whose apply it verifies; a file
+// written before kinds is a calibration; an unknown kind is refused, not taken for one.
+TEST(SessionFiles, ASessionsKindComesBackAndAnUnknownOneIsRefused) {
+  SessionFile s = test::sessionFiles().session;
+  EXPECT_EQ(toJson(s)["kind"], "calibration");
+  s.kind = SessionKind::kVerification;
+  s.verifies = "20261122T073447Z";
+  const json j = toJson(s);
+  EXPECT_EQ(j["kind"], "verification");
+  const SessionFile back = sessionFileFromJson(j);
+  EXPECT_EQ(back.kind, SessionKind::kVerification);
+  EXPECT_EQ(back.verifies, "20261122T073447Z");
+  json old = j;
+  old.erase("kind");
+  old.erase("verifies");
+  EXPECT_EQ(sessionFileFromJson(old).kind, SessionKind::kCalibration);
+  json unknown = j;
+  unknown["kind"] = "calibrashun";
+  EXPECT_THROW(sessionFileFromJson(unknown), InputError);
+}
+
 // A session at several PSD placements: each pose's placement, the placements' planned centres,
 // the plan's link-error prediction, and the result's placement centres and link errors.
 TEST(SessionFiles, ASessionAtSeveralPlacementsComesBack) {

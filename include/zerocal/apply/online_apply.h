@@ -14,6 +14,7 @@
 #include "zerocal/apply/motor_calibration.h"
 #include "zerocal/apply/transmission_check.h"
 #include "zerocal/cell/controller_calibration.h"
+#include "zerocal/cell/controller_link.h"
 
 namespace zerocal::apply {
 
@@ -36,6 +37,9 @@ struct OnlineApplyOptions {
   std::function<bool(int joint, double turn_error_deg)> update_revolution_counter;
   // Progress lines for the terminal.
   std::function<void(const std::string&)> progress;
+  // The controller written to, as it names itself (request 98): journalled with the backup, so
+  // that a recovery writes the backup only into the controller it came from.
+  RobotInfo controller;
 };
 
 enum class ApplyState { kVerified, kRolledBack };
@@ -88,12 +92,20 @@ void journalTransmissionCheck(ApplyJournal& journal,
 // True when the journal's last online apply has no "done" line (the process stopped inside it):
 // recoverApply() has work to do. Reads only the journal.
 bool applyInterrupted(const ApplyJournal& journal);
+// The open apply's backup and written values, in a sentence for a technician who checks the
+// controller by hand; empty when no apply is open (or its values cannot be read).
+std::string interruptedApplyValues(const ApplyJournal& journal);
+// Joints 2..5's cal_offset values (rad) as the FlexPendant names them: "rob1_2 0.123456 ...".
+std::string valuesText(const std::array<double, 6>& rad);
 
 // The latest online apply or verification of a session as its journal tells it, for the report.
 struct ApplyRecord {
-  // "verified", "rolled_back", "recovered", "interrupted" (no end line: the process stopped),
-  // "error" (stopped with an error after the backup), "refused" (a measured transmission
-  // disagreed with the robot file; nothing written), "pass" / "fail" (a verification alone).
+  // "verified", "rolled_back", "recovered" (restored after an interruption), "not_written" (an
+  // interruption before anything took effect), "interrupted" (no end line: the process stopped),
+  // "unrecovered" (the recovery found values it must not write over), "acknowledged" (closed
+  // by the technician), "error" (stopped with an error after the backup), "refused" (a measured
+  // transmission disagreed with the robot file; nothing written), "pass" / "fail" (a
+  // verification alone).
   std::string outcome;
   double time_unix_s = 0;                             // when it began
   std::array<double, 6> before_rad{}, written_rad{};  // zero for a verification alone
@@ -118,13 +130,49 @@ struct ApplyRecord {
 // Throws nothing: a journal that is absent or holds no online step gives nullopt.
 std::optional<ApplyRecord> lastApplyRecord(const ApplyJournal& journal);
 
-struct Recovery {
-  bool needed = false;  // the journal ends inside an apply
-  std::string message;  // what was found and what was done
+enum class RecoveryOutcome {
+  kNotNeeded,       // the journal's last apply has ended
+  kNothingWritten,  // stopped before any value it wrote took effect; closed, nothing written
+  kRestored,        // the backup written back, the controller restarted, the values read back
+  // Not recovered, nothing written (the apply stays open, the daemon refuses to run):
+  kConflict,  // the controller holds, at some joint, neither the backup nor the written value
+  kForeign,   // the apply was made on another controller, or recorded none
 };
-// Reads the journal; when its last apply did not finish, restores the backed-up values (write,
-// restart, read back), journals that, and says so. Throws Error when the controller cannot be
-// restored (the message holds the backed-up values to enter by hand).
-Recovery recoverApply(ControllerCalibration& store, ApplyJournal& journal);
+const char* recoveryOutcomeName(RecoveryOutcome outcome);
+
+struct Recovery {
+  RecoveryOutcome outcome = RecoveryOutcome::kNotNeeded;
+  bool needed() const { return outcome != RecoveryOutcome::kNotNeeded; }
+  // The apply is closed (nothing to do, nothing written, or restored).
+  bool resolved() const {
+    return outcome != RecoveryOutcome::kConflict && outcome != RecoveryOutcome::kForeign;
+  }
+  // What was found and what was done; for an unresolved one, the values to check on the
+  // controller (the backup, the written ones, what it holds) and the joints that differ.
+  std::string message;
+  std::array<double, 6> found_rad{}, backup_rad{}, written_rad{};
+  std::vector<int> differing_joints;  // 1-based: holding neither the backup nor the written value
+};
+// Reads the journal; when its last apply did not finish, brings the controller back to a known
+// state, by the rules of docs/apply.md ("An interrupted apply"):
+// - the apply's recorded controller (robot type and serial) must be `controller`, else kForeign;
+// - every joint must hold the apply's backup or its written value, else kConflict (the message
+//   gives both sets and the joints that differ);
+// - when every joint holds the backup and the controller was never restarted on the new values,
+//   nothing was written that took effect: kNothingWritten, closed without a write or restart;
+// - otherwise the backup is written, the controller restarted and read back: kRestored.
+// Resolved outcomes are journalled with a "done" line; an unresolved one with a
+// "recovery_refused" line (once per finding) and the apply stays open. Throws Error when the link
+// fails or a restore cannot be completed (the message holds the backed-up values to enter by
+// hand); the apply then stays open too.
+Recovery recoverApply(ControllerCalibration& store, ApplyJournal& journal,
+                      const RobotInfo& controller);
+
+// Closes the journal's open apply on the technician's word that the controller holds the values
+// it should (checked by hand on the FlexPendant): an "acknowledged" line with `found_rad` (what the
+// controller holds, when it could be read) and `note`, then "done". False when no apply is open.
+// Throws Error when it cannot write.
+bool acknowledgeApply(ApplyJournal& journal, const std::optional<std::array<double, 6>>& found_rad,
+                      const std::string& note);
 
 }  // namespace zerocal::apply

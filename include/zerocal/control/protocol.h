@@ -29,9 +29,10 @@ service::ResumeRequest parseResumeRequest(const nlohmann::json& request);
 service::ContinueRequest parseContinueRequest(const nlohmann::json& request);
 
 // The members of an `apply` request: session (the latest finished when absent) and confirm (a
-// boolean; the manager refuses the apply unless true), and of a `verify` request: session.
-// Others but id, cmd and token are refused. Throw BadRequest.
+// boolean; the manager refuses the apply unless true), of an `acknowledge` request (the same),
+// and of a `verify` request: session. Others but id, cmd and token are refused. Throw BadRequest.
 service::ApplyRequest parseApplyRequest(const nlohmann::json& request);
+service::AcknowledgeRequest parseAcknowledgeRequest(const nlohmann::json& request);
 service::VerifyRequest parseVerifyRequest(const nlohmann::json& request);
 
 const char* planKindName(PlanKind kind);

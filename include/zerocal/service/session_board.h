@@ -33,10 +33,12 @@ class SessionBoard {
 
   // Between the busy check of a start or resume and its run being posted (or its refusal): a
   // second request is refused busy meanwhile, and an abort is for the session being claimed.
-  // Throws Refused("busy").
+  // Throws Refused("busy"); while the board is blocked, Refused("unrecovered") unless the claim
+  // is for the recovery itself.
   class Claim {
    public:
-    explicit Claim(SessionBoard& board);
+    enum class Purpose { kSession, kRecovery };
+    explicit Claim(SessionBoard& board, Purpose purpose = Purpose::kSession);
     ~Claim();
     Claim(const Claim&) = delete;
     Claim& operator=(const Claim&) = delete;
@@ -81,6 +83,13 @@ class SessionBoard {
   void hold(const std::string& why);
   void release();
 
+  // While blocked (an interrupted apply that is not recovered: the controller's values are not
+  // known to be verified ones), every claim but a recovery's is refused with `why`, which says
+  // what to check on the controller. Unblocked by unblock().
+  void block(const std::string& why);
+  void unblock();
+  bool blocked() const;
+
   // Asks the running or claimed session to stop; false when there is none.
   bool requestAbort();
   // Set by requestAbort() (or abortAll()) until the next claim; the run polls it.
@@ -106,7 +115,8 @@ class SessionBoard {
   mutable std::condition_variable changed_;
   SessionStatus status_;
   bool claimed_ = false;
-  std::string held_;  // why the board is held; empty: not held
+  std::string held_;     // why the board is held; empty: not held
+  std::string blocked_;  // why the board is blocked; empty: not blocked
   bool closed_ = false;
   bool go_ahead_ = false;  // awaitTechnician: the technician continued
   std::atomic<bool> abort_{false};

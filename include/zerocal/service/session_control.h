@@ -39,6 +39,12 @@ enum class SessionState {
   kDone,
   kAborted,
   kFaulted,
+  // An online apply was interrupted and its recovery could not bring the controller to a known
+  // state (the controller unreachable, or holding values that are neither the apply's backup nor
+  // its written ones, or another controller's apply): no session, apply or verification runs
+  // until the recovery succeeds (tried again whenever the controller can be reached) or the
+  // technician acknowledges the values checked by hand. The message says what to check.
+  kUnrecovered,
 };
 const char* stateName(SessionState state);
 // A session in this state has a worker running it.
@@ -68,6 +74,9 @@ struct StartRequest {
   // target and the others spread around it (defaultPlacements). Not used with plan: file, whose
   // poses carry their placements.
   int placements = 1;
+  // A verification's: the session whose apply it verifies (session.json's kind and verifies).
+  // Not on the control port.
+  std::string verifies;
 };
 
 // Goes on with the session that waits for the PSD at its next placement.
@@ -128,6 +137,14 @@ struct VerifyRequest {
   // When empty: the latest session with an online apply (or verification) in its apply.jsonl,
   // else the latest finished one.
   std::string session;
+};
+
+// The technician's word that the controller holds the values it should, checked by hand on the
+// FlexPendant after an interrupted apply the daemon could not recover: the apply is closed
+// (journalled) and sessions may run again.
+struct AcknowledgeRequest {
+  std::string session;   // the interrupted apply's session; every one when empty
+  bool confirm = false;  // the technician confirmed having checked the values
 };
 
 // The latest PSD reading seen, for the live `psd` command.
@@ -202,6 +219,11 @@ enum class ApplyOutcome {
   kRecovered,   // an apply interrupted earlier (the daemon stopped) was restored at start
   kPassed,      // a verification on its own: every offset left is within its bound
   kNotPassed,   // a verification on its own: some are not (nothing was changed)
+  // An interrupted apply was not recovered: nothing was written; the message gives the values
+  // to check on the controller. The daemon refuses sessions until it is recovered or
+  // acknowledged.
+  kUnrecovered,
+  kAcknowledged,  // an interrupted apply closed on the technician's word (acknowledge)
 };
 const char* applyOutcomeName(ApplyOutcome outcome);
 
@@ -229,10 +251,13 @@ class SessionControl {
   // Plans without moving; throws Refused("bad_request", ...) for an invalid request.
   virtual Plan preview(const StartRequest& request) const = 0;
   // Starts a session and returns its id. Throws Refused: "busy" (one session at a time),
-  // "bad_request", "not_identifiable" (the plan cannot identify delta2..delta5; nothing moved).
+  // "bad_request", "not_identifiable" (the plan cannot identify delta2..delta5; nothing moved),
+  // "unrecovered" (an interrupted apply is not recovered: start, resume, apply and verify are
+  // refused so until it is, with the values to check on the controller).
   virtual std::string start(const StartRequest& request) = 0;
   // Resumes an unfinished session from its journal, skipping its next pose when asked. Throws
-  // Refused: "busy", "not_found", "finished", "damaged", "bad_session", "bad_request" (a pose
+  // Refused: "busy", "unrecovered", "not_found", "finished", "damaged", "bad_session",
+  // "verification" (a verification session: never resumed), "bad_request" (a pose
   // that is not the next one), "not_identifiable" (the plan would not identify every offset
   // without the pose; nothing skipped, nothing moved).
   virtual std::string resume(const ResumeRequest& request) = 0;
@@ -244,14 +269,18 @@ class SessionControl {
   // Applies a finished session's offsets to the controller online (backup, write, restart,
   // verify by a short calibration, roll back when wrong; docs/apply.md) and returns the session's
   // id; progress and the outcome come as ApplyProgressEvent and ApplyEvent. Throws Refused:
-  // "not_confirmed" (confirm not set), "busy", "not_found", "not_usable" (the verdict refuses
-  // the result, or an offset of joints 2..5 is withheld), "unsupported" (the controller link
-  // offers no calibration access), "bad_request".
+  // "not_confirmed" (confirm not set), "busy", "unrecovered", "not_found", "not_usable" (the
+  // verdict refuses the result, or an offset of joints 2..5 is withheld), "unsupported" (the
+  // controller link offers no calibration access), "bad_request".
   virtual std::string apply(const ApplyRequest& request) = 0;
   // Runs a verification of a session's offsets now (a short calibration; nothing is written) and
   // returns the session's id; the verdict comes as an ApplyEvent. Throws Refused: "busy",
-  // "not_found", "not_usable", "bad_request".
+  // "unrecovered", "not_found", "not_usable", "bad_request".
   virtual std::string verify(const VerifyRequest& request) = 0;
+  // Closes interrupted applies the daemon could not recover, on the technician's word (journalled
+  // in each apply.jsonl), and returns the session's id (the latest closed). Throws Refused:
+  // "not_confirmed", "not_found" (no interrupted apply, or none of that session), "busy".
+  virtual std::string acknowledge(const AcknowledgeRequest& request) = 0;
   // Asks the running session to stop; the robot is stopped. False when nothing runs.
   virtual bool abort() = 0;
   virtual std::vector<SessionInfo> sessions() const = 0;

@@ -12,6 +12,7 @@
 #include <atomic>
 #include <chrono>
 #include <functional>
+#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -47,6 +48,10 @@ struct ManagerSettings {
   // How long the recovery of an interrupted apply waits for a controller that refuses or ignores
   // connections: a daemon killed while the controller restarted on new values comes back first.
   std::chrono::milliseconds controller_restart_timeout{90000};
+  // How often an interrupted apply that could not be recovered is tried again while the daemon
+  // is otherwise idle (a quiet look at the controller; a visible attempt when it holds
+  // something new).
+  std::chrono::milliseconds recovery_retry{10000};
   // The online apply measures joints 2..5's transmissions before it writes (docs/apply.md).
   apply::TransmissionCheckOptions transmission_check;
   // No technician to move the PSD (zerocald --once and the experiments on the simulated cell,
@@ -80,6 +85,7 @@ class SessionManager final : public SessionControl {
   // and an ApplyEvent. Returns how many were found; the restore runs after this returns
   // (waitIdle() waits for it). Never throws: a recovery that fails is logged and in the status.
   int recoverInterruptedApplies();
+  std::string acknowledge(const AcknowledgeRequest& request) override;
   // Blocks until no session is active; returns the final status. For --once and shutdown.
   SessionStatus waitIdle();
   // The request the configuration describes (session.plan, poses, plan_file, target).
@@ -113,12 +119,26 @@ class SessionManager final : public SessionControl {
   // A finished session's result, checked as an apply needs it: usable, offsets 2..5 given.
   // Throws Refused.
   ResultFile usableResult(const std::string& requested, std::string& id) const;
-  // Runs a short calibration (the configured plan around `target`) on the worker thread and
-  // returns its id and result. Throws Error when it does not finish with delta2..delta5.
-  ResultFile verificationRun(const CalibrationParameters& found, std::string& id);
+  // Runs a short calibration (the configured plan around `target`), a verification of session
+  // `applied`, on the worker thread and returns its id and result. Throws Error when it does not
+  // finish with delta2..delta5.
+  ResultFile verificationRun(const std::string& applied, const CalibrationParameters& found,
+                             std::string& id);
   void runApply(const std::string& id, const ResultFile& result);
   void runVerify(const std::string& id, const ResultFile& result);
-  void runRecovery(const std::vector<std::string>& ids);
+  // The sessions whose folder's apply.jsonl ends inside an online apply, oldest first.
+  std::vector<std::string> interruptedApplies() const;
+  // Recovers each of `ids` (apply::recoverApply), waiting for a restarting controller first when
+  // `wait_for_restart`; what is not recovered blocks the board (unrecovered_).
+  void runRecovery(const std::vector<std::string>& ids, bool wait_for_restart);
+  // The worker's idle moments while the board is blocked: the recovery tried again when the
+  // controller can be reached and holds something new.
+  void retryRecovery();
+  void runAcknowledge(const std::vector<std::string>& ids);
+  // Closes the unfinished verification sessions of `applied`'s apply, saying `how` it ended.
+  void closeVerifications(const std::string& applied, const std::string& how);
+  // Why the board is blocked: each unrecovered apply and what to check.
+  std::string unrecoveredMessage() const;
   // Connects the cell for a recovery, waiting up to controller_restart_timeout while the
   // controller does not serve (a transient LinkError). Throws the last error after that.
   void connectWaitingForRestart();
@@ -147,7 +167,11 @@ class SessionManager final : public SessionControl {
   std::unique_ptr<LiveSlot> live_;
   SessionBoard board_;
   std::unique_ptr<ConnectedCell> cell_;  // worker thread only
-  SessionWorker worker_;                 // last member: its thread starts after the others exist
+  // Worker thread only: the interrupted applies not recovered (id -> why), and what the
+  // controller held at the last attempt (empty when it could not be reached).
+  std::map<std::string, std::string> unrecovered_;
+  std::string last_recovery_seen_;
+  SessionWorker worker_;  // last member: its thread starts after the others exist
 };
 
 }  // namespace zerocal::service

@@ -25,6 +25,9 @@ class SessionWorker {
   SessionWorker& operator=(const SessionWorker&) = delete;
 
   void post(Task task);
+  // While no task is queued, `task` runs after every `period` of idleness (work that waits for a
+  // device to come back). Replaces any earlier one.
+  void setIdleTask(std::chrono::milliseconds period, std::function<void()> task);
   // Runs what is queued with cancelled = true and joins the thread. Idempotent.
   void stop();
   // Blocks until no task runs or waits.
@@ -46,6 +49,8 @@ class SessionWorker {
   std::deque<Task> tasks_;
   bool busy_ = false;
   bool stopping_ = false;
+  std::chrono::milliseconds idle_period_{0};
+  std::function<void()> idle_task_;
   // Steady-clock nanoseconds of the latest progress; 0 while no task runs.
   std::atomic<std::int64_t> progress_ns_{0};
   std::thread thread_;  // last member: starts after the others exist

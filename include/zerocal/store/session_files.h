@@ -28,13 +28,23 @@ namespace zerocal {
 inline constexpr const char* kSessionFileName = "session.json";
 inline constexpr const char* kJournalFileName = "journal.jsonl";
 inline constexpr const char* kResultFileName = "result.json";
+// Written into a session that will never be resumed or finished (the verification of an apply
+// that was recovered since), with why.
+inline constexpr const char* kClosedFileName = "closed.json";
+
+// What a session is for. A verification measures the offsets left after an apply (or on its
+// own, of an applied session): it is never resumed as a calibration.
+enum class SessionKind { kCalibration, kVerification };
+const char* sessionKindName(SessionKind kind);
 
 // session.json.
 struct SessionFile {
   std::string format = "zerocal-session/1";
   std::string id;
   std::int64_t created_unix_s = 0;
-  Plan plan;  // the poses (joints only), how they were chosen, the predicted uncertainty
+  SessionKind kind = SessionKind::kCalibration;  // absent in files before kinds: a calibration
+  std::string verifies;  // a verification's: the id of the session whose apply it verifies
+  Plan plan;             // the poses (joints only), how they were chosen, the predicted uncertainty
   Eigen::Vector3d target_mm = Eigen::Vector3d::Zero();  // nominal PSD centre, base frame
   double noise_mm = 0;                                  // measurement sigma of the plan and solve
   // With poses at several PSD placements: every placement's planned centre (base frame, mm),

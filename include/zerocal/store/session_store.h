@@ -22,6 +22,10 @@ struct SessionInfo {
   // Why the journal cannot be read back (a bad line before the last, indices out of order);
   // empty when it can. A damaged session is listed but never resumed.
   std::string damaged;
+  SessionKind kind = SessionKind::kCalibration;
+  std::string verifies;  // a verification's: whose apply it verifies
+  // Why the session was closed unfinished (closed.json); empty when it was not. Never resumed.
+  std::string closed;
 };
 
 class SessionStore {
@@ -39,8 +43,10 @@ class SessionStore {
   // again only when its size or time changed, so listing a large archive costs a few stat()s a
   // session. Throws FileError only when data_dir itself cannot be listed.
   std::vector<SessionInfo> list() const;
-  // The sessions that may be resumed: not finished, not damaged.
+  // The sessions that may be resumed: calibrations not finished, closed or damaged.
   std::vector<SessionInfo> unfinished() const;
+  // Closes an unfinished session for good (closed.json with `why`, durably). Throws FileError.
+  void close(const std::string& id, const std::string& why);
   // Throws FileError (missing, unreadable, not JSON) or InputError (a member missing or wrong).
   SessionFile readSession(const std::string& id) const;
   ResultFile readResult(const std::string& id) const;

@@ -61,11 +61,15 @@ std::optional<ModelId> fromMocRobotType(const std::string& type) {
 Robot sessionRobot(const ApplyArgs& args, const SessionFolder& files, std::string* source) {
   std::string robot = args.robot;
   if (robot.empty()) {
+    // zerocald's snapshot of its configuration keeps the robot file under controller.robot.
     const nlohmann::json& config = files.session.config;
-    if (!config.contains("robot") || !config["robot"].is_string())
+    const auto controller = config.find("controller");
+    if (controller == config.end() || !controller->is_object() || !controller->contains("robot") ||
+        !(*controller)["robot"].is_string())
       throw InputError(args.session_dir +
-                       "/session.json: no config.robot; give the robot file with --robot");
-    robot = config["robot"].get<std::string>();
+                       "/session.json: no config.controller.robot; give the robot file with "
+                       "--robot");
+    robot = (*controller)["robot"].get<std::string>();
   }
   *source = robot == "builtin" ? "the built-in IRB 1600-10/1.45 (config/robots/irb1600-10-145.yaml)"
                                : robot;

@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "apply_commands.h"
@@ -109,6 +110,28 @@ TEST_F(ApplyCommand, RefusesAnotherRobotsBackupAnExistingOutputAndABadFile) {
   EXPECT_EQ(run(), 2);
   EXPECT_NE(err_.str().find("exists"), std::string::npos);
   EXPECT_EQ(readText(args_.out_file), "keep me");
+}
+
+// zerocald's session.json holds its configuration as it loaded it: the robot file is
+// config.controller.robot, which is where the command looks without --robot.
+TEST_F(ApplyCommand, TakesTheRobotOfTheDaemonsConfigurationSnapshot) {
+  const std::string path = session_ + "/session.json";
+  nlohmann::json session = nlohmann::json::parse(readText(path));
+  session["config"] = {{"controller", {{"robot", "builtin"}}}};
+  std::ofstream(path, std::ios::binary | std::ios::trunc) << session.dump();
+  args_.robot.clear();
+  EXPECT_EQ(run(), 0) << err_.str();
+  EXPECT_TRUE(fs::exists(args_.out_file));
+  EXPECT_NE(out_.str().find("built-in IRB 1600-10/1.45"), std::string::npos) << out_.str();
+
+  session["config"] = nlohmann::json::object();
+  std::ofstream(path, std::ios::binary | std::ios::trunc) << session.dump();
+  fs::remove(args_.out_file);
+  EXPECT_EQ(run(), 2);
+  EXPECT_NE(err_.str().find("no config.controller.robot; give the robot file with --robot"),
+            std::string::npos)
+      << err_.str();
+  EXPECT_FALSE(fs::exists(args_.out_file));
 }
 
 TEST_F(ApplyCommand, ARobotFileWithoutTransmissionIsRefused) {

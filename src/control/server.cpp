@@ -1,5 +1,7 @@
 #include "zerocal/control/server.h"
 
+#include <fmt/format.h>
+
 #include <atomic>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/post.hpp>
@@ -174,6 +176,13 @@ class Connection : public std::enable_shared_from_this<Connection> {
     delay_.cancel();
     socket_.shutdown(tcp::socket::shutdown_both, ec);
     socket_.close(ec);
+    server_->remove(this);
+  }
+
+  // Closed to make room for a newer connection: it is told why, and leaves the server's count at
+  // once so that the newcomer fits, while its last line is still being written.
+  void evict(const json& message) {
+    sendAndClose(message);
     server_->remove(this);
   }
 
@@ -564,8 +573,15 @@ void ServerCore::admit(tcp::socket socket) {
           (!oldest || c->connectedAt() < oldest->connectedAt()))
         oldest = c;
     if (!oldest) return false;
-    log_->warn("{}: closed to make room, it had not authenticated", oldest->peer());
-    oldest->close();
+    const std::string limit = same_peer_only ? fmt::format("{} connections from {}",
+                                                           options_.max_clients_per_peer, address)
+                                             : fmt::format("{} connections", options_.max_clients);
+    log_->warn("{}: closed to make room, it had not authenticated ({} are open)", oldest->peer(),
+               limit);
+    oldest->evict(errorResponse(nullptr, code::kTooManyClients,
+                                fmt::format("closed to make room for a new connection: {} are "
+                                            "open and this one has not authenticated; closing",
+                                            limit)));
     return true;
   };
   std::size_t from_peer = 0;

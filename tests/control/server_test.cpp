@@ -716,6 +716,12 @@ TEST_F(ControlServerTest, ConnectionsThatNeverAuthenticateCannotLockOutAnAbort) 
   }
   EXPECT_EQ(session_.abortCalls(), 5);
   EXPECT_LE(connections(), 8u);
+  // The oldest stranger made room for the first technician (each later one took the slot its
+  // predecessor left), and was told why before being closed.
+  const auto why = strangers[0]->readLine(1s);
+  ASSERT_TRUE(why.has_value());
+  EXPECT_EQ(json::parse(*why)["error"]["code"], "too_many_clients");
+  expectClosed(*strangers[0]);
 }
 
 TEST_F(ControlServerTest, EveryAuthenticatedSlotTakenRefusesTheNextClient) {
@@ -767,6 +773,15 @@ TEST_F(ControlServerTest, ConnectionsPerPeerAreLimited) {
   stranger->call("hello");  // the server has taken it in
   auto technician = connect();
   EXPECT_EQ(technician->call("status")["ok"], true);
+  // The displaced connection is told why before it is closed.
+  const auto why = stranger->readLine(1s);
+  ASSERT_TRUE(why.has_value());
+  const auto e = json::parse(*why);
+  EXPECT_EQ(e["id"], nullptr);
+  EXPECT_EQ(e["error"]["code"], "too_many_clients");
+  EXPECT_THAT(e["error"]["message"].get<std::string>(),
+              HasSubstr("closed to make room for a new connection: 2 connections from 127.0.0.1 "
+                        "are open and this one has not authenticated"));
   expectClosed(*stranger);
 }
 

@@ -22,7 +22,7 @@ struct ServerOptions {
   // not authenticated (so that idle strangers can never lock out an abort); when every one has
   // authenticated, the new one gets a too_many_clients error and is closed.
   std::size_t max_clients = 64;
-  // Connections from one peer address at once; more are refused (too_many_clients).
+  // Connections from one peer address at once; beyond it as for max_clients, within that address.
   std::size_t max_clients_per_peer = 16;
   // A connection that has not authenticated this long after it connected is closed.
   std::chrono::milliseconds auth_timeout{std::chrono::seconds(10)};

@@ -1,6 +1,8 @@
 #include "zerocal/control/protocol.h"
 
+#include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <set>
 #include <variant>
 
@@ -205,6 +207,35 @@ json toJson(const std::vector<SessionInfo>& sessions) {
     if (!s.closed.empty()) a.back()["closed"] = s.closed;
   }
   return a;
+}
+
+SessionsPage parseSessionsRequest(const json& request) {
+  SessionsPage page;
+  if (request.contains("limit") && !request["limit"].is_null()) {
+    const auto& l = request["limit"];
+    if (!l.is_number_integer()) throw BadRequest("limit: expected an integer");
+    if (l.get<long long>() < 1 || l.get<long long>() > SessionsPage::kMaxLimit)
+      throw BadRequest("limit: " + l.dump() + " is outside 1.." +
+                       std::to_string(SessionsPage::kMaxLimit));
+    page.limit = l.get<int>();
+  }
+  page.cursor = optionalString(request, "cursor");
+  return page;
+}
+
+json sessionsPage(const std::vector<SessionInfo>& sessions, const SessionsPage& page) {
+  // Ids are creation times, and the list is sorted by them: the cursor, the last id of the page
+  // before, stays valid while sessions are created or removed.
+  auto end = sessions.end();
+  if (!page.cursor.empty())
+    end = std::lower_bound(sessions.begin(), sessions.end(), page.cursor,
+                           [](const SessionInfo& s, const std::string& id) { return s.id < id; });
+  const auto count = std::min<std::ptrdiff_t>(page.limit, end - sessions.begin());
+  const std::vector<SessionInfo> newest_first(std::make_reverse_iterator(end),
+                                              std::make_reverse_iterator(end - count));
+  json r{{"sessions", toJson(newest_first)}, {"total", sessions.size()}};
+  if (end - count != sessions.begin()) r["next"] = newest_first.back().id;
+  return r;
 }
 
 namespace {

@@ -147,19 +147,12 @@ class Connection : public std::enable_shared_from_this<Connection> {
     read();
   }
 
-  void send(const Line& line) {
-    if (closed_) return;
-    if (queued_bytes_ + line->size() > server_->options_.max_queued_bytes) {
-      server_->log_->warn("{}: dropped, it does not read ({} bytes queued)", peer_, queued_bytes_);
-      close();
-      return;
-    }
-    queued_bytes_ += line->size();
-    queue_.push_back(line);
-    if (!writing_) write();
-  }
-
-  void send(const json& message) { send(makeLine(message)); }
+  // An event line, and an answer (or a last word before closing). Each kind is counted apart
+  // against max_queued_bytes: a client that does not read its events, or sends requests without
+  // reading the answers, is dropped. One answer is always queued, whatever its size (a page of the
+  // session list may be larger than the limit), and never counts against the events'.
+  void sendEvent(const Line& line) { enqueue(line, false); }
+  void send(const json& message) { enqueue(makeLine(message), true); }
 
   // Answers, then closes once everything queued is written.
   void sendAndClose(const json& message) {
@@ -348,7 +341,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
       if (aborted) server_->log_->warn("{}: aborted the session", peer_);
       r["aborted"] = aborted;
     } else if (cmd == "sessions") {
-      r["sessions"] = toJson(session.sessions());
+      r.update(sessionsPage(session.sessions(), parseSessionsRequest(request)));
     } else if (cmd == "result") {
       r["result"] = toJson(session.result(optionalString(request, "session")));
     } else if (cmd == "subscribe") {
@@ -450,10 +443,24 @@ class Connection : public std::enable_shared_from_this<Connection> {
     return false;
   }
 
+  void enqueue(const Line& line, bool answer) {
+    if (closed_) return;
+    std::size_t& queued = answer ? queued_answer_bytes_ : queued_event_bytes_;
+    if ((!answer || queued > 0) && queued + line->size() > server_->options_.max_queued_bytes) {
+      server_->log_->warn("{}: dropped, it does not read ({} bytes of {} queued)", peer_, queued,
+                          answer ? "answers" : "events");
+      close();
+      return;
+    }
+    queued += line->size();
+    queue_.push_back({line, answer});
+    if (!writing_) write();
+  }
+
   void write() {
     writing_ = true;
     write_started_ = Clock::now();
-    asio::async_write(socket_, asio::buffer(*queue_.front()),
+    asio::async_write(socket_, asio::buffer(*queue_.front().line),
                       [self = shared_from_this()](boost::system::error_code ec, std::size_t) {
                         self->onWrite(ec);
                       });
@@ -462,7 +469,8 @@ class Connection : public std::enable_shared_from_this<Connection> {
   void onWrite(boost::system::error_code ec) {
     writing_ = false;
     if (closed_) return;
-    queued_bytes_ -= queue_.front()->size();
+    (queue_.front().answer ? queued_answer_bytes_ : queued_event_bytes_) -=
+        queue_.front().line->size();
     queue_.pop_front();
     if (ec) return close();
     if (!queue_.empty()) return write();
@@ -514,8 +522,13 @@ class Connection : public std::enable_shared_from_this<Connection> {
   std::string peer_;
   std::string peer_address_;
   Clock::time_point connected_at_;
-  std::deque<Line> queue_;
-  std::size_t queued_bytes_ = 0;
+  struct Queued {
+    Line line;
+    bool answer;  // else an event
+  };
+  std::deque<Queued> queue_;
+  std::size_t queued_event_bytes_ = 0;
+  std::size_t queued_answer_bytes_ = 0;
   bool writing_ = false;
   bool closing_ = false;
   bool closed_ = false;
@@ -636,9 +649,9 @@ void ServerCore::remove(Connection* connection) {
 void ServerCore::broadcast(const json& event) {
   if (stopped_) return;
   const auto line = makeLine(event);  // one copy shared by every subscriber
-  auto open = connections_;           // send() may drop a connection
+  auto open = connections_;           // sendEvent() may drop a connection
   for (const auto& c : open)
-    if (c->subscribed()) c->send(line);
+    if (c->subscribed()) c->sendEvent(line);
 }
 
 void ServerCore::startStatusTimer() {

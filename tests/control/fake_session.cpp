@@ -138,10 +138,7 @@ bool FakeSession::abort() {
   return true;
 }
 
-std::vector<SessionInfo> FakeSession::sessions() const {
-  return {SessionInfo{"20261122-0000", "/tmp/s0", true, 8, 8, 0, ""},
-          SessionInfo{"20261122-0001", "/tmp/s1", false, 8, 3, 1, ""}};
-}
+std::vector<SessionInfo> FakeSession::sessions() const { return session_list; }
 
 ResultFile FakeSession::result(const std::string& id) const {
   if (!id.empty() && id != result_session) throw Refused("not_found", "no result for " + id);

@@ -50,6 +50,10 @@ class FakeSession : public service::SessionControl {
   std::chrono::milliseconds preview_time{0};  // preview() spins this long
   std::chrono::milliseconds start_time{0};    // start() spins this long before it answers
   bool psd_fails = false;
+  // What sessions() lists, oldest first (set before the server is asked).
+  std::vector<SessionInfo> session_list{
+      SessionInfo{"20261122-0000", "/tmp/s0", true, 8, 8, 0, ""},
+      SessionInfo{"20261122-0001", "/tmp/s1", false, 8, 3, 1, ""}};
   // What result() answers for the session `result_session` (and for an empty id).
   std::string result_session = "20261122-0000";
   ResultFile result_value = [] {

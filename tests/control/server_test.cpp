@@ -2,11 +2,13 @@
 // and each class of bad input, each followed by a check that another client is still served fast.
 #include "zerocal/control/server.h"
 
+#include <fmt/format.h>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <spdlog/sinks/ringbuffer_sink.h>
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <boost/asio/executor_work_guard.hpp>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/post.hpp>
@@ -418,11 +420,58 @@ TEST_F(ControlServerTest, ApplyEventsAreSerialisedByTheControlLayer) {
 }
 
 TEST_F(ControlServerTest, Sessions) {
-  const auto list = connect()->call("sessions")["sessions"];
-  ASSERT_EQ(list.size(), 2u);
-  EXPECT_EQ(list[1]["id"], "20261122-0001");
-  EXPECT_EQ(list[1]["recorded_poses"], 3);
-  EXPECT_EQ(list[0]["finished"], true);
+  const auto r = connect()->call("sessions");
+  const auto list = r["sessions"];
+  ASSERT_EQ(list.size(), 2u);  // newest first
+  EXPECT_EQ(list[0]["id"], "20261122-0001");
+  EXPECT_EQ(list[0]["recorded_poses"], 3);
+  EXPECT_EQ(list[1]["finished"], true);
+  EXPECT_EQ(r["total"], 2);
+  EXPECT_FALSE(r.contains("next"));
+}
+
+// A large archive, and a small output limit: the answer is paged, and one page is never held
+// against the limit that drops clients who do not read their events.
+TEST_F(ControlServerTest, SessionsArePagedNewestFirst) {
+  ServerOptions options;
+  options.max_queued_bytes = 64 * 1024;
+  startServer(options);
+  session_.session_list.clear();
+  for (int i = 0; i < 20000; ++i)
+    session_.session_list.push_back(SessionInfo{fmt::format("20261122-{:05d}", i),
+                                                fmt::format("/var/lib/zerocal/sessions/{}", i),
+                                                i % 3 == 0, 8, 8, 0, ""});
+  auto c = connect();
+  // An old client's request, without paging: the newest 100 and where to go on.
+  const auto first = c->call("sessions");
+  ASSERT_EQ(first["sessions"].size(), 100u);
+  EXPECT_EQ(first["sessions"][0]["id"], "20261122-19999");
+  EXPECT_EQ(first["sessions"][99]["id"], "20261122-19900");
+  EXPECT_EQ(first["next"], "20261122-19900");
+  EXPECT_EQ(first["total"], 20000);
+  // Every page of 1000 (over 100 KiB, above this limit) in turn: each session once, newest first.
+  std::vector<std::string> ids;
+  json cursor = nullptr;
+  int pages = 0;
+  do {
+    json members{{"limit", 1000}};
+    if (!cursor.is_null()) members["cursor"] = cursor;
+    const auto page = c->call("sessions", members);
+    EXPECT_GT(page.dump().size(), options.max_queued_bytes);
+    for (const auto& s : page["sessions"]) ids.push_back(s["id"]);
+    cursor = page.contains("next") ? page["next"] : json(nullptr);
+    ++pages;
+  } while (!cursor.is_null() && pages < 100);
+  EXPECT_EQ(pages, 20);
+  ASSERT_EQ(ids.size(), 20000u);
+  EXPECT_TRUE(std::is_sorted(ids.rbegin(), ids.rend()));
+  EXPECT_EQ(std::adjacent_find(ids.begin(), ids.end()), ids.end());
+  const auto bad = c->request({{"cmd", "sessions"}, {"limit", 0}});
+  EXPECT_EQ(bad["error"]["code"], "bad_request");
+  EXPECT_THAT(bad["error"]["message"].get<std::string>(), HasSubstr("limit: 0 is outside 1..1000"));
+  EXPECT_EQ(c->request({{"cmd", "sessions"}, {"limit", "10"}})["error"]["code"], "bad_request");
+  EXPECT_EQ(connections(), 1u);
+  expectOthersServedFast();
 }
 
 TEST_F(ControlServerTest, Result) {

@@ -35,6 +35,23 @@ service::ApplyRequest parseApplyRequest(const nlohmann::json& request);
 service::AcknowledgeRequest parseAcknowledgeRequest(const nlohmann::json& request);
 service::VerifyRequest parseVerifyRequest(const nlohmann::json& request);
 
+// A page of the `sessions` list, newest first: at most `limit` sessions older than `cursor`
+// (the previous page's `next`; empty: from the newest).
+struct SessionsPage {
+  static constexpr int kDefaultLimit = 100;  // a request without `limit`
+  static constexpr int kMaxLimit = 1000;
+  int limit = kDefaultLimit;
+  std::string cursor;
+};
+
+// The members of a `sessions` request: limit (1..kMaxLimit) and cursor (a string). Other members
+// are ignored, as old clients send none. Throws BadRequest.
+SessionsPage parseSessionsRequest(const nlohmann::json& request);
+
+// The members of the `sessions` answer for `page` of `sessions` (oldest first, as the store lists
+// them): "sessions" (newest first), "total" and, when older ones remain, "next".
+nlohmann::json sessionsPage(const std::vector<SessionInfo>& sessions, const SessionsPage& page);
+
 const char* planKindName(PlanKind kind);
 // Throws BadRequest for an unknown name.
 PlanKind parsePlanKind(const std::string& name);

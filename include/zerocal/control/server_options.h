@@ -33,7 +33,7 @@ struct ServerOptions {
   // A connection that completes no request line for this long is closed, unless it subscribed
   // (a watcher is quiet by design; a dead watcher is found by the write limits below).
   std::chrono::milliseconds idle_timeout{std::chrono::minutes(10)};
-  // A client that does not read: dropped when this much output is queued for it (configured in
+  // A client that does not read: dropped when this much of its events is queued (configured in
   // KiB, control.max_queued_kib), or when one write has been stuck this long.
   std::size_t max_queued_bytes = 1 << 20;
   std::chrono::milliseconds write_timeout{std::chrono::seconds(30)};

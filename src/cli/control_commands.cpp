@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
 #include <utility>
 #include <vector>
 
@@ -420,6 +421,31 @@ int version(const ClientArgs& args, std::ostream& out) {
   return kClientOk;
 }
 
+// The newest args.limit sessions (every one with args.all), newest first, page after page, and
+// how many the daemon has.
+std::pair<json, std::size_t> listSessions(control::ControlClient& client, const ClientArgs& args,
+                                          std::chrono::steady_clock::duration timeout) {
+  constexpr std::size_t kPage = 1000;  // the daemon's largest
+  const std::size_t wanted =
+      args.all ? std::numeric_limits<std::size_t>::max() : static_cast<std::size_t>(args.limit);
+  json list = json::array();
+  json members{{"limit", std::min(wanted, kPage)}};
+  for (;;) {
+    const json page = client.call("sessions", members, timeout);
+    if (!page.contains("total")) {
+      // A daemon from before paging: the whole list, oldest first.
+      json all = page["sessions"];
+      for (auto s = all.rbegin(); s != all.rend() && list.size() < wanted; ++s) list.push_back(*s);
+      return {list, all.size()};
+    }
+    for (const auto& s : page["sessions"])
+      if (list.size() < wanted) list.push_back(s);
+    if (list.size() >= wanted || !page.contains("next"))
+      return {list, page["total"].get<std::size_t>()};
+    members = {{"limit", std::min(wanted - list.size(), kPage)}, {"cursor", page["next"]}};
+  }
+}
+
 int run(const ClientArgs& args, std::ostream& out, std::ostream& err, bool tty) {
   if (args.command == "version") return version(args, out);
   if (args.command == "acknowledge" && !args.confirm) {
@@ -489,7 +515,7 @@ int run(const ClientArgs& args, std::ostream& out, std::ostream& err, bool tty) 
     return kClientOk;
   }
   if (cmd == "sessions") {
-    const auto list = client.call("sessions", json::object(), timeout)["sessions"];
+    const auto [list, total] = listSessions(client, args, timeout);
     if (args.json) {
       out << list.dump(2) << "\n";
     } else {
@@ -507,6 +533,9 @@ int run(const ClientArgs& args, std::ostream& out, std::ostream& err, bool tty) 
         if (s.contains("damaged")) out << "    " << s.value("damaged", "") << "\n";
       }
       if (list.empty()) out << "no sessions\n";
+      if (list.size() < total)
+        out << "the newest " << list.size() << " of " << total
+            << " sessions; --limit N for more, --all for every one\n";
     }
     return kClientOk;
   }
@@ -611,7 +640,11 @@ void addClientCommands(CLI::App& app, ClientCommands& commands) {
       ->expected(3);
   go_on->add_flag("--watch", a.watch,
                   "then show its progress until it ends or waits for the PSD to be moved");
-  add("sessions", "the sessions in the daemon's data folder");
+  auto* sessions = add("sessions", "the sessions in the daemon's data folder, newest first");
+  sessions->add_option("--limit", a.limit, "show the newest this many")
+      ->default_val(a.limit)
+      ->check(CLI::PositiveNumber);
+  sessions->add_flag("--all", a.all, "show every session");
   auto* result =
       add("result", "the verdict and offsets of a finished session (--json: its result.json)");
   result->add_option("session", a.session, "session id (default the latest)");

@@ -45,6 +45,8 @@ struct ClientArgs {
   std::optional<int> placements;  // start, plan: PSD placements (default the daemon's)
   std::vector<double> centre;     // continue: empty or the placement's taught centre X Y Z, mm
   double timeout_s = 10;          // per request; `plan` takes its own time on the daemon
+  int limit = 20;                 // sessions: the newest this many
+  bool all = false;               // sessions: every one, page after page
 };
 
 struct ClientCommands {

@@ -140,6 +140,37 @@ TEST_F(ClientCommandsTest, AbortResumeSessionsResult) {
   EXPECT_THAT(err_.str(), HasSubstr("not_found"));
 }
 
+TEST_F(ClientCommandsTest, SessionsShowsTheNewestWithAHintAndFollowsPagesForMore) {
+  session_.session_list.clear();
+  for (int i = 0; i < 2500; ++i)
+    session_.session_list.push_back(SessionInfo{"20261122-" + std::to_string(10000 + i),
+                                                "/tmp/s" + std::to_string(i), true, 8, 8, 0, ""});
+  const auto lines = [this] {
+    const std::string text = out_.str();
+    return std::count(text.begin(), text.end(), '\n');
+  };
+  EXPECT_EQ(run(args("sessions")), 0);
+  EXPECT_EQ(out_.str().find("20261122-12499"), 0u) << out_.str();  // the newest first
+  EXPECT_THAT(out_.str(), HasSubstr("20261122-12480"));
+  EXPECT_THAT(out_.str(), Not(HasSubstr("20261122-12479")));
+  EXPECT_THAT(out_.str(),
+              HasSubstr("the newest 20 of 2500 sessions; --limit N for more, --all for every one"));
+  auto more = args("sessions");
+  more.limit = 1500;  // beyond one page of the daemon's
+  EXPECT_EQ(run(more), 0);
+  EXPECT_EQ(lines(), 1501);
+  EXPECT_THAT(out_.str(), HasSubstr("20261122-11000 "));
+  EXPECT_THAT(out_.str(), Not(HasSubstr("20261122-10999")));
+  auto all = args("sessions");
+  all.all = true;
+  all.json = true;
+  EXPECT_EQ(run(all), 0);
+  const auto list = nlohmann::json::parse(out_.str());
+  ASSERT_EQ(list.size(), 2500u);
+  EXPECT_EQ(list.front()["id"], "20261122-12499");
+  EXPECT_EQ(list.back()["id"], "20261122-10000");
+}
+
 // A result without the solver's verdict (as written before verdicts were recorded), of a
 // simulated session whose delta5 is not identifiable.
 ResultFile offsetsResult() {

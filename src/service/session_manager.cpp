@@ -1,5 +1,7 @@
 #include "zerocal/service/session_manager.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -197,6 +199,21 @@ void refuseUnlessIdentifiable(const Prediction& prediction) {
                   "the plan cannot identify every offset, nothing moved: " + refusal);
 }
 
+// The servo and the controller keep limit_margin_deg from every joint limit and fault a move into
+// it, which a plan would find only once the robot got there: every pose is checked before
+// anything moves.
+void refuseOutsideLimits(const Robot& robot, const std::vector<Pose>& poses, double margin_deg,
+                         const std::string& what) {
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    const std::string v = robot.limitViolation(poses[i].q_deg, margin_deg);
+    if (v.empty()) continue;
+    const int line = poses[i].source_line;
+    throw Refused("out_of_limits",
+                  fmt::format("{}pose {}{}: {} of {}; nothing moved", what, i + 1,
+                              line ? fmt::format(" (line {})", line) : "", v, robot.name));
+  }
+}
+
 // The plan's poses less those skipped: what the solve will have when the rest are measured.
 std::vector<Pose> posesKept(const std::vector<Pose>& plan, const std::vector<bool>& skipped) {
   std::vector<Pose> kept;
@@ -309,6 +326,8 @@ Plan SessionManager::makePlan(const StartRequest& request, Eigen::Vector3d& targ
       Plan plan;
       plan.poses = readJointSet(request.plan_file);
       checkPoses(knowledge_.cell, plan.poses);  // the same minimum and limits as a solve
+      refuseOutsideLimits(knowledge_.cell.robot, plan.poses, settings_.run.servo.limit_margin_deg,
+                          "plan file " + request.plan_file + ": ");
       plan.description = "plan file " + request.plan_file;
       CalibrationParameters nominal;
       nominal.target_mm = target;
@@ -417,6 +436,8 @@ SessionManager::RunPlan SessionManager::runPlanOf(const std::string& id,
   } catch (const InputError& e) {
     throw Refused("bad_session", "session " + id + " cannot be resumed: " + e.what());
   }
+  refuseOutsideLimits(knowledge_.cell.robot, plan.poses, settings_.run.servo.limit_margin_deg,
+                      "session " + id + " cannot be resumed: ");
   return plan;
 }
 

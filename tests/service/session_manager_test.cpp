@@ -3,6 +3,7 @@
 // resume, results and the live PSD reading.
 #include "zerocal/service/session_manager.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -595,6 +596,81 @@ TEST(SessionManager, APlanFileWithTooFewPosesIsRefusedEveryTimeAndNothingMoves) 
   }
   EXPECT_EQ(manager.status().state, SessionState::kIdle);
   EXPECT_TRUE(manager.sessions().empty());
+}
+
+// The servo and the controller keep controller.limit_margin_deg from each joint limit: a plan
+// file with a pose inside that margin is refused at start (and by the preview) before anything
+// moves, naming the pose, the joint, its value and the limit; a session whose plan lies inside the
+// margin configured when it is resumed is refused the same way.
+TEST(SessionManager, APlanPoseInsideTheJointLimitMarginIsRefusedBeforeAnythingMoves) {
+  const TempDir dir;
+  sim::SimBackend backend(cellFor(8));
+  const Robot robot = backend.knowledge().cell.robot;
+  std::vector<Pose> plan = testing::storedPlan("ideal-8");
+  {
+    ManagerSettings settings = settingsIn(dir.path);
+    ASSERT_EQ(settings.run.servo.limit_margin_deg, 1.0);
+    SessionManager manager(backend, settings);
+    std::vector<Pose> near = plan;
+    near[2].q_deg[4] = robot.limits[4].upper_deg - 0.5;  // within the limit, inside the margin
+    StartRequest request = manager.defaultRequest();
+    request.plan = PlanKind::kFile;
+    request.plan_file = dir.path + "/near-limit.csv";
+    std::ofstream(request.plan_file) << formatJointSet(near);
+    for (const bool preview : {false, true}) {
+      try {
+        if (preview)
+          manager.preview(request);
+        else
+          manager.start(request);
+        FAIL() << "a pose inside the margin was accepted";
+      } catch (const Refused& e) {
+        EXPECT_EQ(e.code(), "out_of_limits") << e.what();
+        const std::string why = e.what();
+        EXPECT_NE(why.find("pose 3 (line "), std::string::npos) << why;
+        EXPECT_NE(why.find(fmt::format("joint 5 = {} deg is outside", near[2].q_deg[4])),
+                  std::string::npos)
+            << why;
+        EXPECT_NE(why.find(fmt::format("{}] deg (limits less a 1 deg margin)",
+                                       robot.limits[4].upper_deg - 1.0)),
+                  std::string::npos)
+            << why;
+        EXPECT_NE(why.find("nothing moved"), std::string::npos) << why;
+      }
+    }
+    EXPECT_EQ(manager.status().state, SessionState::kIdle);
+    EXPECT_TRUE(manager.sessions().empty());
+  }
+
+  // A session of the stored plan, stopped at once; then the margin is configured wider than the
+  // plan's closest approach to a limit.
+  std::string id;
+  {
+    SessionManager manager(backend, settingsIn(dir.path));
+    id = manager.start(testing::onStoredPlan(manager.defaultRequest(), "ideal-8"));
+    manager.abort();
+    ASSERT_EQ(manager.waitIdle().state, SessionState::kAborted);
+  }
+  double closest = 1e9;
+  for (const Pose& p : plan)
+    for (int j = 0; j < kJointCount; ++j)
+      closest = std::min({closest, p.q_deg[j] - robot.limits[j].lower_deg,
+                          robot.limits[j].upper_deg - p.q_deg[j]});
+  ManagerSettings wider = settingsIn(dir.path);
+  wider.run.servo.limit_margin_deg = closest + 0.5;
+  SessionManager manager(backend, wider);
+  try {
+    manager.resume({id});
+    FAIL() << "a plan inside the margin was resumed";
+  } catch (const Refused& e) {
+    EXPECT_EQ(e.code(), "out_of_limits") << e.what();
+    EXPECT_NE(std::string(e.what()).find("session " + id + " cannot be resumed: pose "),
+              std::string::npos)
+        << e.what();
+    EXPECT_NE(std::string(e.what()).find("limits less a"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(manager.status().state, SessionState::kIdle);
+  EXPECT_FALSE(manager.sessions().at(0).finished);
 }
 
 // A plan whose first pose points the laser far off the detector, as a fixture or a cable in the

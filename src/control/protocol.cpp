@@ -307,11 +307,13 @@ struct EventJson {
     return j;
   }
   json operator()(const service::ResultEvent& e) const {
-    return {{"event", "result"},
-            {"session", e.session},
-            {"converged", e.report.converged},
-            {"achieved_sigma_deg", sigmaObject(e.achieved_sigma_deg)},
-            {"parameters", toJson(e.report).at("parameters")}};
+    json j{{"event", "result"},
+           {"session", e.session},
+           {"converged", e.report.converged},
+           {"achieved_sigma_deg", sigmaObject(e.achieved_sigma_deg)},
+           {"parameters", toJson(e.report).at("parameters")}};
+    if (!e.report_error.empty()) j["report_error"] = e.report_error;
+    return j;
   }
 };
 

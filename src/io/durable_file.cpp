@@ -59,14 +59,21 @@ void writeFileDurably(const std::string& path, const std::string& text) {
   const std::string temporary = path + ".tmp";
   const int fd = ::open(temporary.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) fail("cannot create " + temporary, errno);
+  // On failure (a full disk, typically) the temporary goes: the old file stays as it was and
+  // nothing half-written is left beside it.
   try {
     writeAllDurably(fd, text, temporary);
   } catch (...) {
     ::close(fd);
+    ::unlink(temporary.c_str());
     throw;
   }
   ::close(fd);
-  if (::rename(temporary.c_str(), path.c_str()) != 0) fail("cannot rename to " + path, errno);
+  if (::rename(temporary.c_str(), path.c_str()) != 0) {
+    const int error = errno;
+    ::unlink(temporary.c_str());
+    fail("cannot rename to " + path, error);
+  }
   const fs::path parent = fs::path(path).parent_path();
   syncFolder(parent.empty() ? "." : parent.string());
 }

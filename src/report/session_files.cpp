@@ -24,9 +24,17 @@ void writeAtomically(const fs::path& path, const std::string& text) {
   const fs::path temporary = path.string() + ".tmp";
   {
     std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
+    errno = 0;
     out << text;
     out.flush();
-    if (!out) throw ReportError(temporary.string() + ": cannot write");
+    if (!out) {
+      // A full disk: no half-written temporary is left behind beside the session's files.
+      const int error = errno;
+      out.close();
+      std::remove(temporary.c_str());
+      throw ReportError(temporary.string() + ": cannot write" +
+                        (error ? std::string(": ") + std::strerror(error) : std::string()));
+    }
   }
   // A reader (a browser refreshing the page) sees the old file or the new one, never half.
   if (std::rename(temporary.c_str(), path.c_str()) != 0) {

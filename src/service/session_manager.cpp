@@ -851,10 +851,14 @@ void SessionManager::runSession(const std::string& id, const RunPlan& run_plan,
   } catch (const std::exception& e) {
     return finish(SessionState::kFaulted, std::string("cannot write the result: ") + e.what());
   }
+  // The session is done with its result on disk whatever happens to the report, but whoever
+  // follows it must learn that summary.txt and report.html are missing (a full disk, say).
+  std::string report_error;
   if (settings_.write_reports) {
     try {
       settings_.write_reports(store_.sessionDir(id));
     } catch (const std::exception& e) {
+      report_error = e.what();
       log->error("session {}: the result is written but the report is not: {}", id, e.what());
     }
   }
@@ -863,8 +867,13 @@ void SessionManager::runSession(const std::string& id, const RunPlan& run_plan,
     achieved.push_back(report.parameters[k].identifiable ? report.parameters[k].sigma
                                                          : std::nan(""));
   board_.update([&](SessionStatus& s) { s.achieved_sigma_deg = achieved; });
-  board_.emit(ResultEvent{id, report, achieved});
-  finish(SessionState::kDone, "");
+  board_.emit(ResultEvent{id, report, achieved, report_error});
+  finish(SessionState::kDone,
+         report_error.empty()
+             ? ""
+             : "result.json is written, but the report (summary.txt, report.html) is not: " +
+                   report_error + "; `zerocal report " + store_.sessionDir(id) +
+                   "` writes it once there is room");
 }
 
 std::vector<SessionInfo> SessionManager::sessions() const { return store_.list(); }

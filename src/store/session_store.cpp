@@ -151,6 +151,23 @@ std::vector<SessionInfo> SessionStore::list() const {
   return sessions;
 }
 
+std::vector<std::string> SessionStore::removeStaleTemporaries() const {
+  std::vector<std::string> removed;
+  std::error_code ec;
+  for (const auto& session : fs::directory_iterator(data_dir_, ec)) {
+    std::error_code entry_ec;
+    if (!session.is_directory(entry_ec)) continue;
+    for (const auto& file : fs::directory_iterator(session.path(), entry_ec)) {
+      std::error_code file_ec;
+      if (file.path().extension() == ".tmp" && !file.is_directory(file_ec) &&
+          fs::remove(file.path(), file_ec))
+        removed.push_back(file.path().string());
+    }
+  }
+  std::sort(removed.begin(), removed.end());
+  return removed;
+}
+
 std::vector<SessionInfo> SessionStore::unfinished() const {
   auto sessions = list();
   sessions.erase(std::remove_if(sessions.begin(), sessions.end(),

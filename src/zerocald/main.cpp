@@ -22,6 +22,7 @@
 #include "zerocal/daemon/systemd.h"
 #include "zerocal/error.h"
 #include "zerocal/service/daemon_setup.h"
+#include "zerocal/store/session_store.h"
 
 namespace zerocal {
 namespace {
@@ -180,6 +181,9 @@ int main(int argc, char** argv) {
                                        "--once) and `zerocal continue` at each placement"});
       settings.unattended_placements = true;
     }
+    // What a write cut short (a full disk, a kill) left behind is no session's file.
+    for (const std::string& stale : SessionStore(cfg.session.data_dir).removeStaleTemporaries())
+      log->warn("removed {}, left by a write that did not complete", stale);
     service::SessionManager manager(*backend, std::move(settings));
     log->info("backend {}; sessions in {}", backend->name(), cfg.session.data_dir);
     logUnfinished(manager);

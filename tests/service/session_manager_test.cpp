@@ -206,6 +206,47 @@ TEST(SessionManager, RunsASessionToDoneThroughEveryStateWithAResultNearTheTruth)
   EXPECT_EQ(truth.gross.stray_light_rate, simulated.gross.stray_light_rate);
 }
 
+// The disk fills up at the end of a session: the result is on disk, the report cannot be
+// written. The session is done, but its status and its events say the report is missing and why,
+// and no half-written report is left behind.
+TEST(SessionManager, AReportThatCannotBeWrittenIsNamedInTheStatusAndTheEvents) {
+  const TempDir dir;
+  sim::SimBackend backend(cellFor(5));
+  ManagerSettings settings = settingsIn(dir.path);
+  settings.write_reports = [](const std::string& session_dir) {
+    // report.html's temporary on a device that is always full.
+    std::filesystem::create_symlink("/dev/full", session_dir + "/report.html.tmp");
+    report::writeSessionReport(session_dir);
+  };
+  SessionManager manager(backend, settings);
+  EventLog log;
+  manager.setEventSink(log.sink());
+  const std::string id = manager.start(testing::onStoredPlan(manager.defaultRequest(), "ideal-5"));
+  const SessionStatus end = manager.waitIdle();
+  ASSERT_EQ(end.state, SessionState::kDone) << end.message;
+  EXPECT_NE(end.message.find("result.json is written, but the report (summary.txt, report.html) "
+                             "is not: "),
+            std::string::npos)
+      << end.message;
+  EXPECT_NE(end.message.find("No space left on device"), std::string::npos) << end.message;
+  EXPECT_NE(end.message.find("zerocal report " + dir.path + "/" + id), std::string::npos)
+      << end.message;
+  const auto results = log.of<ResultEvent>();
+  ASSERT_EQ(results.size(), 1u);
+  EXPECT_NE(results[0].report_error.find("report.html.tmp: cannot write: No space left on device"),
+            std::string::npos)
+      << results[0].report_error;
+  const auto states = log.of<StateEvent>();
+  ASSERT_FALSE(states.empty());
+  EXPECT_EQ(states.back().state, SessionState::kDone);
+  EXPECT_EQ(states.back().message, end.message);
+  const std::filesystem::path folder(dir.path + "/" + id);
+  EXPECT_TRUE(std::filesystem::exists(folder / "result.json"));
+  EXPECT_FALSE(std::filesystem::exists(folder / "report.html"));
+  EXPECT_FALSE(
+      std::filesystem::exists(std::filesystem::symlink_status(folder / "report.html.tmp")));
+}
+
 // A pose that does not fit the others: the solve names it, the run measures it again (both lines
 // stay in the journal) and the result rests on the new measurement. Stray light strikes pose 2
 // once (the world's forced gross error; the run's move ends at pose 2's planned joints, as the

@@ -101,7 +101,7 @@ struct SessionStatus {
   int recorded = 0;      // poses on disk in this session's journal
   int resumed_from = 0;  // poses found in the journal when the run (re)started
   // Why it stopped, when aborted or faulted; what the technician is to do, when awaiting a
-  // placement.
+  // placement; when done without its report, why the report is missing.
   std::string message;
   // With two or more PSD placements (0 otherwise): the plan's count, and the placement the PSD
   // stands at (1-based).
@@ -203,6 +203,8 @@ struct ResultEvent {
   std::string session;
   SolveReport report;
   std::vector<double> achieved_sigma_deg;  // delta2..delta5
+  // Why the session's report (summary.txt, report.html) could not be written; empty when it was.
+  std::string report_error;
 };
 
 // A step of an online apply or a verification, as the terminal shows it ("written: ...",

@@ -43,6 +43,11 @@ class SessionStore {
   // again only when its size or time changed, so listing a large archive costs a few stat()s a
   // session. Throws FileError only when data_dir itself cannot be listed.
   std::vector<SessionInfo> list() const;
+  // Removes the temporary files (*.tmp) an atomic write left in the session folders when the
+  // daemon stopped in the middle of it: none of them was ever a session's file. Returns their
+  // paths. Call at start, before any session runs. Never throws; a file that cannot be removed is
+  // left, and not returned.
+  std::vector<std::string> removeStaleTemporaries() const;
   // The sessions that may be resumed: calibrations not finished, closed or damaged.
   std::vector<SessionInfo> unfinished() const;
   // Closes an unfinished session for good (closed.json with `why`, durably). Throws FileError.

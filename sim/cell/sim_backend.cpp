@@ -119,14 +119,21 @@ class ExternalSimBackend::Cell final : public service::LinkedCell {
                    backend.clock_),
         backend_(backend),
         spot_link_(std::move(spot_link)),
-        calibration_(*LinkedCell::calibration(), *this) {
+        calibration_(*LinkedCell::calibration(), *this),
+        reader_(LinkedCell::psd(), backend.spot_failure_) {
     backend_.spot_link_ = spot_link_.get();
   }
   ControllerCalibration* calibration() override { return &calibration_; }
   ~Cell() override { backend_.spot_link_ = nullptr; }
 
+  PsdReader& psd() override { return reader_; }
   void reconnectRobot() override {
     LinkedCell::reconnectRobot();
+    spot_link_->reconnect();
+  }
+  // A reading that failed on the spot link is mended by that link, not by the board.
+  void reopenPsd() override {
+    LinkedCell::reopenPsd();
     spot_link_->reconnect();
   }
   std::optional<std::array<double, 4>> truthDeg() const override {
@@ -141,9 +148,32 @@ class ExternalSimBackend::Cell final : public service::LinkedCell {
   }
 
  private:
+  // The board is lit where zerocal-sim says the beam is, asked over the spot link: a reading
+  // taken while that link failed is no reading, not a dark detector (which the servo would take
+  // for a spot not found, and offer to skip a good pose), and it names the link.
+  class SpotLinkedReader final : public PsdReader {
+   public:
+    SpotLinkedReader(PsdReader& inner, std::string& failure) : inner_(inner), failure_(failure) {}
+    PsdReading read() override {
+      failure_.clear();
+      const PsdReading reading = inner_.read();
+      if (!failure_.empty())
+        throw LinkError(LinkError::Kind::kTransient,
+                        "the link to the simulated controller that says where the beam meets the "
+                        "PSD failed: " +
+                            failure_);
+      return reading;
+    }
+
+   private:
+    PsdReader& inner_;
+    std::string& failure_;
+  };
+
   ExternalSimBackend& backend_;
   std::unique_ptr<Irc5Client> spot_link_;
   Calibration calibration_;
+  SpotLinkedReader reader_;
 };
 
 ExternalSimBackend::ExternalSimBackend(ExternalSimOptions options)
@@ -153,11 +183,13 @@ ExternalSimBackend::ExternalSimBackend(ExternalSimOptions options)
       map_(simulatedPsdMap(options_.psd, options_.sweep_half_width_mm, options_.sweep_step_mm)) {
   board_.setAnalogSource(psdAnalogSource(psd_, [this](double) -> std::optional<PsdSpot> {
     // Called on the session's thread, between the servo's requests on the other link. A lost
-    // spot link reads as no light; the session then fails or reconnects both links.
+    // spot link is no light to the board, and a failed reading to the cell's reader
+    // (SpotLinkedReader), which reconnects it.
     if (spot_link_ == nullptr) return std::nullopt;
     try {
       return spot_link_->readSimBeamSpot();
-    } catch (const std::exception&) {
+    } catch (const std::exception& e) {
+      if (spot_failure_.empty()) spot_failure_ = e.what();
       return std::nullopt;
     }
   }));

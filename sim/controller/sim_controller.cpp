@@ -280,6 +280,18 @@ class SimController::Impl::Session : public std::enable_shared_from_this<Session
       return;
     }
     const irc5::ParsedRequest r = irc5::parseRequest(request);
+    if (r.valid && r.code == faults.drop_code) {
+      bool drop = false;
+      {
+        std::lock_guard<std::mutex> lock(impl_->mutex);
+        drop = impl_->faults.drop_code == r.code && impl_->faults.drop_code_times > 0;
+        if (drop) --impl_->faults.drop_code_times;
+      }
+      if (drop) {
+        close();
+        return;
+      }
+    }
     const bool move = r.valid && (r.code == irc5::kMoveJoints || r.code == irc5::kMoveLinear ||
                                   r.code == irc5::kSearchRun);
     if (move && faults.stall_moves) {

@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <exception>
 #include <optional>
 
@@ -134,6 +135,7 @@ ServoResult& PsdServo::latch(ServoResult& result, ServoStatus status,
   faulted_ = true;
   fault_.status = status;
   fault_.message = message;
+  fault_.detail[0] = '\0';
   fault_.sample_count = ring_count_;
   const std::size_t first = (ring_next_ + kFaultHistory - ring_count_) % kFaultHistory;
   for (std::size_t i = 0; i < ring_count_; ++i)
@@ -146,14 +148,20 @@ void PsdServo::latchLinkError(ServoResult& result, ServoStatus status,
   // Called inside a catch handler: the kind is read from the exception in flight, which copies
   // nothing (the servo cycle does not allocate, even on a fault).
   LinkError::Kind kind = LinkError::Kind::kFatal;
+  const char* what = "";
   try {
     throw;
   } catch (const LinkError& e) {
     kind = e.kind();
+    what = e.what();
+  } catch (const std::exception& e) {
+    what = e.what();
   } catch (...) {
   }
   latch(result, status, message);
   fault_.link_kind = kind;
+  std::strncpy(fault_.detail.data(), what, fault_.detail.size() - 1);
+  fault_.detail.back() = '\0';
 }
 
 bool PsdServo::aborted(ServoResult& result) noexcept {

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <chrono>
 #include <exception>
+#include <iomanip>
+#include <sstream>
 
 #include "zerocal/cell/link_error.h"
 #include "zerocal/error.h"
@@ -38,6 +40,46 @@ Recovery recover(const std::function<void()>& hook, CellClock& clock,
     if (attempt < attempts) clock.waitS(backoff_s);
   }
   return Recovery::kFailed;
+}
+
+// A healthy link answers a ping within milliseconds; one that takes this long on each of
+// kProbes pings spends the servo's time budget on waiting.
+constexpr double kSlowLinkS = 0.1;
+constexpr int kProbes = 3;
+
+struct LinkHealth {
+  std::string problem;  // empty when healthy; else what is wrong, for the session's message
+  bool slow = false;
+  LinkError::Kind kind = LinkError::Kind::kTransient;
+};
+
+// Pings the controller, timed on the cell clock (the wall on a real cell).
+LinkHealth probeLink(ControllerLink& robot, CellClock& clock) {
+  LinkHealth health;
+  double fastest = 0;
+  for (int k = 0; k < kProbes; ++k) {
+    const double t0 = clock.nowS();
+    try {
+      robot.ping();
+    } catch (const LinkError& e) {
+      health.kind = e.kind();
+      health.problem = std::string("failed: ") + e.what();
+      return health;
+    } catch (const Error& e) {
+      health.kind = LinkError::Kind::kFatal;
+      health.problem = std::string("failed: ") + e.what();
+      return health;
+    }
+    const double dt = clock.nowS() - t0;
+    fastest = k == 0 ? dt : std::min(fastest, dt);
+    if (fastest < kSlowLinkS) return health;
+  }
+  health.slow = true;
+  std::ostringstream text;
+  text << std::fixed << std::setprecision(2) << "is slow (the fastest of " << kProbes
+       << " pings took " << fastest << " s; a healthy link answers within milliseconds)";
+  health.problem = text.str();
+  return health;
 }
 
 // For each plan pose, its latest record (null when none).
@@ -246,6 +288,8 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
         if (!r.ok()) {
           if (r.status != servo::ServoStatus::kAborted) journalFault(servo.fault(), i, again);
           why = std::string("servo ") + servo::statusName(r.status) + ": " + servo.fault().message;
+          if (servo.fault().detail[0] != '\0')
+            why += std::string(": ") + servo.fault().detail.data();
           const bool transient = servo.fault().link_kind == LinkError::Kind::kTransient;
           pose_at_fault = r.status == servo::ServoStatus::kSpotNotFound ||
                           r.status == servo::ServoStatus::kSpotLost ||
@@ -256,6 +300,20 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
                     : r.status == servo::ServoStatus::kLinkError   ? Failure::kLink
                     : r.status == servo::ServoStatus::kSensorError ? Failure::kSensor
                                                                    : Failure::kOther;
+          // A spot not found or lost, or a servo out of time, may be the link's doing: a link
+          // that went down or answers slowly spends the servo's time and its moves. Blaming the
+          // pose would offer to skip a good one.
+          if (pose_at_fault && r.status != servo::ServoStatus::kLimit) {
+            const LinkHealth health = probeLink(robot, clock);
+            if (!health.problem.empty()) {
+              why += "; but the controller link " + health.problem +
+                     ": the link is at fault, not the pose";
+              pose_at_fault = false;
+              failure = health.kind == LinkError::Kind::kTransient && !health.slow
+                            ? Failure::kLink
+                            : Failure::kOther;
+            }
+          }
         }
       }
       if (failure == Failure::kAborted) {

@@ -5,8 +5,10 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cmath>
 #include <filesystem>
+#include <variant>
 
 #include "stored_plan_request.h"
 #include "zerocal/irc5/irc5_client.h"
@@ -124,6 +126,61 @@ TEST(ExternalSim, ASessionAfterAControllerRestartMakesItsLinksAgain) {
   const nlohmann::json result = toJson(manager.result(id));
   EXPECT_EQ(result["cell"]["controller"]["serial"], "SIM-1600-0001");
   EXPECT_TRUE(result.contains("controller_cal_offset_rad"));
+}
+
+// The board is lit where zerocal-sim says the beam is, asked over a link of its own. When that
+// link drops after pose 2 (`times` requests for the beam close it), a reading is no reading: not
+// a dark detector, a spot "not found" with a good pose offered to skip.
+struct SpotLinkDropped {
+  SessionStatus end;
+  nlohmann::json result;  // when done
+};
+SpotLinkDropped dropTheSpotLinkAfterPose2(int times, const std::string& dir) {
+  constexpr std::uint64_t kSeed = 7;
+  SimController sim(externalSim(kSeed));
+  sim.start();
+  const DaemonConfig config = configFor(sim, kSeed, dir);
+  const std::unique_ptr<CellBackend> backend = makeBackend(config);
+  SessionManager manager(*backend, managerSettingsOf(config));
+  std::atomic<bool> dropped{false};
+  manager.setEventSink([&](const SessionEvent& e) {
+    const auto* pose = std::get_if<PoseEvent>(&e);
+    if (!pose || pose->record.planIndex() != 1 || dropped.exchange(true)) return;
+    SimFaults f;
+    f.drop_code = irc5::kSimBeamSpot;
+    f.drop_code_times = times;
+    sim.setFaults(f);
+  });
+  const std::string id = manager.start(testing::onStoredPlan(manager.defaultRequest(), "ideal-7"));
+  SpotLinkDropped out{manager.waitIdle(), {}};
+  manager.setEventSink(nullptr);
+  EXPECT_TRUE(dropped.load());
+  if (out.end.state == SessionState::kDone) out.result = toJson(manager.result(id));
+  return out;
+}
+
+TEST(ExternalSim, ALostSpotLinkIsMadeAgainAndThePoseMeasuredNoneSkipped) {
+  TempDir dir;
+  const SpotLinkDropped run = dropTheSpotLinkAfterPose2(1, dir.path);
+  ASSERT_EQ(run.end.state, SessionState::kDone) << run.end.message;
+  EXPECT_EQ(run.end.skippable_pose, 0);
+  EXPECT_EQ(run.result["poses"], 8);  // every pose measured, pose 3 among them
+  for (const auto& pose : run.result["pose_breakdown"]) EXPECT_FALSE(pose.contains("skipped"));
+  EXPECT_EQ(run.result["recoveries"]["reopens"], 1);
+}
+
+TEST(ExternalSim, ASpotLinkThatStaysDownIsNamedAndNoPoseIsOfferedToSkip) {
+  TempDir dir;
+  const SpotLinkDropped run = dropTheSpotLinkAfterPose2(1000, dir.path);
+  ASSERT_EQ(run.end.state, SessionState::kFaulted) << run.end.message;
+  EXPECT_NE(run.end.message.find("pose 3 of 8"), std::string::npos) << run.end.message;
+  EXPECT_NE(run.end.message.find("the link to the simulated controller that says where the beam "
+                                 "meets the PSD failed"),
+            std::string::npos)
+      << run.end.message;
+  EXPECT_EQ(run.end.message.find("spot not found"), std::string::npos) << run.end.message;
+  EXPECT_EQ(run.end.message.find("--skip-pose"), std::string::npos) << run.end.message;
+  EXPECT_EQ(run.end.skippable_pose, 0);
 }
 
 TEST(ExternalSim, AMismatchedWorldIsRefusedBeforeAnythingMoves) {

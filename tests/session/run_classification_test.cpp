@@ -283,10 +283,49 @@ TEST_F(RunClassification, ASpotNeverFoundIsThePosesOwnWithTheRobotWalkedBackToIt
     expectAtPose(plan[0].q_deg);
     EXPECT_CALL(psd, read()).WillOnce(Return(dark()));
     EXPECT_CALL(link, moveJoints(plan[0].q_deg));  // back at the planned pose
+    EXPECT_CALL(link, ping());                     // the link answers at once: sound
   }
   const RunOutcome out = run();
   expectFaultedAt(out, 0, true);
   EXPECT_THAT(out.message, HasSubstr("spot not found"));
+}
+
+// The same spot not found, but the link fails when asked: the link is at fault. It is made again
+// and the pose done again from its planned move.
+TEST_F(RunClassification, ASpotNotFoundWhenTheLinkFailsIsTheLinksAndThePoseIsDoneAgain) {
+  settings.servo.search_radius_mm = 0;
+  {
+    InSequence order;
+    expectAtPose(plan[0].q_deg);
+    EXPECT_CALL(psd, read()).WillOnce(Return(dark()));
+    EXPECT_CALL(link, moveJoints(plan[0].q_deg));
+    EXPECT_CALL(link, ping()).WillOnce(Throw(failure(LinkError::Kind::kTransient)));
+    EXPECT_CALL(reconnect, Call());
+    expectMeasured(plan[0].q_deg);
+  }
+  const RunOutcome out = run();
+  expectRecordedAfter(out, 1, 0);
+}
+
+// A link whose every answer takes 0.25 s of cell time: the fault names it, and the pose is not
+// the one at fault (no skip is offered for it).
+TEST_F(RunClassification, ASpotNotFoundOverASlowLinkIsTheLinksAndNotThePoses) {
+  settings.servo.search_radius_mm = 0;
+  double now = 0;
+  EXPECT_CALL(clock, nowS()).WillRepeatedly([&now]() noexcept { return now += 0.25; });
+  {
+    InSequence order;
+    expectAtPose(plan[0].q_deg);
+    EXPECT_CALL(psd, read()).WillOnce(Return(dark()));
+    EXPECT_CALL(link, moveJoints(plan[0].q_deg));
+    EXPECT_CALL(link, ping()).Times(3);
+  }
+  const RunOutcome out = run();
+  expectFaultedAt(out, 0, false);
+  EXPECT_THAT(out.message, HasSubstr("spot not found"));
+  EXPECT_THAT(out.message, HasSubstr("but the controller link is slow (the fastest of 3 pings "
+                                     "took 0.25 s"));
+  EXPECT_THAT(out.message, HasSubstr("the link is at fault, not the pose"));
 }
 
 TEST_F(RunClassification, ASpotLostDuringTheServoIsThePosesOwn) {
@@ -296,6 +335,7 @@ TEST_F(RunClassification, ASpotLostDuringTheServoIsThePosesOwn) {
     EXPECT_CALL(psd, read()).WillOnce(Return(spotAt(1.0)));
     EXPECT_CALL(link, moveJoints(_));  // the first step towards the centre
     EXPECT_CALL(psd, read()).WillOnce(Return(dark()));
+    EXPECT_CALL(link, ping());
   }
   const RunOutcome out = run();
   expectFaultedAt(out, 0, true);
@@ -310,6 +350,7 @@ TEST_F(RunClassification, AServoThatDoesNotConvergeIsThePosesOwn) {
     EXPECT_CALL(psd, read()).WillOnce(Return(spotAt(1.0)));
     EXPECT_CALL(link, moveJoints(_));
     EXPECT_CALL(psd, read()).WillOnce(Return(spotAt(1.0)));  // the spot did not move
+    EXPECT_CALL(link, ping());
   }
   const RunOutcome out = run();
   expectFaultedAt(out, 0, true);

@@ -53,6 +53,42 @@ class RecordingLink final : public ControllerLink {
   ControllerLink& inner_;
 };
 
+// Forwards to the real client; every request first waits `delay_s` of cell time, as one over a
+// congested network to a real controller, whose cell clock is the wall.
+class SlowLink final : public ControllerLink {
+ public:
+  SlowLink(ControllerLink& inner, CellClock& clock) : inner_(inner), clock_(clock) {}
+  void ping() override {
+    clock_.waitS(delay_s);
+    inner_.ping();
+  }
+  RobotInfo robotInfo() override {
+    clock_.waitS(delay_s);
+    return inner_.robotInfo();
+  }
+  Joints readJoints() override {
+    clock_.waitS(delay_s);
+    return inner_.readJoints();
+  }
+  void moveJoints(const Joints& target) override {
+    clock_.waitS(delay_s);
+    inner_.moveJoints(target);
+  }
+  TcpPose readPose() override {
+    clock_.waitS(delay_s);
+    return inner_.readPose();
+  }
+  void moveLinear(const TcpPose& target) override {
+    clock_.waitS(delay_s);
+    inner_.moveLinear(target);
+  }
+  double delay_s = 0;
+
+ private:
+  ControllerLink& inner_;
+  CellClock& clock_;
+};
+
 // Forwards to the real chain; runs `before_read` (with the number of the read, from 1) first.
 class HookedPsd final : public PsdReader {
  public:
@@ -235,6 +271,38 @@ TEST(SessionFaults, BoardThatNeverComesBackFaultsNamingThePose) {
   EXPECT_NEAR(s.rig.cell.nowS() - unplugged_s, 2 * backoff_s, 0.5);
   const Joints at_rest = controller.commandedJoints();
   expectAt(at_rest, s.plan[1].q_deg);
+}
+
+// A link that answers each request only after 30 s spends the servo's time: pose 1 fails on
+// time, but the link is named as the cause, and the pose is not offered to skip.
+TEST(SessionFaults, ASlowLinkIsNamedAsTheCauseOfAPoseThatFailedOnTime) {
+  Session s(24);
+  SlowLink link(s.rig.client, s.rig.cell);
+  link.delay_s = 30;
+  const RunOutcome out = s.run(link, s.rig.psd);
+  EXPECT_EQ(out.state, RunState::kFaulted);
+  EXPECT_NE(out.message.find("pose 1 of 8"), std::string::npos) << out.message;
+  EXPECT_NE(out.message.find("the controller link is slow (the fastest of 3 pings took 30.00 s"),
+            std::string::npos)
+      << out.message;
+  EXPECT_NE(out.message.find("the link is at fault, not the pose"), std::string::npos)
+      << out.message;
+  EXPECT_FALSE(out.pose_at_fault);
+  EXPECT_EQ(out.stopped_at, 0);
+  EXPECT_TRUE(s.journalled().empty());
+}
+
+// The same link at a healthy speed: the session is not disturbed by the probe.
+TEST(SessionFaults, AHealthyLinkLeavesAPoseWhoseSpotIsNeverFoundAtFault) {
+  Session s(12, Taught::k100MmOff);
+  s.settings.servo.search_radius_mm = 10;
+  SlowLink link(s.rig.client, s.rig.cell);
+  link.delay_s = 0.002;
+  const RunOutcome out = s.run(link, s.rig.psd);
+  EXPECT_EQ(out.state, RunState::kFaulted);
+  EXPECT_NE(out.message.find("spot not found"), std::string::npos) << out.message;
+  EXPECT_EQ(out.message.find("link"), std::string::npos) << out.message;
+  EXPECT_TRUE(out.pose_at_fault);
 }
 
 // The session believes the PSD is 100 mm from where it is: no spot anywhere near the plan.

@@ -159,6 +159,9 @@ struct ServoFault {
   // kLinkError and kSensorError: what the link's LinkError said may be done (kFatal when the
   // device threw anything else).
   LinkError::Kind link_kind = LinkError::Kind::kFatal;
+  // kLinkError and kSensorError: what the exception said (cut to fit; empty for none), so that
+  // the session can name the cause, a link to the controller say, beside the servo's message.
+  std::array<char, 192> detail{};
   std::array<ServoSample, kFaultHistory> samples{};
   std::size_t sample_count = 0;
 };

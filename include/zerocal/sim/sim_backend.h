@@ -69,6 +69,7 @@ class ExternalSimBackend final : public CellBackend {
   psd::PsdMap map_;
   SteadyCellClock clock_;
   Irc5Client* spot_link_ = nullptr;  // the connected cell's, while there is one
+  std::string spot_failure_;         // why the spot link failed during the reading in progress
 };
 
 }  // namespace zerocal::sim

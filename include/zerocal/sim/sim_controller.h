@@ -39,6 +39,10 @@ struct SimFaults {
   // Moves (codes 1 and 2) never reply, and the connection answers nothing more: the RAPID
   // server blocked inside a move.
   bool stall_moves = false;
+  // The next drop_code_times requests with this code close their connection instead of being
+  // answered (43: an external cell's beam-spot link alone); -1 = none.
+  int drop_code = -1;
+  int drop_code_times = 1;
 };
 
 // Motor-side calibration as an IRC5 keeps it (docs/apply.md): per joint the MOC MOTOR_CALIB

@@ -418,6 +418,23 @@ TEST_F(ZerocaldProcess, Kill9DuringAnApplyRecoversTheBackupOnRestart) {
 
 // A second daemon on a port already served: a configuration error (exit 2) naming the port, not
 // a daemon without its port.
+// A write cut short (a full disk, a kill between the temporary and its rename) leaves NAME.tmp
+// beside a session's files: the daemon removes it at start, says so, and leaves the rest.
+TEST_F(ZerocaldProcess, TheTemporariesOfWritesCutShortAreRemovedAtStartAndLogged) {
+  const std::string folder = dir_.path + "/sessions/20261122T070000Z";
+  std::filesystem::create_directories(folder);
+  std::ofstream(folder + "/session.json") << "{}\n";
+  std::ofstream(folder + "/report.html.tmp") << "<html><body>cut sho";
+  Daemon d(dir_.path, "start");
+  EXPECT_NE(
+      d.log().find("removed " + folder + "/report.html.tmp, left by a write that did not complete"),
+      std::string::npos)
+      << d.log();
+  EXPECT_FALSE(std::filesystem::exists(folder + "/report.html.tmp"));
+  EXPECT_TRUE(std::filesystem::exists(folder + "/session.json"));
+  EXPECT_EQ(d.signalAndWait(SIGTERM), 0);
+}
+
 TEST_F(ZerocaldProcess, AControlPortInUseIsAConfigurationError) {
   Daemon first(dir_.path, "first");
   const std::string port = std::to_string(first.port());

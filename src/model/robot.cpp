@@ -42,27 +42,62 @@ std::string Robot::limitViolation(const Joints& q_deg, double margin_deg) const 
 
 namespace {
 
+// The problems of one file, each as "file:line: what" (the line of the node it is about), so
+// that an editor jumps to it; the `what` names the key.
+class Problems {
+ public:
+  explicit Problems(std::string origin) : origin_(std::move(origin)) {}
+  void add(const YAML::Node& near, const std::string& what) {
+    const YAML::Mark mark = near.Mark();
+    list_.push_back(origin_ + (mark.is_null() ? "" : ":" + std::to_string(mark.line + 1)) + ": " +
+                    what);
+  }
+  void add(const YAML::Mark& mark, const std::string& what) {
+    list_.push_back(origin_ + (mark.is_null() ? "" : ":" + std::to_string(mark.line + 1)) + ": " +
+                    what);
+  }
+  bool empty() const { return list_.empty(); }
+  std::vector<std::string> take() { return std::move(list_); }
+
+ private:
+  std::string origin_;
+  std::vector<std::string> list_;
+};
+
+// A map's key as written; a key that is a list or a map is no key of a robot file.
+std::string keyOf(const YAML::Node& key) {
+  return key.IsScalar() ? key.Scalar() : std::string("(a key that is not a word)");
+}
+
 // Reads one required finite number, recording a problem instead of throwing.
 double number(const YAML::Node& map, const std::string& key, const std::string& where,
-              std::vector<std::string>& problems) {
+              Problems& problems) {
   const YAML::Node node = map[key];
   if (!node) {
-    problems.push_back(where + ": missing '" + key + "'");
+    problems.add(map, where + ": missing '" + key + "'");
     return 0;
   }
   try {
     const double v = node.as<double>();
-    if (!std::isfinite(v)) problems.push_back(where + ": '" + key + "' is not finite");
+    if (!std::isfinite(v)) {
+      problems.add(node, where + ": '" + key + "' is not finite");
+      return 0;
+    }
     return v;
   } catch (const YAML::Exception&) {
-    problems.push_back(where + ": '" + key + "' is not a number");
+    problems.add(node, where + ": '" + key + "' is not a number");
     return 0;
   }
 }
 
-constexpr double kMaxJointTravelDeg = 720;  // two turns either way
 constexpr double kMaxLinkMm = 10000;
+// A DH twist or joint offset is an angle: beyond a full turn it is a typing error.
+constexpr double kMaxDhAngleDeg = 360;
 constexpr double kMinJointSpeedDegS = 0.1, kMaxJointSpeedDegS = 2000;
+// A transmission is a gear ratio: at least 1 (a motor is never geared up), and no arm's reaches
+// 1000: industrial arms' are of the order of tens to a few hundred (the shipped IRB 1600 file's
+// placeholders are 50..120; ABB publishes no values).
+constexpr double kMinTransmission = 1, kMaxTransmission = 1000;
 // An identified link error or compliance beyond these is not a calibration of this arm.
 constexpr double kMaxLinkErrorMm = 10, kMaxLinkErrorDeg = 1;
 constexpr double kMaxComplianceDegPerKnm = 10;
@@ -76,65 +111,68 @@ std::string fmt(double v) {
 
 // The optional `gravity` section (the lumped masses) and the identified compliance of a
 // calibrated model, which needs them.
-void parseGravity(const YAML::Node& root, Robot& robot, std::vector<std::string>& problems) {
+void parseGravity(const YAML::Node& root, Robot& robot, Problems& problems) {
   if (const YAML::Node g = root["gravity"]) {
     if (!g.IsMap()) {
-      problems.push_back("gravity: must be a map with 'masses' (and 'inferred')");
+      problems.add(g, "gravity: must be a map with 'masses' (and 'inferred')");
     } else {
       for (const auto& kv : g) {
-        const auto key = kv.first.as<std::string>();
+        const auto key = keyOf(kv.first);
         if (key != "masses" && key != "inferred")
-          problems.push_back("gravity: unknown key '" + key + "'");
+          problems.add(kv.first, "gravity: unknown key '" + key + "'");
       }
       if (const YAML::Node inferred = g["inferred"]) {
         try {
           robot.masses_inferred = inferred.as<bool>();
         } catch (const YAML::Exception&) {
-          problems.push_back("gravity: 'inferred' must be true or false");
+          problems.add(inferred, "gravity: 'inferred' must be true or false");
         }
       }
       const YAML::Node masses = g["masses"];
       if (!masses || !masses.IsSequence() || masses.size() == 0) {
-        problems.push_back("gravity: 'masses' must be a list of {link, kg, at_mm}");
+        problems.add(masses ? masses : g, "gravity: 'masses' must be a list of {link, kg, at_mm}");
       } else {
         for (std::size_t k = 0; k < masses.size(); ++k) {
           const std::string where = "gravity mass " + std::to_string(k + 1);
           const YAML::Node m = masses[k];
           if (!m.IsMap()) {
-            problems.push_back(where + ": must be a map");
+            problems.add(m, where + ": must be a map");
             continue;
           }
           LumpedMass mass;
           const double link = number(m, "link", where, problems);
-          mass.link = static_cast<int>(link);
-          if (m["link"] && !(link == mass.link && mass.link >= 2 && mass.link <= kJointCount))
-            problems.push_back(where +
-                               ": 'link' must be a whole number from 2 to 6 (the DH frame "
-                               "the mass rides in; masses on link 1 load neither joint 2 nor 3)");
+          // Compared as a double first: a link of 1e300 has no int to be cast to.
+          const bool whole = link == std::floor(link) && link >= 2 && link <= kJointCount;
+          mass.link = whole ? static_cast<int>(link) : 0;
+          if (m["link"] && !whole)
+            problems.add(m["link"], where +
+                                        ": 'link' must be a whole number from 2 to 6 (the DH "
+                                        "frame the mass rides in; masses on link 1 load neither "
+                                        "joint 2 nor 3)");
           mass.kg = number(m, "kg", where, problems);
           if (m["kg"] && !(mass.kg > 0 && mass.kg <= kMaxMassKg))
-            problems.push_back(where + ": 'kg' must lie within 0.." + fmt(kMaxMassKg) +
-                               " (exclusive of 0)");
+            problems.add(m["kg"], where + ": 'kg' must lie within 0.." + fmt(kMaxMassKg) +
+                                      " (exclusive of 0)");
           const YAML::Node at = m["at_mm"];
           if (!at || !at.IsSequence() || at.size() != 3) {
-            problems.push_back(where +
-                               ": 'at_mm' must be a list of 3 numbers (mm, in the link's "
-                               "DH frame)");
+            problems.add(at ? at : m, where +
+                                          ": 'at_mm' must be a list of 3 numbers (mm, in the "
+                                          "link's DH frame)");
           } else {
             for (int a = 0; a < 3; ++a) {
               try {
                 mass.at_mm[a] = at[a].as<double>();
                 if (!(std::abs(mass.at_mm[a]) <= kMaxLinkMm)) throw YAML::Exception({}, "");
               } catch (const YAML::Exception&) {
-                problems.push_back(where + ": at_mm[" + std::to_string(a) +
-                                   "] must be a number within +-" + fmt(kMaxLinkMm));
+                problems.add(at[a], where + ": at_mm[" + std::to_string(a) +
+                                        "] must be a number within +-" + fmt(kMaxLinkMm));
               }
             }
           }
           for (const auto& kv : m) {
-            const auto key = kv.first.as<std::string>();
+            const auto key = keyOf(kv.first);
             if (key != "link" && key != "kg" && key != "at_mm")
-              problems.push_back(where + ": unknown key '" + key + "'");
+              problems.add(kv.first, where + ": unknown key '" + key + "'");
           }
           robot.masses.push_back(mass);
         }
@@ -143,7 +181,7 @@ void parseGravity(const YAML::Node& root, Robot& robot, std::vector<std::string>
   }
   if (const YAML::Node c = root["compliance_deg_per_knm"]) {
     if (!c.IsSequence() || c.size() != kComplianceCount) {
-      problems.push_back("compliance_deg_per_knm: must be a list of 2 numbers (joints 2 and 3)");
+      problems.add(c, "compliance_deg_per_knm: must be a list of 2 numbers (joints 2 and 3)");
     } else {
       for (int k = 0; k < kComplianceCount; ++k) {
         try {
@@ -151,14 +189,111 @@ void parseGravity(const YAML::Node& root, Robot& robot, std::vector<std::string>
           if (!(std::abs(robot.compliance_deg_per_knm[k]) <= kMaxComplianceDegPerKnm))
             throw YAML::Exception({}, "");
         } catch (const YAML::Exception&) {
-          problems.push_back("compliance_deg_per_knm[" + std::to_string(k) +
-                             "]: must be a number within +-" + fmt(kMaxComplianceDegPerKnm));
+          problems.add(c[k], "compliance_deg_per_knm[" + std::to_string(k) +
+                                 "]: must be a number within +-" + fmt(kMaxComplianceDegPerKnm));
         }
       }
       if (!root["gravity"])
-        problems.push_back(
-            "compliance_deg_per_knm needs the 'gravity' section: the compliance "
-            "multiplies the gravity torque of its masses");
+        problems.add(c,
+                     "compliance_deg_per_knm needs the 'gravity' section: the compliance "
+                     "multiplies the gravity torque of its masses");
+    }
+  }
+}
+
+void parseJoints(const YAML::Node& root, Robot& robot, Problems& problems) {
+  const YAML::Node joints = root["joints"];
+  if (!joints || !joints.IsSequence()) {
+    problems.add(joints ? joints : root, "missing 'joints' (a list of 6 joints)");
+    return;
+  }
+  if (joints.size() != kJointCount) {
+    problems.add(joints, "'joints' has " + std::to_string(joints.size()) +
+                             " entries; a 6R arm needs exactly 6");
+    return;
+  }
+  for (int i = 0; i < kJointCount; ++i) {
+    const std::string where = "joint " + std::to_string(i + 1);
+    const YAML::Node j = joints[i];
+    if (!j.IsMap()) {
+      problems.add(j, where + ": must be a map");
+      continue;
+    }
+    DhRow& row = robot.dh[i];
+    row.a_mm = number(j, "a_mm", where, problems);
+    const double alpha_deg = number(j, "alpha_deg", where, problems);
+    row.alpha_rad = alpha_deg * kDegToRad;
+    row.d_mm = number(j, "d_mm", where, problems);
+    const double theta_offset_deg = number(j, "theta_offset_deg", where, problems);
+    row.theta_offset_rad = theta_offset_deg * kDegToRad;
+    JointLimit& lim = robot.limits[i];
+    lim.lower_deg = number(j, "lower_deg", where, problems);
+    lim.upper_deg = number(j, "upper_deg", where, problems);
+    if (j["lower_deg"] && j["upper_deg"] && !(lim.lower_deg < lim.upper_deg))
+      problems.add(j["lower_deg"], where + ": lower_deg must be below upper_deg");
+    // Beyond these no industrial arm goes: such a value is a typing error that would make
+    // every limit check (and every move deadline) meaningless.
+    for (const auto& [key, value, bound] :
+         {std::tuple<const char*, double, double>{"lower_deg", lim.lower_deg, kMaxJointTravelDeg},
+          {"upper_deg", lim.upper_deg, kMaxJointTravelDeg},
+          {"a_mm", row.a_mm, kMaxLinkMm},
+          {"d_mm", row.d_mm, kMaxLinkMm},
+          {"alpha_deg", alpha_deg, kMaxDhAngleDeg},
+          {"theta_offset_deg", theta_offset_deg, kMaxDhAngleDeg}})
+      if (j[key] && !(std::abs(value) <= bound))
+        problems.add(j[key], where + ": " + key + " must lie within +-" + fmt(bound));
+    robot.max_speed_deg_s[i] = number(j, "max_speed_deg_s", where, problems);
+    if (j["max_speed_deg_s"] && !(robot.max_speed_deg_s[i] >= kMinJointSpeedDegS &&
+                                  robot.max_speed_deg_s[i] <= kMaxJointSpeedDegS))
+      problems.add(j["max_speed_deg_s"], where + ": max_speed_deg_s must lie within " +
+                                             fmt(kMinJointSpeedDegS) + ".." +
+                                             fmt(kMaxJointSpeedDegS));
+    if (const YAML::Node t = j["transmission"]) {
+      // Written with its sign ("+120", "-80"): a bare magnitude is how signs get lost.
+      const std::string text = t.IsScalar() ? t.Scalar() : "";
+      robot.transmission[i] = number(j, "transmission", where, problems);
+      const double magnitude = std::abs(robot.transmission[i]);
+      if (text.empty() || (text[0] != '+' && text[0] != '-'))
+        problems.add(t, where + ": 'transmission' must be written with its sign (+ or -)");
+      else if (!(magnitude >= kMinTransmission))
+        problems.add(t, where + ": 'transmission' must be at least 1 in magnitude");
+      else if (!(magnitude <= kMaxTransmission))
+        problems.add(t, where + ": 'transmission' must be at most " + fmt(kMaxTransmission) +
+                            " in magnitude (a gear ratio)");
+    }
+    // Identified errors of a calibrated model (zerocal solve --save-model): added to the row.
+    auto& error = robot.identified_link_error[i];
+    for (const auto& [key, index, bound] :
+         {std::tuple<const char*, int, double>{"da_mm", 0, kMaxLinkErrorMm},
+          {"dd_mm", 1, kMaxLinkErrorMm},
+          {"dalpha_deg", 2, kMaxLinkErrorDeg}}) {
+      if (!j[key]) continue;
+      const double v = number(j, key, where, problems);
+      if (!(std::abs(v) <= bound))
+        problems.add(j[key], where + ": " + key + " must lie within +-" + fmt(bound) +
+                                 " (an identified error, not a link length)");
+      else
+        error[index] = index == 2 ? v * kDegToRad : v;
+    }
+    row.a_mm += error[0];
+    row.d_mm += error[1];
+    row.alpha_rad += error[2];
+    for (const auto& kv : j) {
+      static const char* known[] = {"a_mm",
+                                    "alpha_deg",
+                                    "d_mm",
+                                    "theta_offset_deg",
+                                    "lower_deg",
+                                    "upper_deg",
+                                    "max_speed_deg_s",
+                                    "transmission",
+                                    "da_mm",
+                                    "dd_mm",
+                                    "dalpha_deg"};
+      const auto key = keyOf(kv.first);
+      bool ok = false;
+      for (const char* k : known) ok = ok || key == k;
+      if (!ok) problems.add(kv.first, where + ": unknown key '" + key + "'");
     }
   }
 }
@@ -170,114 +305,39 @@ Robot parseRobot(const std::string& yaml_text, const std::string& origin) {
   try {
     root = YAML::Load(yaml_text);
   } catch (const YAML::Exception& e) {
-    throw ConfigError(origin, {std::string("not valid YAML: ") + e.what()});
+    throw ConfigError(origin,
+                      {origin + (e.mark.is_null() ? "" : ":" + std::to_string(e.mark.line + 1)) +
+                       ": not valid YAML: " + e.msg});
   }
-  std::vector<std::string> problems;
+  if (!root.IsMap()) throw ConfigError(origin, {origin + ": the file must be a YAML map"});
+  Problems problems(origin);
   Robot robot;
-  if (!root.IsMap()) throw ConfigError(origin, {"the file must be a YAML map"});
-  if (!root["name"] || !root["name"].IsScalar())
-    problems.push_back("missing 'name'");
-  else
-    robot.name = root["name"].as<std::string>();
-
-  const YAML::Node joints = root["joints"];
-  if (!joints || !joints.IsSequence()) {
-    problems.push_back("missing 'joints' (a list of 6 joints)");
-  } else if (joints.size() != kJointCount) {
-    problems.push_back("'joints' has " + std::to_string(joints.size()) +
-                       " entries; a 6R arm needs exactly 6");
-  } else {
-    for (int i = 0; i < kJointCount; ++i) {
-      const std::string where = "joint " + std::to_string(i + 1);
-      const YAML::Node j = joints[i];
-      if (!j.IsMap()) {
-        problems.push_back(where + ": must be a map");
-        continue;
-      }
-      DhRow& row = robot.dh[i];
-      row.a_mm = number(j, "a_mm", where, problems);
-      row.alpha_rad = number(j, "alpha_deg", where, problems) * kDegToRad;
-      row.d_mm = number(j, "d_mm", where, problems);
-      row.theta_offset_rad = number(j, "theta_offset_deg", where, problems) * kDegToRad;
-      JointLimit& lim = robot.limits[i];
-      lim.lower_deg = number(j, "lower_deg", where, problems);
-      lim.upper_deg = number(j, "upper_deg", where, problems);
-      if (j["lower_deg"] && j["upper_deg"] && !(lim.lower_deg < lim.upper_deg))
-        problems.push_back(where + ": lower_deg must be below upper_deg");
-      // Beyond these no industrial arm goes: such a value is a typing error that would make
-      // every limit check (and every move deadline) meaningless.
-      for (const auto& [key, value, bound] :
-           {std::tuple<const char*, double, double>{"lower_deg", lim.lower_deg, kMaxJointTravelDeg},
-            {"upper_deg", lim.upper_deg, kMaxJointTravelDeg},
-            {"a_mm", row.a_mm, kMaxLinkMm},
-            {"d_mm", row.d_mm, kMaxLinkMm}})
-        if (j[key] && std::isfinite(value) && !(std::abs(value) <= bound))
-          problems.push_back(where + ": " + key + " must lie within +-" + fmt(bound));
-      robot.max_speed_deg_s[i] = number(j, "max_speed_deg_s", where, problems);
-      if (j["max_speed_deg_s"] && !(robot.max_speed_deg_s[i] >= kMinJointSpeedDegS &&
-                                    robot.max_speed_deg_s[i] <= kMaxJointSpeedDegS))
-        problems.push_back(where + ": max_speed_deg_s must lie within " + fmt(kMinJointSpeedDegS) +
-                           ".." + fmt(kMaxJointSpeedDegS));
-      if (j["transmission"]) {
-        // Written with its sign ("+120", "-80"): a bare magnitude is how signs get lost.
-        const std::string text = j["transmission"].IsScalar() ? j["transmission"].Scalar() : "";
-        robot.transmission[i] = number(j, "transmission", where, problems);
-        if (text.empty() || (text[0] != '+' && text[0] != '-'))
-          problems.push_back(where + ": 'transmission' must be written with its sign (+ or -)");
-        else if (!(std::abs(robot.transmission[i]) >= 1.0))
-          problems.push_back(where + ": 'transmission' must be at least 1 in magnitude");
-      }
-      // Identified errors of a calibrated model (zerocal solve --save-model): added to the row.
-      auto& error = robot.identified_link_error[i];
-      for (const auto& [key, index, bound] :
-           {std::tuple<const char*, int, double>{"da_mm", 0, kMaxLinkErrorMm},
-            {"dd_mm", 1, kMaxLinkErrorMm},
-            {"dalpha_deg", 2, kMaxLinkErrorDeg}}) {
-        if (!j[key]) continue;
-        const double v = number(j, key, where, problems);
-        if (std::isfinite(v) && !(std::abs(v) <= bound))
-          problems.push_back(where + ": " + key + " must lie within +-" + fmt(bound) +
-                             " (an identified error, not a link length)");
-        else
-          error[index] = index == 2 ? v * kDegToRad : v;
-      }
-      row.a_mm += error[0];
-      row.d_mm += error[1];
-      row.alpha_rad += error[2];
-      for (const auto& kv : j) {
-        static const char* known[] = {"a_mm",
-                                      "alpha_deg",
-                                      "d_mm",
-                                      "theta_offset_deg",
-                                      "lower_deg",
-                                      "upper_deg",
-                                      "max_speed_deg_s",
-                                      "transmission",
-                                      "da_mm",
-                                      "dd_mm",
-                                      "dalpha_deg"};
-        const auto key = kv.first.as<std::string>();
-        bool ok = false;
-        for (const char* k : known) ok = ok || key == k;
-        if (!ok) problems.push_back(where + ": unknown key '" + key + "'");
+  try {
+    if (!root["name"] || !root["name"].IsScalar())
+      problems.add(root["name"] ? root["name"] : root, "missing 'name'");
+    else
+      robot.name = root["name"].Scalar();
+    parseJoints(root, robot, problems);
+    if (const YAML::Node confirmed = root["transmission_confirmed"]) {
+      try {
+        robot.transmission_confirmed = confirmed.as<bool>();
+      } catch (const YAML::Exception&) {
+        problems.add(confirmed, "'transmission_confirmed' must be true or false");
       }
     }
-  }
-  if (const YAML::Node confirmed = root["transmission_confirmed"]) {
-    try {
-      robot.transmission_confirmed = confirmed.as<bool>();
-    } catch (const YAML::Exception&) {
-      problems.push_back("'transmission_confirmed' must be true or false");
+    parseGravity(root, robot, problems);
+    for (const auto& kv : root) {
+      const auto key = keyOf(kv.first);
+      if (key != "name" && key != "joints" && key != "description" &&
+          key != "transmission_confirmed" && key != "gravity" && key != "compliance_deg_per_knm")
+        problems.add(kv.first, "unknown key '" + key + "'");
     }
+  } catch (const YAML::Exception& e) {
+    // Each read above expects the shape it checked; whatever slips past is still the file's
+    // fault, never a crash.
+    problems.add(e.mark, "unexpected structure: " + e.msg);
   }
-  parseGravity(root, robot, problems);
-  for (const auto& kv : root) {
-    const auto key = kv.first.as<std::string>();
-    if (key != "name" && key != "joints" && key != "description" &&
-        key != "transmission_confirmed" && key != "gravity" && key != "compliance_deg_per_knm")
-      problems.push_back("unknown key '" + key + "'");
-  }
-  if (!problems.empty()) throw ConfigError(origin, std::move(problems));
+  if (!problems.empty()) throw ConfigError(origin, problems.take());
   return robot;
 }
 

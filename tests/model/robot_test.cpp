@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "zerocal/error.h"
@@ -65,6 +66,57 @@ TEST(RobotFile, AbsurdLimitsSpeedsAndLinksAreRefused) {
     EXPECT_NE(all.find("joint 1: d_mm must lie within +-10000"), std::string::npos) << all;
     EXPECT_NE(all.find("joint 1: max_speed_deg_s must lie within"), std::string::npos) << all;
     EXPECT_EQ(e.problems().size(), 4u);
+  }
+}
+
+// Every number is bounded by what an arm can have, and each refusal names file, line and key.
+TEST(RobotFile, AnglesLengthsAndTransmissionsNoArmHasAreRefusedWithTheirLine) {
+  std::string yaml = builtinIrb1600Yaml();
+  yaml.replace(yaml.find("alpha_deg: -90"), 14, "alpha_deg: 1e20");
+  yaml.replace(yaml.find("theta_offset_deg: -90"), 21, "theta_offset_deg: 1e17");
+  yaml.replace(yaml.find("transmission: +80"), 17, "transmission: +1e300");
+  yaml.replace(yaml.find("transmission: +50"), 17, "transmission: -1000.5");
+  const auto lineOf = [&yaml](const std::string& text) {
+    const std::string before = yaml.substr(0, yaml.find(text));
+    return std::to_string(std::count(before.begin(), before.end(), '\n') + 1);
+  };
+  try {
+    parseRobot(yaml, "big.yaml");
+    FAIL() << "expected ConfigError";
+  } catch (const ConfigError& e) {
+    const std::string what = e.what();
+    for (const std::string& expected :
+         {"big.yaml:" + lineOf("alpha_deg: 1e20") + ": joint 1: alpha_deg must lie within +-360",
+          "big.yaml:" + lineOf("theta_offset_deg: 1e17") +
+              ": joint 2: theta_offset_deg must lie within +-360",
+          "big.yaml:" + lineOf("+1e300") + ": joint 4: 'transmission' must be at most 1000",
+          "big.yaml:" + lineOf("-1000.5") + ": joint 6: 'transmission' must be at most 1000"})
+      EXPECT_NE(what.find(expected), std::string::npos) << expected << " in " << what;
+    EXPECT_EQ(e.problems().size(), 4u) << what;
+  }
+  // The shipped file's ratios (50..120) and the bounds themselves are an arm's.
+  std::string edge = builtinIrb1600Yaml();
+  edge.replace(edge.find("transmission: +50"), 17, "transmission: -1000");
+  edge.replace(edge.find("alpha_deg: -90"), 14, "alpha_deg: -360");
+  EXPECT_NO_THROW(parseRobot(edge, "edge.yaml"));
+}
+
+// Keys that are lists or maps, sections of the wrong kind: problems, never a parser's exception.
+TEST(RobotFile, AnyShapeOfFileIsAConfigurationError) {
+  std::string without_gravity = builtinIrb1600Yaml();
+  without_gravity = without_gravity.substr(0, without_gravity.find("\ngravity:") + 1);
+  for (const std::string& text :
+       {std::string("name: x\n[a]: 1\njoints: []\n"), std::string("name: x\njoints: 5\n"),
+        std::string("name: [x]\njoints: [1, 2, 3, 4, 5, 6]\n"),
+        without_gravity + "gravity: {masses: [{link: 1e300, kg: 1, at_mm: [0, 0, 0]}]}\n",
+        without_gravity + "gravity: {masses: [{link: 2, kg: 1, at_mm: [0, 0, 0], [k]: 1}]}\n",
+        without_gravity + "gravity: {[k]: 1}\n"}) {
+    try {
+      parseRobot(text, "odd.yaml");
+      ADD_FAILURE() << "accepted: " << text;
+    } catch (const ConfigError& e) {
+      EXPECT_EQ(std::string(e.problems().at(0)).rfind("odd.yaml:", 0), 0u) << e.what();
+    }
   }
 }
 

@@ -17,6 +17,10 @@ constexpr int kJointCount = 6;
 // Controller joint angles in degrees (the IRC5's CJointT convention).
 using Joints = std::array<double, kJointCount>;
 
+// No industrial arm's joint travels beyond two turns either way: a robot file's limits, and any
+// joint angle read back from a file, lie within +-this (deg).
+constexpr double kMaxJointTravelDeg = 720;
+
 struct DhRow {
   double a_mm = 0;
   double alpha_rad = 0;
@@ -89,7 +93,9 @@ std::array<double, kComplianceCount> gravityTorqueBoundKnm(const Robot& robot,
 Joints complianceDeflectionDeg(const Robot& robot, const Joints& q_deg);
 
 // Reads and validates a robot file. Throws ConfigError listing every problem found
-// (missing fields, wrong types, lower >= upper limits, non-positive speeds, ...).
+// (missing fields, wrong types, lower >= upper limits, values no arm has: angles beyond +-360 deg,
+// lengths beyond +-10 m, limits beyond +-kMaxJointTravelDeg, transmissions outside 1..1000 in
+// magnitude, ...), each as "file:line: joint N: key ...".
 Robot loadRobot(const std::string& path);
 // The same from YAML text; origin names the source in error messages.
 Robot parseRobot(const std::string& yaml_text, const std::string& origin);

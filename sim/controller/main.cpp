@@ -93,7 +93,10 @@ int main(int argc, char** argv) {
     zerocal::SimController sim(options);
     std::cout << "zerocal-sim listening on " << options.address << ":" << sim.port() << std::endl;
     sim.run(/*stop_on_signals=*/true);
-  } catch (const zerocal::Error& e) {
+  } catch (const zerocal::ConfigError& e) {  // a world file or options it cannot run with
+    std::cerr << "zerocal-sim: " << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
     std::cerr << "zerocal-sim: " << e.what() << "\n";
     return 1;
   }

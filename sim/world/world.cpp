@@ -231,30 +231,59 @@ std::string worldHash(const World& w) {
 
 namespace {
 
+// Bounds of a world's numbers: what a cell can have. Beyond them a value is a typing error
+// whose arithmetic (a square of 1e200, a cast of 1e300) would be meaningless.
+constexpr double kMaxPositionMm = 10000;  // the cell: 10 m from the robot's base
+constexpr double kMaxAngleDeg = 360;
+constexpr double kMaxDirection = 1e6;  // a direction is normalised; its square must stay finite
+constexpr double kMaxLinkErrorMm = 1000, kMaxLinkErrorDeg = 90;
+constexpr double kMaxSpotMm = 50;  // a few tens of mm: the largest detectors
+
+// Reads the file's values, recording each problem as "file:line: key: what" instead of throwing.
+// A value is read from a map only: indexing a scalar or a list throws in yaml-cpp, so a section
+// that is not a map is one problem and its keys are not looked at.
 class Reader {
  public:
-  explicit Reader(std::vector<std::string>* problems) : problems_(problems) {}
+  Reader(std::string origin, std::vector<std::string>* problems)
+      : origin_(std::move(origin)), problems_(problems) {}
+
+  void problem(const YAML::Node& near, const std::string& what) {
+    problem(near && near.IsDefined() ? near.Mark() : YAML::Mark::null_mark(), what);
+  }
+  void problem(const YAML::Mark& mark, const std::string& what) {
+    problems_->push_back(origin_ + (mark.is_null() ? "" : ":" + std::to_string(mark.line + 1)) +
+                         ": " + what);
+  }
+
+  // root[key] when it is a map; a problem, and an empty node, when it is something else.
+  YAML::Node section(const YAML::Node& root, const std::string& key) {
+    const YAML::Node node = root[key];
+    if (!node || node.IsMap()) return node;
+    problem(node, key + ": must be a map");
+    return YAML::Node();
+  }
 
   template <int N>
-  bool vec(const YAML::Node& map, const std::string& key, const std::string& where,
+  bool vec(const YAML::Node& map, const std::string& key, const std::string& where, double bound,
            Eigen::Matrix<double, N, 1>* out) {
-    const YAML::Node node = map[key];
+    const YAML::Node node = map.IsMap() ? map[key] : YAML::Node();
     if (!node) {
-      problems_->push_back(where + key + ": missing");
+      problem(map, where + key + ": missing");
       return false;
     }
     if (!node.IsSequence() || node.size() != N) {
-      problems_->push_back(where + key + ": must be a list of " + std::to_string(N) + " numbers");
+      problem(node, where + key + ": must be a list of " + std::to_string(N) + " numbers");
       return false;
     }
     bool good = true;
     for (int i = 0; i < N; ++i) {
-      try {
-        (*out)[i] = node[i].as<double>();
-        if (!std::isfinite((*out)[i])) throw YAML::Exception(YAML::Mark(), "not finite");
-      } catch (const YAML::Exception&) {
-        problems_->push_back(where + key + "[" + std::to_string(i) + "]: not a finite number");
+      double v = 0;
+      if (!real(node[i], &v) || !(std::abs(v) <= bound)) {
+        problem(node[i], where + key + "[" + std::to_string(i) + "]: must be a number within +-" +
+                             format(bound));
         good = false;
+      } else {
+        (*out)[i] = v;
       }
     }
     return good;
@@ -263,38 +292,56 @@ class Reader {
   // As vec(), but an absent key keeps *out and is no problem.
   template <int N>
   bool optionalVec(const YAML::Node& map, const std::string& key, const std::string& where,
-                   Eigen::Matrix<double, N, 1>* out) {
-    return map[key] ? vec<N>(map, key, where, out) : false;
+                   double bound, Eigen::Matrix<double, N, 1>* out) {
+    return map.IsMap() && map[key] ? vec<N>(map, key, where, bound, out) : false;
   }
 
   // Only the keys named may appear in the map.
   void onlyKeys(const YAML::Node& map, const std::string& where,
                 std::initializer_list<const char*> keys) {
     if (!map.IsMap()) {
-      problems_->push_back(where + ": must be a map");
+      problem(map, where + ": must be a map");
       return;
     }
     for (const auto& entry : map) {
-      const std::string key = entry.first.as<std::string>("");
+      const std::string key = entry.first.IsScalar() ? entry.first.Scalar() : "(not a word)";
       if (std::none_of(keys.begin(), keys.end(), [&](const char* k) { return key == k; }))
-        problems_->push_back(where + (where.empty() ? "" : ".") + key + ": unknown key");
+        problem(entry.first, where + (where.empty() ? "" : ".") + key + ": unknown key");
     }
   }
 
-  void number(const YAML::Node& map, const std::string& key, const std::string& where,
+  // An optional number within 0..bound; absent, *out keeps its default.
+  void number(const YAML::Node& map, const std::string& key, const std::string& where, double bound,
               double* out) {
+    if (!map.IsMap()) return;
     const YAML::Node node = map[key];
     if (!node) return;  // optional, keeps the default
-    try {
-      *out = node.as<double>();
-      if (!(*out >= 0) || !std::isfinite(*out))
-        problems_->push_back(where + key + ": must be >= 0");
-    } catch (const YAML::Exception&) {
-      problems_->push_back(where + key + ": not a number");
-    }
+    double v = 0;
+    if (!real(node, &v))
+      problem(node, where + key + ": not a number");
+    else if (!(v >= 0 && v <= bound))
+      problem(node, where + key + ": must lie within 0.." + format(bound));
+    else
+      *out = v;
   }
 
  private:
+  static bool real(const YAML::Node& node, double* out) {
+    if (!node.IsScalar()) return false;
+    try {
+      *out = node.as<double>();
+      return std::isfinite(*out);
+    } catch (const YAML::Exception&) {
+      return false;
+    }
+  }
+  static std::string format(double v) {
+    std::ostringstream s;
+    s << v;
+    return s.str();
+  }
+
+  std::string origin_;
   std::vector<std::string>* problems_;
 };
 
@@ -308,26 +355,15 @@ Eigen::Matrix3d rpy(const Eigen::Vector3d& rpy_deg) {
 
 }  // namespace
 
-World parseWorld(const std::string& yaml_text, const std::string& origin,
-                 const std::string& base_dir) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(yaml_text);
-  } catch (const YAML::Exception& e) {
-    throw ConfigError(origin, {std::string("not valid YAML: ") + e.what()});
-  }
-  if (!root.IsMap()) throw ConfigError(origin, {"the file must be a YAML map"});
-  std::vector<std::string> problems;
-  Reader read(&problems);
-  World w;
+namespace {
 
+void readWorld(const YAML::Node& root, const std::string& base_dir, Reader& read, World& w) {
   std::string robot = "builtin";
-  if (root["robot"]) {
-    try {
-      robot = root["robot"].as<std::string>();
-    } catch (const YAML::Exception&) {
-      problems.push_back("robot: must be \"builtin\" or a file path");
-    }
+  if (const YAML::Node r = root["robot"]) {
+    if (r.IsScalar())
+      robot = r.Scalar();
+    else
+      read.problem(r, "robot: must be \"builtin\" or a file path");
   }
   try {
     if (robot == "builtin") {
@@ -336,131 +372,161 @@ World parseWorld(const std::string& yaml_text, const std::string& origin,
       w.robot = loadRobot(!robot.empty() && robot[0] == '/' ? robot : base_dir + "/" + robot);
     }
   } catch (const ConfigError& e) {
-    for (const auto& p : e.problems()) problems.push_back("robot " + robot + ": " + p);
+    for (const auto& p : e.problems()) read.problem(root["robot"], "robot: " + p);
   }
 
   Eigen::Matrix<double, 6, 1> offsets;
-  if (read.vec<6>(root, "true_offsets_deg", "", &offsets)) {
+  if (read.vec<6>(root, "true_offsets_deg", "", kMaxAngleDeg, &offsets)) {
     for (int i = 0; i < 6; ++i) w.true_offsets_deg[i] = offsets[i];
   }
-  const YAML::Node laser = root["laser"];
-  if (!laser || !laser.IsMap()) {
-    problems.push_back("laser: missing (a map with point_mm and direction)");
+  const YAML::Node laser = read.section(root, "laser");
+  if (!laser) {
+    if (!root["laser"]) read.problem(root, "laser: missing (a map with point_mm and direction)");
   } else {
-    read.vec<3>(laser, "point_mm", "laser.", &w.laser_point_mm);
-    if (read.vec<3>(laser, "direction", "laser.", &w.laser_direction)) {
+    read.vec<3>(laser, "point_mm", "laser.", kMaxPositionMm, &w.laser_point_mm);
+    if (read.vec<3>(laser, "direction", "laser.", kMaxDirection, &w.laser_direction)) {
       if (w.laser_direction.norm() < 1e-9)
-        problems.push_back("laser.direction: zero vector");
+        read.problem(laser["direction"], "laser.direction: zero vector");
       else
         w.laser_direction.normalize();
     }
   }
-  const YAML::Node psd = root["psd"];
-  if (!psd || !psd.IsMap()) {
-    problems.push_back("psd: missing (a map with position_mm and rpy_deg)");
+  const YAML::Node psd = read.section(root, "psd");
+  if (!psd) {
+    if (!root["psd"]) read.problem(root, "psd: missing (a map with position_mm and rpy_deg)");
   } else {
-    read.vec<3>(psd, "position_mm", "psd.", &w.psd_position_mm);
+    read.vec<3>(psd, "position_mm", "psd.", kMaxPositionMm, &w.psd_position_mm);
     Eigen::Vector3d angles;
-    if (read.vec<3>(psd, "rpy_deg", "psd.", &angles)) w.psd_rotation = rpy(angles);
+    if (read.vec<3>(psd, "rpy_deg", "psd.", kMaxAngleDeg, &angles)) w.psd_rotation = rpy(angles);
   }
-  if (const YAML::Node noise = root["noise"]) {
-    read.number(noise, "repeatability_deg", "noise.", &w.noise.repeatability_deg);
-    read.number(noise, "psd_mm", "noise.", &w.noise.psd_mm);
+  if (const YAML::Node noise = read.section(root, "noise")) {
+    read.onlyKeys(noise, "noise", {"repeatability_deg", "psd_mm"});
+    read.number(noise, "repeatability_deg", "noise.", kMaxAngleDeg, &w.noise.repeatability_deg);
+    read.number(noise, "psd_mm", "noise.", kMaxSpotMm, &w.noise.psd_mm);
   }
   read.onlyKeys(root, "",
                 {"robot", "true_offsets_deg", "laser", "psd", "noise", "dh_errors", "compliance",
                  "thermal", "gross_errors", "placements"});
-  if (psd && psd.IsMap()) {
+  if (psd) {
     read.onlyKeys(psd, "psd", {"position_mm", "rpy_deg", "configured_rpy_deg", "taught_centre_mm"});
     w.psd_rotation_configured = w.psd_rotation;
     w.psd_centre_taught_mm = w.psd_position_mm + Eigen::Vector3d(3, -3, 3);
     Eigen::Vector3d configured;
-    if (read.optionalVec<3>(psd, "configured_rpy_deg", "psd.", &configured))
+    if (read.optionalVec<3>(psd, "configured_rpy_deg", "psd.", kMaxAngleDeg, &configured))
       w.psd_rotation_configured = rpy(configured);
-    read.optionalVec<3>(psd, "taught_centre_mm", "psd.", &w.psd_centre_taught_mm);
+    read.optionalVec<3>(psd, "taught_centre_mm", "psd.", kMaxPositionMm, &w.psd_centre_taught_mm);
   }
-  if (const YAML::Node links = root["dh_errors"]) {
+  if (const YAML::Node links = read.section(root, "dh_errors")) {
     read.onlyKeys(links, "dh_errors", {"a_mm", "d_mm", "alpha_deg"});
     Eigen::Matrix<double, 6, 1> v;
-    if (read.optionalVec<6>(links, "a_mm", "dh_errors.", &v))
+    if (read.optionalVec<6>(links, "a_mm", "dh_errors.", kMaxLinkErrorMm, &v))
       for (int i = 0; i < 6; ++i) w.dh_errors[i].a_mm = v[i];
-    if (read.optionalVec<6>(links, "d_mm", "dh_errors.", &v))
+    if (read.optionalVec<6>(links, "d_mm", "dh_errors.", kMaxLinkErrorMm, &v))
       for (int i = 0; i < 6; ++i) w.dh_errors[i].d_mm = v[i];
-    if (read.optionalVec<6>(links, "alpha_deg", "dh_errors.", &v))
+    if (read.optionalVec<6>(links, "alpha_deg", "dh_errors.", kMaxLinkErrorDeg, &v))
       for (int i = 0; i < 6; ++i) w.dh_errors[i].alpha_deg = v[i];
   }
-  if (const YAML::Node c = root["compliance"]) {
+  if (const YAML::Node c = read.section(root, "compliance")) {
     read.onlyKeys(c, "compliance",
                   {"joint2_sag_deg", "joint3_sag_deg", "mass_share", "mass_position"});
-    read.number(c, "joint2_sag_deg", "compliance.", &w.compliance.joint2_sag_deg);
-    read.number(c, "joint3_sag_deg", "compliance.", &w.compliance.joint3_sag_deg);
+    read.number(c, "joint2_sag_deg", "compliance.", kMaxAngleDeg, &w.compliance.joint2_sag_deg);
+    read.number(c, "joint3_sag_deg", "compliance.", kMaxAngleDeg, &w.compliance.joint3_sag_deg);
     Eigen::Vector3d share;
-    if (read.optionalVec<3>(c, "mass_share", "compliance.", &share)) {
-      if (!(share.minCoeff() > 0)) problems.push_back("compliance.mass_share: must be > 0");
+    if (read.optionalVec<3>(c, "mass_share", "compliance.", 1e6, &share)) {
+      if (!(share.minCoeff() > 0))
+        read.problem(c["mass_share"], "compliance.mass_share: must be > 0");
       for (int i = 0; i < 3; ++i) w.compliance.mass_share[i] = share[i];
     }
     Eigen::Vector2d position;
-    if (read.optionalVec<2>(c, "mass_position", "compliance.", &position)) {
+    if (read.optionalVec<2>(c, "mass_position", "compliance.", 1, &position)) {
       if (!(position.minCoeff() >= 0 && position.maxCoeff() <= 1))
-        problems.push_back("compliance.mass_position: must lie within 0..1");
+        read.problem(c["mass_position"], "compliance.mass_position: must lie within 0..1");
       for (int i = 0; i < 2; ++i) w.compliance.mass_position[i] = position[i];
     }
   }
-  if (const YAML::Node t = root["thermal"]) {
+  if (const YAML::Node t = read.section(root, "thermal")) {
     read.onlyKeys(t, "thermal", {"expansion_per_k", "rise_k", "time_constant_s"});
-    read.number(t, "expansion_per_k", "thermal.", &w.thermal.expansion_per_k);
-    read.number(t, "rise_k", "thermal.", &w.thermal.rise_k);
-    read.number(t, "time_constant_s", "thermal.", &w.thermal.time_constant_s);
+    // Bounds far beyond any metal (aluminium 23e-6 per K), any cell's warming, any day.
+    read.number(t, "expansion_per_k", "thermal.", 1e-3, &w.thermal.expansion_per_k);
+    read.number(t, "rise_k", "thermal.", 1000, &w.thermal.rise_k);
+    read.number(t, "time_constant_s", "thermal.", 1e7, &w.thermal.time_constant_s);
     if (!(w.thermal.time_constant_s > 0))
-      problems.push_back("thermal.time_constant_s: must be > 0");
+      read.problem(t["time_constant_s"] ? t["time_constant_s"] : t,
+                   "thermal.time_constant_s: must be > 0");
   }
-  if (const YAML::Node g = root["gross_errors"]) {
+  if (const YAML::Node g = read.section(root, "gross_errors")) {
     read.onlyKeys(g, "gross_errors",
                   {"stray_light_rate", "stray_light_mm", "unsettled_rate", "unsettled_deg",
                    "forced_at_deg", "forced_kind"});
-    read.number(g, "stray_light_rate", "gross_errors.", &w.gross.stray_light_rate);
-    read.number(g, "stray_light_mm", "gross_errors.", &w.gross.stray_light_mm);
-    read.number(g, "unsettled_rate", "gross_errors.", &w.gross.unsettled_rate);
-    read.number(g, "unsettled_deg", "gross_errors.", &w.gross.unsettled_deg);
-    if (w.gross.stray_light_rate > 1)
-      problems.push_back("gross_errors.stray_light_rate: must be <= 1");
-    if (w.gross.unsettled_rate > 1) problems.push_back("gross_errors.unsettled_rate: must be <= 1");
+    read.number(g, "stray_light_rate", "gross_errors.", 1, &w.gross.stray_light_rate);
+    read.number(g, "stray_light_mm", "gross_errors.", kMaxSpotMm, &w.gross.stray_light_mm);
+    read.number(g, "unsettled_rate", "gross_errors.", 1, &w.gross.unsettled_rate);
+    read.number(g, "unsettled_deg", "gross_errors.", kMaxAngleDeg, &w.gross.unsettled_deg);
     Eigen::Matrix<double, kJointCount, 1> q;
-    if (read.optionalVec<kJointCount>(g, "forced_at_deg", "gross_errors.", &q)) {
+    if (read.optionalVec<kJointCount>(g, "forced_at_deg", "gross_errors.", kMaxJointTravelDeg,
+                                      &q)) {
       w.gross.forced_at_deg = Joints{};
       for (int i = 0; i < kJointCount; ++i) (*w.gross.forced_at_deg)[i] = q[i];
     }
     if (const YAML::Node k = g["forced_kind"]) {
       try {
-        w.gross.forced_kind = parseGrossKind(k.IsScalar() ? k.as<std::string>() : "");
+        w.gross.forced_kind = parseGrossKind(k.IsScalar() ? k.Scalar() : "");
       } catch (const InputError& e) {
-        problems.push_back(std::string("gross_errors.forced_kind: ") + e.what());
+        read.problem(k, std::string("gross_errors.forced_kind: ") + e.what());
       }
     }
   }
   if (const YAML::Node placements = root["placements"]) {
-    if (!placements.IsSequence()) problems.push_back("placements: expected a list");
+    if (!placements.IsSequence()) read.problem(placements, "placements: expected a list");
     for (std::size_t i = 0; placements.IsSequence() && i < placements.size(); ++i) {
       const YAML::Node p = placements[i];
       const std::string where = "placements[" + std::to_string(i) + "].";
       if (!p.IsMap()) {
-        problems.push_back(where + ": expected a map");
+        read.problem(p, where + ": expected a map");
         continue;
       }
       read.onlyKeys(p, "placements[" + std::to_string(i) + "]",
                     {"placement", "planned_mm", "position_mm", "rpy_deg"});
       PsdPlacement placed;
       double number = 0;
-      read.number(p, "placement", where, &number);
+      read.number(p, "placement", where, 100, &number);
+      // Checked before the cast: a double beyond int has no int to become.
       if (number != std::floor(number) || number < 2 || number > 100)
-        problems.push_back(where + "placement: must be a whole number 2..100");
-      placed.placement = static_cast<int>(number);
-      read.vec<3>(p, "planned_mm", where, &placed.planned_mm);
-      read.vec<3>(p, "position_mm", where, &placed.position_mm);
+        read.problem(p["placement"] ? p["placement"] : p,
+                     where + "placement: must be a whole number 2..100");
+      else
+        placed.placement = static_cast<int>(number);
+      read.vec<3>(p, "planned_mm", where, kMaxPositionMm, &placed.planned_mm);
+      read.vec<3>(p, "position_mm", where, kMaxPositionMm, &placed.position_mm);
       Eigen::Vector3d angles;
-      if (read.vec<3>(p, "rpy_deg", where, &angles)) placed.rotation = rpy(angles);
+      if (read.vec<3>(p, "rpy_deg", where, kMaxAngleDeg, &angles)) placed.rotation = rpy(angles);
       w.placements.push_back(placed);
     }
+  }
+}
+
+}  // namespace
+
+World parseWorld(const std::string& yaml_text, const std::string& origin,
+                 const std::string& base_dir) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(yaml_text);
+  } catch (const YAML::Exception& e) {
+    throw ConfigError(origin,
+                      {origin + (e.mark.is_null() ? "" : ":" + std::to_string(e.mark.line + 1)) +
+                       ": not valid YAML: " + e.msg});
+  }
+  if (!root.IsMap()) throw ConfigError(origin, {origin + ": the file must be a YAML map"});
+  std::vector<std::string> problems;
+  Reader read(origin, &problems);
+  World w;
+  try {
+    readWorld(root, base_dir, read, w);
+  } catch (const YAML::Exception& e) {
+    // Every read above checks the shape it reads; whatever slips past is the file's fault
+    // still, never a crash.
+    read.problem(e.mark, "unexpected structure: " + e.msg);
   }
   if (!problems.empty()) throw ConfigError(origin, problems);
   return w;

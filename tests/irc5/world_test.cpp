@@ -117,6 +117,50 @@ noise: {repeatability_deg: -1}
   EXPECT_THROW(loadWorld("/nonexistent/world.yaml"), ConfigError);
 }
 
+// A world file of any shape is read or refused with its problems, each with the file's line:
+// never a parser's exception (which aborted zerocal-sim) or a value no cell has.
+TEST(World, AnyShapeOfFileIsAConfigurationErrorWithItsLine) {
+  const auto problemsOf = [](const std::string& text) -> std::vector<std::string> {
+    try {
+      parseWorld(text, "w.yaml");
+    } catch (const ConfigError& e) {
+      return e.problems();
+    }
+    return {};
+  };
+  const auto has = [](const std::vector<std::string>& problems, const std::string& text) {
+    for (const std::string& p : problems)
+      if (p.find(text) != std::string::npos) return true;
+    return false;
+  };
+  const std::string valid =
+      "true_offsets_deg: [0, 0, 0, 0, 0, 0]\n"
+      "laser: {point_mm: [0, 0, 0], direction: [1, 0, 0]}\n"
+      "psd: {position_mm: [900, -50, 400], rpy_deg: [0, 0, 0]}\n";
+  ASSERT_TRUE(problemsOf(valid).empty());
+  // Cut short in the middle of a section: the section is a word, not a map.
+  EXPECT_TRUE(has(problemsOf("robot: builtin\nnoise:\n  repeatability_deg"),
+                  "w.yaml:3: noise: must be a map"));
+  for (const char* section : {"noise", "dh_errors", "compliance", "thermal", "gross_errors"}) {
+    EXPECT_TRUE(has(problemsOf(valid + section + ": 5\n"),
+                    std::string("w.yaml:4: ") + section + ": must be a map"))
+        << section;
+    EXPECT_FALSE(problemsOf(valid + section + ": [1, 2]\n").empty()) << section;
+  }
+  EXPECT_TRUE(has(problemsOf("laser: 5\npsd: [1]\n"), "w.yaml:1: laser: must be a map"));
+  EXPECT_TRUE(has(problemsOf("laser: 5\npsd: [1]\n"), "w.yaml:2: psd: must be a map"));
+  EXPECT_TRUE(has(problemsOf(valid + "robot: {a: 1}\n"), "w.yaml:4: robot: must be"));
+  // Numbers no cell has, and a placement with no int to be.
+  EXPECT_TRUE(has(problemsOf("true_offsets_deg: [1e300, 0, 0, 0, 0, 0]\n" + valid.substr(37)),
+                  "w.yaml:1: true_offsets_deg[0]: must be a number within +-360"));
+  EXPECT_TRUE(has(problemsOf(valid + "noise: {repeatability_deg: 1e308}\n"),
+                  "w.yaml:4: noise.repeatability_deg: must lie within"));
+  EXPECT_TRUE(has(problemsOf(valid + "placements: [{placement: 1e300, planned_mm: [0, 0, 0], "
+                                     "position_mm: [0, 0, 0], rpy_deg: [0, 0, 0]}]\n"),
+                  "placements[0].placement: must"));
+  EXPECT_TRUE(has(problemsOf(valid + "{a: 1}: 2\n"), "w.yaml:4: (not a word): unknown key"));
+}
+
 // The default repeatability is issue 5's "0.02 mm sigma": the per-axis standard deviation of the
 // flange (TCP) position, sqrt(trace(J S J^T) / 3) with S = sigma^2 I per joint, averaged over the
 // optimal plans of several random worlds (stored in tests/data/plans: made for each world's true

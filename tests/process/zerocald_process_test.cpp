@@ -448,5 +448,43 @@ TEST_F(ZerocaldProcess, AControlPortInUseIsAConfigurationError) {
   }
 }
 
+// Runs a program to its end with its output in `log`; its exit status, or 128 + the signal.
+int runToEnd(const std::vector<std::string>& args, const std::string& log) {
+  std::vector<char*> argv;
+  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
+  posix_spawn_file_actions_adddup2(&actions, 1, 2);
+  pid_t pid = -1;
+  const int spawned = posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  if (spawned != 0) return -1;
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+// A world file cut short is a configuration error of both programs that read one: exit 2 and
+// the file, line and key, never an abort or a parser's bare message.
+TEST_F(ZerocaldProcess, ATruncatedWorldFileIsAConfigurationErrorOfBothPrograms) {
+  const std::string world = dir_.path + "/w.yaml";
+  std::ofstream(world) << "robot: builtin\nnoise:\n  repeatability_deg";
+  const std::string sim_log = dir_.path + "/sim.log";
+  EXPECT_EQ(runToEnd({ZEROCAL_SIM, "--world", world, "--port", "0"}, sim_log), 2)
+      << readFile(sim_log);
+  EXPECT_NE(readFile(sim_log).find(world + ":3: noise: must be a map"), std::string::npos)
+      << readFile(sim_log);
+  const std::string daemon_log = dir_.path + "/zerocald.log";
+  EXPECT_EQ(runToEnd({ZEROCALD, "--sim", "--once", "--config", "/dev/null", "--data-dir",
+                      dir_.path + "/sessions", "--set", "backend.sim_world=" + world},
+                     daemon_log),
+            2)
+      << readFile(daemon_log);
+  EXPECT_NE(readFile(daemon_log).find(world + ":3: noise: must be a map"), std::string::npos)
+      << readFile(daemon_log);
+}
+
 }  // namespace
 }  // namespace zerocal

@@ -51,6 +51,52 @@ double numberOrNan(const Json& j) {
   return j.is_null() ? std::numeric_limits<double>::quiet_NaN() : j.get<double>();
 }
 
+// What no detector and no arm can read. PSDs are at most a few tens of mm on a side (the
+// largest lateral-effect ones sold are 45 mm square, the cell's is a fraction of that); a spot
+// further than this from the centre is on none, and a recorded spot is within the map's valid
+// zone, typically +-0.6 mm. Joints: kMaxJointTravelDeg, two turns either way.
+constexpr double kMaxSpotMm = 50;
+
+// An integer member that fits T. nlohmann would convert a float (1e300) or a negative number
+// with a cast whose result is undefined or wrapped; a journal line holds only what append() wrote.
+template <class T>
+void integerMember(const Json& j, const char* key, T& out) {
+  const Json& v = j.at(key);
+  if (!v.is_number_integer()) throw JournalError(std::string(key) + " is not an integer");
+  const bool fits =
+      v.is_number_unsigned()
+          ? v.get<std::uint64_t>() <= static_cast<std::uint64_t>(std::numeric_limits<T>::max())
+          : v.get<std::int64_t>() >= std::numeric_limits<T>::min() &&
+                v.get<std::int64_t>() <= std::numeric_limits<T>::max();
+  if (!fits) throw JournalError(std::string(key) + " is out of range");
+  out = static_cast<T>(v.get<std::int64_t>());
+}
+
+// Finite and within +-bound (lo: 0 for a standard error).
+void plausible(double value, double lo, double bound, const std::string& what) {
+  if (!(std::isfinite(value) && value >= lo && value <= bound))
+    throw JournalError("pose record: " + what + " is not a value a robot or detector can have");
+}
+
+void checkPlausible(const PoseRecord& r) {
+  for (int i = 0; i < kJointCount; ++i)
+    plausible(r.joints_deg[i], -kMaxJointTravelDeg, kMaxJointTravelDeg,
+              "joints_deg[" + std::to_string(i) + "]");
+  plausible(r.reading.spot.u_mm, -kMaxSpotMm, kMaxSpotMm, "u_mm");
+  plausible(r.reading.spot.v_mm, -kMaxSpotMm, kMaxSpotMm, "v_mm");
+  plausible(r.reading.se.u_mm, 0, kMaxSpotMm, "u_se_mm");
+  plausible(r.reading.se.v_mm, 0, kMaxSpotMm, "v_se_mm");
+  const auto& s = r.servo;
+  for (double x : {s.move_s, s.acquisition_s, s.servo_s, s.settle_s, s.final_error_um})
+    if (!std::isfinite(x)) throw JournalError("pose record: a servo value is not finite");
+  for (const SpotPathPoint& point : r.servo_path) {
+    if (!std::isfinite(point.t_s))
+      throw JournalError("pose record: a servo_path time is not finite");
+    plausible(point.spot.u_mm, -kMaxSpotMm, kMaxSpotMm, "servo_path u");
+    plausible(point.spot.v_mm, -kMaxSpotMm, kMaxSpotMm, "servo_path v");
+  }
+}
+
 bool allFinite(const PoseRecord& r) {
   for (double q : r.joints_deg)
     if (!std::isfinite(q)) return false;
@@ -105,9 +151,9 @@ Json toJson(const PlacementRecord& r) {
 PlacementRecord placementRecordFromJson(const Json& j) {
   try {
     PlacementRecord r;
-    j.at("placement").get_to(r.placement);
+    integerMember(j, "placement", r.placement);
     j.at("centre_mm").get_to(r.centre_mm);
-    j.at("recorded_ns").get_to(r.recorded_ns);
+    integerMember(j, "recorded_ns", r.recorded_ns);
     for (const double c : r.centre_mm)
       if (!std::isfinite(c)) throw JournalError("placement record: centre_mm is not finite");
     return r;
@@ -123,10 +169,10 @@ int placementInForce(const std::vector<PlacementRecord>& placements) {
 PoseRecord poseRecordFromJson(const Json& j) {
   try {
     PoseRecord r;
-    j.at("index").get_to(r.index);
+    integerMember(j, "index", r.index);
     if (j.contains("skipped")) {
       j.at("skipped").get_to(r.skipped);
-      j.at("recorded_ns").get_to(r.recorded_ns);
+      integerMember(j, "recorded_ns", r.recorded_ns);
       if (r.skipped.empty()) throw JournalError("pose record: skipped without a reason");
       return r;
     }
@@ -136,31 +182,33 @@ PoseRecord poseRecordFromJson(const Json& j) {
     j.at("u_se_mm").get_to(r.reading.se.u_mm);
     j.at("v_se_mm").get_to(r.reading.se.v_mm);
     r.reading.spot_present = r.reading.in_valid_zone = true;
-    j.at("move_started_ns").get_to(r.move_started_ns);
-    j.at("recorded_ns").get_to(r.recorded_ns);
+    integerMember(j, "move_started_ns", r.move_started_ns);
+    integerMember(j, "recorded_ns", r.recorded_ns);
     const Json& s = j.at("servo");
-    s.at("moves").get_to(r.servo.moves);
-    s.at("iterations").get_to(r.servo.iterations);
+    integerMember(s, "moves", r.servo.moves);
+    integerMember(s, "iterations", r.servo.iterations);
     s.at("move_s").get_to(r.servo.move_s);
     s.at("acquisition_s").get_to(r.servo.acquisition_s);
     s.at("servo_s").get_to(r.servo.servo_s);
     s.at("settle_s").get_to(r.servo.settle_s);
     s.at("final_error_um").get_to(r.servo.final_error_um);
     // Added later: journals written before have neither.
-    if (s.contains("search_moves")) s.at("search_moves").get_to(r.servo.search_moves);
+    if (s.contains("search_moves")) integerMember(s, "search_moves", r.servo.search_moves);
     if (j.contains("servo_path"))
       for (const auto& point : j.at("servo_path").get<std::vector<std::array<double, 3>>>())
         r.servo_path.push_back({point[0], {point[1], point[2]}});
     if (j.contains("placement")) {
-      j.at("placement").get_to(r.placement);
+      integerMember(j, "placement", r.placement);
       if (r.placement < 1) throw JournalError("pose record: placement must be 1 or more");
     }
     if (j.contains("remeasure_of")) {
-      j.at("remeasure_of").get_to(r.remeasure_of);
+      integerMember(j, "remeasure_of", r.remeasure_of);
       if (r.remeasure_of < 0 || r.remeasure_of >= r.index)
         throw JournalError("pose record: remeasure_of " + std::to_string(r.remeasure_of) +
                            " is not an earlier line");
     }
+    // A number no arm or detector can have is damage, not a measurement.
+    checkPlausible(r);
     return r;
   } catch (const Json::exception& e) {
     throw JournalError(std::string("pose record: ") + e.what());
@@ -168,10 +216,13 @@ PoseRecord poseRecordFromJson(const Json& j) {
 }
 
 JournalContents readJournal(const std::string& path) {
-  JournalContents out;
   const std::optional<std::string> file = readWholeFile(path);
-  if (!file) return out;
-  const std::string& text = *file;
+  if (!file) return {};
+  return parseJournal(*file, path);
+}
+
+JournalContents parseJournal(const std::string& text, const std::string& path) {
+  JournalContents out;
 
   std::size_t start = 0;
   int line_number = 0;
@@ -333,10 +384,10 @@ Json toJson(const FaultRecord& r) {
 FaultRecord faultRecordFromJson(const Json& j) {
   try {
     FaultRecord r;
-    j.at("plan_index").get_to(r.plan_index);
+    integerMember(j, "plan_index", r.plan_index);
     j.at("status").get_to(r.status);
     j.at("message").get_to(r.message);
-    j.at("recorded_ns").get_to(r.recorded_ns);
+    integerMember(j, "recorded_ns", r.recorded_ns);
     if (j.contains("remeasure")) j.at("remeasure").get_to(r.remeasure);
     for (const Json& row : j.at("samples")) {
       if (!row.is_array() || row.size() != 12)

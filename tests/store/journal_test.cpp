@@ -308,6 +308,49 @@ TEST_F(JournalTest, GarbageAfterACrashIsDroppedOnlyAtTheEnd) {
   EXPECT_THROW(readJournal(path.string()), JournalError);
 }
 
+// A joint no arm reaches, a spot on no detector: the line is damaged, as one that does not parse.
+TEST_F(JournalTest, ValuesNoArmOrDetectorCanHaveAreDamage) {
+  const auto with = [](const char* key, double value) {
+    nlohmann::json j = toJson(sample(0));
+    if (std::string(key) == "joints_deg")
+      j["joints_deg"][2] = value;
+    else
+      j[key] = value;
+    return j;
+  };
+  EXPECT_NO_THROW(poseRecordFromJson(with("joints_deg", -720)));
+  EXPECT_NO_THROW(poseRecordFromJson(with("u_mm", 50)));
+  for (const auto& [key, value] : {std::pair<const char*, double>{"joints_deg", 1e300},
+                                   {"joints_deg", 720.5},
+                                   {"u_mm", 1e308},
+                                   {"v_mm", -1e308},
+                                   {"v_mm", 50.5},
+                                   {"u_se_mm", -1e-3},
+                                   {"v_se_mm", 1e308}})
+    EXPECT_THROW(poseRecordFromJson(with(key, value)), JournalError) << key << " " << value;
+  // A count or an index that is no integer is no line append() wrote.
+  EXPECT_THROW(poseRecordFromJson(with("index", 1e300)), JournalError);
+  EXPECT_THROW(poseRecordFromJson(with("recorded_ns", 0.5)), JournalError);
+
+  const fs::path path = dir_ / "journal.jsonl";
+  appendRaw(path, toJson(sample(0)).dump() + "\n");
+  nlohmann::json far = toJson(sample(1));
+  far["joints_deg"][0] = 1e300;
+  appendRaw(path, far.dump() + "\n");
+  const JournalContents back = readJournal(path.string());  // the last line: dropped, warned
+  EXPECT_EQ(back.records.size(), 1u);
+  EXPECT_NE(back.dropped.find("joints_deg[0]"), std::string::npos) << back.dropped;
+  appendRaw(path, toJson(sample(2)).dump() + "\n");  // before the last: the journal is damaged
+  try {
+    readJournal(path.string());
+    FAIL() << "expected JournalError";
+  } catch (const JournalError& e) {
+    EXPECT_NE(std::string(e.what()).find("journal.jsonl:2: pose record: joints_deg[0]"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 TEST_F(JournalTest, GapsAndDuplicatesInAJournalAreErrorsNotGuesses) {
   const fs::path path = dir_ / "journal.jsonl";
   appendRaw(path, toJson(sample(0)).dump() + "\n" + toJson(sample(0)).dump() + "\n");

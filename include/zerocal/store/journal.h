@@ -80,7 +80,9 @@ struct PoseRecord {
 };
 
 nlohmann::json toJson(const PoseRecord& record);
-// Throws JournalError when a member is missing or of the wrong type.
+// Throws JournalError when a member is missing or of the wrong type, or holds a value no arm or
+// detector can have (a joint beyond +-kMaxJointTravelDeg, a spot or standard error beyond 50 mm,
+// a number that is not finite): that line is damaged.
 PoseRecord poseRecordFromJson(const nlohmann::json& json);
 
 // The PSD was moved to placement `placement` (2, 3, ...) before the pose lines that follow: a
@@ -118,6 +120,8 @@ int placementInForce(const std::vector<PlacementRecord>& placements);
 // lines that are not 2, 3, ... in turn, or a measured pose whose placement is not the one in
 // force at its line.
 JournalContents readJournal(const std::string& path);
+// The same from the journal's text; `path` names it in the messages.
+JournalContents parseJournal(const std::string& text, const std::string& path);
 
 // The append side of journal.jsonl. Not thread-safe: the session worker owns it.
 class Journal {

@@ -51,6 +51,17 @@ std::string where(const std::string& origin, const YAML::Node& node) {
   return origin + ":" + std::to_string(mark.line + 1);
 }
 
+// A text value goes into every session's session.json (configToJson): it must be what JSON can
+// hold, UTF-8, or that snapshot would fail at every session start. Checked by the same serializer.
+bool isUtf8(const std::string& text) {
+  try {
+    Json(text).dump();
+    return true;
+  } catch (const Json::type_error&) {
+    return false;
+  }
+}
+
 bool parseInteger(const YAML::Node& node, long long& value) {
   if (!node.IsScalar()) return false;
   const std::string& text = node.Scalar();
@@ -152,6 +163,7 @@ Field textField(std::string path, std::string& target) {
   return {std::move(path),
           [&target](const YAML::Node& node, const std::string&) -> std::string {
             if (!node.IsScalar()) return "expected a text, got " + describe(node);
+            if (!isUtf8(node.Scalar())) return "expected a text in UTF-8";
             target = node.Scalar();
             return {};
           },
@@ -164,6 +176,7 @@ Field pathField(std::string path, std::string& target, std::string keep = {}) {
   return {std::move(path),
           [&target, keep](const YAML::Node& node, const std::string& base_dir) -> std::string {
             if (!node.IsScalar()) return "expected a path, got " + describe(node);
+            if (!isUtf8(node.Scalar())) return "expected a path in UTF-8";
             std::string value = node.Scalar();
             if (!value.empty() && value != keep && fs::path(value).is_relative())
               value = (fs::path(base_dir.empty() ? fs::current_path() : fs::path(base_dir)) / value)

@@ -399,3 +399,20 @@ TEST_F(ConfigTest, ReferenceDocumentNamesEveryKey) {
 
 }  // namespace
 }  // namespace zerocal
+
+namespace zerocal {
+namespace {
+
+// A text or path that is not UTF-8 cannot go into session.json's snapshot of the configuration:
+// refused where it is written, not at every session's start.
+TEST_F(ConfigTest, TextsAndPathsMustBeUtf8) {
+  write("main.yaml", "backend:\n  sim_world: \"\xd6\"\ndaq:\n  serial: \"a\xff\"\n");
+  const auto p = problems(sources());
+  EXPECT_TRUE(reported(p, {"main.yaml:2", "backend.sim_world", "UTF-8"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"main.yaml:4", "daq.serial", "UTF-8"})) << joined(p);
+  write("main.yaml", "daq:\n  serial: \"\xc3\xa9t\xc3\xa9\"\n");  // UTF-8: fine
+  EXPECT_NO_THROW(configToJson(loadDaemonConfig(sources())).dump());
+}
+
+}  // namespace
+}  // namespace zerocal

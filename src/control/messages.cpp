@@ -4,6 +4,16 @@ namespace zerocal::control {
 
 using nlohmann::json;
 
+RequestTooDeep::RequestTooDeep()
+    : Error("nested deeper than " + std::to_string(kMaxRequestDepth) + " levels") {}
+
+json parseRequestLine(const std::string& line) {
+  return json::parse(line, [](int depth, json::parse_event_t, json&) {
+    if (depth > kMaxRequestDepth) throw RequestTooDeep();
+    return true;
+  });
+}
+
 std::string optionalString(const json& request, const char* key, const std::string& fallback) {
   const auto it = request.find(key);
   if (it == request.end() || it->is_null()) return fallback;

@@ -38,22 +38,6 @@ bool isOpenCommand(const std::string& cmd) {
   return cmd == "hello" || cmd == "version" || cmd == "auth";
 }
 
-// Deeper nesting than any request has is refused while parsing, before anything recurses over
-// it (copying, serialising and destroying a json are recursive).
-constexpr int kMaxRequestDepth = 16;
-
-struct TooDeep : std::runtime_error {
-  TooDeep()
-      : std::runtime_error("nested deeper than " + std::to_string(kMaxRequestDepth) + " levels") {}
-};
-
-json parseRequest(const std::string& line) {
-  return json::parse(line, [](int depth, json::parse_event_t, json&) {
-    if (depth > kMaxRequestDepth) throw TooDeep();
-    return true;
-  });
-}
-
 // A plan file named in the request must be a plain file name in plan_dir: the port never reads
 // any other path (the token file, /proc, a FIFO). The configuration's own plan_file is kept.
 service::StartRequest planFileInPlanDir(service::StartRequest start, const json& request,
@@ -239,8 +223,8 @@ class Connection : public std::enable_shared_from_this<Connection> {
   bool handle(const std::string& line) {
     json request;
     try {
-      request = parseRequest(line);
-    } catch (const TooDeep& e) {
+      request = parseRequestLine(line);
+    } catch (const RequestTooDeep& e) {
       send(errorResponse(nullptr, code::kBadJson, std::string("not a request: ") + e.what()));
       return true;
     } catch (const json::exception& e) {

@@ -36,6 +36,20 @@ class BadRequest : public Error {
   using Error::Error;
 };
 
+// Nesting deeper than any request has is refused while parsing, before anything recurses over
+// it (copying, serialising and destroying a json are recursive).
+inline constexpr int kMaxRequestDepth = 16;
+
+// A request line nested deeper than kMaxRequestDepth. Becomes bad_json.
+class RequestTooDeep : public Error {
+ public:
+  RequestTooDeep();
+};
+
+// One request line as JSON (any JSON value: the caller checks that it is an object). Throws
+// RequestTooDeep, or nlohmann::json::exception when the line is not JSON.
+nlohmann::json parseRequestLine(const std::string& line);
+
 // A string member when present (else `fallback`); throws BadRequest when it is not a string.
 std::string optionalString(const nlohmann::json& request, const char* key,
                            const std::string& fallback = {});

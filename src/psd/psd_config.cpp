@@ -63,16 +63,12 @@ std::vector<double> readNumbers(const YAML::Node& node, const std::string& where
   return out;
 }
 
-YAML::Node loadYamlFile(const std::string& path) {
+std::string readYamlFile(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw ConfigError(path, {"cannot open the file"});
   std::stringstream text;
   text << in.rdbuf();
-  try {
-    return YAML::Load(text.str());
-  } catch (const YAML::Exception& e) {
-    throw ConfigError(path, {std::string("not valid YAML: ") + e.what()});
-  }
+  return text.str();
 }
 
 }  // namespace
@@ -160,10 +156,17 @@ std::optional<PsdMap> psdMapFromYaml(const YAML::Node& node, const std::string& 
   }
 }
 
-PsdMap loadPsdMap(const std::string& path) {
-  const YAML::Node root = loadYamlFile(path);
+PsdMap loadPsdMap(const std::string& path) { return parsePsdMap(readYamlFile(path), path); }
+
+PsdMap parsePsdMap(const std::string& yaml_text, const std::string& origin) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(yaml_text);
+  } catch (const YAML::Exception& e) {
+    throw ConfigError(origin, {std::string("not valid YAML: ") + e.what()});
+  }
   if (!root.IsMap() || !root["psd_map"]) {
-    throw ConfigError(path, {"the file must hold a 'psd_map:' section (zerocal psd-map --out)"});
+    throw ConfigError(origin, {"the file must hold a 'psd_map:' section (zerocal psd-map --out)"});
   }
   std::vector<std::string> problems;
   std::optional<PsdMap> map;
@@ -172,7 +175,7 @@ PsdMap loadPsdMap(const std::string& path) {
   } catch (const YAML::Exception& e) {
     problems.push_back(std::string("psd_map: cannot be read: ") + e.what());
   }
-  if (!map) throw ConfigError(path, std::move(problems));
+  if (!map) throw ConfigError(origin, std::move(problems));
   return *map;
 }
 

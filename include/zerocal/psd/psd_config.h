@@ -46,5 +46,7 @@ std::optional<PsdMap> psdMapFromYaml(const YAML::Node& node, const std::string& 
                                      std::vector<std::string>& problems);
 // A map file written by psdMapToYaml. Throws ConfigError.
 PsdMap loadPsdMap(const std::string& path);
+// The same from the file's text; `origin` names it in the problems. Throws ConfigError.
+PsdMap parsePsdMap(const std::string& yaml_text, const std::string& origin);
 
 }  // namespace zerocal::psd

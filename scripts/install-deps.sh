@@ -8,6 +8,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev umockdev libumockdev-dev
   zlib1g-dev chromium
   libsystemd-dev systemd help2man dpkg-dev file
+  clang libclang-rt-14-dev  # the fuzz targets: clang++ and its libFuzzer and sanitizer runtimes
 )
 sudo=""
 [ "$(id -u)" -eq 0 ] || sudo="sudo"

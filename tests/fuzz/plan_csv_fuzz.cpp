@@ -12,13 +12,20 @@
 #include "zerocal/model/builtin.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  static const std::string path = [] {
-    char name[] = "/tmp/zerocal-fuzz-plan-XXXXXX";
-    const int fd = ::mkstemp(name);
-    if (fd < 0) std::abort();
-    ::close(fd);
-    return std::string(name);
-  }();
+  // One scratch file for every input, removed when the program ends.
+  struct ScratchFile {
+    std::string path;
+    ScratchFile() {
+      char name[] = "/tmp/zerocal-fuzz-plan-XXXXXX";
+      const int fd = ::mkstemp(name);
+      if (fd < 0) std::abort();
+      ::close(fd);
+      path = name;
+    }
+    ~ScratchFile() { std::remove(path.c_str()); }
+  };
+  static const ScratchFile scratch;
+  const std::string& path = scratch.path;
   static const zerocal::Robot robot = zerocal::builtinIrb1600();
   std::FILE* out = std::fopen(path.c_str(), "wb");
   if (!out || std::fwrite(data, 1, size, out) != size || std::fclose(out) != 0) std::abort();

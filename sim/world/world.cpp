@@ -255,12 +255,13 @@ class Reader {
                          ": " + what);
   }
 
-  // root[key] when it is a map; a problem, and an empty node, when it is something else.
+  // root[key] when it is a map; a problem, and an undefined node (false, as an absent key's),
+  // when it is something else.
   YAML::Node section(const YAML::Node& root, const std::string& key) {
     const YAML::Node node = root[key];
     if (!node || node.IsMap()) return node;
     problem(node, key + ": must be a map");
-    return YAML::Node();
+    return YAML::Node(YAML::NodeType::Undefined);
   }
 
   template <int N>

@@ -80,20 +80,6 @@ json toJson(const std::vector<SessionInfo>& sessions) {
   return a;
 }
 
-SessionsPage parseSessionsRequest(const json& request) {
-  SessionsPage page;
-  if (request.contains("limit") && !request["limit"].is_null()) {
-    const auto& l = request["limit"];
-    if (!l.is_number_integer()) throw BadRequest("limit: expected an integer");
-    if (l.get<long long>() < 1 || l.get<long long>() > SessionsPage::kMaxLimit)
-      throw BadRequest("limit: " + l.dump() + " is outside 1.." +
-                       std::to_string(SessionsPage::kMaxLimit));
-    page.limit = l.get<int>();
-  }
-  page.cursor = optionalString(request, "cursor");
-  return page;
-}
-
 json sessionsPage(const std::vector<SessionInfo>& sessions, const SessionsPage& page) {
   // Ids are creation times, and the list is sorted by them: the cursor, the last id of the page
   // before, stays valid while sessions are created or removed.

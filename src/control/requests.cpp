@@ -138,4 +138,18 @@ service::VerifyRequest parseVerifyRequest(const json& request) {
   return {optionalString(request, "session")};
 }
 
+SessionsPage parseSessionsRequest(const json& request) {
+  SessionsPage page;
+  if (request.contains("limit") && !request["limit"].is_null()) {
+    const auto& l = request["limit"];
+    if (!l.is_number_integer()) throw BadRequest("limit: expected an integer");
+    if (l.get<long long>() < 1 || l.get<long long>() > SessionsPage::kMaxLimit)
+      throw BadRequest("limit: " + l.dump() + " is outside 1.." +
+                       std::to_string(SessionsPage::kMaxLimit));
+    page.limit = l.get<int>();
+  }
+  page.cursor = optionalString(request, "cursor");
+  return page;
+}
+
 }  // namespace zerocal::control

@@ -29,6 +29,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     if (name == "apply") parseApplyRequest(request);
     if (name == "acknowledge") parseAcknowledgeRequest(request);
     if (name == "verify") parseVerifyRequest(request);
+    if (name == "sessions") parseSessionsRequest(request);
     optionalString(request, "token");
     toLine(errorResponse(request.contains("id") ? request["id"] : nullptr, "bad_request", name));
   } catch (const BadRequest&) {

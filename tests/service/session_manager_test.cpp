@@ -1350,16 +1350,6 @@ SessionStatus until(SessionManager& manager,
   return s;
 }
 
-// The refusal code of `request`, or "" when it was accepted.
-std::string refusal(const std::function<void()>& request) {
-  try {
-    request();
-  } catch (const Refused& e) {
-    return e.code();
-  }
-  return "";
-}
-
 // Killed inside an apply, restarted while the controller still boots: the recovery cannot run.
 // The daemon refuses every session, apply and verification meanwhile, tries again by itself once
 // the controller serves, finds that nothing was written and closes the apply without a write or
@@ -1389,10 +1379,10 @@ TEST(SessionManagerRecovery, AnApplyInterruptedWhileTheControllerBootsNeverUndoe
   std::snprintf(backup, sizeof backup, "rob1_3 %.6f", before[2]);
   EXPECT_NE(s.message.find(backup), std::string::npos) << s.message;
   EXPECT_NE(s.message.find("acknowledge"), std::string::npos) << s.message;
-  EXPECT_EQ(refusal([&] { manager.start(manager.defaultRequest()); }), "unrecovered");
-  EXPECT_EQ(refusal([&] { manager.apply({first, true}); }), "unrecovered");
-  EXPECT_EQ(refusal([&] { manager.verify({first}); }), "unrecovered");
-  EXPECT_EQ(refusal([&] { manager.resume({}); }), "unrecovered");
+  EXPECT_EQ(refusalOf([&] { manager.start(manager.defaultRequest()); }), "unrecovered");
+  EXPECT_EQ(refusalOf([&] { manager.apply({first, true}); }), "unrecovered");
+  EXPECT_EQ(refusalOf([&] { manager.verify({first}); }), "unrecovered");
+  EXPECT_EQ(refusalOf([&] { manager.resume({}); }), "unrecovered");
   EXPECT_TRUE(
       apply::applyInterrupted(apply::ApplyJournal(dir.path + "/" + first + "/apply.jsonl")));
 
@@ -1466,10 +1456,10 @@ TEST(SessionManagerRecovery, ValuesNeitherBackedUpNorWrittenAreKeptUntilAcknowle
   // Tried again and again by the idle worker, it journals each finding once.
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   EXPECT_EQ(applyLines(dir.path + "/" + first + "/apply.jsonl").size(), 2u);
-  EXPECT_EQ(refusal([&] { manager.start(manager.defaultRequest()); }), "unrecovered");
+  EXPECT_EQ(refusalOf([&] { manager.start(manager.defaultRequest()); }), "unrecovered");
 
-  EXPECT_EQ(refusal([&] { manager.acknowledge({"", false}); }), "not_confirmed");
-  EXPECT_EQ(refusal([&] { manager.acknowledge({"20990101T000000Z", true}); }), "not_found");
+  EXPECT_EQ(refusalOf([&] { manager.acknowledge({"", false}); }), "not_confirmed");
+  EXPECT_EQ(refusalOf([&] { manager.acknowledge({"20990101T000000Z", true}); }), "not_found");
   EXPECT_EQ(manager.acknowledge({copied, true}), copied);
   EXPECT_EQ(manager.waitIdle().state, SessionState::kUnrecovered);  // the other one is still open
   EXPECT_EQ(manager.acknowledge({"", true}), first);
@@ -1522,8 +1512,8 @@ TEST(SessionManagerRecovery, AVerificationKilledMidApplyIsNeverResumedAndClosedO
   EXPECT_EQ(manager.waitIdle().state, SessionState::kDone);
   for (int i = 0; i < 6; ++i)  // the backup restored
     EXPECT_NEAR(backend.controller().calOffsets()[i], before[i], 1e-6) << i;
-  EXPECT_EQ(refusal([&] { manager.resume({}); }), "not_found");
-  EXPECT_EQ(refusal([&] { manager.resume({vid}); }), "verification");
+  EXPECT_EQ(refusalOf([&] { manager.resume({}); }), "not_found");
+  EXPECT_EQ(refusalOf([&] { manager.resume({vid}); }), "verification");
   bool listed = false;
   for (const SessionInfo& info : manager.sessions())
     if (info.id == vid) {

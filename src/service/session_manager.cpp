@@ -314,6 +314,15 @@ ModelTolerances SessionManager::tolerances() const {
   return {s.model_length_mm, s.model_angle_deg, s.model_sag_deg};
 }
 
+Prediction SessionManager::predictWithout(const std::vector<Pose>& plan,
+                                          const std::vector<bool>& skipped,
+                                          const Eigen::Vector3d& target, double noise_mm) const {
+  CalibrationParameters nominal;
+  nominal.target_mm = target;
+  return predictUncertainty(knowledge_.cell, posesKept(plan, skipped), nominal, noise_mm,
+                            tolerances());
+}
+
 Plan SessionManager::makePlan(const StartRequest& request, Eigen::Vector3d& target,
                               double& noise_mm) const {
   target = request.target_mm.value_or(settings_.target_mm.value_or(knowledge_.taught_centre_mm));
@@ -502,10 +511,7 @@ std::string SessionManager::resume(const ResumeRequest& request) {
     skipped[skip_index] = true;
   }
   try {
-    CalibrationParameters nominal;
-    nominal.target_mm = target;
-    refuseUnlessIdentifiable(
-        predictUncertainty(knowledge_.cell, posesKept(poses, skipped), nominal, noise_mm));
+    refuseUnlessIdentifiable(predictWithout(poses, skipped, target, noise_mm));
   } catch (const Refused& e) {
     if (skip_index < 0) throw;
     throw Refused(e.code(), "without pose " + std::to_string(skip_index + 1) + ", " + e.what() +
@@ -778,10 +784,7 @@ void SessionManager::runSession(const std::string& id, const RunPlan& run_plan,
       // Measuring this pose again would fail again: say whether the plan can do without it.
       std::vector<bool> skipped = skippedPoses(outcome->records, plan.size());
       skipped[outcome->stopped_at] = true;
-      CalibrationParameters nominal;
-      nominal.target_mm = target;
-      const Prediction without =
-          predictUncertainty(knowledge_.cell, posesKept(plan, skipped), nominal, noise_mm);
+      const Prediction without = predictWithout(plan, skipped, target, noise_mm);
       const bool skippable =
           std::all_of(without.identifiable.begin(), without.identifiable.begin() + kOffsetCount,
                       [](bool b) { return b; });

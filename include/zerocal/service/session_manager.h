@@ -159,6 +159,11 @@ class SessionManager final : public SessionControl {
   Plan makePlan(const StartRequest& request, Eigen::Vector3d& target, double& noise_mm) const;
   // What the session's solve counts beside the noise (its link and sag tolerances).
   ModelTolerances tolerances() const;
+  // The one rule for poses given up (a skip asked for at a resume, one offered after a fault):
+  // the prediction of what the solve will have once the rest are measured, counting the same
+  // tolerances as the solve and the plan's own prediction.
+  Prediction predictWithout(const std::vector<Pose>& plan, const std::vector<bool>& skipped,
+                            const Eigen::Vector3d& target, double noise_mm) const;
 
   CellBackend& backend_;
   ManagerSettings settings_;

@@ -1339,6 +1339,13 @@ std::array<double, 6> journalBegunApply(const std::string& dir, const std::strin
   return written;
 }
 
+// A session calibrated to done by a daemon that then stops; its id, empty when it did not end done.
+std::string calibrated(CellBackend& backend, const ManagerSettings& settings) {
+  SessionManager manager(backend, settings);
+  const std::string id = manager.start(manager.defaultRequest());
+  return manager.waitIdle().state == SessionState::kDone ? id : "";
+}
+
 // Polls the status until `done` says so (at most 20 s).
 SessionStatus until(SessionManager& manager,
                     const std::function<bool(const SessionStatus&)>& done) {
@@ -1358,12 +1365,8 @@ TEST(SessionManagerRecovery, AnApplyInterruptedWhileTheControllerBootsNeverUndoe
   const TempDir dir;
   GatedBackend backend(cellFor(6));
   const ManagerSettings settings = recoverySettingsIn(dir.path);
-  std::string first;
-  {
-    SessionManager manager(backend, settings);
-    first = manager.start(manager.defaultRequest());
-    ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
-  }
+  const std::string first = calibrated(backend, settings);
+  ASSERT_FALSE(first.empty());
   const std::array<double, 6> before = backend.controller().calOffsets();
   journalBegunApply(dir.path, first, before, backend.identity());
   const long restarts = backend.controller().restartCount();
@@ -1419,12 +1422,8 @@ TEST(SessionManagerRecovery, ValuesNeitherBackedUpNorWrittenAreKeptUntilAcknowle
   const TempDir dir;
   GatedBackend backend(cellFor(6));
   const ManagerSettings settings = recoverySettingsIn(dir.path);
-  std::string first;
-  {
-    SessionManager manager(backend, settings);
-    first = manager.start(manager.defaultRequest());
-    ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
-  }
+  const std::string first = calibrated(backend, settings);
+  ASSERT_FALSE(first.empty());
   const std::array<double, 6> before = backend.controller().calOffsets();
   journalBegunApply(dir.path, first, before, backend.identity());
   const double joint4 = before[3] + 0.02;
@@ -1482,12 +1481,8 @@ TEST(SessionManagerRecovery, AVerificationKilledMidApplyIsNeverResumedAndClosedO
   const TempDir dir;
   GatedBackend backend(cellFor(6));
   const ManagerSettings settings = recoverySettingsIn(dir.path);
-  std::string first;
-  {
-    SessionManager manager(backend, settings);
-    first = manager.start(manager.defaultRequest());
-    ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
-  }
+  const std::string first = calibrated(backend, settings);
+  ASSERT_FALSE(first.empty());
   // The apply had written, restarted and begun its verification: two poses on disk.
   const std::array<double, 6> before = backend.controller().calOffsets();
   const std::array<double, 6> written =

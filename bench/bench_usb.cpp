@@ -139,7 +139,7 @@ void BM_AveragedReading64(benchmark::State& state) {
   double simulated = 0;
   for (auto _ : state) {
     const auto t0 = board.now();
-    const psd::VoltageReading r = psd::readAveraged(daq, psd::PsdChannels{}, 64, 16000.0);
+    const psd::VoltageReading r = usb1408fs::readAveraged(daq, usb1408fs::PsdChannels{}, 64, 16000.0);
     simulated += std::chrono::duration<double>(board.now() - t0).count();
     benchmark::DoNotOptimize(r.x);
   }
@@ -153,7 +153,7 @@ void BM_StreamReading64(benchmark::State& state) {
   sim::Usb1408fsModel board;
   board.setAnalogSource(sim::psdAnalogSource(psd, [](double) { return PsdSpot{0.1, -0.2}; }));
   usb1408fs::Usb1408fs daq(sim::FakeTransport::opener(board));
-  psd::PsdStream stream(daq, psd::PsdChannels{}, 64, 16000.0);
+  usb1408fs::PsdStream stream(daq, usb1408fs::PsdChannels{}, 64, 16000.0);
   psd::VoltageReading r;
   stream.next(r, 10ms);
   const auto t0 = board.now();
@@ -184,10 +184,10 @@ void BM_ChainPsdReading(benchmark::State& state) {
   const psd::PsdMap map = psd::PsdMap::fit(sim::simulateSweep(rig, sweep), psd::MapFitOptions{});
   rig.setSpot(PsdSpot{0.1, -0.2});
   BoardClock clock(rig.board());
-  psd::PsdConfig o;
+  usb1408fs::BoardSettings o;
   o.samples_per_reading = static_cast<int>(state.range(0));
   o.scan_rate_hz = static_cast<double>(state.range(1));
-  usb1408fs::ChainPsdReader reader(rig.daq(), map, clock, o);
+  usb1408fs::ChainPsdReader reader(rig.daq(), map, clock, o, psd::PsdConfig{});
   double simulated = 0;
   for (auto _ : state) {
     const auto t0 = rig.board().now();

@@ -13,30 +13,26 @@ constexpr double kCoarseVoltsPerMm = 5.0;
 }  // namespace
 
 ChainPsdReader::ChainPsdReader(Usb1408fs& daq, psd::PsdMap map, CellClock& clock,
-                               const psd::PsdConfig& config)
+                               const BoardSettings& board, const psd::PsdConfig& psd)
     : daq_(daq),
       map_(std::move(map)),
       clock_(clock),
-      scan_(psd::averagedScan(config.channels, static_cast<std::size_t>(config.samples_per_reading),
-                              config.scan_rate_hz)),
-      detector_(config.sum_threshold_v, config.sumOffThresholdV()) {}
+      scan_(averagedScan(board.channels, static_cast<std::size_t>(board.samples_per_reading),
+                         board.scan_rate_hz)),
+      detector_(psd.sum_threshold_v, psd.sumOffThresholdV()) {}
 
 PsdReading ChainPsdReader::read() {
-  // A scan per reading rather than a continuous one (psd::PsdStream): samples queued while the
+  // A scan per reading rather than a continuous one (PsdStream): samples queued while the
   // robot moved carry no time, so a stream would have to be drained at every read to keep them
   // out, and nothing polls it during a move of seconds, when the board's FIFO would overrun. The
   // cost is three commands per reading (ALOAD_QUEUE, AIN_SCAN, AIN_STOP).
-  const psd::VoltageReading v = psd::readAveraged(daq_, scan_);
+  const psd::VoltageReading v = readAveraged(daq_, scan_);
   const bool present = detector_.update(v);
-  const psd::SpotPosition p = map_.apply(v);
-  PsdReading r;
-  r.sum_v = v.sum;
+  PsdReading r = map_.apply(v);
+  // The detector's hysteresis decides presence, not the map's own light floor.
   r.spot_present = present;
-  r.in_valid_zone = present && p.valid;
-  if (r.in_valid_zone) {
-    r.spot = p.spot;
-    r.se = p.se;
-  } else {
+  r.in_valid_zone = present && r.in_valid_zone;
+  if (!r.in_valid_zone) {
     // The map extrapolates wildly outside its zone; the saturating voltages over the centre slope
     // still point the right way, which is all the servo needs to get back into the zone.
     r.spot = {v.x / kCoarseVoltsPerMm, v.y / kCoarseVoltsPerMm};

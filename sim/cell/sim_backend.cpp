@@ -46,12 +46,23 @@ class SimCalibration final : public ControllerCalibration {
   bool remote_update_;
 };
 
+// The simulated controllers speak the IRC5 protocol (sim::SimController): a link of another
+// kind could not talk to them.
+std::unique_ptr<Irc5Client> irc5Link(std::unique_ptr<ControllerConnection> link) {
+  if (dynamic_cast<Irc5Client*>(link.get()) == nullptr)
+    throw ConfigError("controller.kind",
+                      {"the simulated cell's controller speaks the IRC5 protocol: "
+                       "backend.kind: sim needs controller.kind: irc5"});
+  return std::unique_ptr<Irc5Client>(static_cast<Irc5Client*>(link.release()));
+}
+
 class SimulatedLinkedCell final : public service::LinkedCell {
  public:
-  SimulatedLinkedCell(SimulatedCell& cell, Irc5Options options)
-      : LinkedCell(std::make_unique<Irc5Client>(std::move(options)),
+  SimulatedLinkedCell(SimulatedCell& cell, std::unique_ptr<ControllerConnection> link)
+      : LinkedCell(std::move(link),
                    std::make_unique<usb1408fs::Usb1408fsReadout>(cell.boardOpener(), cell.psdMap(),
-                                                                 cell, simulatedReadout()),
+                                                                 cell, simulatedReadout().board,
+                                                                 simulatedReadout().psd),
                    cell),
         cell_(cell),
         calibration_(*LinkedCell::calibration(), cell.controller(),
@@ -76,8 +87,8 @@ class SimulatedLinkedCell final : public service::LinkedCell {
 
 }  // namespace
 
-SimBackend::SimBackend(SimulatedCellOptions options, std::function<void(Irc5Options&)> adjust)
-    : cell_(std::move(options)), adjust_(std::move(adjust)) {}
+SimBackend::SimBackend(SimulatedCellOptions options, SimLinkFactory link)
+    : cell_(std::move(options)), link_(std::move(link)) {}
 
 CellKnowledge SimBackend::knowledge() const {
   const SessionKnowledge k = knowledgeOf(cell_.world());
@@ -86,9 +97,10 @@ CellKnowledge SimBackend::knowledge() const {
 }
 
 std::unique_ptr<ConnectedCell> SimBackend::connect() {
-  Irc5Options o = cell_.clientOptions();
-  if (adjust_) adjust_(o);
-  return std::make_unique<SimulatedLinkedCell>(cell_, std::move(o));
+  const Irc5Options own = cell_.clientOptions();
+  if (!link_) return std::make_unique<SimulatedLinkedCell>(cell_, std::make_unique<Irc5Client>(own));
+  return std::make_unique<SimulatedLinkedCell>(
+      cell_, irc5Link(link_({own.host, own.port, own.backoff_initial})));
 }
 
 class ExternalSimBackend::Cell final : public service::LinkedCell {
@@ -112,10 +124,10 @@ class ExternalSimBackend::Cell final : public service::LinkedCell {
 
  public:
   Cell(ExternalSimBackend& backend, std::unique_ptr<Irc5Client> spot_link)
-      : LinkedCell(std::make_unique<Irc5Client>(backend.options_.client),
+      : LinkedCell(irc5Link(backend.options_.link(backend.options_.at)),
                    std::make_unique<usb1408fs::Usb1408fsReadout>(
                        FakeTransport::opener(backend.board_), backend.map_, backend.clock_,
-                       simulatedReadout()),
+                       simulatedReadout().board, simulatedReadout().psd),
                    backend.clock_),
         backend_(backend),
         spot_link_(std::move(spot_link)),
@@ -205,12 +217,12 @@ CellKnowledge ExternalSimBackend::knowledge() const {
 }
 
 std::unique_ptr<ConnectedCell> ExternalSimBackend::connect() {
-  auto spot_link = std::make_unique<Irc5Client>(options_.client);
+  auto spot_link = irc5Link(options_.link(options_.at));
   spot_link->connect();
   const SimWorldId theirs = spot_link->readSimWorldId();
   const std::string ours = worldHash(options_.world);
   if (theirs.hash != ours) {
-    const std::string where = options_.client.host + ":" + std::to_string(options_.client.port);
+    const std::string where = options_.at.host + ":" + std::to_string(options_.at.port);
     throw ConfigError(
         "backend.sim_host",
         {"the zerocal-sim at " + where + " simulates world " + theirs.hash + " (its --seed " +

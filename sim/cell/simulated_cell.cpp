@@ -98,12 +98,12 @@ void SimulatedCell::waitS(double seconds) noexcept {
   if (seconds > 0) waited_s_ += seconds;
 }
 
-psd::PsdConfig simulatedReadout() {
-  psd::PsdConfig c;
-  c.samples_per_reading = 64;
-  c.scan_rate_hz = 16000;
-  c.sum_threshold_v = 0.5;  // and 0.4 to lose a spot (psd::PsdConfig::sumOffThresholdV)
-  return c;
+SimulatedReadout simulatedReadout() {
+  SimulatedReadout r;
+  r.board.samples_per_reading = 64;
+  r.board.scan_rate_hz = 16000;
+  r.psd.sum_threshold_v = 0.5;  // and 0.4 to lose a spot (psd::PsdConfig::sumOffThresholdV)
+  return r;
 }
 
 }  // namespace zerocal::sim

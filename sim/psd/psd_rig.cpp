@@ -7,7 +7,7 @@
 namespace zerocal::sim {
 namespace {
 
-PsdWiring wiringFor(const psd::PsdChannels& channels) {
+PsdWiring wiringFor(const usb1408fs::PsdChannels& channels) {
   PsdWiring wiring;
   wiring.x = channels.x;
   wiring.y = channels.y;
@@ -23,7 +23,7 @@ PsdModelOptions withSeed(std::uint32_t seed) {
 
 }  // namespace
 
-SimulatedPsdRig::SimulatedPsdRig(std::uint32_t seed, const psd::PsdChannels& channels)
+SimulatedPsdRig::SimulatedPsdRig(std::uint32_t seed, const usb1408fs::PsdChannels& channels)
     : channels_(channels), psd_(withSeed(seed)) {
   board_.setAnalogSource(psdAnalogSource(
       psd_, [this](double) { return spot_; }, wiringFor(channels)));
@@ -48,7 +48,7 @@ std::vector<psd::SweepPoint> simulateSweep(SimulatedPsdRig& rig, const SweepOpti
                       -options.extent_mm + i * options.step_mm};
       rig.setSpot(p);
       const psd::VoltageReading r =
-          psd::readAveraged(rig.daq(), rig.channels(), options.samples, options.rate_hz);
+          usb1408fs::readAveraged(rig.daq(), rig.channels(), options.samples, options.rate_hz);
       sweep.push_back({p, r.x, r.y, r.sum});
     }
   }

@@ -14,6 +14,7 @@
 #include "zerocal/error.h"
 #include "zerocal/psd/psd.h"
 #include "zerocal/psd/psd_config.h"
+#include "zerocal/usb1408fs/usb1408fs_kind.h"
 #include "zerocal/sim/psd_rig.h"
 #include "zerocal/usb1408fs/libusb_transport.h"
 
@@ -28,8 +29,8 @@ std::string format(const char* fmt, double a, double b = 0, double c = 0, double
 
 // A map for `psd --sim` when the configuration has none: fitted from a simulated sweep with
 // another noise seed than the live readings, as a rig's map comes from an earlier sweep.
-psd::PsdMap mapFromSimulatedSweep(const psd::PsdConfig& config, std::uint32_t seed) {
-  sim::SimulatedPsdRig rig(seed + 1000, config.channels);
+psd::PsdMap mapFromSimulatedSweep(const usb1408fs::BoardSettings& board, std::uint32_t seed) {
+  sim::SimulatedPsdRig rig(seed + 1000, board.channels);
   return psd::PsdMap::fit(sim::simulateSweep(rig, sim::SweepOptions{}), psd::MapFitOptions{});
 }
 
@@ -161,13 +162,16 @@ int runPsdMap(const PsdMapArgs& args) {
 int runPsd(const PsdArgs& args) {
   // The daemon's daq section, read and checked as the daemon reads it; without a file, its
   // defaults.
-  const psd::PsdConfig config =
-      args.config_file.empty() ? psd::PsdConfig{} : loadDaqSection(args.config_file);
+  const DaqConfig daq_section =
+      args.config_file.empty() ? DaqConfig{} : loadDaqSection(args.config_file);
+  const psd::PsdConfig& config = daq_section.psd;
+  // This command reads the USB-1408FS, whichever board the file's daq.kind names.
+  const usb1408fs::BoardSettings& settings = usb1408fs::boardSettingsOf(daq_section.boards);
   std::optional<psd::PsdMap> map;
   if (!config.map_file.empty()) map = psd::loadPsdMap(config.map_file);
   if (!map && args.sim) {
     std::cerr << "zerocal: no map configured; using one fitted from a simulated sweep\n";
-    map = mapFromSimulatedSweep(config, args.seed);
+    map = mapFromSimulatedSweep(settings, args.seed);
   }
 
   // The simulated rig and the real board meet at the same Usb1408fs: only the transport differs.
@@ -175,7 +179,7 @@ int runPsd(const PsdArgs& args) {
   std::unique_ptr<usb1408fs::Usb1408fs> board;
   usb1408fs::Usb1408fs* daq = nullptr;
   if (args.sim) {
-    rig = std::make_unique<sim::SimulatedPsdRig>(args.seed, config.channels);
+    rig = std::make_unique<sim::SimulatedPsdRig>(args.seed, settings.channels);
     if (args.sim_dark) {
       rig->setSpot(std::nullopt);
     } else {
@@ -183,7 +187,7 @@ int runPsd(const PsdArgs& args) {
     }
     daq = &rig->daq();
   } else {
-    const std::string serial = config.serial;
+    const std::string serial = settings.serial;
     board = std::make_unique<usb1408fs::Usb1408fs>(
         [serial] { return usb1408fs::LibusbTransport::open(serial); });
     daq = board.get();
@@ -193,12 +197,12 @@ int runPsd(const PsdArgs& args) {
     std::cerr << "zerocal: no map configured (map_file in the daq: section): volts only\n";
   }
 
-  const auto samples = static_cast<std::size_t>(config.samples_per_reading);
-  psd::PsdStream stream(*daq, config.channels, samples, config.scan_rate_hz);
+  const auto samples = static_cast<std::size_t>(settings.samples_per_reading);
+  usb1408fs::PsdStream stream(*daq, settings.channels, samples, settings.scan_rate_hz);
   psd::SpotDetector detector(config.sum_threshold_v, config.sumOffThresholdV());
   // Twice a block's acquisition plus USB latency: a missing reading means the board stalled.
   const auto timeout = std::chrono::milliseconds(
-      100 + static_cast<long>(2000.0 * static_cast<double>(samples) / config.scan_rate_hz));
+      100 + static_cast<long>(2000.0 * static_cast<double>(samples) / settings.scan_rate_hz));
   for (std::size_t k = 0; k < args.count; ++k) {
     psd::VoltageReading r;
     if (!stream.next(r, timeout)) {
@@ -206,10 +210,10 @@ int runPsd(const PsdArgs& args) {
                                     std::to_string(timeout.count()) + " ms");
     }
     const bool present = detector.update(r);
-    psd::SpotPosition p;
+    PsdReading p;
     if (map) p = map->apply(r);
-    const bool have_uv = map && present && p.present;
-    const bool valid = have_uv && p.valid;
+    const bool have_uv = map && present && p.spot_present;
+    const bool valid = have_uv && p.in_valid_zone;
     if (args.json) {
       nlohmann::json j;
       j["reading"] = k;
@@ -239,7 +243,7 @@ int runPsd(const PsdArgs& args) {
       line += "no spot";
     } else if (!map) {
       line += "spot present";
-    } else if (!p.present) {
+    } else if (!p.spot_present) {
       line += "spot present, too little light for the map (SUM below its min_sum_v)";
     } else {
       line += valid ? "spot present, in the valid zone" : "spot present, OUTSIDE the valid zone";

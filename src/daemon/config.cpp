@@ -16,6 +16,7 @@
 
 #include "zerocal/calib/cell_model.h"
 #include "zerocal/calib/planner.h"
+#include "zerocal/cell/kinds.h"
 #include "zerocal/error.h"
 
 namespace zerocal {
@@ -24,26 +25,10 @@ namespace {
 namespace fs = std::filesystem;
 using Json = nlohmann::json;
 
-// One key of the schema. The setter parses completely before it assigns, so a wrong value never
-// leaves a half-changed member behind; it returns the reason for refusing, or "".
-struct Field {
-  std::string path;
-  std::function<std::string(const YAML::Node&, const std::string& base_dir)> set;
-  std::function<Json()> get;
-};
-
-std::string describe(const YAML::Node& node) {
-  switch (node.Type()) {
-    case YAML::NodeType::Null:
-      return "no value";
-    case YAML::NodeType::Sequence:
-      return "a list";
-    case YAML::NodeType::Map:
-      return "a mapping";
-    default:
-      return "'" + node.Scalar() + "'";
-  }
-}
+using settings::Checker;
+using settings::Field;
+using settings::Fields;
+using namespace settings;
 
 std::string where(const std::string& origin, const YAML::Node& node) {
   const YAML::Mark mark = node.Mark();
@@ -51,223 +36,21 @@ std::string where(const std::string& origin, const YAML::Node& node) {
   return origin + ":" + std::to_string(mark.line + 1);
 }
 
-// A text value goes into every session's session.json (configToJson): it must be what JSON can
-// hold, UTF-8, or that snapshot would fail at every session start. Checked by the same serializer.
-bool isUtf8(const std::string& text) {
-  try {
-    Json(text).dump();
-    return true;
-  } catch (const Json::type_error&) {
-    return false;
-  }
-}
-
-bool parseInteger(const YAML::Node& node, long long& value) {
-  if (!node.IsScalar()) return false;
-  const std::string& text = node.Scalar();
-  if (text.empty()) return false;
-  errno = 0;
-  char* end = nullptr;
-  value = std::strtoll(text.c_str(), &end, 10);
-  return errno == 0 && end == text.c_str() + text.size();
-}
-
-bool parseReal(const YAML::Node& node, double& value) {
-  if (!node.IsScalar()) return false;
-  const std::string& text = node.Scalar();
-  if (text.empty()) return false;
-  char* end = nullptr;
-  value = std::strtod(text.c_str(), &end);
-  return end == text.c_str() + text.size();
-}
-
-template <class T>
-Field integerField(std::string path, T& target) {
-  return {std::move(path),
-          [&target](const YAML::Node& node, const std::string&) -> std::string {
-            long long value = 0;
-            if (!parseInteger(node, value)) return "expected an integer, got " + describe(node);
-            // Compared as long long: the widest member types (std::size_t) are capped there.
-            constexpr long long lo = static_cast<long long>(std::numeric_limits<T>::min());
-            constexpr long long hi =
-                std::numeric_limits<T>::max() >
-                        static_cast<unsigned long long>(std::numeric_limits<long long>::max())
-                    ? std::numeric_limits<long long>::max()
-                    : static_cast<long long>(std::numeric_limits<T>::max());
-            if (value < lo || value > hi)
-              return node.Scalar() + " does not fit (" + std::to_string(lo) + ".." +
-                     std::to_string(hi) + ")";
-            target = static_cast<T>(value);
-            return {};
-          },
-          [&target] { return Json(target); }};
-}
-
-Field millisField(std::string path, std::chrono::milliseconds& target) {
-  return {std::move(path),
-          [&target](const YAML::Node& node, const std::string&) -> std::string {
-            long long value = 0;
-            if (!parseInteger(node, value))
-              return "expected an integer (milliseconds), got " + describe(node);
-            target = std::chrono::milliseconds(value);
-            return {};
-          },
-          [&target] { return Json(target.count()); }};
-}
-
-// A key in seconds (a number) for a member in milliseconds; fractions of a millisecond are cut
-// off, as the timers that use the member count whole milliseconds.
-Field secondsField(std::string path, std::chrono::milliseconds& target) {
-  return {std::move(path),
-          [&target](const YAML::Node& node, const std::string&) -> std::string {
-            double value = 0;
-            if (!parseReal(node, value))
-              return "expected a number (seconds), got " + describe(node);
-            if (!std::isfinite(value) || std::abs(value) > 1e9)
-              return "expected a finite number of seconds, got " + describe(node);
-            target = std::chrono::duration_cast<std::chrono::milliseconds>(
-                std::chrono::duration<double>(value));
-            return {};
-          },
-          [&target] { return Json(std::chrono::duration<double>(target).count()); }};
-}
-
-// A key in KiB for a member in bytes.
-Field kibField(std::string path, std::size_t& target_bytes) {
-  return {std::move(path),
-          [&target_bytes](const YAML::Node& node, const std::string&) -> std::string {
-            long long value = 0;
-            if (!parseInteger(node, value))
-              return "expected an integer (KiB), got " + describe(node);
-            if (value < 0 || value > (1LL << 40))
-              return node.Scalar() + " does not fit (0.." + std::to_string(1LL << 40) + ")";
-            target_bytes = static_cast<std::size_t>(value) * 1024;
-            return {};
-          },
-          [&target_bytes] { return Json(static_cast<long long>(target_bytes / 1024)); }};
-}
-
-Field realField(std::string path, double& target) {
-  return {std::move(path),
-          [&target](const YAML::Node& node, const std::string&) -> std::string {
-            double value = 0;
-            if (!parseReal(node, value)) return "expected a number, got " + describe(node);
-            if (!std::isfinite(value)) return "expected a finite number, got " + describe(node);
-            target = value;
-            return {};
-          },
-          [&target] { return Json(target); }};
-}
-
-Field textField(std::string path, std::string& target) {
-  return {std::move(path),
-          [&target](const YAML::Node& node, const std::string&) -> std::string {
-            if (!node.IsScalar()) return "expected a text, got " + describe(node);
-            if (!isUtf8(node.Scalar())) return "expected a text in UTF-8";
-            target = node.Scalar();
-            return {};
-          },
-          [&target] { return Json(target); }};
-}
-
-// A file or folder name; relative names are resolved against the folder of the file that wrote
-// them, so a drop-in can name a neighbour. `keep` is a word that is not a path ("builtin").
-Field pathField(std::string path, std::string& target, std::string keep = {}) {
-  return {std::move(path),
-          [&target, keep](const YAML::Node& node, const std::string& base_dir) -> std::string {
-            if (!node.IsScalar()) return "expected a path, got " + describe(node);
-            if (!isUtf8(node.Scalar())) return "expected a path in UTF-8";
-            std::string value = node.Scalar();
-            if (!value.empty() && value != keep && fs::path(value).is_relative())
-              value = (fs::path(base_dir.empty() ? fs::current_path() : fs::path(base_dir)) / value)
-                          .lexically_normal()
-                          .string();
-            target = value;
-            return {};
-          },
-          [&target] { return Json(target); }};
-}
-
-template <class E>
-Field choiceField(std::string path, E& target, std::vector<std::pair<std::string, E>> choices) {
-  auto name_of = [choices](E value) {
-    for (const auto& [name, e] : choices)
-      if (e == value) return name;
-    return std::string("?");
-  };
-  return {std::move(path),
-          [&target, choices](const YAML::Node& node, const std::string&) -> std::string {
-            std::string list;
-            for (const auto& [name, e] : choices) {
-              if (node.IsScalar() && node.Scalar() == name) {
-                target = e;
-                return {};
-              }
-              list += (list.empty() ? "" : ", ") + name;
-            }
-            return "expected one of " + list + ", got " + describe(node);
-          },
-          [&target, name_of] { return Json(name_of(target)); }};
-}
-
-Field seedField(std::string path, std::optional<std::uint64_t>& target) {
-  return {std::move(path),
-          [&target](const YAML::Node& node, const std::string&) -> std::string {
-            // null is a value here: a later layer can take back an earlier layer's seed.
-            if (node.IsNull()) {
-              target.reset();
-              return {};
-            }
-            long long value = 0;
-            if (!parseInteger(node, value) || value < 0)
-              return "expected a non-negative integer or null, got " + describe(node);
-            target = static_cast<std::uint64_t>(value);
-            return {};
-          },
-          [&target] { return target ? Json(*target) : Json(nullptr); }};
-}
-
-Field vec3Field(std::string path, std::array<double, 3>& target) {
-  return {std::move(path),
-          [&target](const YAML::Node& node, const std::string&) -> std::string {
-            const std::string expected = "expected a list of 3 numbers, got ";
-            if (!node.IsSequence() || node.size() != 3) {
-              return expected + (node.IsSequence() ? "a list of " + std::to_string(node.size())
-                                                   : describe(node));
-            }
-            std::array<double, 3> value{};
-            for (std::size_t i = 0; i < 3; ++i)
-              if (!parseReal(node[i], value[i]) || !std::isfinite(value[i]))
-                return expected + describe(node[i]) + " at position " + std::to_string(i + 1);
-            target = value;
-            return {};
-          },
-          [&target] { return Json(target); }};
-}
-
-const std::vector<std::pair<std::string, usb1408fs::Range>> kRanges = {
-    {"20V", usb1408fs::Range::kBip20V},     {"10V", usb1408fs::Range::kBip10V},
-    {"5V", usb1408fs::Range::kBip5V},       {"4V", usb1408fs::Range::kBip4V},
-    {"2.5V", usb1408fs::Range::kBip2_5V},   {"2V", usb1408fs::Range::kBip2V},
-    {"1.25V", usb1408fs::Range::kBip1_25V}, {"1V", usb1408fs::Range::kBip1V}};
-
 const std::vector<std::pair<std::string, LogLevel>> kLevels = {
     {"trace", LogLevel::kTrace}, {"debug", LogLevel::kDebug}, {"info", LogLevel::kInfo},
     {"warn", LogLevel::kWarn},   {"error", LogLevel::kError}, {"critical", LogLevel::kCritical},
     {"off", LogLevel::kOff}};
 
-void addChannel(std::vector<Field>& fields, const std::string& name, usb1408fs::Channel& channel) {
-  const std::string prefix = "daq.channels." + name + ".";
-  fields.push_back(integerField(prefix + "number", channel.number));
-  fields.push_back(
-      choiceField<usb1408fs::InputMode>(prefix + "mode", channel.mode,
-                                        {{"differential", usb1408fs::InputMode::kDifferential},
-                                         {"single_ended", usb1408fs::InputMode::kSingleEnded}}));
-  fields.push_back(choiceField(prefix + "range", channel.range, kRanges));
+Choices<std::string> kindChoices(const std::vector<std::string>& names) {
+  Choices<std::string> choices;
+  for (const std::string& name : names) choices.emplace_back(name, name);
+  return choices;
 }
 
-// The whole schema, bound to one configuration. Adding a key means one line here, one in
-// validate(), one in config/zerocald.yaml and one in docs/configuration.md.
+// The whole schema, bound to one configuration: the keys of every section, and those of every
+// controller and DAQ kind's own section (each kind declares its own). Adding a key means one
+// line here (or in the kind's declare()), one in the checks, one in config/zerocald.yaml and one
+// in docs/configuration.md.
 std::vector<Field> schema(DaemonConfig& c) {
   std::vector<Field> f;
   f.push_back(
@@ -284,33 +67,15 @@ std::vector<Field> schema(DaemonConfig& c) {
   f.push_back(integerField("backend.sim_port", c.backend.sim_port));
 
   auto& k = c.controller;
-  f.push_back(
-      choiceField<ControllerKind>("controller.kind", k.kind, {{"irc5", ControllerKind::kIrc5}}));
+  f.push_back(choiceField("controller.kind", k.kind, kindChoices(k.sections.names())));
   f.push_back(pathField("controller.robot", k.robot, "builtin"));
-  auto& l = k.irc5;
-  f.push_back(textField("controller.host", l.host));
-  f.push_back(integerField("controller.port", l.port));
-  f.push_back(millisField("controller.connect_timeout_ms", l.connect_timeout));
-  f.push_back(millisField("controller.request_timeout_ms", l.request_timeout));
-  f.push_back(realField("controller.move_timeout_factor", l.move_timeout_factor));
-  f.push_back(millisField("controller.move_timeout_margin_ms", l.move_timeout_margin));
-  f.push_back(realField("controller.speed_tcp_mm_s", l.speed_tcp_mm_s));
-  f.push_back(realField("controller.speed_ori_deg_s", l.speed_ori_deg_s));
-  f.push_back(realField("controller.limit_margin_deg", l.limit_margin_deg));
   f.push_back(realField("controller.max_step_deg", k.max_step_deg));
-  f.push_back(integerField("controller.reconnect_attempts", l.reconnect_attempts));
-  f.push_back(millisField("controller.restart_timeout_ms", l.restart_timeout));
+  k.sections.declare("controller", f);
 
-  using psd::DaqKind;
-  f.push_back(choiceField<DaqKind>("daq.kind", c.daq.kind, {{"usb-1408fs", DaqKind::kUsb1408fs}}));
-  f.push_back(textField("daq.serial", c.daq.serial));
-  addChannel(f, "x", c.daq.channels.x);
-  addChannel(f, "y", c.daq.channels.y);
-  addChannel(f, "sum", c.daq.channels.sum);
-  f.push_back(realField("daq.scan_rate_hz", c.daq.scan_rate_hz));
-  f.push_back(integerField("daq.samples_per_reading", c.daq.samples_per_reading));
-  f.push_back(realField("daq.sum_threshold_v", c.daq.sum_threshold_v));
-  f.push_back(pathField("daq.map_file", c.daq.map_file));
+  f.push_back(choiceField("daq.kind", c.daq.kind, kindChoices(c.daq.boards.names())));
+  f.push_back(realField("daq.sum_threshold_v", c.daq.psd.sum_threshold_v));
+  f.push_back(pathField("daq.map_file", c.daq.psd.map_file));
+  c.daq.boards.declare("daq", f);
 
   auto& s = c.servo;
   using servo::ServoStop;
@@ -379,6 +144,25 @@ bool isSection(const std::vector<Field>& fields, const std::string& path) {
   return false;
 }
 
+// An unknown key, and where it went if it is one of a kind's own now: the controller's and the
+// board's keys sat directly under controller: and daq: before each kind owned a section.
+std::string unknownKey(const std::vector<Field>& fields, const std::string& path) {
+  std::string message = "unknown key '" + path + "'";
+  const auto dot = path.find('.');
+  if (dot == std::string::npos) return message;
+  const std::string family = path.substr(0, dot + 1), rest = path.substr(dot + 1);
+  for (const Field& field : fields) {
+    if (field.path.compare(0, family.size(), family) != 0) continue;
+    const auto kind_end = field.path.find('.', family.size());
+    if (kind_end == std::string::npos) continue;
+    const std::string in_kind = field.path.substr(kind_end + 1);
+    if (in_kind == rest || in_kind.compare(0, rest.size() + 1, rest + ".") == 0)
+      return message + ": it is '" + field.path.substr(0, kind_end + 1) + rest +
+             "' now, in the section of its kind (docs/configuration.md)";
+  }
+  return message;
+}
+
 struct Layer {
   const std::vector<Field>& fields;
   const std::string& origin;
@@ -418,82 +202,23 @@ struct Layer {
       else if (isSection(fields, path))
         walk(entry.second, path);
       else
-        problems.push_back(at(entry.first) + ": unknown key '" + path + "'");
+        problems.push_back(at(entry.first) + ": " + unknownKey(fields, path));
     }
   }
 };
 
-template <class T>
-std::string str(T value) {
-  std::ostringstream s;
-  s << value;
-  return s.str();
-}
-
-class Checker {
- public:
-  Checker(const ConfigOrigins& origins, std::vector<std::string>& problems)
-      : origins_(origins), problems_(problems) {}
-
-  void fail(const std::string& path, const std::string& message) {
-    const auto it = origins_.find(path);
-    problems_.push_back((it == origins_.end() ? std::string("default") : it->second) + ": " + path +
-                        ": " + message);
-  }
-  // lo <= value <= hi, or lo < value when open_low.
-  void range(const std::string& path, double value, double lo, double hi, bool open_low = false) {
-    if (open_low ? !(value > lo) : !(value >= lo)) {
-      fail(path, str(value) + " must be " + (open_low ? "greater than " : "at least ") + str(lo));
-    } else if (!(value <= hi)) {
-      fail(path, str(value) + " must be at most " + str(hi));
-    }
-  }
-  void positive(const std::string& path, double value, double hi) {
-    range(path, value, 0.0, hi, true);
-  }
-  void fileExists(const std::string& path, const std::string& file) {
-    std::error_code ec;
-    if (!fs::is_regular_file(file, ec)) fail(path, "no such file: " + file);
-  }
-
- private:
-  const ConfigOrigins& origins_;
-  std::vector<std::string>& problems_;
-};
-
-// The daq section's checks, shared by zerocald and `zerocal psd` (loadDaqSection).
-void checkDaq(const psd::PsdConfig& d, Checker& check) {
+// The daq section's checks, shared by zerocald and `zerocal psd` (loadDaqSection): its own
+// keys, and its board's section.
+void checkDaq(const DaqConfig& d, bool real_cell, Checker& check) {
   // An empty map_file is refused by the hardware backend when it starts, not here: the
   // compiled-in defaults stay a valid configuration for the simulated cell.
-  if (!d.map_file.empty()) check.fileExists("daq.map_file", d.map_file);
-
-  const std::pair<const char*, const usb1408fs::Channel*> channels[] = {
-      {"x", &d.channels.x}, {"y", &d.channels.y}, {"sum", &d.channels.sum}};
-  bool channels_valid = true;
-  for (const auto& [name, channel] : channels) {
-    const int highest = channel->mode == usb1408fs::InputMode::kDifferential ? 3 : 7;
-    check.range(std::string("daq.channels.") + name + ".number", channel->number, 0, highest);
-    channels_valid = channels_valid && channel->number >= 0 && channel->number <= highest;
-  }
-  for (std::size_t i = 0; i < 3; ++i)
-    for (std::size_t j = i + 1; j < 3; ++j) {
-      const bool shared = usb1408fs::sharesTerminal(*channels[i].second, *channels[j].second);
-      if (shared)
-        check.fail(std::string("daq.channels.") + channels[j].first,
-                   std::string("uses the same input as daq.channels.") + channels[i].first);
-      channels_valid = channels_valid && !shared;
-    }
-  // The board scans consecutive inputs, lowest first (docs/usb1408fs.md): x, y, sum in that order.
-  if (channels_valid &&
-      (usb1408fs::wireChannel(d.channels.y) != usb1408fs::wireChannel(d.channels.x) + 1 ||
-       usb1408fs::wireChannel(d.channels.sum) != usb1408fs::wireChannel(d.channels.y) + 1))
-    check.fail("daq.channels",
-               "x, y and sum must be consecutive inputs of one mode in that order (e.g. "
-               "differential 0, 1, 2): the USB-1408FS scans a range of inputs");
-  // The board converts at most 48 kS/s in all, shared by the three channels of a scan.
-  check.positive("daq.scan_rate_hz", d.scan_rate_hz, 16000.0);
-  check.range("daq.samples_per_reading", d.samples_per_reading, 1, 1000000);
-  check.range("daq.sum_threshold_v", d.sum_threshold_v, 0.0, 20.0);
+  if (!d.psd.map_file.empty()) check.fileExists("daq.map_file", d.psd.map_file);
+  check.range("daq.sum_threshold_v", d.psd.sum_threshold_v, 0.0, 20.0);
+  if (const DaqSettings* board = d.boards.find(d.kind))
+    board->check("daq." + d.kind + ".", real_cell, check);
+  else
+    check.fail("daq.kind", "'" + d.kind + "' is not a board zerocal can read (" +
+                               kinds::daqKindNames() + ")");
 }
 
 std::string readFile(const fs::path& path, std::string& error) {
@@ -549,7 +274,7 @@ void applyConfigOverride(DaemonConfig& config, const std::string& assignment,
   else if (isSection(fields, path))
     layer.walk(value, path);
   else
-    problems.push_back(origin + ": unknown key '" + path + "'");
+    problems.push_back(origin + ": " + unknownKey(fields, path));
 }
 
 std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const ConfigOrigins& origins) {
@@ -570,48 +295,43 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
   }
 
   const auto& k = c.controller;
-  const auto& l = k.irc5;
+  const bool real_cell = b.kind == BackendKind::kHardware;
   if (k.robot != "builtin") check.fileExists("controller.robot", k.robot);
-  if (b.kind == BackendKind::kHardware && l.host.empty())
-    check.fail("controller.host", "must not be empty with backend.kind: hardware");
-  if (l.port == 0) check.fail("controller.port", "must be 1..65535");
-  check.positive("controller.connect_timeout_ms", l.connect_timeout.count(), 600000);
-  check.positive("controller.request_timeout_ms", l.request_timeout.count(), 600000);
-  check.range("controller.move_timeout_factor", l.move_timeout_factor, 1.0, 100.0);
-  check.range("controller.move_timeout_margin_ms", l.move_timeout_margin.count(), 0, 600000);
-  // 7000 mm/s and 1000 deg/s are above any IRC5 robot's maximum: beyond them a value is a typo.
-  check.positive("controller.speed_tcp_mm_s", l.speed_tcp_mm_s, 7000.0);
-  check.positive("controller.speed_ori_deg_s", l.speed_ori_deg_s, 1000.0);
-  check.range("controller.limit_margin_deg", l.limit_margin_deg, 0.0, 30.0);
   // A calibration never needs one move larger than this; a larger step is a typing error.
   check.positive("controller.max_step_deg", k.max_step_deg, 45.0);
-  check.range("controller.reconnect_attempts", l.reconnect_attempts, 0, 1000);
-  // The wait for a restart shows no progress: it must stay below the worker's 120 s stall limit.
-  check.positive("controller.restart_timeout_ms", l.restart_timeout.count(), 110000);
+  const ControllerSettings* controller = k.sections.find(k.kind);
+  if (controller)
+    controller->check("controller." + k.kind + ".", real_cell, check);
+  else
+    check.fail("controller.kind", "'" + k.kind + "' is not a controller zerocal can drive (" +
+                                      kinds::controllerKindNames() + ")");
 
-  checkDaq(c.daq, check);
+  checkDaq(c.daq, real_cell, check);
 
   const auto& s = c.servo;
   check.positive("servo.tolerance_um", s.tolerance_um, 1000.0);
   // A servo step moves the spot a few mm; 5 deg moves it by tens of mm at 1 m.
   check.positive("servo.max_step_deg", s.max_step_deg, 5.0);
   if (s.max_step_deg > k.max_step_deg)
-    check.fail("servo.max_step_deg", str(s.max_step_deg) + " exceeds controller.max_step_deg (" +
-                                         str(k.max_step_deg) + ")");
+    check.fail("servo.max_step_deg", numberText(s.max_step_deg) + " exceeds controller.max_step_deg (" +
+                                         numberText(k.max_step_deg) + ")");
   check.range("servo.max_iterations", s.max_iterations, 1, 100000);
   check.positive("servo.timeout_s", s.timeout_s, 3600.0);
   check.range("servo.settle_s", s.settle_s, 0.0, 60.0);
   check.positive("servo.search_radius_mm", s.search_radius_mm, 100.0);
   check.positive("servo.search_step_mm", s.search_step_mm, 100.0);
   if (s.search_step_mm > s.search_radius_mm)
-    check.fail("servo.search_step_mm", str(s.search_step_mm) + " exceeds servo.search_radius_mm (" +
-                                           str(s.search_radius_mm) + ")");
+    check.fail("servo.search_step_mm", numberText(s.search_step_mm) + " exceeds servo.search_radius_mm (" +
+                                           numberText(s.search_radius_mm) + ")");
   check.positive("servo.search_time_s", s.search_time_s, 3600.0);
   check.range("servo.sweep_speed_mm_s", s.sweep_speed_mm_s, 0.0, 1000.0);
-  if (s.sweep_speed_mm_s > l.speed_tcp_mm_s)
-    check.fail("servo.sweep_speed_mm_s", str(s.sweep_speed_mm_s) +
-                                             " exceeds controller.speed_tcp_mm_s (" +
-                                             str(l.speed_tcp_mm_s) + ")");
+  if (controller) {
+    const double linear = controller->motion().linear_speed_mm_s;
+    if (s.sweep_speed_mm_s > linear)
+      check.fail("servo.sweep_speed_mm_s",
+                 numberText(s.sweep_speed_mm_s) + " exceeds the linear speed of the controller." +
+                     k.kind + " section (" + numberText(linear) + " mm/s)");
+  }
   // Over 11.4 mm two turns of the spiral can pass either side of the lit disk (5.7 mm radius).
   check.positive("servo.sweep_pitch_mm", s.sweep_pitch_mm, 11.0);
   // Above 1 the step overshoots a right Jacobian; the servo is stable for any gain in (0, 1].
@@ -721,8 +441,20 @@ DaemonConfig loadDaemonConfig(const ConfigSources& sources) {
 
 nlohmann::json configToJson(const DaemonConfig& config) {
   DaemonConfig copy = config;
+  // The sections of the kinds not used are defaults nobody chose: the snapshot is what ran.
+  const auto ofAnotherKind = [&config](const std::string& path) {
+    const auto other = [&path](const std::string& family, const std::string& used,
+                               const std::vector<std::string>& kinds) {
+      for (const std::string& kind : kinds)
+        if (kind != used && path.rfind(family + "." + kind + ".", 0) == 0) return true;
+      return false;
+    };
+    return other("controller", config.controller.kind, config.controller.sections.names()) ||
+           other("daq", config.daq.kind, config.daq.boards.names());
+  };
   Json out = Json::object();
   for (const auto& field : schema(copy)) {
+    if (ofAnotherKind(field.path)) continue;
     Json* at = &out;
     std::string::size_type start = 0, dot;
     while ((dot = field.path.find('.', start)) != std::string::npos) {
@@ -741,7 +473,7 @@ std::vector<std::string> configKeys() {
   return keys;
 }
 
-psd::PsdConfig loadDaqSection(const std::string& path) {
+DaqConfig loadDaqSection(const std::string& path) {
   std::vector<std::string> problems;
   std::string error;
   const std::string text = readFile(path, error);
@@ -758,8 +490,9 @@ psd::PsdConfig loadDaqSection(const std::string& path) {
     if (root.IsMap() && root["psd"])
       throw ConfigError(
           path, {"the psd: section of earlier versions is now the daq: section of zerocald's "
-                 "configuration (docs/configuration.md): samples is samples_per_reading, rate_hz "
-                 "scan_rate_hz, a channel's input its number, range_v: 5 range: 5V; "
+                 "configuration (docs/configuration.md): samples is usb-1408fs.samples_per_reading, "
+                 "rate_hz usb-1408fs.scan_rate_hz, a channel (under usb-1408fs.channels) has "
+                 "its input as its number, range_v: 5 is range: 5V; "
                  "sum_off_threshold_v is 0.8 x sum_threshold_v, and the map is named by map_file"});
     throw ConfigError(path, {"the file must hold a 'daq:' section at its top level"});
   }
@@ -769,9 +502,21 @@ psd::PsdConfig loadDaqSection(const std::string& path) {
   const std::string base_dir = fs::absolute(path).parent_path().string();
   Layer{fields, path, base_dir, origins, problems}.walk(root["daq"], "daq");
   Checker check(origins, problems);
-  checkDaq(config.daq, check);
+  checkDaq(config.daq, /*real_cell=*/true, check);
   if (!problems.empty()) throw ConfigError(path, std::move(problems));
   return config.daq;
+}
+
+const ControllerSettings& ControllerConfig::section() const {
+  if (const ControllerSettings* found = sections.find(kind)) return *found;
+  throw ConfigError("controller.kind", {"'" + kind + "' is not a controller zerocal can drive (" +
+                                            kinds::controllerKindNames() + ")"});
+}
+
+const DaqSettings& DaqConfig::board() const {
+  if (const DaqSettings* found = boards.find(kind)) return *found;
+  throw ConfigError("daq.kind", {"'" + kind + "' is not a board zerocal can read (" +
+                                     kinds::daqKindNames() + ")"});
 }
 
 std::string logLevelName(LogLevel level) {

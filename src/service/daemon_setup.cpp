@@ -1,6 +1,5 @@
 #include "zerocal/service/daemon_setup.h"
 
-#include "zerocal/irc5/motion_time.h"
 #include "zerocal/report/session_report.h"
 #include "zerocal/service/cell_factory.h"
 #include "zerocal/service/hardware_backend.h"
@@ -11,7 +10,7 @@ namespace zerocal::service {
 RunSettings runSettingsOf(const DaemonConfig& config) {
   RunSettings s;
   s.servo = config.servo;
-  s.servo.limit_margin_deg = config.controller.irc5.limit_margin_deg;
+  s.servo.limit_margin_deg = config.controller.section().motion().limit_margin_deg;
   s.solve.noise_mm = config.session.noise_mm;
   s.solve.required_accuracy_deg = config.session.required_accuracy_deg;
   s.solve.model_length_mm = config.session.model_length_mm;
@@ -24,6 +23,15 @@ RunSettings runSettingsOf(const DaemonConfig& config) {
     s.solve.model_length_mm = s.solve.model_angle_deg = s.solve.model_sag_deg = 0;
   return s;
 }
+
+namespace {
+
+// The configured controller's link, pointed at a simulated controller.
+sim::SimLinkFactory linkTo(const ControllerConfig& controller) {
+  return [controller](const LinkEndpoint& at) { return makeControllerConnection(controller, &at); };
+}
+
+}  // namespace
 
 std::unique_ptr<CellBackend> makeBackend(const DaemonConfig& cfg) {
   if (cfg.backend.kind == BackendKind::kHardware) return std::make_unique<HardwareBackend>(cfg);
@@ -42,9 +50,8 @@ std::unique_ptr<CellBackend> makeBackend(const DaemonConfig& cfg) {
                          ? "backend.sim_seed " + std::to_string(seed) +
                                (cfg.backend.sim_ideal_world ? ", ideal world" : "")
                          : "backend.sim_world " + cfg.backend.sim_world;
-    e.client = irc5OptionsOf(cfg.controller);
-    e.client.host = cfg.backend.sim_host;
-    e.client.port = cfg.backend.sim_port;
+    e.at = {cfg.backend.sim_host, cfg.backend.sim_port, {}};
+    e.link = linkTo(cfg.controller);
     e.world = std::move(o.world);
     e.psd.seed = o.psd.seed;
     return std::make_unique<sim::ExternalSimBackend>(std::move(e));
@@ -53,14 +60,7 @@ std::unique_ptr<CellBackend> makeBackend(const DaemonConfig& cfg) {
   o.motion.overhead_s = cfg.backend.sim_move_overhead_s;
   // The controller section applies to the simulated controller as to a real one; only where the
   // controller listens and how quickly to retry come from the simulated cell.
-  return std::make_unique<sim::SimBackend>(std::move(o),
-                                           [controller = cfg.controller](Irc5Options& client) {
-                                             Irc5Options link = irc5OptionsOf(controller);
-                                             link.host = client.host;
-                                             link.port = client.port;
-                                             link.backoff_initial = client.backoff_initial;
-                                             client = std::move(link);
-                                           });
+  return std::make_unique<sim::SimBackend>(std::move(o), linkTo(cfg.controller));
 }
 
 ManagerSettings managerSettingsOf(const DaemonConfig& cfg) {
@@ -72,19 +72,13 @@ ManagerSettings managerSettingsOf(const DaemonConfig& cfg) {
     s.target_mm = Eigen::Vector3d(t[0], t[1], t[2]);
   }
   s.config_snapshot = configToJson(cfg);
+  const ControllerMotion motion = cfg.controller.section().motion();
   if (cfg.backend.kind == BackendKind::kSim && cfg.backend.sim_host.empty()) {
-    s.move_overhead = MoveOverhead{cfg.backend.sim_move_overhead_s, irc5::MotionCosts{}.settle_s};
+    s.move_overhead = MoveOverhead{cfg.backend.sim_move_overhead_s, motion.settle_s};
   }
-  // Only the motion differs between two orders of the same poses: every move has the same fixed
-  // cost and settling.
-  s.travel_s = [link = cfg.controller.irc5](const Robot& robot, const Joints& from,
-                                            const Joints& to) {
-    return irc5::jointMoveTime(robot, from, to, link.speed_tcp_mm_s, link.speed_ori_deg_s,
-                               irc5::MotionCosts{})
-        .motion_s;
-  };
+  s.travel_s = motion.travel_s;
   s.write_reports = [](const std::string& dir) { report::writeSessionReport(dir); };
-  s.controller_restart_timeout = cfg.controller.irc5.restart_timeout;
+  s.controller_restart_timeout = motion.restart_timeout;
   return s;
 }
 

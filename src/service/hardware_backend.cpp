@@ -33,16 +33,16 @@ Eigen::Matrix3d psdRotationOf(const std::array<double, 3>& rpy) {
 
 HardwareBackend::HardwareBackend(const DaemonConfig& config)
     : config_(config),
-      map_(config.daq.map_file.empty()
+      map_(config.daq.psd.map_file.empty()
                ? throw ConfigError("daq.map_file",
                                    {"the hardware backend needs the PSD map (from `zerocal "
                                     "psd-map`): set daq.map_file"})
-               : psd::loadPsdMap(config.daq.map_file)) {
+               : psd::loadPsdMap(config.daq.psd.map_file)) {
   knowledge_.cell.robot = robotOf(config.controller);
   knowledge_.cell.psd_rotation = psdRotationOf(config.session.psd_rpy_deg);
   const auto& t = config.session.target_mm;
   knowledge_.taught_centre_mm = Eigen::Vector3d(t[0], t[1], t[2]);
-  knowledge_.psd_map = config.daq.map_file + ", fingerprint " + map_.fingerprint();
+  knowledge_.psd_map = config.daq.psd.map_file + ", fingerprint " + map_.fingerprint();
 }
 
 std::unique_ptr<ConnectedCell> HardwareBackend::connect() {

@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "zerocal/error.h"
+#include "zerocal/usb1408fs/usb1408fs_kind.h"
 
 namespace zerocal {
 namespace {
@@ -117,11 +118,11 @@ TEST_F(ConfigTest, DropInsApplyInLexicalOrderAndOnlyYamlFiles) {
 TEST_F(ConfigTest, CommandLineTakesYamlValuesAndNestedKeys) {
   write("main.yaml", "");
   const DaemonConfig c = loadDaemonConfig(sources(
-      {"session.target_mm=[1, 2.5, -3]", "daq.channels.x.number=1", "daq.channels.y.number=2",
-       "daq.channels.sum.number=3", "daq.channels.sum.mode=differential", "backend.kind=sim",
+      {"session.target_mm=[1, 2.5, -3]", "daq.usb-1408fs.channels.x.number=1", "daq.usb-1408fs.channels.y.number=2",
+       "daq.usb-1408fs.channels.sum.number=3", "daq.usb-1408fs.channels.sum.mode=differential", "backend.kind=sim",
        "backend.sim_seed=42", "logging.level=debug"}));
   EXPECT_EQ(c.session.target_mm, (std::array<double, 3>{1, 2.5, -3}));
-  EXPECT_EQ(c.daq.channels.sum.number, 3);
+  EXPECT_EQ(usb1408fs::boardSettingsOf(c.daq.boards).channels.sum.number, 3);
   EXPECT_EQ(c.backend.kind, BackendKind::kSim);
   EXPECT_EQ(c.backend.sim_seed, 42u);
   EXPECT_EQ(c.logging.level, LogLevel::kDebug);
@@ -129,11 +130,11 @@ TEST_F(ConfigTest, CommandLineTakesYamlValuesAndNestedKeys) {
 
 TEST_F(ConfigTest, PsdChannelsMustBeConsecutiveInputsInScanOrder) {
   write("main.yaml", "");
-  const auto p = problems(sources({"daq.channels.x.number=1", "daq.channels.y.number=0"}));
-  EXPECT_TRUE(reported(p, {"daq.channels", "consecutive inputs"})) << joined(p);
+  const auto p = problems(sources({"daq.usb-1408fs.channels.x.number=1", "daq.usb-1408fs.channels.y.number=0"}));
+  EXPECT_TRUE(reported(p, {"daq.usb-1408fs.channels", "consecutive inputs"})) << joined(p);
   EXPECT_EQ(p.size(), 1u) << joined(p);
   EXPECT_NO_THROW(loadDaemonConfig(sources(
-      {"daq.channels.x.number=1", "daq.channels.y.number=2", "daq.channels.sum.number=3"})));
+      {"daq.usb-1408fs.channels.x.number=1", "daq.usb-1408fs.channels.y.number=2", "daq.usb-1408fs.channels.sum.number=3"})));
 }
 
 TEST_F(ConfigTest, EmptySectionsAndFilesChangeNothing) {
@@ -160,12 +161,12 @@ TEST_F(ConfigTest, RelativePathsResolveAgainstTheWritingFile) {
 
 TEST_F(ConfigTest, UnknownKeysNameFileLineAndPath) {
   write("main.yaml", "servo:\n  tolerance_um: 3\n  tolerence_um: 5\nsesion:\n  poses: 8\n");
-  write("conf.d/10.yaml", "daq:\n  channels:\n    z:\n      number: 1\n");
+  write("conf.d/10.yaml", "daq:\n  usb-1408fs:\n    channels:\n      z:\n        number: 1\n");
   const auto p = problems(sources({"control.prot=1"}));
   EXPECT_EQ(p.size(), 4u) << joined(p);
   EXPECT_TRUE(reported(p, {"main.yaml:3", "unknown key 'servo.tolerence_um'"})) << joined(p);
   EXPECT_TRUE(reported(p, {"main.yaml:4", "unknown key 'sesion'"})) << joined(p);
-  EXPECT_TRUE(reported(p, {"10.yaml:3", "unknown key 'daq.channels.z'"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"10.yaml:4", "unknown key 'daq.usb-1408fs.channels.z'"})) << joined(p);
   EXPECT_TRUE(reported(p, {"command line", "unknown key 'control.prot'"})) << joined(p);
 }
 
@@ -205,19 +206,19 @@ TEST_F(ConfigTest, DeviceKindsAreTheOnesZerocalCanDrive) {
   EXPECT_TRUE(reported(p, {"main.yaml:4", "daq.kind", "usb-1408fs", "'usb-1608'"})) << joined(p);
   write("main.yaml", "controller: {kind: irc5}\ndaq: {kind: usb-1408fs}\n");
   const DaemonConfig accepted = loadDaemonConfig(sources());
-  EXPECT_EQ(accepted.controller.kind, ControllerKind::kIrc5);
-  EXPECT_EQ(accepted.daq.kind, psd::DaqKind::kUsb1408fs);
+  EXPECT_EQ(accepted.controller.kind, "irc5");
+  EXPECT_EQ(accepted.daq.kind, "usb-1408fs");
 }
 
 TEST_F(ConfigTest, OutOfRangeValuesNameWhereTheyWereSet) {
   write("main.yaml", "servo:\n  tolerance_um: -1\n");
   write("conf.d/10.yaml", "session:\n  poses: 3\n");
-  const auto p = problems(sources({"controller.speed_tcp_mm_s=1e6", "daq.channels.x.number=4"}));
+  const auto p = problems(sources({"controller.irc5.speed_tcp_mm_s=1e6", "daq.usb-1408fs.channels.x.number=4"}));
   EXPECT_EQ(p.size(), 4u) << joined(p);
   EXPECT_TRUE(reported(p, {"main.yaml:2", "servo.tolerance_um", "greater than 0"})) << joined(p);
   EXPECT_TRUE(reported(p, {"10.yaml:2", "session.poses", "at least 6"})) << joined(p);
-  EXPECT_TRUE(reported(p, {"command line", "controller.speed_tcp_mm_s", "at most 7000"}));
-  EXPECT_TRUE(reported(p, {"command line", "daq.channels.x.number", "at most 3"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"command line", "controller.irc5.speed_tcp_mm_s", "at most 7000"}));
+  EXPECT_TRUE(reported(p, {"command line", "daq.usb-1408fs.channels.x.number", "at most 3"})) << joined(p);
 }
 
 TEST_F(ConfigTest, InconsistentCombinations) {
@@ -228,7 +229,7 @@ TEST_F(ConfigTest, InconsistentCombinations) {
         "controller:\n  max_step_deg: 3\n"
         "session:\n  plan: file\n"
         "control:\n  bind_address: 0.0.0.0\n"
-        "daq:\n  channels:\n    y:\n      number: 0\n"
+        "daq:\n  usb-1408fs:\n    channels:\n      y:\n        number: 0\n"
         "logging:\n  directory: /var/lib/zerocal/sessions\n");
   const auto p = problems(sources());
   EXPECT_TRUE(reported(p, {"backend.sim_seed", "not both"})) << joined(p);
@@ -238,7 +239,8 @@ TEST_F(ConfigTest, InconsistentCombinations) {
   EXPECT_TRUE(reported(p, {"servo.search_step_mm", "exceeds servo.search_radius_mm"}));
   EXPECT_TRUE(reported(p, {"session.plan_file", "required"})) << joined(p);
   EXPECT_TRUE(reported(p, {"control.token_file", "required"})) << joined(p);
-  EXPECT_TRUE(reported(p, {"daq.channels.y", "same input as daq.channels.x"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"daq.usb-1408fs.channels.y", "same input as daq.usb-1408fs.channels.x"}))
+      << joined(p);
   EXPECT_TRUE(reported(p, {"logging.directory", "differ from session.data_dir"})) << joined(p);
   EXPECT_EQ(p.size(), 9u) << joined(p);
 }
@@ -295,7 +297,8 @@ TEST_F(ConfigTest, ErrorMessageListsEveryProblem) {
 TEST_F(ConfigTest, JsonSnapshotHasEveryKeyAndReadsBack) {
   DaemonConfig c;
   c.backend.sim_seed = 5;
-  c.daq.channels.y.range = usb1408fs::Range::kBip2_5V;
+  c.daq.boards.get<usb1408fs::Usb1408fsSettings>("usb-1408fs")->board.channels.y.range =
+      usb1408fs::Range::kBip2_5V;
   const nlohmann::json j = configToJson(c);
   for (const auto& key : configKeys()) {
     nlohmann::json::json_pointer pointer("/" + [&] {
@@ -305,7 +308,7 @@ TEST_F(ConfigTest, JsonSnapshotHasEveryKeyAndReadsBack) {
     }());
     EXPECT_TRUE(j.contains(pointer)) << key;
   }
-  EXPECT_EQ(j["daq"]["channels"]["y"]["range"], "2.5V");
+  EXPECT_EQ(j["daq"]["usb-1408fs"]["channels"]["y"]["range"], "2.5V");
   EXPECT_EQ(j["backend"]["sim_seed"], 5);
   // JSON is YAML: the snapshot is a valid configuration file giving the same values.
   DaemonConfig back;
@@ -334,23 +337,25 @@ TEST_F(ConfigTest, ShippedExampleIsCompleteAndEqualsTheDefaults) {
 
 // `zerocal psd` reads the PSD chain's configuration as zerocald does: the daq section of a file.
 TEST_F(ConfigTest, TheDaqSectionAloneIsThePsdChainsConfiguration) {
-  const psd::PsdConfig rig = loadDaqSection(ZEROCAL_SOURCE_DIR "/config/psd.yaml");
-  EXPECT_EQ(rig.channels.sum.number, 2);
-  EXPECT_EQ(rig.channels.sum.range, usb1408fs::Range::kBip5V);
-  EXPECT_EQ(rig.samples_per_reading, 64);
-  EXPECT_DOUBLE_EQ(rig.scan_rate_hz, 16000);
-  EXPECT_EQ(rig.map_file,
+  const DaqConfig rig = loadDaqSection(ZEROCAL_SOURCE_DIR "/config/psd.yaml");
+  const usb1408fs::BoardSettings& rig_board = usb1408fs::boardSettingsOf(rig.boards);
+  EXPECT_EQ(rig_board.channels.sum.number, 2);
+  EXPECT_EQ(rig_board.channels.sum.range, usb1408fs::Range::kBip5V);
+  EXPECT_EQ(rig_board.samples_per_reading, 64);
+  EXPECT_DOUBLE_EQ(rig_board.scan_rate_hz, 16000);
+  EXPECT_EQ(rig.psd.map_file,
             fs::path(ZEROCAL_SOURCE_DIR "/config/psd-map.yaml").lexically_normal().string());
   // zerocald's own file: its daq section; the other sections are zerocald's to check.
-  const std::string daemon =
-      write("zerocald.yaml",
-            "servo: {bogus: 1}\ndaq:\n  samples_per_reading: 32\n  map_file: map.yaml\n");
+  const std::string daemon = write(
+      "zerocald.yaml",
+      "servo: {bogus: 1}\ndaq:\n  usb-1408fs:\n    samples_per_reading: 32\n  map_file: map.yaml\n");
   write("map.yaml", "psd_map: {}\n");
-  const psd::PsdConfig read = loadDaqSection(daemon);
-  EXPECT_EQ(read.samples_per_reading, 32);
-  EXPECT_DOUBLE_EQ(read.scan_rate_hz, psd::PsdConfig{}.scan_rate_hz);  // the one default
-  EXPECT_EQ(read.map_file, (dir_ / "map.yaml").string());
-  EXPECT_DOUBLE_EQ(read.sumOffThresholdV(), 0.4);
+  const DaqConfig read = loadDaqSection(daemon);
+  const usb1408fs::BoardSettings& board = usb1408fs::boardSettingsOf(read.boards);
+  EXPECT_EQ(board.samples_per_reading, 32);
+  EXPECT_DOUBLE_EQ(board.scan_rate_hz, usb1408fs::BoardSettings{}.scan_rate_hz);  // the one default
+  EXPECT_EQ(read.psd.map_file, (dir_ / "map.yaml").string());
+  EXPECT_DOUBLE_EQ(read.psd.sumOffThresholdV(), 0.4);
 }
 
 TEST_F(ConfigTest, TheDaqSectionAloneReportsEveryProblem) {
@@ -365,17 +370,19 @@ TEST_F(ConfigTest, TheDaqSectionAloneReportsEveryProblem) {
   };
   const auto p = problemsOf(
       "daq:\n"
-      "  channels:\n"
-      "    x: {number: 7}\n"  // 3
-      "  samples_per_reading: 0\n"
-      "  scan_rate_hz: 20000\n"
-      "  smaples: 64\n"  // 6
+      "  usb-1408fs:\n"
+      "    channels:\n"
+      "      x: {number: 7}\n"  // 4
+      "    samples_per_reading: 0\n"
+      "    scan_rate_hz: 20000\n"
+      "  smaples: 64\n"  // 7
       "  map_file: /nonexistent/map.yaml\n");
   EXPECT_EQ(p.size(), 5u) << joined(p);
-  EXPECT_TRUE(reported(p, {"psd.yaml:6", "unknown key 'daq.smaples'"})) << joined(p);
-  EXPECT_TRUE(reported(p, {"psd.yaml:3", "daq.channels.x.number", "at most 3"})) << joined(p);
-  EXPECT_TRUE(reported(p, {"daq.samples_per_reading", "at least 1"})) << joined(p);
-  EXPECT_TRUE(reported(p, {"daq.scan_rate_hz", "at most 16000"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"psd.yaml:7", "unknown key 'daq.smaples'"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"psd.yaml:4", "daq.usb-1408fs.channels.x.number", "at most 3"}))
+      << joined(p);
+  EXPECT_TRUE(reported(p, {"daq.usb-1408fs.samples_per_reading", "at least 1"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"daq.usb-1408fs.scan_rate_hz", "at most 16000"})) << joined(p);
   EXPECT_TRUE(reported(p, {"daq.map_file", "no such file"})) << joined(p);
   EXPECT_TRUE(reported(problemsOf("psd:\n  samples: 64\n"),
                        {"the psd: section of earlier versions", "samples_per_reading"}));
@@ -406,12 +413,45 @@ namespace {
 // A text or path that is not UTF-8 cannot go into session.json's snapshot of the configuration:
 // refused where it is written, not at every session's start.
 TEST_F(ConfigTest, TextsAndPathsMustBeUtf8) {
-  write("main.yaml", "backend:\n  sim_world: \"\xd6\"\ndaq:\n  serial: \"a\xff\"\n");
+  write("main.yaml",
+        "backend:\n  sim_world: \"\xd6\"\ndaq:\n  usb-1408fs:\n    serial: \"a\xff\"\n");
   const auto p = problems(sources());
   EXPECT_TRUE(reported(p, {"main.yaml:2", "backend.sim_world", "UTF-8"})) << joined(p);
-  EXPECT_TRUE(reported(p, {"main.yaml:4", "daq.serial", "UTF-8"})) << joined(p);
-  write("main.yaml", "daq:\n  serial: \"\xc3\xa9t\xc3\xa9\"\n");  // UTF-8: fine
+  EXPECT_TRUE(reported(p, {"main.yaml:5", "daq.usb-1408fs.serial", "UTF-8"})) << joined(p);
+  write("main.yaml", "daq:\n  usb-1408fs:\n    serial: \"\xc3\xa9t\xc3\xa9\"\n");  // UTF-8: fine
   EXPECT_NO_THROW(configToJson(loadDaemonConfig(sources())).dump());
+}
+
+}  // namespace
+}  // namespace zerocal
+
+namespace zerocal {
+namespace {
+
+// The controller's and the board's keys are their kind's own now: a key of the old flat layout
+// is refused with the place it moved to, never silently ignored or taken.
+TEST_F(ConfigTest, AKeyOfAKindsSectionNamesWhereItIsNow) {
+  write("main.yaml", "controller:\n  host: 10.0.0.5\ndaq:\n  serial: ABC\n");
+  const auto p = problems(sources({"controller.speed_tcp_mm_s=100"}));
+  EXPECT_EQ(p.size(), 3u) << joined(p);
+  EXPECT_TRUE(reported(p, {"main.yaml:2", "unknown key 'controller.host'",
+                           "'controller.irc5.host' now"}))
+      << joined(p);
+  EXPECT_TRUE(reported(p, {"main.yaml:4", "'daq.usb-1408fs.serial' now"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"command line", "'controller.irc5.speed_tcp_mm_s' now"})) << joined(p);
+  EXPECT_TRUE(reported(problems(sources({"controller.colour=red"})),
+                       {"unknown key 'controller.colour'"}));
+}
+
+// The kind's section is checked by the kind, with its own prefix, and the servo's sweeps are
+// held to the kind's linear speed.
+TEST_F(ConfigTest, TheKindsSectionIsCheckedByTheKind) {
+  write("main.yaml", "controller:\n  irc5:\n    port: 0\n    speed_tcp_mm_s: 20\n");
+  const auto p = problems(sources({"servo.sweep_speed_mm_s=30"}));
+  EXPECT_TRUE(reported(p, {"main.yaml:3", "controller.irc5.port", "1..65535"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"servo.sweep_speed_mm_s", "linear speed", "controller.irc5", "20"}))
+      << joined(p);
+  EXPECT_EQ(p.size(), 2u) << joined(p);
 }
 
 }  // namespace

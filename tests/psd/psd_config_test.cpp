@@ -58,7 +58,7 @@ TEST(PsdMapYaml, FromPartsRefusesWhatIsNotAMap) {
   r.x = 2.5;  // scaled by 5 V: u = 0.5
   r.sum = 1;
   EXPECT_DOUBLE_EQ(map.apply(r).spot.u_mm, 0.5);
-  EXPECT_TRUE(map.apply(r).valid);
+  EXPECT_TRUE(map.apply(r).in_valid_zone);
 }
 
 TEST(PsdMapYaml, MapProblemsAreReported) {
@@ -120,8 +120,8 @@ TEST_F(FittedMap, RecoversPositionsInTheValidZoneToTwoMicrometres) {
   for (double u = -0.59; u <= 0.59; u += 0.0737) {
     for (double v = -0.59; v <= 0.59; v += 0.0737) {
       rig.setSpot(PsdSpot{u, v});
-      const SpotPosition p = map_->apply(readAveraged(rig.daq(), rig.channels(), 64, 16000.0));
-      ASSERT_TRUE(p.valid) << u << " " << v;
+      const PsdReading p = map_->apply(usb1408fs::readAveraged(rig.daq(), rig.channels(), 64, 16000.0));
+      ASSERT_TRUE(p.in_valid_zone) << u << " " << v;
       const double e = std::hypot(p.spot.u_mm - u, p.spot.v_mm - v);
       worst = std::max(worst, e);
       sum2 += e * e;
@@ -139,9 +139,9 @@ TEST_F(FittedMap, RecoversPositionsInTheValidZoneToTwoMicrometres) {
 TEST_F(FittedMap, OutsideTheZoneIsMarked) {
   sim::SimulatedPsdRig rig(5);
   rig.setSpot(PsdSpot{0.75, 0.0});
-  const SpotPosition p = map_->apply(readAveraged(rig.daq(), rig.channels(), 64, 16000.0));
-  EXPECT_TRUE(p.present);
-  EXPECT_FALSE(p.valid);
+  const PsdReading p = map_->apply(usb1408fs::readAveraged(rig.daq(), rig.channels(), 64, 16000.0));
+  EXPECT_TRUE(p.spot_present);
+  EXPECT_FALSE(p.in_valid_zone);
 }
 
 TEST(SimulatedSweep, GridAndCsvRoundTrip) {

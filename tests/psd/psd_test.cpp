@@ -19,41 +19,6 @@ namespace {
 using sim::PsdModel;
 using sim::PsdModelOptions;
 
-TEST(BlockAverager, MeansAndStandardErrorsPerChannel) {
-  BlockAverager averager(4);
-  // x, y, sum interleaved; 4 scans -> one reading.
-  const double volts[12] = {1, 10, 3, 2, 10, 3, 3, 10, 3, 4, 10, 3};
-  usb1408fs::ScanBlock block;
-  block.volts = volts;
-  block.count = 12;
-  averager.onScanData(block);
-  VoltageReading r;
-  ASSERT_TRUE(averager.take(r));
-  EXPECT_FALSE(averager.take(r));
-  EXPECT_DOUBLE_EQ(r.x, 2.5);
-  EXPECT_DOUBLE_EQ(r.y, 10.0);
-  EXPECT_DOUBLE_EQ(r.sum, 3.0);
-  EXPECT_NEAR(r.x_se, std::sqrt((1.25 * 4 / 3) / 4), 1e-12);  // sample std / sqrt(n)
-  EXPECT_DOUBLE_EQ(r.y_se, 0.0);
-  EXPECT_EQ(r.samples, 4u);
-}
-
-TEST(BlockAverager, ALossDiscardsThePartialBlock) {
-  BlockAverager averager(2);
-  const double volts[6] = {1, 1, 1, 1, 1, 1};
-  usb1408fs::ScanBlock block;
-  block.volts = volts;
-  block.count = 4;
-  averager.onScanData(block);
-  averager.onPacketsLost(1, 3);
-  block.first_channel = 1;  // resumes mid-scan after the hole
-  block.count = 2;
-  averager.onScanData(block);
-  VoltageReading r;
-  EXPECT_FALSE(averager.take(r));
-  EXPECT_EQ(averager.blocksDiscarded(), 1u);
-}
-
 TEST(SpotDetector, HysteresisOnSum) {
   SpotDetector detector(0.5, 0.4);
   VoltageReading r;
@@ -65,46 +30,6 @@ TEST(SpotDetector, HysteresisOnSum) {
   EXPECT_TRUE(detector.update(r));
   r.sum = 0.3;
   EXPECT_FALSE(detector.update(r));
-}
-
-TEST(ReadAveraged, SixtyFourSamplesThroughTheSimulatedBoard) {
-  PsdModel psd;
-  const PsdSpot spot{0.12, -0.05};
-  sim::Usb1408fsModel board;
-  board.setAnalogSource(sim::psdAnalogSource(psd, [&](double) { return spot; }));
-  usb1408fs::Usb1408fs daq(sim::FakeTransport::opener(board));
-  const VoltageReading r = readAveraged(daq, PsdChannels{}, 64, 16000.0);
-  const sim::PsdVoltages ideal = PsdModel().ideal(spot);
-  EXPECT_EQ(r.samples, 64u);
-  EXPECT_NEAR(r.x, ideal.x, 4 * r.x_se + 0.001);
-  EXPECT_NEAR(r.y, ideal.y, 4 * r.y_se + 0.001);
-  EXPECT_NEAR(r.sum, ideal.sum, 4 * r.sum_se + 0.001);
-  EXPECT_NEAR(r.x_se, 0.005 / 8, 0.0003);  // noise / sqrt(64)
-  EXPECT_FALSE(daq.scanning());
-}
-
-TEST(PsdStream, AReadingEveryFourMillisecondsAtSixteenKilohertz) {
-  PsdModel psd;
-  sim::Usb1408fsModel board;
-  board.setAnalogSource(sim::psdAnalogSource(psd, [](double) { return PsdSpot{-0.3, 0.2}; }));
-  usb1408fs::Usb1408fs daq(sim::FakeTransport::opener(board));
-  const sim::PsdVoltages ideal = PsdModel().ideal(PsdSpot{-0.3, 0.2});
-  {
-    PsdStream stream(daq, PsdChannels{}, 64, 16000.0);
-    VoltageReading r;
-    ASSERT_TRUE(stream.next(r, std::chrono::milliseconds(10)));
-    auto t0 = board.now();
-    for (int k = 0; k < 10; ++k) {
-      ASSERT_TRUE(stream.next(r, std::chrono::milliseconds(10)));
-      EXPECT_NEAR(r.x, ideal.x, 4 * r.x_se + 0.001);
-    }
-    const double per_reading_ms =
-        std::chrono::duration<double, std::milli>(board.now() - t0).count() / 10;
-    EXPECT_LT(per_reading_ms, 5.0);
-    EXPECT_GT(per_reading_ms, 3.5);
-    EXPECT_EQ(stream.blocksDiscarded(), 0u);
-  }
-  EXPECT_FALSE(daq.scanning());
 }
 
 TEST(SweepCsv, ReadsNamedColumnsAndReportsEveryBadLine) {
@@ -179,27 +104,27 @@ TEST_F(PsdMapTest, RecoversPositionsInTheValidZoneToTwoMicrometres) {
   double worst = 0;
   for (int k = 0; k < 300; ++k) {
     const double u = coord(rng), v = coord(rng);
-    const SpotPosition p = map_.apply(readingAt(psd_, u, v));
-    ASSERT_TRUE(p.present);
-    ASSERT_TRUE(p.valid) << u << " " << v;
+    const PsdReading p = map_.apply(readingAt(psd_, u, v));
+    ASSERT_TRUE(p.spot_present);
+    ASSERT_TRUE(p.in_valid_zone) << u << " " << v;
     worst = std::max(worst, std::hypot(p.spot.u_mm - u, p.spot.v_mm - v));
   }
   EXPECT_LT(worst, 0.002);
   std::printf("map: %zu points, rms residual %.3f um, worst recovery error %.3f um\n",
               report_.points_used, report_.rms_residual_mm * 1e3, worst * 1e3);
-  const SpotPosition centre = map_.apply(readingAt(psd_, 0, 0));
+  const PsdReading centre = map_.apply(readingAt(psd_, 0, 0));
   EXPECT_NEAR(centre.se.u_mm, 0.005 / 8 / 5.0, 0.00005);  // noise / sqrt(64) / (5 V/mm)
 }
 
 TEST_F(PsdMapTest, OutsideTheZoneOrWithoutLightIsMarked) {
-  const SpotPosition outside = map_.apply(readingAt(psd_, 0.9, 0.0));
-  EXPECT_TRUE(outside.present);
-  EXPECT_FALSE(outside.valid);
+  const PsdReading outside = map_.apply(readingAt(psd_, 0.9, 0.0));
+  EXPECT_TRUE(outside.spot_present);
+  EXPECT_FALSE(outside.in_valid_zone);
   VoltageReading dark = readingAt(psd_, 0, 0);
   dark.sum = 0.01;
-  const SpotPosition none = map_.apply(dark);
-  EXPECT_FALSE(none.present);
-  EXPECT_FALSE(none.valid);
+  const PsdReading none = map_.apply(dark);
+  EXPECT_FALSE(none.spot_present);
+  EXPECT_FALSE(none.in_valid_zone);
 }
 
 TEST_F(PsdMapTest, SerialisesAndParsesBack) {

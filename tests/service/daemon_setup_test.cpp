@@ -3,11 +3,16 @@
 
 #include <gtest/gtest.h>
 
+#include "zerocal/irc5/irc5_kind.h"
 #include "zerocal/irc5/motion_time.h"
 #include "zerocal/model/builtin.h"
 
 namespace zerocal::service {
 namespace {
+
+Irc5Options& irc5Of(DaemonConfig& config) {
+  return config.controller.sections.get<irc5::Irc5Settings>("irc5")->options;
+}
 
 // The servo section is the servo's options; the controller's margin and the session's noise and
 // required accuracy join them for the run.
@@ -18,7 +23,7 @@ TEST(DaemonSetup, TheRunTakesTheServoSectionWholeAndTheSessionsAccuracy) {
   config.servo.gain = 0.7;
   config.servo.damping_mm = 0.01;
   config.servo.search_step_mm = 3.0;
-  config.controller.irc5.limit_margin_deg = 2.5;
+  irc5Of(config).limit_margin_deg = 2.5;
   config.session.noise_mm = 0.03;
   config.session.required_accuracy_deg = 0.02;
   config.session.model_length_mm = 0.2;
@@ -70,11 +75,11 @@ TEST(DaemonSetup, PlansAreOrderedByTheControllersMotionAtItsSpeeds) {
   const auto fast = managerSettingsOf(config).travel_s;
   ASSERT_TRUE(fast);
   EXPECT_DOUBLE_EQ(fast(robot, from, to),
-                   irc5::jointMoveTime(robot, from, to, config.controller.irc5.speed_tcp_mm_s,
-                                       config.controller.irc5.speed_ori_deg_s, irc5::MotionCosts{})
+                   irc5::jointMoveTime(robot, from, to, irc5Of(config).speed_tcp_mm_s,
+                                       irc5Of(config).speed_ori_deg_s, irc5::MotionCosts{})
                        .motion_s);
-  config.controller.irc5.speed_tcp_mm_s /= 4;
-  config.controller.irc5.speed_ori_deg_s /= 4;
+  irc5Of(config).speed_tcp_mm_s /= 4;
+  irc5Of(config).speed_ori_deg_s /= 4;
   EXPECT_GT(managerSettingsOf(config).travel_s(robot, from, to), 2 * fast(robot, from, to));
 }
 

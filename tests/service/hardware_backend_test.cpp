@@ -16,12 +16,14 @@
 
 #include "stored_plan_request.h"
 #include "umockdev_board.h"
+#include "zerocal/irc5/irc5_kind.h"
 #include "zerocal/psd/psd_config.h"
 #include "zerocal/service/daemon_setup.h"
 #include "zerocal/service/session_manager.h"
 #include "zerocal/sim/psd_model.h"
 #include "zerocal/sim/simulated_cell.h"
 #include "zerocal/sim/simulated_rig.h"
+#include "zerocal/usb1408fs/usb1408fs_kind.h"
 
 namespace zerocal::service {
 namespace {
@@ -58,13 +60,15 @@ class HardwareBackendOnSimulatedCell : public ::testing::Test {
     // the PSD rig, the taught PSD centre and its orientation.
     const World& world = cell_.world();
     config_.backend.kind = BackendKind::kHardware;
-    config_.controller.irc5.host = "127.0.0.1";
-    config_.controller.irc5.port = cell_.controller().port();
-    config_.daq.serial = "01A2B3C4";
-    config_.daq.samples_per_reading = 32;
-    config_.daq.scan_rate_hz = 16000;
-    config_.daq.map_file = dir_.path + "/psd-map.yaml";
-    std::ofstream(config_.daq.map_file) << psd::psdMapToYaml(cell_.psdMap());
+    Irc5Options& link = config_.controller.sections.get<irc5::Irc5Settings>("irc5")->options;
+    link.host = "127.0.0.1";
+    link.port = cell_.controller().port();
+    usb1408fs::BoardSettings& board = boardOf(config_);
+    board.serial = "01A2B3C4";
+    board.samples_per_reading = 32;
+    board.scan_rate_hz = 16000;
+    config_.daq.psd.map_file = dir_.path + "/psd-map.yaml";
+    std::ofstream(config_.daq.psd.map_file) << psd::psdMapToYaml(cell_.psdMap());
     const Eigen::Vector3d taught = sim::knowledgeOf(world).taught_centre;
     config_.session.target_mm = {taught.x(), taught.y(), taught.z()};
     config_.session.psd_rpy_deg = rpyDegOf(world.psd_rotation);
@@ -72,6 +76,10 @@ class HardwareBackendOnSimulatedCell : public ::testing::Test {
     // The cell behind the board and the port is the ideal world: its links are the robot
     // file's exactly, and the result is checked against its truth.
     config_.session.model_length_mm = config_.session.model_angle_deg = 0;
+  }
+
+  static usb1408fs::BoardSettings& boardOf(DaemonConfig& config) {
+    return config.daq.boards.get<usb1408fs::Usb1408fsSettings>("usb-1408fs")->board;
   }
 
   static sim::SimulatedCellOptions cellOptions() {
@@ -97,7 +105,7 @@ TEST_F(HardwareBackendOnSimulatedCell, KnowsTheCellFromItsConfiguration) {
   EXPECT_EQ(k.cell.robot.name, cell_.world().robot.name);
 
   DaemonConfig no_map = config_;
-  no_map.daq.map_file.clear();
+  no_map.daq.psd.map_file.clear();
   EXPECT_THROW(HardwareBackend{no_map}, ConfigError);
 }
 
@@ -111,7 +119,7 @@ TEST_F(HardwareBackendOnSimulatedCell, ConnectsReadsAndCalibratesThroughLibusbAn
     EXPECT_TRUE(std::isfinite(r.sum_v));
   }
   DaemonConfig wrong_serial = config_;
-  wrong_serial.daq.serial = "NOSUCHBOARD";
+  boardOf(wrong_serial).serial = "NOSUCHBOARD";
   HardwareBackend absent(wrong_serial);
   EXPECT_THROW(absent.connect(), Error);
 

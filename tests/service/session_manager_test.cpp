@@ -639,7 +639,7 @@ TEST(SessionManager, APlanFileWithTooFewPosesIsRefusedEveryTimeAndNothingMoves) 
   EXPECT_TRUE(manager.sessions().empty());
 }
 
-// The servo and the controller keep controller.limit_margin_deg from each joint limit: a plan
+// The servo and the controller keep controller.irc5.limit_margin_deg from each joint limit: a plan
 // file with a pose inside that margin is refused at start (and by the preview) before anything
 // moves, naming the pose, the joint, its value and the limit; a session whose plan lies inside the
 // margin configured when it is resumed is refused the same way.
@@ -1295,7 +1295,7 @@ TEST(SessionManagerApply, AWrongTransmissionSignIsRefusedBeforeAnyWrite) {
 }
 
 // A controller that does not serve while `reachable` is false: one still booting after a power
-// cut (an IRC5 cold boot can outlast controller.restart_timeout_ms).
+// cut (an IRC5 cold boot can outlast controller.irc5.restart_timeout_ms).
 class GatedBackend final : public CellBackend {
  public:
   explicit GatedBackend(sim::SimulatedCellOptions options) : inner_(std::move(options)) {}

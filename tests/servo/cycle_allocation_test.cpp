@@ -110,11 +110,10 @@ struct CountedRig {
         daq([this]() -> std::unique_ptr<usb1408fs::UsbTransport> {
           return std::make_unique<SimulatedBus>(cell.boardOpener()());
         }),
-        psd(daq, cell.psdMap(), clock, readerOptions()) {
+        // As the daemon configures it (config/zerocald.yaml): 100 scans at 1 kHz per reading.
+        psd(daq, cell.psdMap(), clock, usb1408fs::BoardSettings{}, psd::PsdConfig{}) {
     client.connect();
   }
-  // As the daemon configures it (config/zerocald.yaml): 100 scans at 1 kHz per reading.
-  static psd::PsdConfig readerOptions() { return psd::PsdConfig{}; }
 
   sim::SimulatedCell cell;
   Irc5Client client;

@@ -39,7 +39,8 @@ class ChainReader : public ::testing::Test {
 
 TEST_F(ChainReader, InsideTheZoneGivesMappedMillimetres) {
   usb1408fs::Usb1408fs daq(sim::FakeTransport::opener(board_));
-  usb1408fs::ChainPsdReader reader(daq, map(), clock_, sim::simulatedReadout());
+  usb1408fs::ChainPsdReader reader(daq, map(), clock_, sim::simulatedReadout().board,
+                                   sim::simulatedReadout().psd);
   spot_ = PsdSpot{0.2, -0.3};
   const PsdReading r = reader.read();
   EXPECT_TRUE(r.spot_present);
@@ -52,7 +53,8 @@ TEST_F(ChainReader, InsideTheZoneGivesMappedMillimetres) {
 
 TEST_F(ChainReader, OutsideTheZoneGivesACoarseEstimateOfTheRightSign) {
   usb1408fs::Usb1408fs daq(sim::FakeTransport::opener(board_));
-  usb1408fs::ChainPsdReader reader(daq, map(), clock_, sim::simulatedReadout());
+  usb1408fs::ChainPsdReader reader(daq, map(), clock_, sim::simulatedReadout().board,
+                                   sim::simulatedReadout().psd);
   spot_ = PsdSpot{2.5, -3.0};
   const PsdReading r = reader.read();
   EXPECT_TRUE(r.spot_present);
@@ -64,7 +66,8 @@ TEST_F(ChainReader, OutsideTheZoneGivesACoarseEstimateOfTheRightSign) {
 
 TEST_F(ChainReader, NoLightIsNoSpot) {
   usb1408fs::Usb1408fs daq(sim::FakeTransport::opener(board_));
-  usb1408fs::ChainPsdReader reader(daq, map(), clock_, sim::simulatedReadout());
+  usb1408fs::ChainPsdReader reader(daq, map(), clock_, sim::simulatedReadout().board,
+                                   sim::simulatedReadout().psd);
   spot_ = PsdSpot{20, 0};
   EXPECT_FALSE(reader.read().spot_present);
   spot_.reset();

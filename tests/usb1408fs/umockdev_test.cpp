@@ -19,7 +19,7 @@
 
 #include "allocation_counter.h"
 #include "umockdev_board.h"
-#include "zerocal/psd/psd.h"
+#include "zerocal/usb1408fs/psd_chain.h"
 #include "zerocal/usb1408fs/libusb_transport.h"
 #include "zerocal/usb1408fs/usb1408fs.h"
 
@@ -253,14 +253,14 @@ TEST_F(UmockdevTest, SingleExecutionScanCompletes) {
 // its transfers and the driver its buffers.
 TEST_F(UmockdevTest, RepeatedReadingsAllocateNothingOfOursAfterTheFirst) {
   Usb1408fs dev(realOpener(), shortTimeouts());
-  const ScanConfig scan = psd::averagedScan(psd::PsdChannels{}, 64, 16000.0);
-  psd::readAveraged(dev, scan);
+  const ScanConfig scan = usb1408fs::averagedScan(usb1408fs::PsdChannels{}, 64, 16000.0);
+  usb1408fs::readAveraged(dev, scan);
   long allocations = 0;
   {
     // Counts this thread only: umockdev's handler thread plays the board. libusb and umockdev
     // allocate with malloc, which is not counted; this measures the driver and the transport.
     const test::CountAllocations count;
-    for (int i = 0; i < 5; ++i) psd::readAveraged(dev, scan);
+    for (int i = 0; i < 5; ++i) usb1408fs::readAveraged(dev, scan);
     allocations = count.count();
   }
   EXPECT_EQ(allocations, 0);

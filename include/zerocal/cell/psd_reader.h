@@ -29,19 +29,6 @@ class SteadyCellClock final : public CellClock {
   std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
 };
 
-// One PSD reading in the PSD frame (origin at the detector centre), millimetres.
-struct PsdReading {
-  PsdSpot spot;
-  PsdSpot se;  // standard errors of the averaged reading, per axis
-  double sum_v = 0;
-  // SUM above the detector's threshold: some light is on the detector.
-  bool spot_present = false;
-  // Present and inside the zone the map was fitted on. When false but present, u and v are only
-  // a coarse estimate (saturating voltages over the centre slope): right in sign, too small.
-  bool in_valid_zone = false;
-  double time_s = 0;  // cell clock at the end of the reading
-};
-
 class PsdReader {
  public:
   virtual ~PsdReader() = default;

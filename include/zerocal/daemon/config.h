@@ -18,8 +18,8 @@
 #include <string>
 #include <vector>
 
+#include "zerocal/cell/kinds.h"
 #include "zerocal/control/server_options.h"
-#include "zerocal/irc5/irc5_client.h"
 #include "zerocal/paths.h"
 #include "zerocal/psd/psd_config.h"
 #include "zerocal/service/plan_kind.h"
@@ -51,33 +51,34 @@ struct BackendConfig {
   std::uint16_t sim_port = 0;
 };
 
-// Which controller the cell has, hence which link the cell factory makes
-// (zerocal/service/cell_factory.h): ABB's IRC5 through zerocal's RAPID socket server.
-enum class ControllerKind { kIrc5 };
-
-// The IRC5 link's own defaults (Irc5Options) suit a bench that talks to a controller by hand;
-// the daemon's cell is closed and its calibration moves are short, so it moves faster and keeps a
-// degree clear of the joint limits. Named once here: these are the controller section's defaults.
-inline Irc5Options configuredIrc5Defaults() {
-  Irc5Options o;
-  o.speed_tcp_mm_s = 250.0;
-  o.speed_ori_deg_s = 100.0;
-  o.limit_margin_deg = 1.0;
-  return o;
-}
-
-// The controller section: which controller, which robot, and that controller's link options
-// themselves (for kind irc5 the IRC5 client's Irc5Options; its keys sit directly under
-// controller:, and Irc5Options says what each means). The cell factory loads `robot` into the
-// link's robot model; members of the link options without a key keep the link's own defaults.
+// The controller section: which kind of controller (controller.kind: its section, its link and
+// its motion model, zerocal/cell/controller_kind.h), which robot, and the servo's step ceiling.
+// Every known kind has its own section (controller.<kind>), which that kind declares and checks;
+// the configuration uses the one `kind` names.
 struct ControllerConfig {
-  ControllerKind kind = ControllerKind::kIrc5;
+  std::string kind = kinds::controllerKinds().front().name;
   std::string robot = "builtin";  // robot file, or the compiled-in IRB 1600-10/1.45
-  // Ceiling of servo.max_step_deg (deg). Not the link's own step limit (Irc5Options::max_step_deg
-  // stays 0 = none): the moves between planned poses span up to ~240 deg of wrist rotation by
-  // design, and are checked against the limits and previewed instead.
+  // Ceiling of servo.max_step_deg (deg). Not a step limit of the link: the moves between planned
+  // poses span up to ~240 deg of wrist rotation by design, and are checked against the limits
+  // and previewed instead.
   double max_step_deg = 10.0;
-  Irc5Options irc5 = configuredIrc5Defaults();  // kind irc5
+  settings::KindSections<ControllerSettings> sections = kinds::controllerSections();
+
+  // The section `kind` names. Throws ConfigError when no kind has that name (a validated
+  // configuration always has it).
+  const ControllerSettings& section() const;
+};
+
+// The daq section: which board reads the PSD (daq.kind: its section and its readout,
+// zerocal/cell/daq_kind.h), and the PSD chain's vendor-free part (its light threshold and map).
+// Every known board has its own section (daq.<kind>).
+struct DaqConfig {
+  std::string kind = kinds::daqKinds().front().name;
+  psd::PsdConfig psd;  // daq.sum_threshold_v, daq.map_file
+  settings::KindSections<DaqSettings> boards = kinds::daqSections();
+
+  // The board `kind` names. Throws ConfigError when no board has that name.
+  const DaqSettings& board() const;
 };
 
 struct SessionConfig {
@@ -114,7 +115,7 @@ struct LoggingConfig {
 struct DaemonConfig {
   BackendConfig backend;
   ControllerConfig controller;
-  psd::PsdConfig daq;         // the PSD chain's one configuration (psd_config.h)
+  DaqConfig daq;
   servo::ServoOptions servo;  // the servo section is the servo's own options (servo.h)
   SessionConfig session;
   control::ServerOptions control;  // the control section is the server's own options
@@ -155,14 +156,15 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& config,
 // Every key with its value, nested by section, as written in a file; for session.json snapshots.
 nlohmann::json configToJson(const DaemonConfig& config);
 
-// Every key path the files accept ("servo.tolerance_um", "daq.channels.x.number", ...).
+// Every key path the files accept ("servo.tolerance_um", "daq.usb-1408fs.channels.x.number",
+// ...), every kind's included.
 std::vector<std::string> configKeys();
 
 // The daq section alone, for `zerocal psd`: the defaults, then the `daq:` section of the file at
 // `path` (zerocald's own configuration file, or any file with a daq: section; its other sections
 // are zerocald's to check), validated as zerocald validates it. Throws ConfigError carrying every
 // problem; a file with the `psd:` section of earlier versions is refused with the renamed keys.
-psd::PsdConfig loadDaqSection(const std::string& path);
+DaqConfig loadDaqSection(const std::string& path);
 
 std::string logLevelName(LogLevel level);
 

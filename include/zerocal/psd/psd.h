@@ -1,6 +1,7 @@
-// The PSD measurement chain: samples of the conditioning board's X, Y and SUM voltages (read by
-// the USB-1408FS) -> one averaged reading with its standard error -> spot present or not -> spot
-// position in millimetres through a map fitted from a stage sweep, marked valid or not.
+// The PSD measurement chain, whatever board reads it: the conditioning board's X, Y and SUM
+// voltages averaged into one reading with its standard error (the board's readout does that,
+// e.g. drivers/usb1408fs) -> spot present or not -> spot position in millimetres through a map
+// fitted from a stage sweep, marked valid or not.
 #pragma once
 
 #include <array>
@@ -13,80 +14,14 @@
 #include <vector>
 
 #include "zerocal/psd/spot.h"
-#include "zerocal/usb1408fs/usb1408fs.h"
 
 namespace zerocal::psd {
-
-// Which inputs carry X, Y and SUM, and their ranges (from the configuration).
-struct PsdChannels {
-  usb1408fs::Channel x{0, usb1408fs::InputMode::kDifferential, usb1408fs::Range::kBip5V};
-  usb1408fs::Channel y{1, usb1408fs::InputMode::kDifferential, usb1408fs::Range::kBip5V};
-  usb1408fs::Channel sum{2, usb1408fs::InputMode::kDifferential, usb1408fs::Range::kBip5V};
-};
 
 // Block means in volts and their standard errors (sample std / sqrt(n)), in volts.
 struct VoltageReading {
   double x = 0, y = 0, sum = 0;
   double x_se = 0, y_se = 0, sum_se = 0;
   std::size_t samples = 0;  // per channel
-};
-
-// Averages a hardware-paced scan of the three PSD channels into readings of `block` samples per
-// channel. Scan order is {x, y, sum} (PsdReader sets it up). Allocation-free once constructed;
-// onScanData runs on the polling thread.
-class BlockAverager : public usb1408fs::ScanConsumer {
- public:
-  // Throws std::invalid_argument if block is 0.
-  explicit BlockAverager(std::size_t block);
-  void onScanData(const usb1408fs::ScanBlock& block) noexcept override;
-  void onPacketsLost(std::uint32_t lost, std::uint16_t index) noexcept override;
-  // The latest complete reading, once; false if none completed since the last call.
-  bool take(VoltageReading& reading) noexcept;
-  std::uint64_t blocksDiscarded() const noexcept { return discarded_; }
-
- private:
-  void reset() noexcept;
-  std::size_t block_;
-  std::array<double, 3> sum_{}, sum2_{};
-  std::array<std::size_t, 3> count_{};
-  VoltageReading ready_;
-  bool has_ready_ = false;
-  std::uint64_t discarded_ = 0;
-};
-
-// One averaged reading, synchronously: a single-execution scan of `samples` scans of the three
-// channels at `rate_hz` scans per second. Throws as Usb1408fs does.
-VoltageReading readAveraged(usb1408fs::Usb1408fs& daq, const PsdChannels& channels,
-                            std::size_t samples, double rate_hz);
-
-// The scan readAveraged() runs: {x, y, sum}, `samples` scans, single execution.
-usb1408fs::ScanConfig averagedScan(const PsdChannels& channels, std::size_t samples,
-                                   double rate_hz);
-// The same reading over a scan built once by averagedScan(): allocates nothing once the driver
-// has run one scan of that shape (errors excepted). Throws as Usb1408fs does, and
-// std::invalid_argument for a scan of 0 scans.
-VoltageReading readAveraged(usb1408fs::Usb1408fs& daq, const usb1408fs::ScanConfig& scan);
-
-// Continuous readings: a hardware-paced scan of the three channels that never stops, averaged in
-// blocks, so a reading is ready every `samples / rate_hz` seconds without the command round trips
-// of readAveraged(). Owns the scan while it lives; the Usb1408fs must outlive it.
-class PsdStream {
- public:
-  // Starts the scan. Throws as Usb1408fs::startScan.
-  PsdStream(usb1408fs::Usb1408fs& daq, const PsdChannels& channels, std::size_t samples,
-            double rate_hz);
-  ~PsdStream();
-  PsdStream(const PsdStream&) = delete;
-  PsdStream& operator=(const PsdStream&) = delete;
-
-  // Waits up to `timeout` for the next complete reading; false if none came. Throws as
-  // Usb1408fs::pollScan (the scan is then stopped).
-  bool next(VoltageReading& reading, std::chrono::milliseconds timeout);
-  std::uint64_t blocksDiscarded() const noexcept { return averager_.blocksDiscarded(); }
-
- private:
-  usb1408fs::Usb1408fs& daq_;
-  BlockAverager averager_;
 };
 
 // Spot present when SUM exceeds a threshold (volts); hysteresis keeps a spot on the rim from
@@ -127,13 +62,6 @@ struct MapFitReport {
   double u_min = 0, u_max = 0, v_min = 0, v_max = 0;  // valid zone (mm)
 };
 
-struct SpotPosition {
-  PsdSpot spot;
-  PsdSpot se;            // from the voltage standard errors through the map
-  bool present = false;  // enough light (SpotDetector threshold)
-  bool valid = false;    // present and inside the zone the map was fitted on
-};
-
 // Voltages -> millimetres: u = sum a_ij X^i Y^j, v = sum b_ij X^i Y^j over i + j <= degree, with
 // X, Y scaled to volts / 5.
 class PsdMap {
@@ -143,7 +71,10 @@ class PsdMap {
   static PsdMap fit(const std::vector<SweepPoint>& sweep, const MapFitOptions& options,
                     MapFitReport* report = nullptr);
 
-  SpotPosition apply(const VoltageReading& reading) const;
+  // The reading these voltages make: the spot and its standard errors through the map, SUM,
+  // present with enough light (minSumV), in the valid zone when also inside the zone the map was
+  // fitted on; time_s is the reader's to stamp.
+  PsdReading apply(const VoltageReading& reading) const;
   // Plain-text form for the configuration, and back (throws zerocal::InputError).
   std::string serialize() const;
   static PsdMap parse(const std::string& text);

@@ -1,10 +1,10 @@
 // The PSD chain's configuration, and the voltage->mm map in YAML.
 //
-// PsdConfig is the `daq` section of zerocald's configuration and the only configuration of the
-// PSD chain: zerocald reads it from its configuration files, `zerocal psd --config FILE` reads the
-// `daq:` section of FILE (zerocald's own file, or config/psd.yaml). Both parse and validate it
-// with zerocald's configuration code (zerocal/daemon/config.h: loadDaqSection);
-// docs/configuration.md describes every key.
+// PsdConfig is the vendor-free part of the `daq` section of zerocald's configuration (DaqConfig,
+// zerocal/daemon/config.h): zerocald reads it from its configuration files, `zerocal psd --config
+// FILE` reads the `daq:` section of FILE (zerocald's own file, or config/psd.yaml). Both parse and
+// validate it with zerocald's configuration code (loadDaqSection); docs/configuration.md
+// describes every key.
 #pragma once
 
 #include <optional>
@@ -19,17 +19,10 @@ class Node;
 
 namespace zerocal::psd {
 
-// Which acquisition board reads the PSD, hence which readout the cell factory makes: the
-// Measurement Computing USB-1408FS through zerocal's libusb driver.
-enum class DaqKind { kUsb1408fs };
-
+// The daq section's vendor-free part: the PSD's light threshold and its map. The board that reads
+// the PSD owns its own keys (daq.<kind>, zerocal/cell/daq_kind.h).
 struct PsdConfig {
-  DaqKind kind = DaqKind::kUsb1408fs;
-  std::string serial;  // USB serial-number string; empty = the first USB-1408FS found
-  PsdChannels channels;
-  double scan_rate_hz = 1000.0;   // scans per second (each scan converts x, y and sum once)
-  int samples_per_reading = 100;  // scans averaged into one reading
-  double sum_threshold_v = 0.5;   // SUM below this: no spot on the detector
+  double sum_threshold_v = 0.5;  // SUM below this: no spot on the detector
   std::string map_file;  // the PSD's volts-to-mm map (zerocal psd-map); required by hardware
 
   // A present spot counts as gone only when SUM falls below this (V): the hysteresis keeps a spot

@@ -1,13 +1,14 @@
-// The devices of a real cell by kind: the one place that names the vendors. A new controller is
-// a folder of its own (its link implementing ControllerConnection), a ControllerKind, and a line
-// here; a new PSD readout likewise with PsdReadout and a psd::DaqKind.
+// The devices of a cell as the configuration names them, by kind: the controller link that
+// controller.kind's section makes and the PSD readout that daq.kind's makes. Nothing here names a
+// vendor: the kinds are listed in one place (zerocal/cell/kinds.h), and each kind's folder makes
+// its own devices.
 #pragma once
 
 #include <memory>
 
 #include "zerocal/cell/cell.h"
+#include "zerocal/cell/controller_kind.h"
 #include "zerocal/daemon/config.h"
-#include "zerocal/irc5/irc5_client.h"
 #include "zerocal/psd/psd.h"
 
 namespace zerocal::service {
@@ -16,17 +17,16 @@ namespace zerocal::service {
 // Throws ConfigError when the file does not load.
 Robot robotOf(const ControllerConfig& config);
 
-// The IRC5 link's options: the controller section's own (controller.irc5), with the robot model
-// controller.robot names loaded into them. Throws ConfigError when the robot file does not load.
-Irc5Options irc5OptionsOf(const ControllerConfig& config);
+// The link to the controller of controller.kind, not connected, driving the robot of
+// controller.robot: at the address in the kind's section, or at `endpoint` (the simulated
+// cell's controller). Throws ConfigError for options the link refuses (a robot file that does
+// not load, say).
+std::unique_ptr<ControllerConnection> makeControllerConnection(
+    const ControllerConfig& config, const LinkEndpoint* endpoint = nullptr);
 
-// The link to the controller controller.kind names, not connected. Throws ConfigError for
-// options the link refuses (a robot file that does not load, say).
-std::unique_ptr<ControllerConnection> makeControllerConnection(const ControllerConfig& config);
-
-// The PSD readout daq.kind names, its board opened (daq.serial), reading through `map` on
-// `clock`. Throws the board's error when it cannot be opened.
-std::unique_ptr<PsdReadout> makePsdReadout(const psd::PsdConfig& config, const psd::PsdMap& map,
+// The PSD readout of daq.kind, its board opened, reading through `map` on `clock`. Throws the
+// board's error when it cannot be opened.
+std::unique_ptr<PsdReadout> makePsdReadout(const DaqConfig& config, const psd::PsdMap& map,
                                            CellClock& clock);
 
 }  // namespace zerocal::service

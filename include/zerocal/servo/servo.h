@@ -119,7 +119,7 @@ struct ServoOptions {
   double hit_zone_mm = 0.05;
   // kZone: two readings at the same pose agreeing within this are settled.
   double settle_mm = 0.005;
-  double limit_margin_deg = 1.0;   // kept from every joint limit (controller.limit_margin_deg)
+  double limit_margin_deg = 1.0;   // kept from every joint limit (controller.irc5.limit_margin_deg)
   bool correct_jacobian = true;    // fit A (above); false: the model's J throughout
   double jacobian_prior_mm = 0.3;  // w above: the motion that weighs as much as the model
   int max_search_points = 3000;

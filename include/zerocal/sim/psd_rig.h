@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "zerocal/psd/psd.h"
+#include "zerocal/usb1408fs/psd_chain.h"
 #include "zerocal/sim/fake_transport.h"
 #include "zerocal/sim/psd_model.h"
 #include "zerocal/sim/usb1408fs_model.h"
@@ -20,7 +21,7 @@ class SimulatedPsdRig {
  public:
   // `seed` drives the PSD noise; the board's calibration table keeps its own fixed seed, as a
   // real board's EEPROM does not change between runs.
-  explicit SimulatedPsdRig(std::uint32_t seed = 42, const psd::PsdChannels& channels = {});
+  explicit SimulatedPsdRig(std::uint32_t seed = 42, const usb1408fs::PsdChannels& channels = {});
   SimulatedPsdRig(const SimulatedPsdRig&) = delete;
   SimulatedPsdRig& operator=(const SimulatedPsdRig&) = delete;
 
@@ -29,10 +30,10 @@ class SimulatedPsdRig {
   usb1408fs::Usb1408fs& daq() { return *daq_; }
   Usb1408fsModel& board() { return board_; }
   const PsdModel& psd() const { return psd_; }
-  const psd::PsdChannels& channels() const { return channels_; }
+  const usb1408fs::PsdChannels& channels() const { return channels_; }
 
  private:
-  psd::PsdChannels channels_;
+  usb1408fs::PsdChannels channels_;
   Usb1408fsModel board_;
   PsdModel psd_;
   std::optional<PsdSpot> spot_ = PsdSpot{};

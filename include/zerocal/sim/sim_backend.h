@@ -9,15 +9,22 @@
 #include <string>
 
 #include "zerocal/cell/cell.h"
+#include "zerocal/cell/controller_kind.h"
 #include "zerocal/sim/simulated_cell.h"
 
 namespace zerocal::sim {
 
+// Makes the link to a simulated controller listening at an endpoint: the configured controller
+// kind's link (its speeds, margins and timeouts, as for a real controller), pointed at the
+// simulator.
+using SimLinkFactory = std::function<std::unique_ptr<ControllerConnection>(const LinkEndpoint&)>;
+
 class SimBackend final : public CellBackend {
  public:
-  // `adjust` may change the client's options (speeds, margins) before it connects, as the
-  // controller section of the configuration does for a real controller.
-  explicit SimBackend(SimulatedCellOptions options, std::function<void(Irc5Options&)> adjust = {});
+  // `link` makes the controller link of each session; without it, an Irc5Client with the
+  // simulated cell's own options (SimulatedCell::clientOptions). The simulated controller speaks
+  // the IRC5 protocol: a link of another kind is refused when a session connects.
+  explicit SimBackend(SimulatedCellOptions options, SimLinkFactory link = {});
   const char* name() const override { return "sim"; }
   CellKnowledge knowledge() const override;
   std::unique_ptr<ConnectedCell> connect() override;
@@ -26,14 +33,16 @@ class SimBackend final : public CellBackend {
 
  private:
   SimulatedCell cell_;
-  std::function<void(Irc5Options&)> adjust_;
+  SimLinkFactory link_;
 };
 
 struct ExternalSimOptions {
   World world;               // the world zerocal-sim must be simulating
   std::string world_source;  // how it was chosen ("backend.sim_seed 3", a file), for messages
-  // Host and port of zerocal-sim, and the controller section's options (robot, speeds, timeouts).
-  Irc5Options client;
+  // Where zerocal-sim listens, and the link to it (the controller section's robot, speeds and
+  // timeouts); it must be an IRC5 link, as zerocal-sim speaks the IRC5 protocol.
+  LinkEndpoint at;
+  SimLinkFactory link;
   PsdModelOptions psd;
   std::uint32_t board_seed = 1408;
   double sweep_half_width_mm = 0.8, sweep_step_mm = 0.04;

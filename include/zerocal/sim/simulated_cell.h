@@ -19,6 +19,7 @@
 #include "zerocal/sim/sim_controller.h"
 #include "zerocal/sim/usb1408fs_model.h"
 #include "zerocal/sim/world.h"
+#include "zerocal/usb1408fs/psd_chain.h"
 #include "zerocal/usb1408fs/psd_readout.h"
 #include "zerocal/usb1408fs/usb1408fs.h"
 
@@ -83,9 +84,13 @@ class SimulatedCell final : public CellClock {
   double waited_s_ = 0;  // waitS() so far; one thread (the session's) drives the cell
 };
 
-// How the simulated cell reads its board: 64 scans at 16 kHz, a reading in 4 ms of cell time.
-// The daemon's daq section is for the real board; the simulated sessions, their figures and
-// tests are made with this readout.
-psd::PsdConfig simulatedReadout();
+// How the simulated cell reads its board: 64 scans at 16 kHz, a reading in 4 ms of cell time,
+// and the default light threshold. The daemon's daq section is for the real board; the simulated
+// sessions, their figures and tests are made with this readout.
+struct SimulatedReadout {
+  usb1408fs::BoardSettings board;
+  psd::PsdConfig psd;
+};
+SimulatedReadout simulatedReadout();
 
 }  // namespace zerocal::sim

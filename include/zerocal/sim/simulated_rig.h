@@ -25,7 +25,7 @@ struct SimulatedRig {
           return o;
         }()),
         daq(cell.boardOpener()),
-        psd(daq, cell.psdMap(), cell, simulatedReadout()) {
+        psd(daq, cell.psdMap(), cell, simulatedReadout().board, simulatedReadout().psd) {
     client.connect();
   }
 

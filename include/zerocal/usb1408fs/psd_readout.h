@@ -8,18 +8,20 @@
 #include "zerocal/cell/psd_reader.h"
 #include "zerocal/psd/psd.h"
 #include "zerocal/psd/psd_config.h"
+#include "zerocal/usb1408fs/psd_chain.h"
 #include "zerocal/usb1408fs/usb1408fs.h"
 
 namespace zerocal::usb1408fs {
 
 // The real chain. `daq` and `clock` must outlive the reader. Each read() runs one
-// single-execution scan (psd::readAveraged), so a reading holds only samples converted after
+// single-execution scan (readAveraged), so a reading holds only samples converted after
 // read() was called, never light from before the last move ended. The scan is built once here;
 // read() allocates nothing once the first reading has sized the driver's buffers.
 class ChainPsdReader final : public PsdReader {
  public:
-  // `config` is the daq section: channels, scans per reading and their rate, the SUM threshold.
-  ChainPsdReader(Usb1408fs& daq, psd::PsdMap map, CellClock& clock, const psd::PsdConfig& config);
+  // `board`: the channels, scans per reading and their rate; `psd`: the SUM threshold.
+  ChainPsdReader(Usb1408fs& daq, psd::PsdMap map, CellClock& clock, const BoardSettings& board,
+                 const psd::PsdConfig& psd);
   PsdReading read() override;
 
  private:
@@ -36,8 +38,8 @@ class Usb1408fsReadout final : public PsdReadout {
  public:
   // Opens the board. Throws as Usb1408fs.
   Usb1408fsReadout(Usb1408fs::Opener opener, psd::PsdMap map, CellClock& clock,
-                   const psd::PsdConfig& config)
-      : daq_(std::move(opener)), chain_(daq_, std::move(map), clock, config) {}
+                   const BoardSettings& board, const psd::PsdConfig& psd)
+      : daq_(std::move(opener)), chain_(daq_, std::move(map), clock, board, psd) {}
   PsdReading read() override { return chain_.read(); }
   void reopen() override { daq_.reopen(); }
 

@@ -1,6 +1,8 @@
 // The simulated IRC5: a real TCP server speaking zerocal's RAPID module's protocol (and
-// upstream open_abb's, without LF, behind a switch), moving a simulated robot whose true pose
-// differs from what it reports by the world's joint offsets. Time is simulated: a move advances
+// upstream open_abb's, without LF, behind a switch) over a sim::SimulatedArm, whose true pose
+// differs from what it reports by the world's joint offsets. The server parses a request, calls
+// the arm and formats its reply; the arm holds every state but the protocol's (the search
+// spiral's rows, a restart asked for, the fault injection). Time is simulated: a move advances
 // the simulated clock by what it costs a real IRC5 (irc5::MotionCosts: a fixed cost per move, the
 // accelerating and braking profile, the settling at the fine point) and replies at once, unless
 // real-time pacing is asked for.
@@ -19,7 +21,7 @@
 
 #include "zerocal/irc5/motion_time.h"
 #include "zerocal/model/robot.h"
-#include "zerocal/sim/psd_model.h"
+#include "zerocal/sim/simulated_arm.h"
 #include "zerocal/sim/world.h"
 
 namespace zerocal {
@@ -45,32 +47,11 @@ struct SimFaults {
   int drop_code_times = 1;
 };
 
-// Motor-side calibration as an IRC5 keeps it (docs/apply.md): per joint the MOC MOTOR_CALIB
-// cal_offset (rad, [0, 2 pi)) and the arm's true transmission k (motor angle per joint angle,
-// signed). The controller's joint angle is (motor angle - cal_offset) / k, so writing a
-// cal_offset moves the joint's true zero by (new - old) / k on the arm side, whatever k the
-// robot's configuration believes: a wrong sign or ratio there leaves the error it would leave on
-// a real robot. The revolution counter keeps counting from its motor turn until it is updated.
-struct SimMotorCalibration {
-  // The cal_offset values at start; nullopt: drawn from the seed, uniform in [0, 2 pi).
-  std::optional<std::array<double, kJointCount>> cal_offset_rad;
-  // The arm's true transmission; nullopt: the robot model's (0 where it gives none: such a
-  // joint's cal_offset cannot be written).
-  std::optional<std::array<double, kJointCount>> transmission;
-};
-
-// The spot search's light signal (requests 47 and 49, docs/irc5.md): a comparator on the PSD
-// amplifier's SUM output wired to a digital input, whose rising edge interrupts the RAPID module's
-// run and latches the joints. The simulated controller evaluates the detector's noise-free SUM
-// along the run's path.
-struct SimSearchSignal {
-  bool wired = true;         // false: 47 is refused as by a module whose signal is not configured
-  sim::PsdModelOptions psd;  // the detector the comparator watches
-  double threshold_v = 0.5;  // the comparator's threshold (the chain's daq.sum_threshold_v)
-  // From the light crossing the threshold to the trap latching the joints (s): the input's
-  // filter, the I/O cycle and the interrupt, uniform in [min, max] (inferred, docs/irc5.md).
-  double latency_min_s = 0.002, latency_max_s = 0.012;
-};
+// The arm's motor calibration (MOC MOTOR_CALIB cal_offset, requests 41, 45, 46, 48) and the spot
+// search's light signal (requests 47 and 49, docs/irc5.md): the simulated arm's own
+// (include/zerocal/sim/simulated_arm.h).
+using SimMotorCalibration = sim::MotorCalibration;
+using SimSearchSignal = sim::SearchSignal;
 
 struct SimControllerOptions {
   World world;
@@ -103,12 +84,11 @@ struct SimControllerOptions {
   SimFaults faults;
 };
 
-// Where the simulated time of the moves went, summed over every move since construction.
-struct MotionTotals {
-  long moves = 0;  // search moves (47) included
-  long search_moves = 0;
-  double motion_s = 0, overhead_s = 0, settle_s = 0;
-};
+using MotionTotals = sim::MotionTotals;
+
+// The IRC5's timing (irc5::jointMoveSeconds and irc5::rampedSeconds with `costs`) as the simulated
+// arm's motion model: what SimController gives its arm.
+sim::MotionModel irc5MotionModel(const irc5::MotionCosts& costs);
 
 class SimController {
  public:

@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <mutex>
 #include <random>
@@ -329,6 +330,7 @@ MoveResult SimulatedArm::moveLinear(const TcpPose& target) {
 }
 
 MoveResult SimulatedArm::searchRun(const SpotSearch& spiral, const SearchRun& run) {
+  assert(spiral.pitch_mm > 0 && run.from_mm >= 0 && run.to_mm >= run.from_mm && run.speed_mm_s > 0);
   std::lock_guard<std::mutex> lock(state_->mutex);
   return state_->search(spiral, run);
 }
@@ -344,6 +346,7 @@ void SimulatedArm::setWorkObject(const TcpPose& wobj_in_base) {
 }
 
 void SimulatedArm::setSpeed(const MoveSpeed& speed) {
+  assert(speed.tcp_mm_s > 0 && speed.ori_deg_s > 0);
   std::lock_guard<std::mutex> lock(state_->mutex);
   state_->speed = speed;
 }

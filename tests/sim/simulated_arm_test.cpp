@@ -5,6 +5,7 @@
 
 #include <Eigen/Dense>
 #include <cmath>
+#include <thread>
 
 #include "stored_plan.h"
 #include "zerocal/error.h"
@@ -252,6 +253,26 @@ TEST(SimulatedArm, TheClockAdvancesByTheMovesAndRestartsOnly) {
   EXPECT_DOUBLE_EQ(arm.timeS(), expected);
   expected += arm.restart();
   EXPECT_DOUBLE_EQ(arm.timeS(), expected);
+}
+
+// A server's I/O thread moves the arm while another thread reads it: every reading is a state
+// the arm was in (a target reached, a clock that only grows).
+TEST(SimulatedArm, ReadersSeeWholeMovesWhileAnotherThreadMoves) {
+  SimulatedArm arm(armOptions());
+  const Joints a{5, 0, 0, 0, 30, 0}, b{-5, 10, 0, 0, 30, 0};
+  std::thread mover([&] {
+    for (int i = 0; i < 200; ++i) arm.moveJoints(i % 2 == 0 ? a : b);
+  });
+  double last_s = 0;
+  while (arm.motionTotals().moves < 200) {
+    const Joints q = arm.joints();
+    EXPECT_TRUE(q == a || q == b || q == (Joints{0, 0, 0, 0, 30, 0}));
+    const double now_s = arm.timeS();
+    EXPECT_GE(now_s, last_s);
+    last_s = now_s;
+  }
+  mover.join();
+  EXPECT_EQ(arm.joints(), b);
 }
 
 TEST(SimulatedArm, OptionsItCannotRunWithAreAConfigError) {

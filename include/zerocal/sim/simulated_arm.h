@@ -129,7 +129,7 @@ struct MotionTotals {
 enum class MoveRefusal {
   kNone,            // it moved
   kOutOfLimits,     // a target (a search's waypoint included) beyond the robot's limits
-  kUnreachable,     // a linear move's target pose has no joint solution near the arm's
+  kUnreachable,     // a linear move's target has no joint solution, near the arm's, in the limits
   kBadPath,         // a search's run gives no waypoint, or more than 4999
   kNoSearchSignal,  // a search without a wired SearchSignal
 };

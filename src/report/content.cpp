@@ -162,23 +162,11 @@ std::string verdict(const SessionReport& r) {
   return v;
 }
 
-Section abbSection(const SessionReport& r) {
-  Section s;
-  s.heading = "ABB IRC5: the offsets as corrections (nothing is written to the controller)";
-  auto& p = s.paragraphs;
-  p.push_back(
-      "What an offset means. zerocal's model is theta_i = q_i + theta_offset_i + delta_i, where "
-      "q_i is the angle the controller reports for joint i (ABB's CJointT sign) and theta_i the "
-      "joint's true angle in the nominal kinematic model (the DH table of the IRB 1600). All "
-      "values are arm side: joint angles, not motor angles. A positive delta_i means the arm is "
-      "turned delta_i further in the joint's positive direction than the controller believes: "
-      "when the controller reports q_i the arm is at q_i + delta_i, and the arm is at its true "
-      "zero when the controller reports -delta_i.");
-  p.push_back(
-      "The correction. For each joint below, the controller's reading must grow by delta_i at "
-      "every arm position (new reading = old reading + delta_i); equivalently the joint's zero "
-      "(its calibration position) moves by -delta_i on the arm side. Joints 1 and 6 cannot be "
-      "determined by this method: leave them unchanged.");
+namespace {
+
+// One paragraph per offset: the correction the controller's reading needs, or why none is to be
+// made. Said alike for every controller.
+void correctionsOf(const SessionReport& r, std::vector<std::string>& p) {
   for (const ParameterRow& o : r.parameters) {
     if (!isOffset(o)) continue;
     const int j = jointOf(o);
@@ -200,6 +188,28 @@ Section abbSection(const SessionReport& r) {
                     : " Its 95% interval contains zero: the offset is not distinguishable from "
                       "zero and may be left alone."));
   }
+}
+
+}  // namespace
+
+Section abbSection(const SessionReport& r) {
+  Section s;
+  s.heading = "ABB IRC5: the offsets as corrections (nothing is written to the controller)";
+  auto& p = s.paragraphs;
+  p.push_back(
+      "What an offset means. zerocal's model is theta_i = q_i + theta_offset_i + delta_i, where "
+      "q_i is the angle the controller reports for joint i (ABB's CJointT sign) and theta_i the "
+      "joint's true angle in the nominal kinematic model (the DH table of the IRB 1600). All "
+      "values are arm side: joint angles, not motor angles. A positive delta_i means the arm is "
+      "turned delta_i further in the joint's positive direction than the controller believes: "
+      "when the controller reports q_i the arm is at q_i + delta_i, and the arm is at its true "
+      "zero when the controller reports -delta_i.");
+  p.push_back(
+      "The correction. For each joint below, the controller's reading must grow by delta_i at "
+      "every arm position (new reading = old reading + delta_i); equivalently the joint's zero "
+      "(its calibration position) moves by -delta_i on the arm side. Joints 1 and 6 cannot be "
+      "determined by this method: leave them unchanged.");
+  correctionsOf(r, p);
   p.push_back(
       "Where the IRC5 keeps joint calibration. MOC.cfg, type MOTOR_CALIB, one instance per motor "
       "(rob1_1 .. rob1_6), attribute cal_offset: the MOTOR-side resolver angle in radians (beside "
@@ -232,6 +242,39 @@ Section abbSection(const SessionReport& r) {
       "should lie within about its 95% interval of zero. An offset that doubled instead of "
       "vanishing was entered with the wrong sign.");
   return s;
+}
+
+namespace {
+
+Section otherControllerSection(const SessionReport& r, const std::string& kind) {
+  Section s;
+  s.heading = "Controller '" + kind + "': the offsets as corrections (nothing is written to it)";
+  auto& p = s.paragraphs;
+  p.push_back(
+      "What an offset means. zerocal's model is theta_i = q_i + theta_offset_i + delta_i, where "
+      "q_i is the angle the controller reports for joint i and theta_i the joint's true angle in "
+      "the nominal kinematic model of the robot file. All values are arm side. A positive "
+      "delta_i means the arm is turned delta_i further in the joint's positive direction than "
+      "the controller believes.");
+  p.push_back(
+      "The correction. For each joint below, the controller's reading must grow by delta_i at "
+      "every arm position; equivalently the joint's zero moves by -delta_i on the arm side. "
+      "Enter it as the controller's own calibration procedure says. Joints 1 and 6 cannot be "
+      "determined by this method: leave them unchanged.");
+  correctionsOf(r, p);
+  return s;
+}
+
+}  // namespace
+
+Section controllerSection(const SessionReport& r) {
+  // Sessions from before the kinds recorded none: they all ran on an IRC5.
+  const nlohmann::json& config = r.session.config;
+  std::string kind = "irc5";
+  if (config.is_object() && config.contains("controller") && config["controller"].is_object() &&
+      config["controller"].contains("kind") && config["controller"]["kind"].is_string())
+    kind = config["controller"]["kind"].get<std::string>();
+  return kind == "irc5" ? abbSection(r) : otherControllerSection(r, kind);
 }
 
 std::string wrap(const std::string& text, std::size_t width, std::size_t indent) {

@@ -36,6 +36,10 @@ struct Section {
   std::vector<std::string> paragraphs;
 };
 Section abbSection(const SessionReport& r);
+// The section for the session's controller (session.json's config.controller.kind): the ABB
+// section for an IRC5 (and for sessions that recorded no kind: they all ran on one), the
+// corrections without any controller's data for another kind.
+Section controllerSection(const SessionReport& r);
 
 // Whose calibration, with what and when, one sentence each: the robot as its controller
 // identified itself, the PSD map, the zerocal version, the local date and time it finished.

@@ -422,8 +422,8 @@ std::string reportHtml(const SessionReport& r) {
       << "</p>\n";
   }
 
-  // ABB.
-  const detail::Section abb = detail::abbSection(r);
+  // What to enter into the controller.
+  const detail::Section abb = detail::controllerSection(r);
   o << "<h2>" << esc(abb.heading) << "</h2>\n";
   for (const std::string& p : abb.paragraphs) o << "<p>" << esc(p) << "</p>\n";
   const detail::Section applied = detail::applySection(r);

@@ -123,7 +123,7 @@ std::string summaryText(const SessionReport& r) {
                 r.result.validation->rms_before_mm, r.result.validation->rms_after_mm);
   }
 
-  const detail::Section abb = detail::abbSection(r);
+  const detail::Section abb = detail::controllerSection(r);
   o << "\n" << abb.heading << "\n";
   for (const std::string& p : abb.paragraphs) o << detail::wrap(p, 100, 2) << "\n";
   const detail::Section applied = detail::applySection(r);

@@ -294,6 +294,25 @@ TEST(Summary, AbbSectionStatesTheSignAndWhatToLookUp) {
   EXPECT_TRUE(contains(s, zero)) << zero;
 }
 
+// Another controller kind gets the corrections, never the IRC5's MOC data or its apply command.
+TEST(Summary, AnotherControllerKindGetsTheCorrectionsWithoutTheIrc5s) {
+  SessionReport r = plainSession();
+  r.session.config["controller"]["kind"] = "line";
+  const std::string s = summaryText(r);
+  EXPECT_TRUE(contains(s, "Controller 'line': the offsets as corrections"));
+  EXPECT_TRUE(contains(s, "theta_i = q_i + theta_offset_i + delta_i"));
+  EXPECT_FALSE(contains(s, "MOTOR_CALIB"));
+  EXPECT_FALSE(contains(s, "zerocal apply"));
+  EXPECT_FALSE(contains(reportHtml(r), "cal_offset"));
+  const ParameterRow& d2 = r.parameters[0];
+  char zero[128];
+  std::snprintf(zero, sizeof zero, "Zero moves by %+.5f deg = %+.7f rad", -d2.value,
+                -d2.value * M_PI / 180);
+  EXPECT_TRUE(contains(s, zero)) << zero;
+  r.session.config["controller"]["kind"] = "irc5";
+  EXPECT_TRUE(contains(summaryText(r), "MOTOR_CALIB"));
+}
+
 TEST(Summary, ValidationWhenPosesWereHeldOutAndSaysSoWhenNot) {
   EXPECT_TRUE(contains(summaryText(plainSession()), "no poses were held out"));
   const SessionReport& r = heldOutSession();

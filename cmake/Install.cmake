@@ -20,7 +20,7 @@ if(NOT DEFINED ZEROCAL_SYSUSERSDIR)
 endif()
 set(ZEROCAL_BINDIR ${CMAKE_INSTALL_FULL_BINDIR})
 
-install(TARGETS zerocal zerocald zerocal-sim RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+install(TARGETS zerocal zerocal-lab zerocald zerocal-sim RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 
 # Configuration: every key at its default, the drop-in folder, the shipped robots, worlds and PSD
 # files. The token is not installed: the package's postinst makes one (docs/daemon.md).
@@ -43,7 +43,7 @@ install(FILES drivers/irc5/rapid/ZerocalServer.mod DESTINATION ${CMAKE_INSTALL_D
 
 # Bash completion of the commands and options (asked of the program's --help as one types); one
 # file per program, since bash-completion loads a completion by the name of the command.
-foreach(program zerocal zerocald zerocal-sim)
+foreach(program zerocal zerocal-lab zerocald zerocal-sim)
   install(FILES config/bash-completion/zerocal
           DESTINATION ${CMAKE_INSTALL_DATADIR}/bash-completion/completions RENAME ${program})
 endforeach()
@@ -66,7 +66,8 @@ if(ZEROCAL_MAN_PAGES)
     install(FILES ${out} DESTINATION ${CMAKE_INSTALL_MANDIR}/man${section})
     set(_zerocal_man_pages ${_zerocal_man_pages} ${out} PARENT_SCOPE)
   endfunction()
-  zerocal_man_page(zerocal 1 "calibrate robot joint offsets: engine and zerocald client")
+  zerocal_man_page(zerocal 1 "the technician's client of zerocald, the calibration daemon")
+  zerocal_man_page(zerocal-lab 1 "calibrate robot joint offsets offline: engine, PSD, report, experiments")
   zerocal_man_page(zerocald 8 "the zerocal cell daemon")
   zerocal_man_page(zerocal-sim 1 "simulated ABB IRC5 controller for zerocal")
   add_custom_target(man ALL DEPENDS ${_zerocal_man_pages})

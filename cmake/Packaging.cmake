@@ -9,7 +9,7 @@ set(CPACK_PACKAGE_DESCRIPTION_SUMMARY "joint zero-offset calibration of industri
 set(CPACK_PACKAGE_DESCRIPTION
     "zerocald drives an ABB IRC5 robot through planned poses, servoes a flange laser onto a PSD "
     "read through a USB-1408FS, and identifies the joint zero offsets with their uncertainty; "
-    "zerocal is the technician's terminal client and the engine's command line.")
+    "zerocal is the technician's terminal client, zerocal-lab the engine's command line.")
 set(CPACK_DEBIAN_PACKAGE_MAINTAINER "zerocal developers <zerocal@localhost>")
 set(CPACK_DEBIAN_PACKAGE_SECTION science)
 set(CPACK_DEBIAN_FILE_NAME DEB-DEFAULT)

@@ -8,29 +8,6 @@
 
 namespace zerocal {
 
-Joints CalibrationParameters::offsetsDeg() const {
-  Joints out{};
-  for (int i = 0; i < kOffsetCount; ++i) out[i + 1] = delta_rad[i] * kRadToDeg;
-  return out;
-}
-
-std::string unknownName(int i) {
-  static const char* names[kUnknownCount] = {
-      "delta2_deg",    "delta3_deg",    "delta4_deg",        "delta5_deg",
-      "laser_slope_1", "laser_slope_2", "laser_offset_1_mm", "laser_offset_2_mm",
-      "target_x_mm",   "target_y_mm",   "target_z_mm"};
-  return names[i];
-}
-
-std::string linkParamName(int k) {
-  static const char* kinds[3] = {"da", "dd", "dalpha"};
-  return kinds[k % 3] + std::to_string(k / 3 + 1) + (k % 3 == 2 ? "_deg" : "_mm");
-}
-
-std::string complianceParamName(int k) {
-  return "compliance" + std::to_string(k + 2) + "_deg_per_knm";
-}
-
 Robot withLinkErrors(const Robot& robot, const Eigen::Matrix<double, kLinkParamCount, 1>& link) {
   Robot out = robot;
   for (int j = 0; j < kJointCount; ++j) {
@@ -86,14 +63,6 @@ Eigen::Vector3d closestPointToLines(const std::vector<Line>& lines) {
   if (!(eig.eigenvalues()[0] > 1e-9 * std::max(1.0, eig.eigenvalues()[2])))
     throw InputError("the laser lines are all parallel: no point is closest to them");
   return a.ldlt().solve(b);
-}
-
-std::vector<int> placementsOf(const std::vector<Pose>& poses) {
-  std::vector<int> out;
-  for (const Pose& p : poses) out.push_back(p.placement);
-  std::sort(out.begin(), out.end());
-  out.erase(std::unique(out.begin(), out.end()), out.end());
-  return out;
 }
 
 Eigen::Vector3d hitPointOffset(const CellModel& cell, const Pose& pose, bool use_readings) {

@@ -12,9 +12,6 @@
 namespace zerocal {
 namespace {
 
-// JSON has no NaN or infinity: an unknown number is null.
-nlohmann::json number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
-
 std::string printf(const char* format, ...) __attribute__((format(printf, 1, 2)));
 std::string printf(const char* format, ...) {
   char buf[512];
@@ -26,104 +23,6 @@ std::string printf(const char* format, ...) {
 }
 
 }  // namespace
-
-std::string costName(CostKind cost) {
-  return cost == CostKind::kMaximumLikelihood ? "ml" : "pairwise";
-}
-
-std::string modelName(const SolveReport& r) {
-  return r.used_readings ? "hit-point" : "point-to-line";
-}
-
-std::string noiseSourceName(const SolveReport& r) {
-  return r.noise_estimated ? "estimated from the residuals" : "given";
-}
-
-nlohmann::json toJson(const Verdict& v) { return {{"usable", v.usable}, {"reasons", v.reasons}}; }
-
-nlohmann::json toJson(const SolveReport& r) {
-  nlohmann::json j;
-  j["verdict"] = toJson(r.verdict);
-  j["suspect_poses"] = nlohmann::json::array();
-  for (const SuspectPose& s : r.suspect_poses)
-    j["suspect_poses"].push_back({{"pose", s.pose},
-                                  {"line", s.source_line},
-                                  {"reason", s.reason},
-                                  {"chi2_without", number(s.chi2_without)}});
-  j["converged"] = r.converged;
-  j["message"] = r.message;
-  j["cost"] = costName(r.cost);
-  j["model"] = modelName(r);
-  j["poses"] = r.pose_count;
-  j["poses_used"] = r.poses_used;
-  j["required_accuracy_deg"] = r.required_accuracy_deg;
-  j["model_tolerance"] = {{"length_mm", r.model_length_mm}, {"angle_deg", r.model_angle_deg}};
-  if (r.model_sag_deg > 0) j["model_tolerance"]["sag_deg"] = r.model_sag_deg;
-  nlohmann::json params = nlohmann::json::object();
-  for (const auto& p : r.parameters) {
-    nlohmann::json e;
-    e["identifiable"] = p.identifiable;
-    e["value"] = p.identifiable ? number(p.value) : nlohmann::json();
-    e["sigma"] = p.identifiable ? number(p.sigma) : nlohmann::json();
-    e["ci95"] =
-        p.identifiable ? nlohmann::json{number(p.ci95_low), number(p.ci95_high)} : nlohmann::json();
-    if (!p.identifiable) e["reason"] = p.reason;
-    if (p.identifiable && p.model_sigma > 0) e["model_sigma"] = number(p.model_sigma);
-    if (p.name.rfind("delta", 0) == 0 && p.identifiable) e["value_rad"] = p.value * kDegToRad;
-    params[p.name] = e;
-  }
-  j["parameters"] = params;
-  j["not_identifiable"] = nlohmann::json::array();
-  for (const auto& n : r.not_identifiable)
-    j["not_identifiable"].push_back({{"name", n.name}, {"reason", n.reason}});
-  j["target_mm"] = {r.estimate.target_mm.x(), r.estimate.target_mm.y(), r.estimate.target_mm.z()};
-  j["target_sigma_mm"] = {number(r.target_sigma_mm.x()), number(r.target_sigma_mm.y()),
-                          number(r.target_sigma_mm.z())};
-  if (!r.placements.empty()) {
-    j["placements"] = nlohmann::json::array();
-    for (const auto& c : r.placements)
-      j["placements"].push_back({{"placement", c.placement},
-                                 {"poses", c.poses},
-                                 {"target_mm", {c.target_mm.x(), c.target_mm.y(), c.target_mm.z()}},
-                                 {"target_sigma_mm",
-                                  {number(c.target_sigma_mm.x()), number(c.target_sigma_mm.y()),
-                                   number(c.target_sigma_mm.z())}}});
-  }
-  j["rank"] = r.rank;
-  j["condition_number"] = number(r.condition_number);
-  j["dof"] = r.dof;
-  j["noise_mm"] = number(r.noise_mm);
-  j["noise_source"] = noiseSourceName(r);
-  j["chi2_per_dof"] = r.chi2_per_dof ? number(*r.chi2_per_dof) : nlohmann::json();
-  j["chi2_p_value"] = r.chi2_p_value ? number(*r.chi2_p_value) : nlohmann::json();
-  j["noise_scale"] = r.noise_scale;
-  j["rms_miss_mm"] = r.rms_miss_mm;
-  j["residuals_mm"] = nlohmann::json::array();
-  j["pose_residuals"] = nlohmann::json::array();
-  for (std::size_t i = 0; i < r.poses.size(); ++i) {
-    const auto& p = r.poses[i];
-    j["residuals_mm"].push_back(p.miss_norm_mm);
-    j["pose_residuals"].push_back(
-        {{"pose", i + 1},
-         {"line", p.source_line},
-         {"miss_mm", {p.miss_mm.x(), p.miss_mm.y()}},
-         {"normalised", number(p.normalised)},
-         {"outlier", p.outlier},
-         {"used", p.used},
-         {"duplicate_of", p.duplicate_of ? nlohmann::json(p.duplicate_of) : nlohmann::json()},
-         {"standoff_mm", p.standoff_mm}});
-  }
-  nlohmann::json corr = nlohmann::json::array();
-  for (int a = 0; a < r.correlation.rows(); ++a) {
-    nlohmann::json row = nlohmann::json::array();
-    for (int b = 0; b < r.correlation.cols(); ++b) row.push_back(number(r.correlation(a, b)));
-    corr.push_back(row);
-  }
-  j["correlation"] = corr;
-  j["iterations"] = r.iterations;
-  j["solve_time_ms"] = r.solve_time_ms;
-  return j;
-}
 
 std::string toText(const Verdict& v) {
   std::ostringstream o;
@@ -216,33 +115,6 @@ std::string toText(const SolveReport& r) {
   return o.str();
 }
 
-namespace {
-
-nlohmann::json toJson(const AimingError& e) {
-  return {{"on_psd_mm", {number(e.on_psd_mm.x()), number(e.on_psd_mm.y())}},
-          {"on_psd_norm_mm", number(e.on_psd_norm_mm)},
-          {"miss_mm", number(e.miss_mm)}};
-}
-
-}  // namespace
-
-nlohmann::json toJson(const HoldoutReport& r) {
-  nlohmann::json j;
-  j["held_out"] = r.held_out;
-  j["total_poses"] = r.total_poses;
-  j["nominal_target_mm"] = {r.nominal_target_mm.x(), r.nominal_target_mm.y(),
-                            r.nominal_target_mm.z()};
-  j["poses"] = nlohmann::json::array();
-  for (const HeldOutPose& p : r.poses)
-    j["poses"].push_back({{"pose", p.pose},
-                          {"line", p.source_line},
-                          {"before", toJson(p.before)},
-                          {"after", toJson(p.after)}});
-  j["rms_before_mm"] = number(r.rms_before_mm);
-  j["rms_after_mm"] = number(r.rms_after_mm);
-  return j;
-}
-
 std::string toText(const HoldoutReport& r) {
   std::ostringstream o;
   o << "\nValidation: " << r.poses.size() << " of " << r.total_poses
@@ -257,39 +129,6 @@ std::string toText(const HoldoutReport& r) {
                 p.after.on_psd_mm.y());
   o << printf("RMS before %.4f mm, after %.4f mm\n", r.rms_before_mm, r.rms_after_mm);
   return o.str();
-}
-
-nlohmann::json toJson(const Plan& plan) {
-  nlohmann::json j;
-  j["description"] = plan.description;
-  j["candidates_considered"] = plan.candidates_considered;
-  j["poses"] = nlohmann::json::array();
-  for (const auto& p : plan.poses) j["poses"].push_back(p.q_deg);
-  nlohmann::json pred;
-  for (int k = 0; k < kIdentifiedCount; ++k) {
-    nlohmann::json e{{"identifiable", plan.prediction.identifiable[k]},
-                     {"sigma", number(plan.prediction.sigma[k])}};
-    if (!plan.prediction.identifiable[k]) e["reason"] = plan.prediction.reason[k];
-    pred[unknownName(k)] = e;
-  }
-  j["predicted"] = pred;
-  if (plan.prediction.placements > 1) {
-    j["placements"] = plan.prediction.placements;
-    j["pose_placements"] = nlohmann::json::array();
-    for (const auto& p : plan.poses) j["pose_placements"].push_back(p.placement);
-    nlohmann::json links = nlohmann::json::object();
-    for (int l = 0; l < kLinkParamCount; ++l) {
-      nlohmann::json e{{"identifiable", plan.prediction.link_identifiable[l]},
-                       {"sigma", number(plan.prediction.link_sigma[l])}};
-      if (!plan.prediction.link_identifiable[l]) e["reason"] = plan.prediction.link_reason[l];
-      links[linkParamName(l)] = e;
-    }
-    j["predicted_link_errors"] = links;
-  }
-  j["predicted_rms_offset_sigma_deg"] = number(plan.prediction.rms_offset_sigma_deg);
-  j["rank"] = plan.prediction.rank;
-  j["condition_number"] = number(plan.prediction.condition_number);
-  return j;
 }
 
 std::string toText(const Plan& plan) {
@@ -332,7 +171,7 @@ nlohmann::json toJson(const std::vector<ScenarioResult>& results,
     nlohmann::json s{{"pattern", patternName(r.pattern)},
                      {"cost", costName(r.cost)},
                      {"rms_error_deg", r.rms_error_deg},
-                     {"predicted_rms_sigma_deg", number(r.predicted_rms_sigma_deg)},
+                     {"predicted_rms_sigma_deg", numberOrNull(r.predicted_rms_sigma_deg)},
                      {"not_identifiable_runs", r.not_identifiable_runs},
                      {"failed_runs", r.failed_runs},
                      {"mean_solve_ms", r.mean_solve_ms}};
@@ -343,9 +182,9 @@ nlohmann::json toJson(const std::vector<ScenarioResult>& results,
       nlohmann::json e{{"truth", st.truth},
                        {"mean_error", st.mean_error},
                        {"std", st.std},
-                       {"crb", number(st.crb)},
-                       {"std_over_crb", number(st.std / st.crb)},
-                       {"mean_error_over_crb", number(st.mean_error / st.crb)}};
+                       {"crb", numberOrNull(st.crb)},
+                       {"std_over_crb", numberOrNull(st.std / st.crb)},
+                       {"mean_error_over_crb", numberOrNull(st.mean_error / st.crb)}};
       if (st.has_paper) e["paper"] = {{"mean_error", st.paper_mean_error}, {"std", st.paper_std}};
       s["parameters"][st.name] = e;
     }
@@ -385,7 +224,7 @@ nlohmann::json toJson(const std::array<JointSensitivity, kJointCount>& s) {
     j.push_back({{"joint", i + 1},
                  {"spot_mm_per_deg", {s[i].spot_mm_per_deg.x(), s[i].spot_mm_per_deg.y()}},
                  {"magnitude_mm_per_deg", s[i].magnitude_mm_per_deg},
-                 {"deg_per_20um", number(s[i].deg_per_20um)}});
+                 {"deg_per_20um", numberOrNull(s[i].deg_per_20um)}});
   return j;
 }
 
@@ -397,238 +236,6 @@ std::string toText(const std::array<JointSensitivity, kJointCount>& s) {
     o << printf("%5d %12.4f %12.4f %14.4f %14.6f\n", i + 1, s[i].spot_mm_per_deg.x(),
                 s[i].spot_mm_per_deg.y(), s[i].magnitude_mm_per_deg, s[i].deg_per_20um);
   return o.str();
-}
-
-namespace {
-
-Eigen::Vector3d vector3(const JsonReader& j, const char* key) {
-  const std::vector<double> v = j.numbers(key, 3);
-  return {v[0], v[1], v[2]};
-}
-
-AimingError aimingErrorFromJson(const JsonReader& j) {
-  AimingError e;
-  const std::vector<double> uv = j.numbers("on_psd_mm", 2);
-  e.on_psd_mm = {uv[0], uv[1]};
-  e.on_psd_norm_mm = j.numberOrNan("on_psd_norm_mm");
-  e.miss_mm = j.numberOrNan("miss_mm");
-  return e;
-}
-
-}  // namespace
-
-SolveReport solveReportFromJson(const nlohmann::json& json, const std::string& where) {
-  const JsonReader j(json, where);
-  SolveReport r;
-  if (j.has("verdict")) {
-    const JsonReader v = j.object("verdict");
-    r.verdict.usable = v.boolean("usable");
-    for (const nlohmann::json& reason : v.array("reasons")) {
-      if (!reason.is_string()) throw InputError(v.where() + ": 'reasons' are not all text");
-      r.verdict.reasons.push_back(reason.get<std::string>());
-    }
-  }
-  if (j.has("suspect_poses"))
-    for (std::size_t i = 0; i < j.array("suspect_poses").size(); ++i) {
-      const JsonReader e = j.element("suspect_poses", i);
-      r.suspect_poses.push_back({e.integer("pose"), e.integer("line"), e.string("reason"),
-                                 e.numberOrNan("chi2_without")});
-    }
-  r.converged = j.boolean("converged");
-  r.message = j.stringOr("message", "");
-  r.cost =
-      j.stringOr("cost", "ml") == "pairwise" ? CostKind::kPairwise : CostKind::kMaximumLikelihood;
-  r.used_readings = j.stringOr("model", "") == "hit-point";
-  r.pose_count = j.integer("poses");
-  r.poses_used = j.has("poses_used") ? j.integer("poses_used") : r.pose_count;
-  r.required_accuracy_deg = j.has("required_accuracy_deg") ? j.number("required_accuracy_deg") : 0;
-  if (j.has("model_tolerance")) {
-    const JsonReader m = j.object("model_tolerance");
-    r.model_length_mm = m.number("length_mm");
-    r.model_angle_deg = m.number("angle_deg");
-    r.model_sag_deg = m.has("sag_deg") ? m.number("sag_deg") : 0;
-  }
-  const nlohmann::json& params = j.at("parameters");
-  if (!params.is_object()) throw InputError(where + ": 'parameters' is not an object");
-  // The solver's order (offsets, then the laser), not JSON's alphabetical one; names this version
-  // does not know follow.
-  std::vector<std::string> names;
-  for (int k = 0; k < kIdentifiedCount; ++k)
-    if (params.contains(unknownName(k))) names.push_back(unknownName(k));
-  for (const auto& item : params.items())
-    if (std::find(names.begin(), names.end(), item.key()) == names.end())
-      names.push_back(item.key());
-  for (const std::string& name : names) {
-    const JsonReader p(params.at(name), where + " parameters." + name);
-    ParameterEstimate e;
-    e.name = name;
-    e.identifiable = p.boolean("identifiable");
-    e.reason = p.stringOr("reason", "");
-    e.value = p.numberOrNan("value");
-    e.sigma = p.numberOrNan("sigma");
-    e.model_sigma = p.has("model_sigma") ? p.number("model_sigma") : 0;
-    e.ci95_low = e.ci95_high = std::nan("");
-    if (p.present("ci95")) {
-      const std::vector<double> ci = p.numbers("ci95", 2);
-      e.ci95_low = ci[0];
-      e.ci95_high = ci[1];
-    }
-    for (int k = 0; k < kIdentifiedCount; ++k) {
-      if (unknownName(k) != name || !e.identifiable) continue;
-      if (k < kOffsetCount)
-        r.estimate.delta_rad[k] = e.value * kDegToRad;
-      else
-        r.estimate.laser[k - kOffsetCount] = e.value;
-    }
-    for (int l = 0; l < kLinkParamCount; ++l)  // several placements: a, d in mm, alpha in deg
-      if (linkParamName(l) == name && e.identifiable)
-        r.estimate.link[l] = l % 3 == 2 ? e.value * kDegToRad : e.value;
-    r.parameters.push_back(e);
-  }
-  for (std::size_t i = 0; i < j.array("not_identifiable").size(); ++i) {
-    const JsonReader e = j.element("not_identifiable", i);
-    r.not_identifiable.push_back({e.string("name"), e.string("reason")});
-  }
-  r.estimate.target_mm = vector3(j, "target_mm");
-  r.target_sigma_mm = vector3(j, "target_sigma_mm");
-  if (j.has("placements"))
-    for (std::size_t i = 0; i < j.array("placements").size(); ++i) {
-      const JsonReader e = j.element("placements", i);
-      r.placements.push_back({e.integer("placement"), e.integer("poses"), vector3(e, "target_mm"),
-                              vector3(e, "target_sigma_mm")});
-    }
-  r.rank = j.integer("rank");
-  r.condition_number = j.numberOrNan("condition_number");
-  r.dof = j.integer("dof");
-  r.noise_mm = j.numberOrNan("noise_mm");
-  r.noise_estimated = j.stringOr("noise_source", "") == "estimated from the residuals";
-  r.chi2_per_dof = j.optionalNumber("chi2_per_dof");
-  r.chi2_p_value = j.optionalNumber("chi2_p_value");
-  r.noise_scale = j.has("noise_scale") ? j.number("noise_scale") : 1;
-  r.rms_miss_mm = j.numberOrNan("rms_miss_mm");
-  const nlohmann::json& residuals = j.array("pose_residuals");
-  for (std::size_t i = 0; i < residuals.size(); ++i) {
-    const JsonReader p = j.element("pose_residuals", i);
-    PoseResidual pose;
-    pose.source_line = p.integer("line");
-    pose.used = p.has("used") ? p.boolean("used") : true;
-    pose.duplicate_of = p.present("duplicate_of") ? p.integer("duplicate_of") : 0;
-    const std::vector<double> miss = p.numbers("miss_mm", 2);
-    pose.miss_mm = {miss[0], miss[1]};
-    pose.miss_norm_mm = pose.miss_mm.norm();
-    pose.normalised = p.numberOrNan("normalised");
-    pose.outlier = p.boolean("outlier");
-    pose.standoff_mm = p.numberOrNan("standoff_mm");
-    r.poses.push_back(pose);
-  }
-  // The norms as written: the list beside the residuals is what toJson gives back.
-  if (j.has("residuals_mm")) {
-    const std::vector<double> norms =
-        JsonReader::numbersOf(j.at("residuals_mm"), r.poses.size(), where + " residuals_mm");
-    for (std::size_t i = 0; i < r.poses.size(); ++i) r.poses[i].miss_norm_mm = norms[i];
-  }
-  if (j.has("correlation")) {
-    const nlohmann::json& rows = j.array("correlation");
-    r.correlation.resize(static_cast<Eigen::Index>(rows.size()),
-                         static_cast<Eigen::Index>(rows.size()));
-    for (std::size_t a = 0; a < rows.size(); ++a) {
-      const std::vector<double> row = JsonReader::numbersOf(
-          rows[a], rows.size(), where + " correlation row " + std::to_string(a + 1));
-      for (std::size_t b = 0; b < rows.size(); ++b)
-        r.correlation(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b)) = row[b];
-    }
-  }
-  r.iterations = j.has("iterations") ? j.integer("iterations") : 0;
-  r.solve_time_ms = j.has("solve_time_ms") ? j.number("solve_time_ms") : 0;
-  return r;
-}
-
-HoldoutReport holdoutReportFromJson(const nlohmann::json& json, const std::string& where) {
-  const JsonReader j(json, where);
-  HoldoutReport r;
-  for (const nlohmann::json& pose : j.array("held_out")) {
-    if (!pose.is_number_integer()) throw InputError(where + ": 'held_out' is not a pose list");
-    r.held_out.push_back(pose.get<int>());
-  }
-  r.total_poses = j.integer("total_poses");
-  r.nominal_target_mm = vector3(j, "nominal_target_mm");
-  for (std::size_t i = 0; i < j.array("poses").size(); ++i) {
-    const JsonReader p = j.element("poses", i);
-    r.poses.push_back({p.integer("pose"), p.integer("line"),
-                       aimingErrorFromJson(p.object("before")),
-                       aimingErrorFromJson(p.object("after"))});
-  }
-  r.rms_before_mm = j.numberOrNan("rms_before_mm");
-  r.rms_after_mm = j.numberOrNan("rms_after_mm");
-  return r;
-}
-
-Plan planFromJson(const nlohmann::json& json, const std::string& where) {
-  const JsonReader j(json, where);
-  Plan plan;
-  plan.description = j.stringOr("description", "");
-  plan.candidates_considered =
-      j.has("candidates_considered") ? j.integer("candidates_considered") : 0;
-  const nlohmann::json& poses = j.array("poses");
-  for (std::size_t i = 0; i < poses.size(); ++i) {
-    const std::vector<double> q =
-        JsonReader::numbersOf(poses[i], kJointCount, where + " poses[" + std::to_string(i) + "]");
-    Pose pose;
-    for (int k = 0; k < kJointCount; ++k) {
-      if (!std::isfinite(q[k]))
-        throw InputError(where + " poses[" + std::to_string(i) + "]: not six finite joint angles");
-      pose.q_deg[k] = q[k];
-    }
-    plan.poses.push_back(pose);
-  }
-  Prediction& p = plan.prediction;
-  p.sigma.assign(kIdentifiedCount, std::nan(""));
-  p.identifiable.assign(kIdentifiedCount, false);
-  p.reason.assign(kIdentifiedCount, "not predicted");
-  p.rms_offset_sigma_deg = std::nan("");
-  p.condition_number = std::nan("");
-  if (j.present("predicted")) {
-    const JsonReader predicted = j.object("predicted");
-    for (int k = 0; k < kIdentifiedCount; ++k) {
-      const std::string name = unknownName(k);
-      if (!predicted.has(name.c_str())) continue;
-      const JsonReader e = predicted.object(name.c_str());
-      p.identifiable[k] = e.boolean("identifiable");
-      p.sigma[k] = e.numberOrNan("sigma");
-      p.reason[k] = e.stringOr("reason", "");
-    }
-    p.rms_offset_sigma_deg = j.numberOrNan("predicted_rms_offset_sigma_deg");
-    p.rank = j.has("rank") ? j.integer("rank") : 0;
-    p.condition_number = j.numberOrNan("condition_number");
-  }
-  // A plan at several PSD placements: each pose's placement, and what it predicts of the link
-  // errors (toJson writes these only then).
-  if (j.present("pose_placements")) {
-    const std::vector<double> numbers = JsonReader::numbersOf(
-        j.json().at("pose_placements"), plan.poses.size(), where + " pose_placements");
-    for (std::size_t i = 0; i < plan.poses.size(); ++i) {
-      if (numbers[i] != std::floor(numbers[i]) || numbers[i] < 1 || numbers[i] > kMaxPlacements)
-        throw InputError(where + " pose_placements[" + std::to_string(i) +
-                         "]: not a placement number 1.." + std::to_string(kMaxPlacements));
-      plan.poses[i].placement = static_cast<int>(numbers[i]);
-    }
-    p.placements = j.has("placements") ? j.integer("placements") : placementCount(plan.poses);
-  }
-  if (j.present("predicted_link_errors")) {
-    const JsonReader links = j.object("predicted_link_errors");
-    p.link_sigma.assign(kLinkParamCount, std::nan(""));
-    p.link_identifiable.assign(kLinkParamCount, false);
-    p.link_reason.assign(kLinkParamCount, "not predicted");
-    for (int l = 0; l < kLinkParamCount; ++l) {
-      const std::string name = linkParamName(l);
-      if (!links.has(name.c_str())) continue;
-      const JsonReader e = links.object(name.c_str());
-      p.link_identifiable[l] = e.boolean("identifiable");
-      p.link_sigma[l] = e.numberOrNan("sigma");
-      p.link_reason[l] = e.stringOr("reason", "");
-    }
-  }
-  return plan;
 }
 
 }  // namespace zerocal

@@ -12,7 +12,7 @@
 #include "zerocal/control/token.h"
 #include "zerocal/error.h"
 #include "zerocal/paths.h"
-#include "zerocal/store/session_files.h"
+#include "zerocal/results/result_file.h"
 
 namespace zerocal::cli {
 
@@ -152,7 +152,7 @@ void printResult(const ResultFile& r, std::ostream& out) {
     }
     if (usable) out << "  joints 1 and 6: unchanged (this method cannot determine them).\n";
     out << "summary.txt and report.html in the session folder say where the IRC5 keeps the\n"
-           "calibration and how to enter it (zerocal report DIR).\n";
+           "calibration and how to enter it (zerocal-lab report DIR).\n";
   }
   if (r.cell_time_s) {
     char line[80];
@@ -162,7 +162,7 @@ void printResult(const ResultFile& r, std::ostream& out) {
   }
 }
 
-// A result as the port sends it: result.json, read by the store's codec.
+// A result as the port sends it: result.json, read by the results codec the daemon writes it with.
 ResultFile resultOf(const json& answer) {
   try {
     return resultFileFromJson(answer);

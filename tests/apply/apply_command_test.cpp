@@ -1,5 +1,5 @@
-// zerocal apply on a session folder made as zerocald makes one and a MOC.cfg fixture: the values
-// written are the formula's, nothing else changes, and every refusal writes nothing.
+// zerocal-lab apply on a session folder made as zerocald makes one and a MOC.cfg fixture: the
+// values written are the formula's, nothing else changes, and every refusal writes nothing.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -7,7 +7,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "apply_commands.h"
+#include "apply_file_command.h"
 #include "session_fixture.h"
 #include "zerocal/apply/moc_file.h"
 #include "zerocal/apply/motor_calibration.h"
@@ -39,10 +39,10 @@ class ApplyCommand : public ::testing::Test {
   int run() {
     out_.str("");
     err_.str("");
-    return cli::runApply(args_, out_, err_);
+    return lab::runApplyFile(args_, out_, err_);
   }
   std::string session_;
-  cli::ApplyArgs args_;
+  lab::ApplyFileArgs args_;
   std::ostringstream out_, err_;
 };
 

@@ -1,5 +1,5 @@
 # zerocald --sim --once (the ideal world: the report of a usable result) into a fresh data folder,
-# then `zerocal report` on the session it made:
+# then `zerocal-lab report` on the session it made:
 # the whole path a technician takes, with the files checked on disk.
 file(REMOVE_RECURSE "${DATA}")
 execute_process(COMMAND "${ZEROCALD}" --sim --once --seed 3 --ideal-world --config /dev/null --data-dir "${DATA}"
@@ -15,7 +15,7 @@ endif()
 execute_process(COMMAND "${ZEROCAL}" report "${sessions}" RESULT_VARIABLE rc OUTPUT_VARIABLE out
                 ERROR_VARIABLE err)
 if(NOT rc EQUAL 0)
-  message(FATAL_ERROR "zerocal report exit code ${rc}\n${out}\n${err}")
+  message(FATAL_ERROR "zerocal-lab report exit code ${rc}\n${out}\n${err}")
 endif()
 foreach(expected "delta2 .* \\[[-+]" "Not identifiable, and why" "MOTOR_CALIB" "Worst poses")
   if(NOT out MATCHES "${expected}")
@@ -33,5 +33,5 @@ endif()
 execute_process(COMMAND "${ZEROCAL}" report "${sessions}" --json RESULT_VARIABLE rc
                 OUTPUT_VARIABLE out)
 if(NOT rc EQUAL 0 OR NOT out MATCHES "\"delta5_deg\": {[^}]*\"value_rad\"")
-  message(FATAL_ERROR "zerocal report --json: exit ${rc}\n${out}")
+  message(FATAL_ERROR "zerocal-lab report --json: exit ${rc}\n${out}")
 endif()

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The bash completion of zerocal, zerocald and zerocal-sim, with the programs of this build.
+# The bash completion of zerocal, zerocal-lab, zerocald and zerocal-sim, with the programs of this build.
 # Usage: bash_completion_test.sh COMPLETION_FILE BIN_DIR
 set -euo pipefail
 export PATH="$2:${PATH}"
@@ -22,11 +22,11 @@ expect() {  # expect "WORDS" COMPLETION...
     grep -qx -- "${want}" <<<"${got}" || fail "'${words}' completes to [${got//$'\n'/ }], not ${want}"
   done
 }
-expect "zerocal so" solve
+expect "zerocal-lab so" solve
 expect "zerocal st" start status
 expect "zerocal start --wa" --watch
 expect "zerocal result --j" --json
-expect "zerocal experiment t" table2
+expect "zerocal-lab experiment t" table2
 expect "zerocald --on" --once
 expect "zerocal-sim --po" --port
 [ -z "$(complete_words zerocal start --pattern x)" ] || fail "--pattern x has completions"

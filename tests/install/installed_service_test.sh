@@ -54,9 +54,11 @@ grep -q 'GROUP="zerocal"' "${root}${rule}" || fail "${rule} does not give the bo
 ! grep -q '0666' "${root}${rule}" || fail "${rule} opens the board to every user"
 
 prefix=${binary%/bin/zerocald}
-for f in share/zerocal/rapid/ZerocalServer.mod share/bash-completion/completions/zerocal \
+for f in bin/zerocal bin/zerocal-lab share/zerocal/rapid/ZerocalServer.mod \
+  share/bash-completion/completions/zerocal share/bash-completion/completions/zerocal-lab \
   share/bash-completion/completions/zerocald share/bash-completion/completions/zerocal-sim \
-  share/man/man1/zerocal.1 share/man/man8/zerocald.8 share/man/man1/zerocal-sim.1; do
+  share/man/man1/zerocal.1 share/man/man1/zerocal-lab.1 share/man/man8/zerocald.8 \
+  share/man/man1/zerocal-sim.1; do
   [ -f "${root}${prefix}/${f}" ] || fail "${prefix}/${f} was not installed"
 done
 

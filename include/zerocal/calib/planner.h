@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "zerocal/calib/cell_model.h"
+#include "zerocal/results/plan.h"
 
 namespace zerocal {
 
@@ -25,24 +26,6 @@ std::optional<Joints> aimLaser(const CellModel& cell, const Eigen::Vector3d& tar
 // what a perfect PSD servo would record. Minimum-norm steps over all six joints.
 std::optional<Joints> servoOnto(const CellModel& cell, const CalibrationParameters& params,
                                 const Eigen::Vector3d& point, const Joints& start);
-
-struct Prediction {
-  // One standard deviation per identified parameter (deg for offsets), NaN where not
-  // identifiable, for the given measurement sigma.
-  std::vector<double> sigma;
-  std::vector<bool> identifiable;
-  std::vector<std::string> reason;
-  double rms_offset_sigma_deg = 0;  // RMS over delta2..delta5 (infinite if any is not identifiable)
-  int rank = 0;
-  double condition_number = 0;
-  // With poses at several PSD placements: how many, and per link error (linkParamName order) its
-  // sigma (mm, or deg for a twist; NaN when not identified), whether the poses identify it, and
-  // why not. Empty with one placement.
-  int placements = 1;
-  std::vector<double> link_sigma;
-  std::vector<bool> link_identifiable;
-  std::vector<std::string> link_reason;
-};
 
 // The Cramer-Rao bound of the point-to-line model at the given poses, with the target as a
 // nuisance parameter (the 8 x 8 block of the 11 x 11 inverse information), for sigma_mm. With
@@ -105,15 +88,7 @@ struct PlanOptions {
 // by +-50 and +-100 deg and raised or lowered 200 mm, so that the arm reaches them with its
 // upper arm and forearm in different configurations. Returns placements 2..count's centres.
 // Throws InputError for a count outside the range.
-constexpr int kMaxDefaultPlacements = 5;
 std::vector<Eigen::Vector3d> defaultPlacements(const Eigen::Vector3d& first, int count);
-
-struct Plan {
-  std::vector<Pose> poses;
-  Prediction prediction;
-  std::string description;
-  int candidates_considered = 0;
-};
 
 // Throws InputError when the options are invalid or too few reachable poses exist.
 Plan planPoses(const CellModel& cell, const Eigen::Vector3d& target, const PlanOptions& options);

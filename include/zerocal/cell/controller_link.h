@@ -8,6 +8,7 @@
 #include <string>
 
 #include "zerocal/cell/controller_calibration.h"
+#include "zerocal/cell/robot_info.h"
 #include "zerocal/cell/search_move.h"
 #include "zerocal/model/robot.h"
 
@@ -18,13 +19,6 @@ namespace zerocal {
 struct TcpPose {
   std::array<double, 3> xyz_mm{};
   std::array<double, 4> quat_wxyz{1, 0, 0, 0};
-};
-
-// Identification reported by the controller (code 98).
-struct RobotInfo {
-  std::string serial;
-  std::string software_version;
-  std::string robot_type;
 };
 
 // What every move costs a controller beyond its motion (s): the fixed cost of a move (request,

@@ -4,6 +4,7 @@
 // number, and the *OrNan readers give it back.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -11,6 +12,12 @@
 #include <vector>
 
 namespace zerocal {
+
+// What a writer puts for a number: null when it is not finite (unknown), which numberOrNan reads
+// back as NaN.
+inline nlohmann::json numberOrNull(double v) {
+  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json();
+}
 
 class JsonReader {
  public:

@@ -22,6 +22,7 @@
 #include "zerocal/cell/psd_reader.h"
 #include "zerocal/error.h"
 #include "zerocal/model/robot.h"
+#include "zerocal/results/servo_stats.h"
 
 namespace zerocal {
 
@@ -29,20 +30,6 @@ namespace zerocal {
 class JournalError : public Error {
  public:
   using Error::Error;
-};
-
-// What the servo did for one pose; durations in seconds of cell time.
-// The four durations add up to the pose's cell time, from the start of the planned move to the
-// recorded reading.
-struct ServoStats {
-  int moves = 0;              // servo and search moves, the planned move not counted
-  int iterations = 0;         // fine-servo iterations
-  double move_s = 0;          // the planned move
-  double acquisition_s = 0;   // spot search, its settling excluded
-  double servo_s = 0;         // fine servo, its settling excluded
-  double settle_s = 0;        // waits after moves before readings that count (servo.settle_s each)
-  double final_error_um = 0;  // distance of the spot from the centre at the recorded reading
-  int search_moves = 0;       // of `moves`, searching for the spot (absent from older journals: 0)
 };
 
 struct PoseRecord {

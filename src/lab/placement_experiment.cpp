@@ -14,7 +14,7 @@
 #include "zerocal/model/kinematics.h"
 #include "zerocal/sim/world.h"
 
-namespace zerocal::cli {
+namespace zerocal::lab {
 namespace {
 
 // One PSD placement of a simulated session: where the detector truly is, and what the session
@@ -395,4 +395,4 @@ int runPlacementExperiment(const PlacementExperimentArgs& args) {
   return ok ? 0 : kRequirementNotMet;
 }
 
-}  // namespace zerocal::cli
+}  // namespace zerocal::lab

@@ -6,7 +6,7 @@
 #include <cstdint>
 #include <string>
 
-namespace zerocal::cli {
+namespace zerocal::lab {
 
 struct PlacementExperimentArgs {
   int worlds = 30;
@@ -39,4 +39,4 @@ void addPlacementExperiment(CLI::App& experiment, PlacementExperimentArgs& args)
 // Returns 0 when the requirements hold, kRequirementNotMet (cell_experiment.h) when one does not.
 int runPlacementExperiment(const PlacementExperimentArgs& args);
 
-}  // namespace zerocal::cli
+}  // namespace zerocal::lab

@@ -1,4 +1,4 @@
-// zerocal experiment apply: on seeded simulated cells, calibrate, apply online, verify by a
+// zerocal-lab experiment apply: on seeded simulated cells, calibrate, apply online, verify by a
 // second calibration, and (with --wrong-sign J) check that a transmission sign wrong in the
 // configuration is caught, rolled back and named. The whole production chain: zerocald's session
 // manager and sim backend driving the simulated controller over TCP through Irc5Client.
@@ -9,15 +9,16 @@
 #include <filesystem>
 #include <optional>
 
-#include "apply_commands.h"
+#include "apply_experiment.h"
 #include "zerocal/apply/online_apply.h"
+#include "zerocal/daemon/config.h"
 #include "zerocal/irc5/irc5_client.h"
 #include "zerocal/model/builtin.h"
 #include "zerocal/service/daemon_setup.h"
 #include "zerocal/service/session_manager.h"
 #include "zerocal/sim/sim_controller.h"
 
-namespace zerocal::cli {
+namespace zerocal::lab {
 
 namespace {
 
@@ -144,11 +145,11 @@ WorldRun runWorld(std::uint64_t seed, const ApplyExperimentArgs& args, const std
 int runApplyExperiment(const ApplyExperimentArgs& args, std::ostream& out, std::ostream& err) {
   char pattern[] = "/tmp/zerocal-apply-experiment-XXXXXX";
   if (!::mkdtemp(pattern)) {
-    err << "zerocal experiment apply: cannot make a temporary folder\n";
+    err << "zerocal-lab experiment apply: cannot make a temporary folder\n";
     return 1;
   }
   const std::string dir = pattern;
-  out << "zerocal experiment apply: " << args.worlds << " seeded simulated worlds from seed "
+  out << "zerocal-lab experiment apply: " << args.worlds << " seeded simulated worlds from seed "
       << args.seed0 << ", " << args.poses << " poses per calibration, transmission "
       << (args.wrong_sign_joint > 0
               ? "of joint " + std::to_string(args.wrong_sign_joint) + " with its sign WRONG"
@@ -165,7 +166,7 @@ int runApplyExperiment(const ApplyExperimentArgs& args, std::ostream& out, std::
     }
   }
   if (runs.empty()) {
-    err << "zerocal experiment apply: no world ran (files kept in " << dir << ")\n";
+    err << "zerocal-lab experiment apply: no world ran (files kept in " << dir << ")\n";
     return 1;
   }
   bool holds = true;
@@ -241,4 +242,24 @@ int runApplyExperiment(const ApplyExperimentArgs& args, std::ostream& out, std::
   return holds ? 0 : 7;
 }
 
-}  // namespace zerocal::cli
+void addApplyExperiment(CLI::App& experiment, ApplyExperimentArgs& e) {
+  e.cmd = experiment.add_subcommand(
+      "apply",
+      "on seeded simulated cells: calibrate, apply online (backup, write, restart), verify by a "
+      "second calibration; with --wrong-sign J, check the rollback names joint J");
+  auto* x = e.cmd;
+  x->add_option("--worlds", e.worlds, "number of seeded worlds")
+      ->default_val(e.worlds)
+      ->check(CLI::Range(1, 1000));
+  x->add_option("--seed0", e.seed0, "seed of the first world")->default_val(e.seed0);
+  e.poses = SessionConfig{}.poses;  // as the daemon calibrates and verifies
+  x->add_option("--poses", e.poses, "poses per calibration (the daemon's session.poses)")
+      ->default_val(e.poses);
+  x->add_option("--wrong-sign", e.wrong_sign_joint,
+                "flip joint J's transmission sign in the configuration (2..5)")
+      ->check(CLI::Range(2, 5));
+  x->add_option("--required", e.required_deg, "required accuracy, deg")
+      ->default_val(e.required_deg);
+}
+
+}  // namespace zerocal::lab

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-namespace zerocal::cli {
+namespace zerocal::lab {
 
 // Exit code when every calibration ran but a requirement does not hold.
 constexpr int kRequirementNotMet = 7;  // 5 and 6 are the client commands' (cannot connect, token)
@@ -38,4 +38,4 @@ CLI::App* addCellExperiment(CLI::App& experiment, CellExperimentArgs& args);
 // ConfigError for a bad override.
 int runCellExperiment(const CellExperimentArgs& args);
 
-}  // namespace zerocal::cli
+}  // namespace zerocal::lab

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-namespace zerocal::cli {
+namespace zerocal::lab {
 
 struct PsdSweepArgs {
   bool sim = false;
@@ -53,4 +53,4 @@ int runPsdSweep(const PsdSweepArgs& args);
 int runPsdMap(const PsdMapArgs& args);
 int runPsd(const PsdArgs& args);
 
-}  // namespace zerocal::cli
+}  // namespace zerocal::lab

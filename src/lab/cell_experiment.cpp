@@ -16,7 +16,7 @@
 #include "zerocal/sim/world.h"
 #include "zerocal/store/journal.h"
 
-namespace zerocal::cli {
+namespace zerocal::lab {
 namespace {
 
 using Json = nlohmann::json;
@@ -460,4 +460,4 @@ int runCellExperiment(const CellExperimentArgs& args) {
   return pass ? 0 : kRequirementNotMet;
 }
 
-}  // namespace zerocal::cli
+}  // namespace zerocal::lab

@@ -5,7 +5,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
-namespace zerocal::cli {
+namespace zerocal::lab {
 
 void addRobustnessExperiments(CLI::App& experiment, RobustnessExperimentArgs& args) {
   args.coverage_cmd = experiment.add_subcommand(
@@ -122,4 +122,4 @@ int runRobustnessExperiment(const RobustnessExperimentArgs& args) {
   return -1;
 }
 
-}  // namespace zerocal::cli
+}  // namespace zerocal::lab

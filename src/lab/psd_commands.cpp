@@ -18,7 +18,7 @@
 #include "zerocal/sim/psd_rig.h"
 #include "zerocal/usb1408fs/libusb_transport.h"
 
-namespace zerocal::cli {
+namespace zerocal::lab {
 namespace {
 
 std::string format(const char* fmt, double a, double b = 0, double c = 0, double d = 0) {
@@ -254,4 +254,4 @@ int runPsd(const PsdArgs& args) {
   return 0;
 }
 
-}  // namespace zerocal::cli
+}  // namespace zerocal::lab

@@ -6,7 +6,7 @@
 
 #include "zerocal/calib/robustness.h"
 
-namespace zerocal::cli {
+namespace zerocal::lab {
 
 struct RobustnessExperimentArgs {
   CoverageOptions coverage;
@@ -22,4 +22,4 @@ void addRobustnessExperiments(CLI::App& experiment, RobustnessExperimentArgs& ar
 // Runs whichever was parsed; returns the exit code (0), or -1 when neither was.
 int runRobustnessExperiment(const RobustnessExperimentArgs& args);
 
-}  // namespace zerocal::cli
+}  // namespace zerocal::lab

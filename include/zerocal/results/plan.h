@@ -1,0 +1,45 @@
+// A plan as session.json, the control port's `plan` and `plan --json` hold it (docs/results.md):
+// the joint targets and the uncertainty predicted before any move, and its JSON.
+// zerocal/calib/planner.h makes it.
+#pragma once
+
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "zerocal/io/joint_set.h"
+#include "zerocal/results/parameters.h"
+
+namespace zerocal {
+
+struct Prediction {
+  // One standard deviation per identified parameter (deg for offsets), NaN where not
+  // identifiable, for the given measurement sigma.
+  std::vector<double> sigma;
+  std::vector<bool> identifiable;
+  std::vector<std::string> reason;
+  double rms_offset_sigma_deg = 0;  // RMS over delta2..delta5 (infinite if any is not identifiable)
+  int rank = 0;
+  double condition_number = 0;
+  // With poses at several PSD placements: how many, and per link error (linkParamName order) its
+  // sigma (mm, or deg for a twist; NaN when not identified), whether the poses identify it, and
+  // why not. Empty with one placement.
+  int placements = 1;
+  std::vector<double> link_sigma;
+  std::vector<bool> link_identifiable;
+  std::vector<std::string> link_reason;
+};
+
+struct Plan {
+  std::vector<Pose> poses;
+  Prediction prediction;
+  std::string description;
+  int candidates_considered = 0;
+};
+
+nlohmann::json toJson(const Plan& plan);
+// The inverse of toJson; a plan without "predicted" (hand-edited) predicts nothing: every sigma
+// NaN, nothing identifiable. Throws InputError.
+Plan planFromJson(const nlohmann::json& json, const std::string& where);
+
+}  // namespace zerocal

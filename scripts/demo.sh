@@ -1,16 +1,18 @@
 #!/usr/bin/env bash
-# Installs the dependencies, builds the two programs it runs (not the tests: scripts/test.sh builds
-# those), and shows a technician's day on the simulated cell, then the paper's experiment:
+# Installs the dependencies, builds the three programs it runs (not the tests: scripts/test.sh
+# builds those), and shows a technician's day on the simulated cell, then the paper's experiment:
 # 1. the cell daemon on the simulated cell (zerocald --sim: the simulated controller over TCP and
 #    the simulated USB-1408FS, in-process), a calibration started and watched from the shop-floor
 #    client (zerocal start --watch) over the authenticated control port, ending with the verdict
-#    and the offsets (next to the simulated truth), and the session's summary.txt and report.html;
-# 2. the paper's Table II experiment (a simulated IRB1600: patterns I, II and the optimal plan).
+#    and the offsets (next to the simulated truth), and the session's summary.txt and report.html
+#    (zerocal-lab report, the engineer's program);
+# 2. the paper's Table II experiment (zerocal-lab: a simulated IRB1600, patterns I, II and the
+#    optimal plan).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/install-deps.sh
 cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release
-cmake --build build --parallel "$(nproc)" --target zerocal zerocald
+cmake --build build --parallel "$(nproc)" --target zerocal zerocal-lab zerocald
 
 echo
 echo "=== zerocald --sim: the cell daemon on the simulated cell ==="
@@ -50,11 +52,11 @@ wait "${daemon}" || true
 trap - EXIT
 session=$(ls -d "${demo}"/sessions/*/ | sort | tail -n 1)
 echo
-echo "=== zerocal report ${session}: summary.txt and report.html (open it in a browser) ==="
-build/bin/zerocal report "${session}"
+echo "=== zerocal-lab report ${session}: summary.txt and report.html (open it in a browser) ==="
+build/bin/zerocal-lab report "${session}"
 
 echo
 echo "=== the paper's Table II: patterns I and II and zerocal's optimal plan, both costs ==="
 echo "(each row: a plan and a cost over Monte Carlo repeats; the pairwise cost failing on the optimal"
 echo " plan is the paper's estimator failing, not zerocal: the ML rows are zerocal's)"
-build/bin/zerocal experiment table2
+build/bin/zerocal-lab experiment table2

@@ -29,8 +29,7 @@ void addApplyCommands(CLI::App& app, ApplyCommands& commands) {
 
 int runApplyCommands(const ApplyCommands& commands, std::ostream& out, std::ostream& err) {
   const ApplyArgs& a = commands.args;
-  if (!a.moc_file.empty() || !a.out_file.empty() || !a.robot.empty() ||
-      a.unconfirmed_transmission)
+  if (!a.moc_file.empty() || !a.out_file.empty() || !a.robot.empty() || a.unconfirmed_transmission)
     return refuseMovedCommand("apply --moc", "apply " + a.session + " --moc MOC.cfg --out NEW.cfg",
                               err);
   if (!a.confirm) {

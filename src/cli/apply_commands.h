@@ -12,12 +12,12 @@
 namespace zerocal::cli {
 
 struct ApplyArgs {
-  std::string session;  // the session id
+  std::string session;   // the session id
   bool confirm = false;  // the technician confirmed writing the robot's calibration
   // The file apply's options, which is zerocal-lab's now: given, the message names it.
   std::string moc_file, out_file, robot;
   bool unconfirmed_transmission = false;
-  ClientArgs client;     // the connection options
+  ClientArgs client;  // the connection options
 };
 
 struct ApplyCommands {

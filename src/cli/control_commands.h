@@ -1,6 +1,6 @@
 // The client subcommands of zerocal, which drive zerocald's control port (docs/protocol.md):
-// start, status, watch, abort, resume, continue, sessions, result, and plan when no --robot is
-// given.
+// start, status, watch, abort, resume, continue, sessions, result, verify, acknowledge, version;
+// main.cpp adds plan and apply, which run through runClient too.
 #pragma once
 
 #include <CLI/CLI.hpp>
@@ -12,8 +12,8 @@
 
 namespace zerocal::cli {
 
-// Exit codes of the client commands, beside those of the engine commands (0, 1, 2, 4 mean the
-// same there): docs/cli.md.
+// Exit codes of the client commands, beside those of zerocal-lab's (0, 1, 2, 4 mean the same
+// there): docs/cli.md.
 enum ClientExit {
   kClientOk = 0,
   kClientFailure = 1,
@@ -54,8 +54,8 @@ struct ClientCommands {
   ClientArgs args;
 };
 
-// Registers the subcommands (all but plan, which main shares with the local planner); `commands`
-// must outlive the parse.
+// Registers the subcommands (all but plan and apply, which main.cpp registers); `commands` must
+// outlive the parse.
 void addClientCommands(CLI::App& app, ClientCommands& commands);
 // --host, --port, --token-file on one subcommand.
 void addConnectionOptions(CLI::App* command, ClientArgs& args);

@@ -23,10 +23,9 @@ namespace {
 
 // The options of a plan made with the engine (`zerocal-lab plan --robot ...`): given here, the
 // plan is refused with the message naming that program, before anything is sent.
-const char* const kLocalPlanOptions[] = {"--standoff",  "--margin",      "--max-incidence",
-                                         "--sweep",     "--psd-normal",  "--joint1-fixed",
-                                         "--out",       "--laser-direction", "--laser-point",
-                                         "--placement"};
+const char* const kLocalPlanOptions[] = {
+    "--standoff",     "--margin", "--max-incidence",   "--sweep",       "--psd-normal",
+    "--joint1-fixed", "--out",    "--laser-direction", "--laser-point", "--placement"};
 
 struct PlanCommand {
   CLI::App* plan = nullptr;
@@ -72,7 +71,8 @@ int runPlanCommand(const PlanCommand& command, std::ostream& err) {
   if (local == "--robot") return refuseMovedCommand("plan --robot", line, err);
   if (!local.empty()) {
     err << "zerocal: plan " << local
-        << " needs --robot (a plan made here, with the engine: zerocal-lab plan --robot FILE ...)\n";
+        << " needs --robot (a plan made here, with the engine: zerocal-lab plan --robot FILE "
+           "...)\n";
     return kClientBadRequest;
   }
   if (!command.plan->remaining().empty()) {

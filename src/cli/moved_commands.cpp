@@ -3,8 +3,8 @@
 namespace zerocal::cli {
 
 void addMovedCommands(CLI::App& app, MovedCommands& moved) {
-  for (const char* name : {"solve", "simulate", "sensitivity", "experiment", "psd-sweep",
-                           "psd-map", "psd", "report"}) {
+  for (const char* name : {"solve", "simulate", "sensitivity", "experiment", "psd-sweep", "psd-map",
+                           "psd", "report"}) {
     auto* c = app.add_subcommand(name, std::string("now zerocal-lab ") + name);
     c->group("Moved to zerocal-lab (the engineer's program)");
     c->prefix_command();  // every argument, options and --help included, is the message's

@@ -2,6 +2,8 @@
 // second calibration, and (with --wrong-sign J) check that a transmission sign wrong in the
 // configuration is caught, rolled back and named. The whole production chain: zerocald's session
 // manager and sim backend driving the simulated controller over TCP through Irc5Client.
+#include "apply_experiment.h"
+
 #include <unistd.h>
 
 #include <cmath>
@@ -9,7 +11,6 @@
 #include <filesystem>
 #include <optional>
 
-#include "apply_experiment.h"
 #include "zerocal/apply/online_apply.h"
 #include "zerocal/daemon/config.h"
 #include "zerocal/irc5/irc5_client.h"

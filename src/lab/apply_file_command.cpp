@@ -307,4 +307,4 @@ int runApplyFile(const ApplyFileArgs& args, std::ostream& out, std::ostream& err
   return kApplyRefused;
 }
 
-}  // namespace zerocal::cli
+}  // namespace zerocal::lab

@@ -44,7 +44,7 @@ DaemonConfig configOf(const CellExperimentArgs& args) {
     applyConfigOverride(config, "backend.sim_ideal_world=true", origins, problems);
   for (const std::string& o : args.overrides) applyConfigOverride(config, o, origins, problems);
   for (const std::string& p : validateDaemonConfig(config, origins)) problems.push_back(p);
-  if (!problems.empty()) throw ConfigError("zerocal experiment cell", problems);
+  if (!problems.empty()) throw ConfigError("zerocal-lab experiment cell", problems);
   return config;
 }
 
@@ -100,11 +100,11 @@ DaemonConfig worldConfig(const DaemonConfig& config, std::uint64_t seed, const s
 // written as a world file, its gross-error rates zero, the second with the one error added.
 int runGrossErrorExperiment(const CellExperimentArgs& args) {
   if (args.ideal_world)
-    throw ConfigError("zerocal experiment cell",
+    throw ConfigError("zerocal-lab experiment cell",
                       {"--gross-error: the ideal world has no gross errors"});
   const DaemonConfig config = configOf(args);
   if (!config.backend.sim_world.empty())
-    throw ConfigError("zerocal experiment cell",
+    throw ConfigError("zerocal-lab experiment cell",
                       {"--gross-error: runs the seeds' worlds, not backend.sim_world"});
   const TempDir dir;
   Json worlds = Json::array();

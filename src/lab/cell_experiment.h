@@ -1,4 +1,4 @@
-// zerocal experiment cell: whole calibrations on the simulated cell, one per seeded world, with
+// zerocal-lab experiment cell: whole calibrations on the simulated cell, one per seeded world, with
 // the daemon's default settings, checked against the accuracy, cell-time and move requirements.
 #pragma once
 

@@ -257,7 +257,8 @@ int runSimulate(const SimulateArgs& a) {
   truth.target_mm = Eigen::Vector3d(a.target.data());
   if (!(a.half_width >= 0)) throw InputError("the localisation error must not be negative");
   std::mt19937_64 rng(a.seed);
-  const auto recorded = simulateRecording(cell, truth, readJointSet(a.plan_file), a.half_width, rng);
+  const auto recorded =
+      simulateRecording(cell, truth, readJointSet(a.plan_file), a.half_width, rng);
   std::ostringstream comment;
   comment << "zerocal simulate: " << cell.robot.name << ", true offsets " << a.true_offsets[0]
           << " " << a.true_offsets[1] << " " << a.true_offsets[2] << " " << a.true_offsets[3]

@@ -32,7 +32,6 @@ void addExperimentCommands(CLI::App& app, ExperimentCommands& commands);
 
 // Runs the parsed one and returns its exit code, or -1 when none was parsed. A bad override
 // throws ConfigError.
-int runExperimentCommands(const ExperimentCommands& commands, std::ostream& out,
-                          std::ostream& err);
+int runExperimentCommands(const ExperimentCommands& commands, std::ostream& out, std::ostream& err);
 
 }  // namespace zerocal::lab

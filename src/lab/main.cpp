@@ -72,8 +72,7 @@ int main(int argc, char** argv) {
   try {
     if (const int rc = runEngineCommands(engine); rc >= 0) return rc;
     if (const int rc = runReportCommand(report_cmd); rc >= 0) return rc;
-    if (const int rc = runExperimentCommands(experiments, std::cout, std::cerr); rc >= 0)
-      return rc;
+    if (const int rc = runExperimentCommands(experiments, std::cout, std::cerr); rc >= 0) return rc;
     if (const int rc = runPsdCommands(psd); rc >= 0) return rc;
   } catch (const ConfigError& e) {
     std::cerr << "zerocal-lab: " << e.what() << "\n";

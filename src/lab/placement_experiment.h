@@ -1,4 +1,4 @@
-// zerocal experiment placements: calibrations with several PSD placements on seeded simulated
+// zerocal-lab experiment placements: calibrations with several PSD placements on seeded simulated
 // worlds, beside the same worlds calibrated from one placement.
 #pragma once
 

@@ -1,4 +1,4 @@
-// The PSD subcommands of zerocal: psd-sweep (a simulated stage sweep), psd-map (fit the
+// The PSD subcommands of zerocal-lab: psd-sweep (a simulated stage sweep), psd-map (fit the
 // voltage->mm map from a sweep) and psd (live readings, simulated or from the board).
 #pragma once
 

@@ -1,4 +1,4 @@
-// zerocal experiment coverage | gross-errors: what the verdict and the intervals are worth
+// zerocal-lab experiment coverage | gross-errors: what the verdict and the intervals are worth
 // (zerocal/calib/robustness.h), as text or JSON.
 #pragma once
 

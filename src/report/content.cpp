@@ -231,7 +231,7 @@ Section abbSection(const SessionReport& r) {
       "data say so), a change on joint 4 or 5 also moves the arm-side zero of the axes after it: "
       "ask ABB before entering such a change.");
   p.push_back(
-      "zerocal apply computes these values: 'zerocal apply SESSION_DIR --moc MOC.cfg --out "
+      "zerocal-lab apply computes these values: 'zerocal-lab apply SESSION_DIR --moc MOC.cfg --out "
       "NEW.cfg' reads the MOC.cfg of a controller backup, prints for each of joints 2..5 "
       "cal_offset_new = wrap(cal_offset_old - k x delta) with every sign, k the transmission of "
       "the robot file, and writes a copy of the file in which only those values changed "

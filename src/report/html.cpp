@@ -396,7 +396,7 @@ std::string reportHtml(const SessionReport& r) {
   // Validation.
   o << "<h2>Validation on held-out poses</h2>\n";
   if (!r.result.validation) {
-    o << "<p>No poses were held out of this solve (<code>zerocal solve --holdout K</code> does "
+    o << "<p>No poses were held out of this solve (<code>zerocal-lab solve --holdout K</code> does "
          "it).</p>\n";
   } else {
     std::vector<std::string> vc;

@@ -113,7 +113,7 @@ std::string summaryText(const SessionReport& r) {
 
   o << "\nValidation on held-out poses (aiming error at the PSD, spot distance on its plane):\n";
   if (!r.result.validation) {
-    o << "  no poses were held out of this solve (zerocal solve --holdout K does it).\n";
+    o << "  no poses were held out of this solve (zerocal-lab solve --holdout K does it).\n";
   } else {
     o << format("  %5s %14s %14s %16s\n", "pose", "before mm", "after mm", "after miss mm");
     for (const HeldOutPose& h : r.result.validation->poses)

@@ -1,8 +1,8 @@
 #include "zerocal/results/holdout_report.h"
 
+#include "vector_json.h"
 #include "zerocal/error.h"
 #include "zerocal/io/json_reader.h"
-#include "vector_json.h"
 
 namespace zerocal {
 namespace {

@@ -3,9 +3,9 @@
 #include <algorithm>
 #include <cmath>
 
+#include "vector_json.h"
 #include "zerocal/error.h"
 #include "zerocal/io/json_reader.h"
-#include "vector_json.h"
 
 namespace zerocal {
 
@@ -47,8 +47,8 @@ nlohmann::json toJson(const SolveReport& r) {
     e["identifiable"] = p.identifiable;
     e["value"] = p.identifiable ? numberOrNull(p.value) : nlohmann::json();
     e["sigma"] = p.identifiable ? numberOrNull(p.sigma) : nlohmann::json();
-    e["ci95"] =
-        p.identifiable ? nlohmann::json{numberOrNull(p.ci95_low), numberOrNull(p.ci95_high)} : nlohmann::json();
+    e["ci95"] = p.identifiable ? nlohmann::json{numberOrNull(p.ci95_low), numberOrNull(p.ci95_high)}
+                               : nlohmann::json();
     if (!p.identifiable) e["reason"] = p.reason;
     if (p.identifiable && p.model_sigma > 0) e["model_sigma"] = numberOrNull(p.model_sigma);
     if (p.name.rfind("delta", 0) == 0 && p.identifiable) e["value_rad"] = p.value * kDegToRad;
@@ -64,12 +64,13 @@ nlohmann::json toJson(const SolveReport& r) {
   if (!r.placements.empty()) {
     j["placements"] = nlohmann::json::array();
     for (const auto& c : r.placements)
-      j["placements"].push_back({{"placement", c.placement},
-                                 {"poses", c.poses},
-                                 {"target_mm", {c.target_mm.x(), c.target_mm.y(), c.target_mm.z()}},
-                                 {"target_sigma_mm",
-                                  {numberOrNull(c.target_sigma_mm.x()), numberOrNull(c.target_sigma_mm.y()),
-                                   numberOrNull(c.target_sigma_mm.z())}}});
+      j["placements"].push_back(
+          {{"placement", c.placement},
+           {"poses", c.poses},
+           {"target_mm", {c.target_mm.x(), c.target_mm.y(), c.target_mm.z()}},
+           {"target_sigma_mm",
+            {numberOrNull(c.target_sigma_mm.x()), numberOrNull(c.target_sigma_mm.y()),
+             numberOrNull(c.target_sigma_mm.z())}}});
   }
   j["rank"] = r.rank;
   j["condition_number"] = numberOrNull(r.condition_number);

@@ -27,11 +27,11 @@ void addApplyCommands(CLI::App& app, ApplyCommands& commands) {
   c->add_flag("--unconfirmed-transmission", a.unconfirmed_transmission)->group(moved);
 }
 
-int runApplyCommands(const ApplyCommands& commands, std::ostream& out, std::ostream& err) {
+int runApplyCommands(const ApplyCommands& commands, const std::vector<std::string>& words,
+                     std::ostream& out, std::ostream& err) {
   const ApplyArgs& a = commands.args;
   if (!a.moc_file.empty() || !a.out_file.empty() || !a.robot.empty() || a.unconfirmed_transmission)
-    return refuseMovedCommand("apply --moc", "apply " + a.session + " --moc MOC.cfg --out NEW.cfg",
-                              err);
+    return refuseMovedCommand("apply --moc", commandLine(words), err);
   if (!a.confirm) {
     err << "zerocal apply: applying online writes the robot's calibration and restarts the "
            "controller; give --confirm to do it (the MOC.cfg file apply is zerocal-lab apply "

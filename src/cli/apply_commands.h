@@ -6,6 +6,7 @@
 #include <CLI/CLI.hpp>
 #include <ostream>
 #include <string>
+#include <vector>
 
 #include "control_commands.h"
 
@@ -30,7 +31,9 @@ struct ApplyCommands {
 void addApplyCommands(CLI::App& app, ApplyCommands& commands);
 
 // runClient's codes: 0 applied and verified, 8 verified wrong and rolled back, 3 stopped, 2
-// refused, without --confirm, or with --moc (the file apply: the message names zerocal-lab).
-int runApplyCommands(const ApplyCommands& commands, std::ostream& out, std::ostream& err);
+// refused, without --confirm, or with --moc (the file apply: the message names zerocal-lab with
+// `words`, the command line after the program's name).
+int runApplyCommands(const ApplyCommands& commands, const std::vector<std::string>& words,
+                     std::ostream& out, std::ostream& err);
 
 }  // namespace zerocal::cli

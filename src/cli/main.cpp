@@ -9,8 +9,11 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <iostream>
+#include <iterator>
 #include <string>
+#include <vector>
 
 #include "apply_commands.h"
 #include "control_commands.h"
@@ -53,22 +56,24 @@ void addPlanCommand(CLI::App& app, PlanCommand& command) {
   c->allow_extras();  // the local plan's options: refused by name below
 }
 
-int runPlanCommand(const PlanCommand& command, std::ostream& err) {
-  std::string line = "plan";
+// `words`: the command line after the program's name, for the message naming zerocal-lab.
+int runPlanCommand(const PlanCommand& command, const std::vector<std::string>& words,
+                   std::ostream& err) {
+  // The local plan's options, left over by this parse: --robot anywhere makes it the lab's plan.
+  std::vector<std::string> names;
+  for (const std::string& arg : command.plan->remaining())
+    if (arg.rfind("--", 0) == 0) names.push_back(arg.substr(0, arg.find('=')));
   std::string local;
-  for (const std::string& arg : command.plan->remaining()) {
-    line += " " + arg;
-    const std::string name = arg.substr(0, arg.find('='));
-    if (!local.empty() || name.rfind("--", 0) != 0) continue;
-    if (name == "--robot") local = name;
-    for (const char* option : kLocalPlanOptions)
-      if (name == option) local = name;
-    if (local.empty()) {
+  for (const std::string& name : names) {
+    const bool known = std::find(std::begin(kLocalPlanOptions), std::end(kLocalPlanOptions),
+                                 name) != std::end(kLocalPlanOptions);
+    if (name == "--robot" || (known && local.empty())) local = name;
+    if (!known && name != "--robot") {
       err << "zerocal: plan: unknown option " << name << " (zerocal plan --help)\n";
       return kClientBadRequest;
     }
   }
-  if (local == "--robot") return refuseMovedCommand("plan --robot", line, err);
+  if (local == "--robot") return refuseMovedCommand("plan --robot", commandLine(words), err);
   if (!local.empty()) {
     err << "zerocal: plan " << local
         << " needs --robot (a plan made here, with the engine: zerocal-lab plan --robot FILE "
@@ -76,7 +81,7 @@ int runPlanCommand(const PlanCommand& command, std::ostream& err) {
     return kClientBadRequest;
   }
   if (!command.plan->remaining().empty()) {
-    err << "zerocal: plan takes no arguments: " << line << "\n";
+    err << "zerocal: plan takes no arguments: " << commandLine(command.plan->remaining()) << "\n";
     return kClientBadRequest;
   }
   ClientArgs args = command.args;
@@ -106,6 +111,7 @@ int main(int argc, char** argv) {
   MovedCommands moved;
   addMovedCommands(app, moved);
 
+  const std::vector<std::string> words(argv + 1, argv + argc);
   if (argc > 1 && refuseUnknownCommand(app, argv[1], std::cerr)) return kClientBadRequest;
   try {
     app.parse(argc, argv);
@@ -118,7 +124,7 @@ int main(int argc, char** argv) {
   if (const int rc = runMovedCommands(moved, std::cerr); rc >= 0) return rc;
   for (auto* c : client_cmds.apps)
     if (c->parsed()) return runClient(client_cmds.args, std::cout, std::cerr, isatty(1));
-  if (apply_cmds.parsed()) return runApplyCommands(apply_cmds, std::cout, std::cerr);
-  if (plan_cmd.plan->parsed()) return runPlanCommand(plan_cmd, std::cerr);
+  if (apply_cmds.parsed()) return runApplyCommands(apply_cmds, words, std::cout, std::cerr);
+  if (plan_cmd.plan->parsed()) return runPlanCommand(plan_cmd, words, std::cerr);
   return kClientFailure;
 }

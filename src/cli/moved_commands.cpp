@@ -16,9 +16,9 @@ void addMovedCommands(CLI::App& app, MovedCommands& moved) {
 int runMovedCommands(const MovedCommands& moved, std::ostream& err) {
   for (const CLI::App* c : moved.apps) {
     if (!c->parsed()) continue;
-    std::string line = c->get_name();
-    for (const std::string& arg : c->remaining()) line += " " + arg;
-    return refuseMovedCommand(c->get_name(), line, err);
+    std::vector<std::string> words{c->get_name()};
+    for (const std::string& arg : c->remaining()) words.push_back(arg);
+    return refuseMovedCommand(c->get_name(), commandLine(words), err);
   }
   return -1;
 }
@@ -30,6 +30,21 @@ int refuseMovedCommand(const std::string& command, const std::string& lab_comman
          "of zerocald); run\n  zerocal-lab "
       << lab_command_line << "\n";
   return kMovedCommand;
+}
+
+std::string commandLine(const std::vector<std::string>& words) {
+  std::string line;
+  for (const std::string& word : words) {
+    if (!line.empty()) line += ' ';
+    if (!word.empty() && word.find_first_of(" \t'\"\\$`") == std::string::npos) {
+      line += word;
+      continue;
+    }
+    line += '\'';
+    for (const char c : word) line += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    line += '\'';
+  }
+  return line;
 }
 
 }  // namespace zerocal::cli

@@ -31,4 +31,7 @@ int runMovedCommands(const MovedCommands& moved, std::ostream& err);
 int refuseMovedCommand(const std::string& command, const std::string& lab_command_line,
                        std::ostream& err);
 
+// The words as a shell line to copy: a word with a space or a quote in it, or none, is quoted.
+std::string commandLine(const std::vector<std::string>& words);
+
 }  // namespace zerocal::cli

@@ -412,9 +412,9 @@ TEST(SeveralPlacements, ThePlanPredictsWhatTheSolveCountsBesideTheNoise) {
   }
 }
 
-// A result saved as a calibrated robot file (what `zerocal solve --save-model` writes) reads back
-// with the identified link errors in its rows: solved again with it, the same poses leave no link
-// error to find and the same offsets.
+// A result saved as a calibrated robot file (what `zerocal-lab solve --save-model` writes) reads
+// back with the identified link errors in its rows: solved again with it, the same poses leave no
+// link error to find and the same offsets.
 TEST(SeveralPlacements, ACalibratedModelReadsBackAndLeavesNoLinkErrorToFind) {
   const Table2Scenario sc = table2Scenario();
   CalibrationParameters truth = sc.truth;

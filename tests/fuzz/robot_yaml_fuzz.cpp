@@ -1,5 +1,5 @@
 // Fuzz target: the robot file (parseRobot). A robot it accepts must also write out and read
-// back (robotYaml), as `zerocal solve --save-model` relies on.
+// back (robotYaml), as `zerocal-lab solve --save-model` relies on.
 #include "fuzz_input.h"
 #include "zerocal/error.h"
 #include "zerocal/model/robot.h"

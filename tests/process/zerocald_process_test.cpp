@@ -295,7 +295,7 @@ class SimProcess {
     ::waitpid(pid_, nullptr, 0);
   }
   // The external simulator's cell clock is the steady clock: the servo's settling would wait in
-  // wall time, for an ideal world that needs none (as in zerocal experiment apply).
+  // wall time, for an ideal world that needs none (as in zerocal-lab experiment apply).
   std::vector<std::string> daemonArgs() const {
     return {"--set", "backend.sim_host=\"127.0.0.1\"",
             "--set", "backend.sim_port=" + std::to_string(port_),

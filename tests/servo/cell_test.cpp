@@ -279,7 +279,7 @@ TEST(SimulatedCell, LinkDropAndUnpluggedBoardAreLatchedFaults) {
 // Records the optimal 8-pose plan by servoing on noisy cells (repeatability, PSD noise, float32
 // joints, 5 decimals) and solves: delta2..delta5 within 3 reported sigma of the truth. The ideal
 // world: this checks the chain from servo to solver, exactly; what the realistic world's model
-// errors do to the figures is measured by `zerocal experiment cell` (docs/simulated-cell.md).
+// errors do to the figures is measured by `zerocal-lab experiment cell` (docs/simulated-cell.md).
 TEST(SimulatedCell, EightServoedPosesCalibrateWithinThreeSigma) {
   double sum_sq = 0, worst_sigmas = 0, worst_cell_s = 0;
   int count = 0;

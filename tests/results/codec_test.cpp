@@ -1,0 +1,83 @@
+// The results codec on its own, as the technician's client links it (nothing but zerocal::results):
+// a result.json and a session.json built by hand come back member for member, and a result from
+// before verdicts reads as one whose verdict was not recorded. The files the engine and the daemon
+// write are round-tripped in tests/store (session_files_test.cpp).
+#include <gtest/gtest.h>
+
+#include "zerocal/error.h"
+#include "zerocal/results/result_file.h"
+#include "zerocal/results/session_file.h"
+
+namespace zerocal {
+namespace {
+
+using nlohmann::json;
+
+ResultFile aResult() {
+  ResultFile r;
+  r.report.verdict = {true, {}};
+  r.report.converged = true;
+  r.report.message = "converged";
+  r.report.pose_count = r.report.poses_used = 8;
+  for (int k = 0; k < kIdentifiedCount; ++k)
+    r.report.parameters.push_back(
+        {unknownName(k), true, "", 0.1 * k, 0.002, 0, 0.1 * k - 0.004, 0.1 * k + 0.004});
+  r.report.parameters[3].identifiable = false;
+  r.report.parameters[3].reason = "delta5 trades against the laser";
+  r.report.not_identifiable = {{"delta1_deg", "about the base axis"}};
+  r.report.estimate.target_mm = {900, -50, 400};
+  r.report.poses.resize(8);
+  r.session = "20261122T073447Z";
+  r.cell_time_s = 55.9;
+  r.cell = ResultFile::Cell{{"1600-123456", "6.15", "IRB 1600-10/1.45"}, "psd-map.yaml"};
+  r.truth = ResultFile::Truth{{-0.7, 0.1, -0.9, -0.3}, ""};
+  PoseTimes measured, skipped;
+  measured.pose = 1;
+  measured.servo.moves = 3;
+  measured.servo.move_s = 1.5;
+  measured.move_overhead_s = 0.3;
+  skipped.pose = 2;
+  skipped.skipped = "the spot was never found";
+  r.pose_breakdown = std::vector<PoseTimes>{measured, skipped};
+  return r;
+}
+
+TEST(ResultsCodec, AResultComesBackMemberForMember) {
+  const json j = toJson(aResult());
+  const ResultFile back = resultFileFromJson(j);
+  EXPECT_EQ(toJson(back), j);
+  EXPECT_EQ(back.session, "20261122T073447Z");
+  ASSERT_TRUE(back.cell);
+  EXPECT_EQ(back.cell->controller.serial, "1600-123456");
+  EXPECT_FALSE(back.report.parameters[3].identifiable);
+  EXPECT_EQ(back.pose_breakdown->at(1).skipped, "the spot was never found");
+  EXPECT_TRUE(back.verdict_recorded);
+}
+
+TEST(ResultsCodec, AResultFromBeforeVerdictsSaysSo) {
+  json j = toJson(aResult());
+  j.erase("verdict");
+  EXPECT_FALSE(resultFileFromJson(j).verdict_recorded);
+  j.erase("converged");
+  EXPECT_THROW(resultFileFromJson(j), InputError);
+}
+
+TEST(ResultsCodec, ASessionFileComesBack) {
+  SessionFile s;
+  s.id = "20261122T073447Z";
+  s.plan.description = "optimal";
+  Pose pose;
+  pose.q_deg = {10, -5, 20, 45, -30, 0};
+  s.plan.poses = {pose, pose};
+  s.plan.prediction.sigma.assign(kIdentifiedCount, 0.002);
+  s.plan.prediction.identifiable.assign(kIdentifiedCount, true);
+  s.plan.prediction.reason.assign(kIdentifiedCount, "");
+  s.target_mm = {900, -50, 400};
+  s.noise_mm = 0.02;
+  s.config = {{"session", {{"poses", 2}}}};
+  const json j = toJson(s);
+  EXPECT_EQ(toJson(sessionFileFromJson(j)), j);
+}
+
+}  // namespace
+}  // namespace zerocal

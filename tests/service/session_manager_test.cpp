@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <future>
+#include <condition_variable>
 #include <mutex>
 #include <thread>
 
@@ -57,6 +58,7 @@ ManagerSettings settingsIn(const std::string& dir) {
 // Every event the manager emits, in order.
 struct EventLog {
   std::mutex mutex;
+  std::condition_variable arrived;
   std::vector<SessionEvent> events;
   std::function<void(const SessionEvent&)> also;
   SessionControl::EventSink sink() {
@@ -65,8 +67,23 @@ struct EventLog {
         std::lock_guard<std::mutex> lock(mutex);
         events.push_back(e);
       }
+      arrived.notify_all();
       if (also) also(e);
     };
+  }
+  // The events of a type once there are `count` of them (or after 10 s, however many came): an
+  // event goes out after the state change it follows, so a status can be seen before it.
+  template <class Event>
+  std::vector<Event> atLeast(std::size_t count) {
+    {
+      std::unique_lock<std::mutex> lock(mutex);
+      arrived.wait_for(lock, std::chrono::seconds(10), [&] {
+        std::size_t n = 0;
+        for (const auto& e : events) n += std::holds_alternative<Event>(e);
+        return n >= count;
+      });
+    }
+    return of<Event>();
   }
   template <class Event>
   std::vector<Event> of() {
@@ -432,7 +449,7 @@ TEST(SessionManagerPlacements, WaitsForThePsdAtEachPlacementAndSolvesWithEveryPl
   EXPECT_LT((waiting.next_centre_mm - Eigen::Vector3d(613.177, 652.763, 585.079)).norm(), 0.01);
   EXPECT_NE(waiting.message.find("placement 2 of 2"), std::string::npos) << waiting.message;
   EXPECT_NE(waiting.message.find("zerocal continue"), std::string::npos) << waiting.message;
-  const auto placed = log.of<PlacementEvent>();
+  const auto placed = log.atLeast<PlacementEvent>(1);
   ASSERT_EQ(placed.size(), 1u);
   EXPECT_EQ(placed[0].placement, 2);
   EXPECT_EQ(placed[0].centre_mm, waiting.next_centre_mm);

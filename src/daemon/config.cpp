@@ -207,7 +207,7 @@ struct Layer {
   }
 };
 
-// The daq section's checks, shared by zerocald and `zerocal psd` (loadDaqSection): its own
+// The daq section's checks, shared by zerocald and `zerocal-lab psd` (loadDaqSection): its own
 // keys, and its board's section.
 void checkDaq(const DaqConfig& d, bool real_cell, Checker& check) {
   // An empty map_file is refused by the hardware backend when it starts, not here: the

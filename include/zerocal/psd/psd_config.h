@@ -1,7 +1,7 @@
 // The PSD chain's configuration, and the voltage->mm map in YAML.
 //
 // PsdConfig is the vendor-free part of the `daq` section of zerocald's configuration (DaqConfig,
-// zerocal/daemon/config.h): zerocald reads it from its configuration files, `zerocal psd --config
+// zerocal/daemon/config.h): zerocald reads it from its configuration files, `zerocal-lab psd --config
 // FILE` reads the `daq:` section of FILE (zerocald's own file, or config/psd.yaml). Both parse and
 // validate it with zerocald's configuration code (loadDaqSection); docs/configuration.md
 // describes every key.
@@ -23,14 +23,14 @@ namespace zerocal::psd {
 // the PSD owns its own keys (daq.<kind>, zerocal/cell/daq_kind.h).
 struct PsdConfig {
   double sum_threshold_v = 0.5;  // SUM below this: no spot on the detector
-  std::string map_file;  // the PSD's volts-to-mm map (zerocal psd-map); required by hardware
+  std::string map_file;  // the PSD's volts-to-mm map (zerocal-lab psd-map); required by hardware
 
   // A present spot counts as gone only when SUM falls below this (V): the hysteresis keeps a spot
   // on the detector's rim from flickering.
   double sumOffThresholdV() const { return 0.8 * sum_threshold_v; }
 };
 
-// The map as YAML: a `psd_map:` document, as `zerocal psd-map --out` writes it. `comment` lines
+// The map as YAML: a `psd_map:` document, as `zerocal-lab psd-map --out` writes it. `comment` lines
 // go first, prefixed with '#'.
 std::string psdMapToYaml(const PsdMap& map, const std::string& comment = {});
 // The map from a mapping node (what sits under `psd_map:` or `map:`). Appends problems, prefixed

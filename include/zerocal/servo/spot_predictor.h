@@ -41,7 +41,7 @@ class SpotPredictor {
   // Where a search should start: predict() once kConfidentPoses poses are in, else (0, 0). One
   // pose helped on average with 5e-4 deg of repeatability, but with 0.02 mm (1.5e-3 deg) it sent
   // seed 40's second search more than 60 mm from the spot (spot not found); from two poses on,
-  // 30 of 30 worlds (seeds 11..40) and 10 of 10 (1..10) complete (`zerocal experiment cell`).
+  // 30 of 30 worlds (seeds 11..40) and 10 of 10 (1..10) complete (`zerocal-lab experiment cell`).
   PsdSpot searchCentre(const Joints& q_deg) const;
   // Joints near `planned` where the spot is predicted on the PSD's centre: `planned` moved along
   // the image Jacobian's pseudo-inverse (damping_mm as the servo's) until the prediction is

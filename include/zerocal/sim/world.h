@@ -25,7 +25,7 @@ struct WorldNoise {
   // 1.5e-3 deg per joint is 0.020 mm per axis at the TCP (flange), averaged over optimal plans
   // (issue 5: "robot repeatability 0.02 mm sigma"; measured by world_test's
   // DefaultRepeatability test). Seen at the PSD it is about 0.022 mm (chi2/dof 1.24 with a
-  // measurement sigma of 0.020 mm, `zerocal experiment cell --worlds 30 --seed0 11`).
+  // measurement sigma of 0.020 mm, `zerocal-lab experiment cell --worlds 30 --seed0 11`).
   double repeatability_deg = 1.5e-3;
   // Standard deviation of a PSD reading (mm); applied by the PSD simulator, not here.
   double psd_mm = 0.001;
@@ -80,7 +80,7 @@ struct GrossErrors {
   // within kForcedPoseMatchDeg of `forced_at_deg` (the joints a session recorded at a pose: its
   // move ends there or, aimed at a predicted spot, within a fraction of a degree of them).
   // For measuring what a session does with one gross error against the same session without it
-  // (`zerocal experiment cell --gross-error`); its direction or joint comes from that pose's own
+  // (`zerocal-lab experiment cell --gross-error`); its direction or joint comes from that pose's own
   // draws (an extra draw when the pose lies within kGrossPoseExtentDeg of the one before).
   enum class Kind { kStrayLight, kUnsettled };
   std::optional<Joints> forced_at_deg;

@@ -26,7 +26,7 @@ class Usb1408fsSettings final : public DaqSettings {
 // The kind "usb-1408fs".
 DaqKind daqKind();
 
-// The board settings among a configuration's DAQ sections (for `zerocal psd`, which reads this
+// The board settings among a configuration's DAQ sections (for `zerocal-lab psd`, which reads this
 // board only). Throws ConfigError when the configuration has no usb-1408fs section.
 const BoardSettings& boardSettingsOf(const settings::KindSections<DaqSettings>& sections);
 

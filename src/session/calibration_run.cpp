@@ -117,11 +117,7 @@ void CalibrationRun::journalFault(const servo::ServoFault& fault, int plan_index
   record.status = servo::statusName(fault.status);
   record.message = fault.message;
   record.recorded_ns = unixNanoseconds();
-  record.samples.reserve(fault.sample_count);
-  for (std::size_t k = 0; k < fault.sample_count; ++k) {
-    const servo::ServoSample& s = fault.samples[k];
-    record.samples.push_back({s.time_s, s.q_deg, s.reading});
-  }
+  record.samples.assign(fault.samples.begin(), fault.samples.begin() + fault.sample_count);
   appendFault(faultLogPath(journal_.path()), record);
 }
 

@@ -362,7 +362,7 @@ void Journal::writeLine(const std::string& line) {
 
 Json toJson(const FaultRecord& r) {
   Json samples = Json::array();
-  for (const FaultSample& s : r.samples) {
+  for (const servo::ServoSample& s : r.samples) {
     Json row = Json::array({s.time_s});
     for (double q : s.q_deg) row.push_back(q);
     row.push_back(s.reading.spot.u_mm);
@@ -392,7 +392,7 @@ FaultRecord faultRecordFromJson(const Json& j) {
     for (const Json& row : j.at("samples")) {
       if (!row.is_array() || row.size() != 12)
         throw JournalError("fault record: a sample is not a list of 12 values");
-      FaultSample s;
+      servo::ServoSample s;
       s.time_s = numberOrNan(row[0]);
       for (int i = 0; i < kJointCount; ++i) s.q_deg[i] = numberOrNan(row[1 + i]);
       s.reading.spot = {numberOrNan(row[7]), numberOrNan(row[8])};

@@ -374,7 +374,7 @@ TEST(SessionFaults, ALatchedFaultsRecentSamplesAreWrittenToFaultsJsonl) {
   ASSERT_EQ(f.samples.size(), servo::kFaultHistory);
   const std::size_t first = psd.readings.size() - servo::kFaultHistory;
   for (std::size_t k = 0; k < f.samples.size(); ++k) {
-    const FaultSample& got = f.samples[k];
+    const servo::ServoSample& got = f.samples[k];
     const PsdReading& read = psd.readings[first + k];
     EXPECT_EQ(got.time_s, read.time_s) << k;
     EXPECT_EQ(got.q_deg, psd.joints[first + k]) << k;

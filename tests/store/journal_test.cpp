@@ -517,7 +517,7 @@ TEST_F(JournalTest, FaultLogRoundTripsAndSurvivesATornLastLine) {
   f.message = "the spot left the detector";
   f.recorded_ns = 1763795000123456789;
   for (int k = 0; k < 2; ++k) {
-    FaultSample s;
+    servo::ServoSample s;
     s.time_s = 12.5 + k / 3.0;
     s.q_deg = Joints{1.0 / 3.0, -2, 3, 4, 5, 6.0 + k};
     s.reading.spot = {0.1 / 3.0, -2e-4 / 7.0};

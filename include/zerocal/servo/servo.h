@@ -72,6 +72,7 @@
 #include "zerocal/cell/psd_reader.h"
 #include "zerocal/psd/spot.h"
 #include "zerocal/servo/servo_law.h"
+#include "zerocal/servo/servo_sample.h"
 
 namespace zerocal::servo {
 
@@ -143,12 +144,6 @@ enum class ServoStatus {
   kAborted,       // the abort flag was set; the robot at rest where the last move ended
 };
 const char* statusName(ServoStatus status) noexcept;
-
-struct ServoSample {
-  double time_s = 0;
-  Joints q_deg{};  // commanded joints when the reading was taken
-  PsdReading reading;
-};
 
 constexpr std::size_t kFaultHistory = 32;
 

@@ -23,6 +23,7 @@
 #include "zerocal/error.h"
 #include "zerocal/model/robot.h"
 #include "zerocal/results/servo_stats.h"
+#include "zerocal/servo/servo_sample.h"
 
 namespace zerocal {
 
@@ -148,15 +149,6 @@ class Journal {
   std::string dropped_;
 };
 
-// One sample of a latched servo fault: a reading and the joints commanded when it was taken.
-// JSON: [t_s, q1..q6, u_mm, v_mm, sum_v, spot_present, in_valid_zone]; a number that was not
-// finite is null on disk and NaN read back.
-struct FaultSample {
-  double time_s = 0;  // cell clock, seconds
-  Joints q_deg{};
-  PsdReading reading;  // its spot, sum_v and flags are kept; se and time_s are not
-};
-
 // One line of faults.jsonl: the servo latched a fault at a plan pose, whether the run then
 // recovered (a reconnect, the pose again) or stopped there. An abort is not a fault.
 struct FaultRecord {
@@ -165,7 +157,11 @@ struct FaultRecord {
   std::string status;      // the servo's status name: "spot not found", "link error", ...
   std::string message;     // the servo's fault message
   std::int64_t recorded_ns = 0;
-  std::vector<FaultSample> samples;  // the fault's recent samples, oldest first (at most 32)
+  // The fault's recent samples, oldest first (at most 32). JSON: [t_s, q1..q6, u_mm, v_mm, sum_v,
+  // spot_present, in_valid_zone]; a number that was not finite is null on disk and NaN read back.
+  // Each reading's spot, sum_v and flags are kept; its se is not, and its time_s reads back as
+  // the sample's.
+  std::vector<servo::ServoSample> samples;
 };
 
 nlohmann::json toJson(const FaultRecord& record);

@@ -102,17 +102,11 @@ SessionReport parseSession(const SessionFolder& files) {
   const std::vector<PoseRecord>& records = files.journal;
   const int journal_poses = static_cast<int>(records.size());
   // Each plan pose's latest line is the one solved (a pose measured again replaces its first
-  // measurement); the residuals are in plan order.
-  std::map<int, int> latest;  // plan pose (0-based) -> its latest line
-  for (int i = 0; i < journal_poses; ++i) latest[records[i].planIndex()] = i;
-  std::map<int, int> residual_of;  // line -> its residual
+  // measurement).
+  const std::vector<const PoseRecord*> latest = latestRecords(records);
   int measured_poses = 0;
-  for (const auto& [plan_index, line] : latest) {
-    if (!records[line].measured()) continue;
-    ++measured_poses;
-    if (std::find(held_out.begin(), held_out.end(), plan_index + 1) == held_out.end())
-      residual_of[line] = static_cast<int>(residual_of.size());
-  }
+  for (const PoseRecord* r : latest)
+    if (r && r->measured()) ++measured_poses;
   const int solved_poses = solve.pose_count;
   if (solved_poses + static_cast<int>(held_out.size()) != measured_poses)
     throw ReportError("result.json solved " + std::to_string(solved_poses) + " poses" +
@@ -122,6 +116,35 @@ SessionReport parseSession(const SessionFolder& files) {
   if (static_cast<int>(solve.poses.size()) != solved_poses)
     throw ReportError("result.json: " + std::to_string(solve.poses.size()) +
                       " pose_residuals for " + std::to_string(solved_poses) + " poses");
+  // Each solved line's residual. The daemon's residuals name their journal lines (posesOf keeps
+  // them as the poses' source_line); a result written before they did (every line 0) has them in
+  // the solve's order: each plan pose's latest measurement, in plan order, held-out poses left
+  // out.
+  std::map<const PoseRecord*, int> residual_of;
+  const bool lines_named = std::any_of(solve.poses.begin(), solve.poses.end(),
+                                       [](const PoseResidual& p) { return p.source_line != 0; });
+  if (lines_named) {
+    std::map<int, const PoseRecord*> at_line;
+    for (const PoseRecord* r : latest)
+      if (r && r->measured()) at_line[r->line] = r;
+    for (std::size_t k = 0; k < solve.poses.size(); ++k) {
+      const auto found = at_line.find(solve.poses[k].source_line);
+      if (found == at_line.end())
+        throw ReportError("result.json: pose residual " + std::to_string(k + 1) +
+                          " is of journal line " + std::to_string(solve.poses[k].source_line) +
+                          ", which journal.jsonl has as no pose solved: the files do not "
+                          "belong together");
+      residual_of[found->second] = static_cast<int>(k);
+    }
+  } else {
+    for (std::size_t plan_index = 0; plan_index < latest.size(); ++plan_index) {
+      const PoseRecord* r = latest[plan_index];
+      if (!r || !r->measured()) continue;
+      if (std::find(held_out.begin(), held_out.end(), static_cast<int>(plan_index) + 1) ==
+          held_out.end())
+        residual_of[r] = static_cast<int>(residual_of.size());
+    }
+  }
   for (int i = 0; i < journal_poses; ++i) {
     const PoseRecord& record = records[i];
     PoseRow row;
@@ -137,8 +160,8 @@ SessionReport parseSession(const SessionFolder& files) {
     row.spot = record.reading.spot;
     // The journal leaves out a path it did not record.
     if (!record.servo_path.empty()) row.servo_path = record.servo_path;
-    row.superseded = latest[record.planIndex()] != i;
-    const auto residual = residual_of.find(i);
+    row.superseded = latest[record.planIndex()] != &record;
+    const auto residual = residual_of.find(&record);
     row.solved = residual != residual_of.end();
     if (row.solved) {
       const PoseResidual& p = solve.poses[residual->second];

@@ -82,17 +82,6 @@ LinkHealth probeLink(ControllerLink& robot, CellClock& clock) {
   return health;
 }
 
-// For each plan pose, its latest record (null when none).
-std::vector<const PoseRecord*> latestOf(const std::vector<PoseRecord>& records) {
-  std::vector<const PoseRecord*> latest;
-  for (const PoseRecord& r : records) {
-    const auto k = static_cast<std::size_t>(r.planIndex());
-    if (latest.size() <= k) latest.resize(k + 1, nullptr);
-    latest[k] = &r;
-  }
-  return latest;
-}
-
 // Journal lines of the plan's own poses (measured or skipped), second measurements not counted.
 int planLines(const std::vector<PoseRecord>& records) {
   return static_cast<int>(std::count_if(records.begin(), records.end(),
@@ -102,7 +91,7 @@ int planLines(const std::vector<PoseRecord>& records) {
 // The 0-based plan pose of each of posesOf's poses.
 std::vector<int> planIndicesOf(const std::vector<PoseRecord>& records) {
   std::vector<int> indices;
-  for (const PoseRecord* r : latestOf(records))
+  for (const PoseRecord* r : latestRecords(records))
     if (r && r->measured()) indices.push_back(r->planIndex());
   return indices;
 }
@@ -123,8 +112,9 @@ void CalibrationRun::journalFault(const servo::ServoFault& fault, int plan_index
 
 std::vector<Pose> posesOf(const std::vector<PoseRecord>& records) {
   std::vector<Pose> poses;
-  for (const PoseRecord* r : latestOf(records))
-    if (r && r->measured()) poses.push_back({r->joints_deg, r->reading.spot, 0, r->placement});
+  for (const PoseRecord* r : latestRecords(records))
+    if (r && r->measured())
+      poses.push_back({r->joints_deg, r->reading.spot, r->line, r->placement});
   return poses;
 }
 
@@ -201,8 +191,8 @@ void CalibrationRun::skipNextPose(const std::string& reason) {
   record.index = journal_.nextIndex();
   record.skipped = reason;
   record.recorded_ns = unixNanoseconds();
-  journal_.append(record);
-  if (on_pose) on_pose(record);
+  const PoseRecord& journalled = journal_.append(record);
+  if (on_pose) on_pose(journalled);
 }
 
 RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock& clock,
@@ -370,10 +360,11 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
       record.servo.final_error_um = r.final_error_um;
       record.servo_path.assign(r.path.begin(),
                                r.path.begin() + static_cast<std::ptrdiff_t>(r.path_count));
-      journal_.append(record);  // on disk before the robot moves again
-      out.records.push_back(record);
+      // On disk before the robot moves again.
+      const PoseRecord& journalled = journal_.append(record);
+      out.records.push_back(journalled);
       predictor.addPose(record.joints_deg, record.reading.spot);
-      if (on_pose) on_pose(record);
+      if (on_pose) on_pose(journalled);
       return true;
     }
   };

@@ -111,6 +111,16 @@ bool allFinite(const PoseRecord& r) {
 
 }  // namespace
 
+std::vector<const PoseRecord*> latestRecords(const std::vector<PoseRecord>& records) {
+  std::vector<const PoseRecord*> latest;
+  for (const PoseRecord& r : records) {
+    const auto k = static_cast<std::size_t>(r.planIndex());
+    if (latest.size() <= k) latest.resize(k + 1, nullptr);
+    latest[k] = &r;
+  }
+  return latest;
+}
+
 Json toJson(const PoseRecord& r) {
   if (!r.measured())
     return Json{{"index", r.index}, {"skipped", r.skipped}, {"recorded_ns", r.recorded_ns}};
@@ -276,6 +286,7 @@ JournalContents parseJournal(const std::string& text, const std::string& path) {
       throw JournalError(path + ":" + std::to_string(line_number) + ": pose index " +
                          std::to_string(record.index) + " where " +
                          std::to_string(out.nextIndex()) + " was due");
+    record.line = line_number;
     out.records.push_back(record);
     out.committed_bytes = newline + 1;
     start = newline + 1;
@@ -319,7 +330,7 @@ Journal::~Journal() {
   if (fd_ >= 0) ::close(fd_);
 }
 
-void Journal::append(const PoseRecord& record) {
+const PoseRecord& Journal::append(const PoseRecord& record) {
   if (broken_) throw JournalError("journal " + path_ + " is unusable after a failed write");
   if (record.index != nextIndex())
     throw JournalError("journal " + path_ + ": pose index " + std::to_string(record.index) +
@@ -333,6 +344,9 @@ void Journal::append(const PoseRecord& record) {
                        " while the PSD is at placement " + std::to_string(placement()));
   writeLine(toJson(record).dump() + "\n");
   records_.push_back(record);
+  // Every committed line is a pose's or a placement's.
+  records_.back().line = static_cast<int>(records_.size() + placements_.size());
+  return records_.back();
 }
 
 void Journal::append(const PlacementRecord& record) {

@@ -135,7 +135,9 @@ class CalibrationRun {
 };
 
 // The measured poses as the solver takes them (joints with the PSD reading and the placement):
-// each plan pose's latest measurement, in plan order; skipped ones left out.
+// each plan pose's latest measurement (latestRecords), in plan order; skipped ones left out. Each
+// keeps its record's journal line as its source_line, so the solve's residuals and messages name
+// the line.
 std::vector<Pose> posesOf(const std::vector<PoseRecord>& records);
 
 }  // namespace zerocal

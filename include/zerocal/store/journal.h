@@ -63,9 +63,18 @@ struct PoseRecord {
   // The PSD placement (1-based) the pose was measured at, JSON "placement": written only when
   // it is not 1, so that a journal of one placement reads as before and an older one as 1.
   int placement = 1;
+  // The record's 1-based line in journal.jsonl, placement lines counted (not written: its
+  // position says). Set by readJournal and Journal::append; 0 for a record of neither. A pose
+  // solved carries it as its Pose::source_line (posesOf), so the result names its journal lines.
+  int line = 0;
   bool measured() const { return skipped.empty(); }
   int planIndex() const { return remeasure_of >= 0 ? remeasure_of : index; }
 };
+
+// Each plan pose's latest record, by 0-based plan pose (null where it has none): the one a solve
+// takes, since a pose measured again replaces its first measurement (which stays in the
+// journal). A skipped pose's latest record is its skipped line.
+std::vector<const PoseRecord*> latestRecords(const std::vector<PoseRecord>& records);
 
 nlohmann::json toJson(const PoseRecord& record);
 // Throws JournalError when a member is missing or of the wrong type, or holds a value no arm or
@@ -124,8 +133,9 @@ class Journal {
 
   // Writes the record as one line with one write() and fsync()s the file; when this returns the
   // pose is on disk. record.index must equal nextIndex() and every number must be finite.
-  // Throws JournalError (the journal is then unusable if the write itself failed).
-  void append(const PoseRecord& record);
+  // Throws JournalError (the journal is then unusable if the write itself failed). Returns the
+  // record as journalled, its line set.
+  const PoseRecord& append(const PoseRecord& record);
   // Writes a placement line likewise: record.placement must be the one in force plus 1, and its
   // first_index is set to nextIndex(). Throws JournalError.
   void append(const PlacementRecord& record);

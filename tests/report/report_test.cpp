@@ -149,6 +149,42 @@ TEST(Parse, APoseMeasuredAgainIsSolvedFromItsLatestLineAndSaidSo) {
   EXPECT_EQ(unbalancedTag(html), "");
 }
 
+// The daemon's residuals name their journal lines (posesOf keeps each pose's line): each line is
+// given the residual that names it, whatever the residuals' order.
+TEST(Parse, ResidualsThatNameTheirJournalLinesAreJoinedByThem) {
+  test::FixtureOptions o;
+  o.skipped = {2};
+  o.remeasured = {3};
+  SessionFolder files = test::sessionFiles(o);
+  for (std::size_t i = 0; i < files.journal.size(); ++i)
+    files.journal[i].line = static_cast<int>(i) + 1;  // as readJournal has them
+  // The solved lines in plan order: pose 1, (2 skipped), pose 3's second measurement, 4..10.
+  std::vector<int> solved_lines{1, 11};
+  for (int line = 4; line <= 10; ++line) solved_lines.push_back(line);
+  std::vector<PoseResidual>& residuals = files.result.report.poses;
+  ASSERT_EQ(residuals.size(), solved_lines.size());
+  for (std::size_t k = 0; k < residuals.size(); ++k) residuals[k].source_line = solved_lines[k];
+  std::swap(residuals[0], residuals[1]);  // not in plan order: only the lines say which is whose
+  ASSERT_NE(residuals[0].miss_norm_mm, residuals[1].miss_norm_mm);
+
+  const SessionReport r = parseSession(files);
+  ASSERT_EQ(r.poses.size(), 11u);
+  for (const PoseResidual& p : residuals) {
+    const PoseRow& row = r.poses[p.source_line - 1];
+    ASSERT_TRUE(row.solved) << "line " << p.source_line;
+    EXPECT_EQ(row.miss_um, std::hypot(p.miss_mm.x(), p.miss_mm.y()) * 1000)
+        << "line " << p.source_line;
+  }
+  EXPECT_FALSE(r.poses[1].solved);  // skipped
+  EXPECT_FALSE(r.poses[2].solved);  // superseded by line 11
+  EXPECT_TRUE(r.poses[2].superseded);
+
+  // A residual of a line that is no pose solved (pose 3's first measurement): the files do not
+  // belong together.
+  residuals[1].source_line = 3;
+  EXPECT_THROW(parseSession(files), ReportError);
+}
+
 TEST(Summary, GivesEachOffsetInDegreesAndRadiansWithSigmaAndInterval) {
   const SessionReport& r = plainSession();
   const std::string s = summaryText(r);

@@ -143,6 +143,10 @@ TEST(CalibrationRun, APlanAtSeveralPlacementsIsGuidedForwardOnlyAndWaitsBetweenT
   journal.append(r);
   EXPECT_EQ(posesOf(journal.records()).back().placement, 2);
   EXPECT_EQ(posesOf(journal.records()).front().placement, 1);
+  // And each pose's journal line, for the solve's residuals and messages: pose 9 follows the
+  // eight of placement 1 and the placement line.
+  EXPECT_EQ(posesOf(journal.records()).front().source_line, 1);
+  EXPECT_EQ(posesOf(journal.records()).back().source_line, 10);
 }
 
 }  // namespace

@@ -231,8 +231,31 @@ TEST_F(JournalTest, PlacementsOfPosesAndMovesOfThePsdComeBackInTheirPlaces) {
   EXPECT_EQ(back.placements[0].first_index, 1);
   EXPECT_EQ(back.placements[0].centre_mm, (std::array<double, 3>{700.5, 400.25, 200}));
   EXPECT_EQ(placementInForce(back.placements), 2);
+  // Each pose knows its line in the file, the placement line counted.
+  EXPECT_EQ(back.records[0].line, 1);
+  EXPECT_EQ(back.records[1].line, 3);
   Journal reopened(path.string());
   EXPECT_EQ(reopened.placement(), 2);
+  EXPECT_EQ(reopened.records()[1].line, 3);
+  PoseRecord next = sample(2);
+  next.placement = 2;
+  EXPECT_EQ(reopened.append(next).line, 4);  // appended: the line it went to
+  EXPECT_EQ(reopened.records().back().line, 4);
+}
+
+// The latest record of each plan pose, the one a solve takes: a second measurement replaces the
+// first; a pose skipped is its skipped line; a pose not reached has none.
+TEST_F(JournalTest, EachPlanPosesLatestRecordIsItsLastLine) {
+  std::vector<PoseRecord> records(4);
+  for (int i = 0; i < 4; ++i) records[i].index = i;
+  records[1].skipped = "spot not found";
+  records[3].remeasure_of = 0;  // plan pose 1 measured again
+  const std::vector<const PoseRecord*> latest = latestRecords(records);
+  ASSERT_EQ(latest.size(), 3u);
+  EXPECT_EQ(latest[0], &records[3]);
+  EXPECT_EQ(latest[1], &records[1]);
+  EXPECT_EQ(latest[2], &records[2]);
+  EXPECT_TRUE(latestRecords({}).empty());
 }
 
 TEST_F(JournalTest, APoseAtAPlacementThePsdIsNotAtIsADamagedJournal) {

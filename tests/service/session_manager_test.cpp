@@ -214,6 +214,11 @@ TEST(SessionManager, RunsASessionToDoneThroughEveryStateWithAResultNearTheTruth)
     EXPECT_EQ(journal.records[i].index, i);
     EXPECT_EQ(journal.records[i].remeasure_of, i < 8 ? -1 : remeasured[i - 8].get<int>() - 1);
   }
+  // Each residual names the journal line it was solved from: each plan pose's latest line.
+  const std::vector<const PoseRecord*> latest = latestRecords(journal.records);
+  ASSERT_EQ(result["pose_residuals"].size(), latest.size());
+  for (std::size_t k = 0; k < latest.size(); ++k)
+    EXPECT_EQ(result["pose_residuals"][k]["line"], latest[k]->line) << "pose " << k + 1;
   // The whole simulated world beside the result: it reads back to the cell's world.
   ASSERT_EQ(result["truth"]["world_file"], "truth-world.yaml");
   const World truth = loadWorld(dir.path + "/" + id + "/truth-world.yaml");

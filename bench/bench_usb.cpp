@@ -139,7 +139,8 @@ void BM_AveragedReading64(benchmark::State& state) {
   double simulated = 0;
   for (auto _ : state) {
     const auto t0 = board.now();
-    const psd::VoltageReading r = usb1408fs::readAveraged(daq, usb1408fs::PsdChannels{}, 64, 16000.0);
+    const psd::VoltageReading r =
+        usb1408fs::readAveraged(daq, usb1408fs::PsdChannels{}, 64, 16000.0);
     simulated += std::chrono::duration<double>(board.now() - t0).count();
     benchmark::DoNotOptimize(r.x);
   }

@@ -70,8 +70,7 @@ bool BlockAverager::take(VoltageReading& reading) noexcept {
   return true;
 }
 
-ScanConfig averagedScan(const PsdChannels& channels, std::size_t samples,
-                                   double rate_hz) {
+ScanConfig averagedScan(const PsdChannels& channels, std::size_t samples, double rate_hz) {
   ScanConfig config;
   config.channels = {channels.x, channels.y, channels.sum};
   config.rate_hz = rate_hz;
@@ -79,8 +78,8 @@ ScanConfig averagedScan(const PsdChannels& channels, std::size_t samples,
   return config;
 }
 
-VoltageReading readAveraged(Usb1408fs& daq, const PsdChannels& channels,
-                            std::size_t samples, double rate_hz) {
+VoltageReading readAveraged(Usb1408fs& daq, const PsdChannels& channels, std::size_t samples,
+                            double rate_hz) {
   return readAveraged(daq, averagedScan(channels, samples, rate_hz));
 }
 
@@ -96,9 +95,8 @@ VoltageReading readAveraged(Usb1408fs& daq, const ScanConfig& scan) {
   daq.stopScan();
   VoltageReading reading;
   if (!averager.take(reading)) {
-    throw ProtocolError("the PSD reading lost " +
-                                   std::to_string(daq.scanStats().lost_packets) +
-                                   " USB packets; it was discarded");
+    throw ProtocolError("the PSD reading lost " + std::to_string(daq.scanStats().lost_packets) +
+                        " USB packets; it was discarded");
   }
   return reading;
 }

@@ -9,10 +9,10 @@
 namespace zerocal::usb1408fs {
 namespace {
 
-const settings::Choices<Range> kRanges = {
-    {"20V", Range::kBip20V},     {"10V", Range::kBip10V},   {"5V", Range::kBip5V},
-    {"4V", Range::kBip4V},       {"2.5V", Range::kBip2_5V}, {"2V", Range::kBip2V},
-    {"1.25V", Range::kBip1_25V}, {"1V", Range::kBip1V}};
+const settings::Choices<Range> kRanges = {{"20V", Range::kBip20V},     {"10V", Range::kBip10V},
+                                          {"5V", Range::kBip5V},       {"4V", Range::kBip4V},
+                                          {"2.5V", Range::kBip2_5V},   {"2V", Range::kBip2V},
+                                          {"1.25V", Range::kBip1_25V}, {"1V", Range::kBip1V}};
 
 void addChannel(settings::Fields& fields, const std::string& prefix, Channel& channel) {
   fields.push_back(settings::integerField(prefix + "number", channel.number));
@@ -30,7 +30,8 @@ void Usb1408fsSettings::declare(const std::string& prefix, settings::Fields& fie
   addChannel(fields, prefix + "channels.y.", board.channels.y);
   addChannel(fields, prefix + "channels.sum.", board.channels.sum);
   fields.push_back(settings::realField(prefix + "scan_rate_hz", board.scan_rate_hz));
-  fields.push_back(settings::integerField(prefix + "samples_per_reading", board.samples_per_reading));
+  fields.push_back(
+      settings::integerField(prefix + "samples_per_reading", board.samples_per_reading));
 }
 
 void Usb1408fsSettings::check(const std::string& prefix, bool, settings::Checker& check) const {
@@ -53,8 +54,8 @@ void Usb1408fsSettings::check(const std::string& prefix, bool, settings::Checker
       channels_valid = channels_valid && !shared;
     }
   // The board scans consecutive inputs, lowest first (docs/usb1408fs.md): x, y, sum in that order.
-  if (channels_valid && (wireChannel(c.y) != wireChannel(c.x) + 1 ||
-                         wireChannel(c.sum) != wireChannel(c.y) + 1))
+  if (channels_valid &&
+      (wireChannel(c.y) != wireChannel(c.x) + 1 || wireChannel(c.sum) != wireChannel(c.y) + 1))
     check.fail(prefix + "channels",
                "x, y and sum must be consecutive inputs of one mode in that order (e.g. "
                "differential 0, 1, 2): the USB-1408FS scans a range of inputs");

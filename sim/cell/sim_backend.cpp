@@ -98,7 +98,8 @@ CellKnowledge SimBackend::knowledge() const {
 
 std::unique_ptr<ConnectedCell> SimBackend::connect() {
   const Irc5Options own = cell_.clientOptions();
-  if (!link_) return std::make_unique<SimulatedLinkedCell>(cell_, std::make_unique<Irc5Client>(own));
+  if (!link_)
+    return std::make_unique<SimulatedLinkedCell>(cell_, std::make_unique<Irc5Client>(own));
   return std::make_unique<SimulatedLinkedCell>(
       cell_, irc5Link(link_({own.host, own.port, own.backoff_initial})));
 }

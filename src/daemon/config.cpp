@@ -217,8 +217,8 @@ void checkDaq(const DaqConfig& d, bool real_cell, Checker& check) {
   if (const DaqSettings* board = d.boards.find(d.kind))
     board->check("daq." + d.kind + ".", real_cell, check);
   else
-    check.fail("daq.kind", "'" + d.kind + "' is not a board zerocal can read (" +
-                               kinds::daqKindNames() + ")");
+    check.fail("daq.kind",
+               "'" + d.kind + "' is not a board zerocal can read (" + kinds::daqKindNames() + ")");
 }
 
 std::string readFile(const fs::path& path, std::string& error) {
@@ -313,7 +313,8 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
   // A servo step moves the spot a few mm; 5 deg moves it by tens of mm at 1 m.
   check.positive("servo.max_step_deg", s.max_step_deg, 5.0);
   if (s.max_step_deg > k.max_step_deg)
-    check.fail("servo.max_step_deg", numberText(s.max_step_deg) + " exceeds controller.max_step_deg (" +
+    check.fail("servo.max_step_deg", numberText(s.max_step_deg) +
+                                         " exceeds controller.max_step_deg (" +
                                          numberText(k.max_step_deg) + ")");
   check.range("servo.max_iterations", s.max_iterations, 1, 100000);
   check.positive("servo.timeout_s", s.timeout_s, 3600.0);
@@ -321,7 +322,8 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
   check.positive("servo.search_radius_mm", s.search_radius_mm, 100.0);
   check.positive("servo.search_step_mm", s.search_step_mm, 100.0);
   if (s.search_step_mm > s.search_radius_mm)
-    check.fail("servo.search_step_mm", numberText(s.search_step_mm) + " exceeds servo.search_radius_mm (" +
+    check.fail("servo.search_step_mm", numberText(s.search_step_mm) +
+                                           " exceeds servo.search_radius_mm (" +
                                            numberText(s.search_radius_mm) + ")");
   check.positive("servo.search_time_s", s.search_time_s, 3600.0);
   check.range("servo.sweep_speed_mm_s", s.sweep_speed_mm_s, 0.0, 1000.0);
@@ -489,11 +491,12 @@ DaqConfig loadDaqSection(const std::string& path) {
   if (!root.IsMap() || !root["daq"]) {
     if (root.IsMap() && root["psd"])
       throw ConfigError(
-          path, {"the psd: section of earlier versions is now the daq: section of zerocald's "
-                 "configuration (docs/configuration.md): samples is usb-1408fs.samples_per_reading, "
-                 "rate_hz usb-1408fs.scan_rate_hz, a channel (under usb-1408fs.channels) has "
-                 "its input as its number, range_v: 5 is range: 5V; "
-                 "sum_off_threshold_v is 0.8 x sum_threshold_v, and the map is named by map_file"});
+          path,
+          {"the psd: section of earlier versions is now the daq: section of zerocald's "
+           "configuration (docs/configuration.md): samples is usb-1408fs.samples_per_reading, "
+           "rate_hz usb-1408fs.scan_rate_hz, a channel (under usb-1408fs.channels) has "
+           "its input as its number, range_v: 5 is range: 5V; "
+           "sum_off_threshold_v is 0.8 x sum_threshold_v, and the map is named by map_file"});
     throw ConfigError(path, {"the file must hold a 'daq:' section at its top level"});
   }
   DaemonConfig config;
@@ -510,13 +513,13 @@ DaqConfig loadDaqSection(const std::string& path) {
 const ControllerSettings& ControllerConfig::section() const {
   if (const ControllerSettings* found = sections.find(kind)) return *found;
   throw ConfigError("controller.kind", {"'" + kind + "' is not a controller zerocal can drive (" +
-                                            kinds::controllerKindNames() + ")"});
+                                        kinds::controllerKindNames() + ")"});
 }
 
 const DaqSettings& DaqConfig::board() const {
   if (const DaqSettings* found = boards.find(kind)) return *found;
   throw ConfigError("daq.kind", {"'" + kind + "' is not a board zerocal can read (" +
-                                     kinds::daqKindNames() + ")"});
+                                 kinds::daqKindNames() + ")"});
 }
 
 std::string logLevelName(LogLevel level) {

@@ -14,9 +14,9 @@
 #include "zerocal/error.h"
 #include "zerocal/psd/psd.h"
 #include "zerocal/psd/psd_config.h"
-#include "zerocal/usb1408fs/usb1408fs_kind.h"
 #include "zerocal/sim/psd_rig.h"
 #include "zerocal/usb1408fs/libusb_transport.h"
+#include "zerocal/usb1408fs/usb1408fs_kind.h"
 
 namespace zerocal::lab {
 namespace {

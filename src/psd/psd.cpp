@@ -14,7 +14,6 @@
 namespace zerocal::psd {
 namespace {
 
-
 // Voltages enter the polynomial divided by this, so that powers up to the degree stay near 1 and
 // the least-squares problem stays well conditioned.
 constexpr double kVoltScale = 5.0;

@@ -224,8 +224,8 @@ void ApplyCoordinator::runApply(const std::string& id, const ResultFile& result)
       progress("joint " + std::to_string(j) +
                ": measuring its transmission (a small joint move, read on the motor side, and "
                "back)");
-      measured.push_back(apply::measureTransmission(connection_.cell().robot(), calibration, robot, j,
-                                                    settings_.transmission_check));
+      measured.push_back(apply::measureTransmission(connection_.cell().robot(), calibration, robot,
+                                                    j, settings_.transmission_check));
       progress(measured.back().message);
     }
     apply::journalTransmissionCheck(journal, measured);

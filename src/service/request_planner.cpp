@@ -295,10 +295,10 @@ SkipAdvice RequestPlanner::adviseSkip(const std::string& id, const RunPlan& plan
   const std::string pose = std::to_string(stopped_at + 1);
   if (identifiesWithout(plan, skipped))
     return {stopped_at + 1, "the plan identifies every offset without pose " + pose +
-                                ": `zerocal resume " + id + " --skip-pose " + pose +
-                                "` skips it"};
-  return {0, "without pose " + pose + " the plan would not identify every offset: plan a new "
-             "session"};
+                                ": `zerocal resume " + id + " --skip-pose " + pose + "` skips it"};
+  return {0, "without pose " + pose +
+                 " the plan would not identify every offset: plan a new "
+                 "session"};
 }
 
 }  // namespace zerocal::service

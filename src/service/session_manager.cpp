@@ -289,8 +289,7 @@ std::string SessionManager::continueSession(const ContinueRequest& request) {
     board_.finish(SessionState::kFaulted, std::string("cannot go on: ") + e.what());
     throw Refused("bad_session", "session " + id + " cannot go on: " + e.what());
   }
-  const Eigen::Vector3d centre =
-      request.centre_mm.value_or(run.plan.centres[s.placement - 1]);
+  const Eigen::Vector3d centre = request.centre_mm.value_or(run.plan.centres[s.placement - 1]);
   run.place_next = centre;
   makeLogger("session")->info("session {}: the PSD is at placement {} of {}, taught at {}", id,
                               s.placement, run.plan.centres.size(), centreText(centre));

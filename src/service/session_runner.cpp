@@ -53,10 +53,10 @@ std::int64_t unixSeconds() {
 
 }  // namespace
 
-SessionRunner::SessionRunner(CellConnection& connection, SessionBoard& board,
-                             SessionWorker& worker, SessionStore& store,
-                             const RequestPlanner& planner, const CellKnowledge& knowledge,
-                             LiveReadingSlot& live, const ManagerSettings& settings)
+SessionRunner::SessionRunner(CellConnection& connection, SessionBoard& board, SessionWorker& worker,
+                             SessionStore& store, const RequestPlanner& planner,
+                             const CellKnowledge& knowledge, LiveReadingSlot& live,
+                             const ManagerSettings& settings)
     : connection_(connection),
       board_(board),
       worker_(worker),
@@ -72,8 +72,8 @@ void SessionRunner::run(const RunRequest& request) {
     case SessionKind::kVerification:
       return runMeasurement(request);
   }
-  finish(SessionState::kFaulted, std::string("a session of kind ") +
-                                     sessionKindName(request.kind) + " cannot be run");
+  finish(SessionState::kFaulted,
+         std::string("a session of kind ") + sessionKindName(request.kind) + " cannot be run");
 }
 
 void SessionRunner::setPhase(SessionState state, int pose) {

@@ -34,8 +34,8 @@ using service::SessionState;
 enum ExitCode { kOk = 0, kFailure = 1, kBadInput = 2, kStopped = 3, kNotIdentifiable = 4 };
 
 // No step of a session goes this long without progress (a phase, a PSD reading, a pose): the
-// longest is one move within its deadline (estimated duration x controller.irc5.move_timeout_factor +
-// margin, seconds to tens of seconds) or a connect with its retries. Longer, the worker is stuck.
+// longest is one move within its deadline (estimated duration x controller.irc5.move_timeout_factor
+// + margin, seconds to tens of seconds) or a connect with its retries. Longer, the worker is stuck.
 constexpr std::chrono::seconds kWorkerStallLimit{120};
 
 // Under systemd's watchdog (WatchdogSec=): why the worker is stuck, or nullopt while it is not.

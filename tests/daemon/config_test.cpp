@@ -117,10 +117,11 @@ TEST_F(ConfigTest, DropInsApplyInLexicalOrderAndOnlyYamlFiles) {
 
 TEST_F(ConfigTest, CommandLineTakesYamlValuesAndNestedKeys) {
   write("main.yaml", "");
-  const DaemonConfig c = loadDaemonConfig(sources(
-      {"session.target_mm=[1, 2.5, -3]", "daq.usb-1408fs.channels.x.number=1", "daq.usb-1408fs.channels.y.number=2",
-       "daq.usb-1408fs.channels.sum.number=3", "daq.usb-1408fs.channels.sum.mode=differential", "backend.kind=sim",
-       "backend.sim_seed=42", "logging.level=debug"}));
+  const DaemonConfig c = loadDaemonConfig(
+      sources({"session.target_mm=[1, 2.5, -3]", "daq.usb-1408fs.channels.x.number=1",
+               "daq.usb-1408fs.channels.y.number=2", "daq.usb-1408fs.channels.sum.number=3",
+               "daq.usb-1408fs.channels.sum.mode=differential", "backend.kind=sim",
+               "backend.sim_seed=42", "logging.level=debug"}));
   EXPECT_EQ(c.session.target_mm, (std::array<double, 3>{1, 2.5, -3}));
   EXPECT_EQ(usb1408fs::boardSettingsOf(c.daq.boards).channels.sum.number, 3);
   EXPECT_EQ(c.backend.kind, BackendKind::kSim);
@@ -130,11 +131,13 @@ TEST_F(ConfigTest, CommandLineTakesYamlValuesAndNestedKeys) {
 
 TEST_F(ConfigTest, PsdChannelsMustBeConsecutiveInputsInScanOrder) {
   write("main.yaml", "");
-  const auto p = problems(sources({"daq.usb-1408fs.channels.x.number=1", "daq.usb-1408fs.channels.y.number=0"}));
+  const auto p = problems(
+      sources({"daq.usb-1408fs.channels.x.number=1", "daq.usb-1408fs.channels.y.number=0"}));
   EXPECT_TRUE(reported(p, {"daq.usb-1408fs.channels", "consecutive inputs"})) << joined(p);
   EXPECT_EQ(p.size(), 1u) << joined(p);
-  EXPECT_NO_THROW(loadDaemonConfig(sources(
-      {"daq.usb-1408fs.channels.x.number=1", "daq.usb-1408fs.channels.y.number=2", "daq.usb-1408fs.channels.sum.number=3"})));
+  EXPECT_NO_THROW(loadDaemonConfig(
+      sources({"daq.usb-1408fs.channels.x.number=1", "daq.usb-1408fs.channels.y.number=2",
+               "daq.usb-1408fs.channels.sum.number=3"})));
 }
 
 TEST_F(ConfigTest, EmptySectionsAndFilesChangeNothing) {
@@ -213,12 +216,14 @@ TEST_F(ConfigTest, DeviceKindsAreTheOnesZerocalCanDrive) {
 TEST_F(ConfigTest, OutOfRangeValuesNameWhereTheyWereSet) {
   write("main.yaml", "servo:\n  tolerance_um: -1\n");
   write("conf.d/10.yaml", "session:\n  poses: 3\n");
-  const auto p = problems(sources({"controller.irc5.speed_tcp_mm_s=1e6", "daq.usb-1408fs.channels.x.number=4"}));
+  const auto p = problems(
+      sources({"controller.irc5.speed_tcp_mm_s=1e6", "daq.usb-1408fs.channels.x.number=4"}));
   EXPECT_EQ(p.size(), 4u) << joined(p);
   EXPECT_TRUE(reported(p, {"main.yaml:2", "servo.tolerance_um", "greater than 0"})) << joined(p);
   EXPECT_TRUE(reported(p, {"10.yaml:2", "session.poses", "at least 6"})) << joined(p);
   EXPECT_TRUE(reported(p, {"command line", "controller.irc5.speed_tcp_mm_s", "at most 7000"}));
-  EXPECT_TRUE(reported(p, {"command line", "daq.usb-1408fs.channels.x.number", "at most 3"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"command line", "daq.usb-1408fs.channels.x.number", "at most 3"}))
+      << joined(p);
 }
 
 TEST_F(ConfigTest, InconsistentCombinations) {
@@ -346,9 +351,9 @@ TEST_F(ConfigTest, TheDaqSectionAloneIsThePsdChainsConfiguration) {
   EXPECT_EQ(rig.psd.map_file,
             fs::path(ZEROCAL_SOURCE_DIR "/config/psd-map.yaml").lexically_normal().string());
   // zerocald's own file: its daq section; the other sections are zerocald's to check.
-  const std::string daemon = write(
-      "zerocald.yaml",
-      "servo: {bogus: 1}\ndaq:\n  usb-1408fs:\n    samples_per_reading: 32\n  map_file: map.yaml\n");
+  const std::string daemon = write("zerocald.yaml",
+                                   "servo: {bogus: 1}\ndaq:\n  usb-1408fs:\n    "
+                                   "samples_per_reading: 32\n  map_file: map.yaml\n");
   write("map.yaml", "psd_map: {}\n");
   const DaqConfig read = loadDaqSection(daemon);
   const usb1408fs::BoardSettings& board = usb1408fs::boardSettingsOf(read.boards);
@@ -434,13 +439,13 @@ TEST_F(ConfigTest, AKeyOfAKindsSectionNamesWhereItIsNow) {
   write("main.yaml", "controller:\n  host: 10.0.0.5\ndaq:\n  serial: ABC\n");
   const auto p = problems(sources({"controller.speed_tcp_mm_s=100"}));
   EXPECT_EQ(p.size(), 3u) << joined(p);
-  EXPECT_TRUE(reported(p, {"main.yaml:2", "unknown key 'controller.host'",
-                           "'controller.irc5.host' now"}))
+  EXPECT_TRUE(
+      reported(p, {"main.yaml:2", "unknown key 'controller.host'", "'controller.irc5.host' now"}))
       << joined(p);
   EXPECT_TRUE(reported(p, {"main.yaml:4", "'daq.usb-1408fs.serial' now"})) << joined(p);
   EXPECT_TRUE(reported(p, {"command line", "'controller.irc5.speed_tcp_mm_s' now"})) << joined(p);
-  EXPECT_TRUE(reported(problems(sources({"controller.colour=red"})),
-                       {"unknown key 'controller.colour'"}));
+  EXPECT_TRUE(
+      reported(problems(sources({"controller.colour=red"})), {"unknown key 'controller.colour'"}));
 }
 
 // The kind's section is checked by the kind, with its own prefix, and the servo's sweeps are

@@ -120,7 +120,8 @@ TEST_F(FittedMap, RecoversPositionsInTheValidZoneToTwoMicrometres) {
   for (double u = -0.59; u <= 0.59; u += 0.0737) {
     for (double v = -0.59; v <= 0.59; v += 0.0737) {
       rig.setSpot(PsdSpot{u, v});
-      const PsdReading p = map_->apply(usb1408fs::readAveraged(rig.daq(), rig.channels(), 64, 16000.0));
+      const PsdReading p =
+          map_->apply(usb1408fs::readAveraged(rig.daq(), rig.channels(), 64, 16000.0));
       ASSERT_TRUE(p.in_valid_zone) << u << " " << v;
       const double e = std::hypot(p.spot.u_mm - u, p.spot.v_mm - v);
       worst = std::max(worst, e);

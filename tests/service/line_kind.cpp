@@ -22,7 +22,8 @@ std::vector<std::string> wordsOf(const std::string& line) {
 }
 
 template <std::size_t N>
-bool numbersOf(const std::vector<std::string>& words, std::size_t first, std::array<double, N>& out) {
+bool numbersOf(const std::vector<std::string>& words, std::size_t first,
+               std::array<double, N>& out) {
   if (words.size() != first + N) return false;
   for (std::size_t i = 0; i < N; ++i) {
     char* end = nullptr;
@@ -161,7 +162,8 @@ class LineClient final : public ControllerConnection {
     buffer_.erase(0, n);
     auto words = wordsOf(reply);
     if (words.empty() || words[0] != "OK")
-      throw LinkError(LinkError::Kind::kRefused, "line controller refused '" + line + "': " + reply);
+      throw LinkError(LinkError::Kind::kRefused,
+                      "line controller refused '" + line + "': " + reply);
     return words;
   }
 
@@ -179,7 +181,8 @@ class LineClient final : public ControllerConnection {
 
 double LineMotion::motionS(const Joints& from, const Joints& to) const {
   double largest = 0;
-  for (std::size_t i = 0; i < from.size(); ++i) largest = std::max(largest, std::abs(to[i] - from[i]));
+  for (std::size_t i = 0; i < from.size(); ++i)
+    largest = std::max(largest, std::abs(to[i] - from[i]));
   return largest / joint_speed_deg_s;
 }
 
@@ -218,11 +221,11 @@ struct LineServer::Impl {
           buffer->erase(0, n);
           ++requests;
           auto reply = std::make_shared<std::string>(answer(arm, line) + "\n");
-          asio::async_write(*socket, asio::buffer(*reply),
-                            [this, socket, buffer, reply, &requests](boost::system::error_code e,
-                                                                     std::size_t) {
-                              if (!e) serve(socket, buffer, requests);
-                            });
+          asio::async_write(
+              *socket, asio::buffer(*reply),
+              [this, socket, buffer, reply, &requests](boost::system::error_code e, std::size_t) {
+                if (!e) serve(socket, buffer, requests);
+              });
         });
   }
 };

@@ -58,8 +58,8 @@ TEST(RequestPlanner, ASkipTheSolveWouldRefuseIsRefusedAtResumeAndNotOfferedAfter
   // The premise: the tolerances alone make the difference.
   ASSERT_TRUE(identifiesEveryOffset(
       predictUncertainty(f.knowledge.cell, f.plan.poses, nominal, kNoiseMm, kLargeTolerances)));
-  ASSERT_TRUE(identifiesEveryOffset(
-      predictUncertainty(f.knowledge.cell, without_4, nominal, kNoiseMm)));
+  ASSERT_TRUE(
+      identifiesEveryOffset(predictUncertainty(f.knowledge.cell, without_4, nominal, kNoiseMm)));
   ASSERT_FALSE(identifiesEveryOffset(
       predictUncertainty(f.knowledge.cell, without_4, nominal, kNoiseMm, kLargeTolerances)));
 

@@ -10,7 +10,6 @@
 #include "stored_plan_request.h"
 #include "temp_dir.h"
 #include "zerocal/calib/cell_model.h"
-#include "zerocal/store/session_files.h"
 #include "zerocal/cell/kinds.h"
 #include "zerocal/model/builtin.h"
 #include "zerocal/service/cell_factory.h"
@@ -21,6 +20,7 @@
 #include "zerocal/sim/psd_model.h"
 #include "zerocal/sim/simulated_cell.h"
 #include "zerocal/sim/simulated_rig.h"
+#include "zerocal/store/session_files.h"
 #include "zerocal/usb1408fs/psd_readout.h"
 
 namespace zerocal::service {

@@ -10,10 +10,10 @@
 #include <Eigen/Geometry>
 #include <atomic>
 #include <cmath>
+#include <condition_variable>
 #include <filesystem>
 #include <fstream>
 #include <future>
-#include <condition_variable>
 #include <mutex>
 #include <thread>
 

@@ -19,8 +19,8 @@
 
 #include "allocation_counter.h"
 #include "umockdev_board.h"
-#include "zerocal/usb1408fs/psd_chain.h"
 #include "zerocal/usb1408fs/libusb_transport.h"
+#include "zerocal/usb1408fs/psd_chain.h"
 #include "zerocal/usb1408fs/usb1408fs.h"
 
 namespace zerocal::usb1408fs {

@@ -160,8 +160,8 @@ nlohmann::json configToJson(const DaemonConfig& config);
 // ...), every kind's included.
 std::vector<std::string> configKeys();
 
-// The daq section alone, for `zerocal-lab psd`: the defaults, then the `daq:` section of the file at
-// `path` (zerocald's own configuration file, or any file with a daq: section; its other sections
+// The daq section alone, for `zerocal-lab psd`: the defaults, then the `daq:` section of the file
+// at `path` (zerocald's own configuration file, or any file with a daq: section; its other sections
 // are zerocald's to check), validated as zerocald validates it. Throws ConfigError carrying every
 // problem; a file with the `psd:` section of earlier versions is refused with the renamed keys.
 DaqConfig loadDaqSection(const std::string& path);

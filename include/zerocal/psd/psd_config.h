@@ -1,9 +1,9 @@
 // The PSD chain's configuration, and the voltage->mm map in YAML.
 //
 // PsdConfig is the vendor-free part of the `daq` section of zerocald's configuration (DaqConfig,
-// zerocal/daemon/config.h): zerocald reads it from its configuration files, `zerocal-lab psd --config
-// FILE` reads the `daq:` section of FILE (zerocald's own file, or config/psd.yaml). Both parse and
-// validate it with zerocald's configuration code (loadDaqSection); docs/configuration.md
+// zerocal/daemon/config.h): zerocald reads it from its configuration files, `zerocal-lab psd
+// --config FILE` reads the `daq:` section of FILE (zerocald's own file, or config/psd.yaml). Both
+// parse and validate it with zerocald's configuration code (loadDaqSection); docs/configuration.md
 // describes every key.
 #pragma once
 

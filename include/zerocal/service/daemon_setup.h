@@ -1,6 +1,6 @@
 // The daemon's parts as its configuration describes them, built in one place for zerocald and for
-// `zerocal-lab experiment cell` (which repeats the daemon's calibration over seeded simulated worlds),
-// so that the experiment measures exactly what the daemon runs.
+// `zerocal-lab experiment cell` (which repeats the daemon's calibration over seeded simulated
+// worlds), so that the experiment measures exactly what the daemon runs.
 #pragma once
 
 #include <memory>

@@ -114,7 +114,8 @@ class KindSections {
  public:
   KindSections() = default;
   KindSections(const KindSections& other) {
-    for (const auto& [name, section] : other.sections_) sections_.emplace_back(name, section->clone());
+    for (const auto& [name, section] : other.sections_)
+      sections_.emplace_back(name, section->clone());
   }
   KindSections& operator=(const KindSections& other) {
     if (this != &other) {

@@ -9,10 +9,10 @@
 #include <vector>
 
 #include "zerocal/psd/psd.h"
-#include "zerocal/usb1408fs/psd_chain.h"
 #include "zerocal/sim/fake_transport.h"
 #include "zerocal/sim/psd_model.h"
 #include "zerocal/sim/usb1408fs_model.h"
+#include "zerocal/usb1408fs/psd_chain.h"
 #include "zerocal/usb1408fs/usb1408fs.h"
 
 namespace zerocal::sim {

@@ -80,8 +80,8 @@ struct GrossErrors {
   // within kForcedPoseMatchDeg of `forced_at_deg` (the joints a session recorded at a pose: its
   // move ends there or, aimed at a predicted spot, within a fraction of a degree of them).
   // For measuring what a session does with one gross error against the same session without it
-  // (`zerocal-lab experiment cell --gross-error`); its direction or joint comes from that pose's own
-  // draws (an extra draw when the pose lies within kGrossPoseExtentDeg of the one before).
+  // (`zerocal-lab experiment cell --gross-error`); its direction or joint comes from that pose's
+  // own draws (an extra draw when the pose lies within kGrossPoseExtentDeg of the one before).
   enum class Kind { kStrayLight, kUnsettled };
   std::optional<Joints> forced_at_deg;
   Kind forced_kind = Kind::kStrayLight;

@@ -57,12 +57,11 @@ class BlockAverager : public ScanConsumer {
 
 // One averaged reading, synchronously: a single-execution scan of `samples` scans of the three
 // channels at `rate_hz` scans per second. Throws as Usb1408fs does.
-VoltageReading readAveraged(Usb1408fs& daq, const PsdChannels& channels,
-                            std::size_t samples, double rate_hz);
+VoltageReading readAveraged(Usb1408fs& daq, const PsdChannels& channels, std::size_t samples,
+                            double rate_hz);
 
 // The scan readAveraged() runs: {x, y, sum}, `samples` scans, single execution.
-ScanConfig averagedScan(const PsdChannels& channels, std::size_t samples,
-                                   double rate_hz);
+ScanConfig averagedScan(const PsdChannels& channels, std::size_t samples, double rate_hz);
 // The same reading over a scan built once by averagedScan(): allocates nothing once the driver
 // has run one scan of that shape (errors excepted). Throws as Usb1408fs does, and
 // std::invalid_argument for a scan of 0 scans.
@@ -74,8 +73,7 @@ VoltageReading readAveraged(Usb1408fs& daq, const ScanConfig& scan);
 class PsdStream {
  public:
   // Starts the scan. Throws as Usb1408fs::startScan.
-  PsdStream(Usb1408fs& daq, const PsdChannels& channels, std::size_t samples,
-            double rate_hz);
+  PsdStream(Usb1408fs& daq, const PsdChannels& channels, std::size_t samples, double rate_hz);
   ~PsdStream();
   PsdStream(const PsdStream&) = delete;
   PsdStream& operator=(const PsdStream&) = delete;

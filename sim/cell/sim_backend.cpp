@@ -1,5 +1,7 @@
 #include "zerocal/sim/sim_backend.h"
 
+#include <stdexcept>
+
 #include "zerocal/error.h"
 #include "zerocal/model/builtin.h"
 #include "zerocal/service/linked_cell.h"
@@ -88,7 +90,10 @@ class SimulatedLinkedCell final : public service::LinkedCell {
 }  // namespace
 
 SimBackend::SimBackend(SimulatedCellOptions options, SimLinkFactory link)
-    : cell_(std::move(options)), link_(std::move(link)) {}
+    : cell_(std::move(options)), link_(std::move(link)) {
+  // Refused when the daemon starts, not at every session: a link, not connected, shows its kind.
+  if (link_) irc5Link(link_({"127.0.0.1", cell_.clientOptions().port, {}}));
+}
 
 CellKnowledge SimBackend::knowledge() const {
   const SessionKnowledge k = knowledgeOf(cell_.world());
@@ -194,6 +199,8 @@ ExternalSimBackend::ExternalSimBackend(ExternalSimOptions options)
       psd_(options_.psd),
       board_(options_.board_seed),
       map_(simulatedPsdMap(options_.psd, options_.sweep_half_width_mm, options_.sweep_step_mm)) {
+  if (!options_.link) throw std::invalid_argument("ExternalSimOptions: no link to zerocal-sim");
+  irc5Link(options_.link(options_.at));  // the kind is refused here, before any session
   board_.setAnalogSource(psdAnalogSource(psd_, [this](double) -> std::optional<PsdSpot> {
     // Called on the session's thread, between the servo's requests on the other link. A lost
     // spot link is no light to the board, and a failed reading to the cell's reader

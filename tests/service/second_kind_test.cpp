@@ -11,6 +11,7 @@
 #include "temp_dir.h"
 #include "zerocal/calib/cell_model.h"
 #include "zerocal/cell/kinds.h"
+#include "zerocal/error.h"
 #include "zerocal/model/builtin.h"
 #include "zerocal/service/cell_factory.h"
 #include "zerocal/service/daemon_setup.h"
@@ -141,6 +142,23 @@ TEST_F(SecondControllerKind, CalibratesTheSimulatedArmThroughItsOwnProtocol) {
   // Every move went over the line protocol to the arm, none over another link.
   EXPECT_GT(cell.arm().motionTotals().moves, 16);
   EXPECT_GT(cell.server().requests(), cell.arm().motionTotals().moves);
+}
+
+// The simulated cell's controller speaks the IRC5 protocol only: a daemon configured with
+// another kind and backend.kind: sim is refused when it sets up, naming the key.
+TEST_F(SecondControllerKind, TheSimulatedCellRefusesAKindItCannotServe) {
+  DaemonConfig config;
+  config.backend.kind = BackendKind::kSim;
+  config.backend.sim_ideal_world = true;
+  config.controller.kind = "line";
+  try {
+    makeBackend(config);
+    FAIL() << "accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("controller.kind"), std::string::npos) << e.what();
+  }
+  config.controller.kind = "irc5";
+  EXPECT_NO_THROW(makeBackend(config));
 }
 
 }  // namespace

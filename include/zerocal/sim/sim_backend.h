@@ -23,7 +23,8 @@ class SimBackend final : public CellBackend {
  public:
   // `link` makes the controller link of each session; without it, an Irc5Client with the
   // simulated cell's own options (SimulatedCell::clientOptions). The simulated controller speaks
-  // the IRC5 protocol: a link of another kind is refused when a session connects.
+  // the IRC5 protocol: a link of another kind is refused here (ConfigError naming
+  // controller.kind).
   explicit SimBackend(SimulatedCellOptions options, SimLinkFactory link = {});
   const char* name() const override { return "sim"; }
   CellKnowledge knowledge() const override;

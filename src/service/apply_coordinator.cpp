@@ -136,23 +136,9 @@ std::string ApplyCoordinator::apply(const ApplyRequest& request) {
     if (robot.transmission[j - 1] == 0)
       throw Refused("unsupported", "the robot file gives joint " + std::to_string(j) +
                                        " no transmission: its cal_offset cannot be computed");
-  board_.hold("session " + id + " is being applied");
-  SessionStatus s;
-  s.state = SessionState::kApplying;
-  s.session_id = id;
-  s.apply = "applying session " + id;
-  board_.begin(s);
-  board_.announce();
   makeLogger("apply")->warn("applying session {} to the controller (confirmed)", id);
-  worker_.post([this, id, result](bool cancelled) {
-    if (cancelled) {
-      ApplyEvent e;
-      e.session = id;
-      e.message = "the daemon stopped before the apply began; nothing was written";
-      return endApply(e, false);
-    }
-    runApply(id, result);
-  });
+  start(id, "applied", "applying", "the apply began; nothing was written",
+        [this, id, result] { runApply(id, result); });
   return id;
 }
 
@@ -169,23 +155,30 @@ std::string ApplyCoordinator::verify(const VerifyRequest& request) {
   }
   std::string id;
   const ResultFile result = usableResult(requested, id);
-  board_.hold("session " + id + " is being verified");
+  start(id, "verified", "verifying", "the verification began",
+        [this, id, result] { runVerify(id, result); });
+  return id;
+}
+
+void ApplyCoordinator::start(const std::string& id, const std::string& held_as,
+                             const std::string& doing, const std::string& not_begun,
+                             std::function<void()> run) {
+  board_.hold("session " + id + " is being " + held_as);
   SessionStatus s;
   s.state = SessionState::kApplying;
   s.session_id = id;
-  s.apply = "verifying session " + id;
+  s.apply = doing + " session " + id;
   board_.begin(s);
   board_.announce();
-  worker_.post([this, id, result](bool cancelled) {
+  worker_.post([this, id, not_begun, run = std::move(run)](bool cancelled) {
     if (cancelled) {
       ApplyEvent e;
       e.session = id;
-      e.message = "the daemon stopped before the verification began";
+      e.message = "the daemon stopped before " + not_begun;
       return endApply(e, false);
     }
-    runVerify(id, result);
+    run();
   });
-  return id;
 }
 
 void ApplyCoordinator::runApply(const std::string& id, const ResultFile& result) {

@@ -50,6 +50,11 @@ class ApplyCoordinator {
   // A finished session's result, checked as an apply needs it: usable, offsets 2..5 given.
   // Throws Refused.
   ResultFile usableResult(const std::string& requested, std::string& id) const;
+  // Holds the board for session `id` ("is being <held_as>"), shows "<doing> session <id>", and
+  // runs `run` on the worker; a worker stopped first ends it with "the daemon stopped before
+  // <not_begun>".
+  void start(const std::string& id, const std::string& held_as, const std::string& doing,
+             const std::string& not_begun, std::function<void()> run);
   void runApply(const std::string& id, const ResultFile& result);
   void runVerify(const std::string& id, const ResultFile& result);
   // The sessions whose folder's apply.jsonl ends inside an online apply, oldest first.

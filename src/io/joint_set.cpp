@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <iomanip>
 #include <regex>
 #include <sstream>
 
@@ -146,16 +147,12 @@ std::string formatJointSet(const std::vector<Pose>& poses, const std::string& co
   for (const auto& p : poses) with_placement = with_placement || p.placement != 1;
   out << "q1,q2,q3,q4,q5,q6" << (with_uv ? ",u,v" : "") << (with_placement ? ",placement" : "")
       << "\n";
-  char buf[64];
+  // Fixed notation with 5 decimals at any magnitude: a bounded buffer would cut a large value
+  // short, and what was read would not read back.
+  out << std::fixed << std::setprecision(5);
   for (const auto& p : poses) {
-    for (int k = 0; k < kJointCount; ++k) {
-      std::snprintf(buf, sizeof buf, "%s%.5f", k ? "," : "", p.q_deg[k]);
-      out << buf;
-    }
-    if (with_uv) {
-      std::snprintf(buf, sizeof buf, ",%.5f,%.5f", p.spot->u_mm, p.spot->v_mm);
-      out << buf;
-    }
+    for (int k = 0; k < kJointCount; ++k) out << (k ? "," : "") << p.q_deg[k];
+    if (with_uv) out << "," << p.spot->u_mm << "," << p.spot->v_mm;
     if (with_placement) out << "," << p.placement;
     out << "\n";
   }

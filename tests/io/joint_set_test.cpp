@@ -115,6 +115,17 @@ TEST(JointSetCsv, FormatRoundTripsWithFiveDecimals) {
   EXPECT_NEAR(back[1].spot->u_mm, -0.1, 1e-12);
 }
 
+TEST(JointSetCsv, FormatWritesLargeValuesWholeSoTheyReadBack) {
+  // What the reader accepts, the writer must write out in full: 1e80 in fixed notation is 87
+  // characters, more than a line's field was once given room for.
+  std::vector<Pose> poses{{Joints{1e80, -2, 3, 4, 5, 6}, PsdSpot{1e100, -1e100}, 0}};
+  const auto back = parseJointSet(formatJointSet(poses), "x");
+  ASSERT_EQ(back.size(), 1u);
+  EXPECT_DOUBLE_EQ(back[0].q_deg[0], 1e80);
+  EXPECT_DOUBLE_EQ(back[0].spot->u_mm, 1e100);
+  EXPECT_DOUBLE_EQ(back[0].spot->v_mm, -1e100);
+}
+
 TEST(JointSetCsv, PlacementColumnIsOptionalAndOneBased) {
   const auto without = parseJointSet("q1,q2,q3,q4,q5,q6\n1,2,3,4,5,6\n", "p.csv");
   ASSERT_EQ(without.size(), 1u);

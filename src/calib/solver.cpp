@@ -662,6 +662,22 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
   report.condition_number = ident.condition_number;
   report.dof = static_cast<int>(std::lround(2 * weights)) - ident.rank;
   report.rms_miss_mm = std::sqrt(unweighted_rss / m);
+  // With the link tolerances counted, the misses the tolerated link errors explain are not noise:
+  // the chi-square, and with it the Birge ratio and the noise gate, is that of the link-weighted
+  // misses (W^T W = (I + G G^T / sigma^2)^-1, the deletion test's), so that the link misfit is
+  // counted once, in the model part below, and not a second time in a scaled-up noise.
+  const Eigen::MatrixXd spread =
+      options.model_length_mm > 0 || options.model_angle_deg > 0
+          ? detail::linkSpread(cell, used, est, readings, options.model_length_mm,
+                               options.model_angle_deg)
+          : Eigen::MatrixXd();
+  const bool link_weighted = spread.cols() > 0 && options.noise_mm &&
+                             options.loss == RobustLoss::kNone && jac_mm.rows() > 0;
+  if (link_weighted) {
+    Eigen::VectorXd r_used(2 * m);
+    for (int k = 0; k < m; ++k) r_used.segment<2>(2 * k) = r_all.segment<2>(2 * active[k]);
+    rss = deletionDrops(jac_mm, r_used, spread, *options.noise_mm).rss_mm2;
+  }
   detail::applyNoise(report, options, rss);
   const double sigma = report.noise_mm;
   for (SuspectPose& sp : report.suspect_poses) {
@@ -688,12 +704,13 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
     // A parameter the poses do not determine has no covariance (NaN) and no model part either.
     const Eigen::MatrixXd u =
         ident.unit_covariance.unaryExpr([](double x) { return std::isfinite(x) ? x : 0.0; });
-    const Eigen::MatrixXd s_matrix =
-        u * jac_mm.transpose() *
-        detail::linkSpread(cell, used, est, readings, options.model_length_mm,
-                           options.model_angle_deg);
+    const Eigen::MatrixXd s_matrix = u * jac_mm.transpose() * spread;
     if (s_matrix.allFinite()) {
-      model_cov = s_matrix * s_matrix.transpose();
+      // The link-weighted chi-square tests noise and tolerated link errors together: when the
+      // poses miss by more than both allow, both parts grow by the Birge ratio (the links may be
+      // worse than their tolerance as well as the noise worse than given).
+      const double scale2 = link_weighted ? report.noise_scale * report.noise_scale : 1.0;
+      model_cov = scale2 * s_matrix * s_matrix.transpose();
       cov += model_cov;
     }
   }

@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <cstdio>
@@ -10,6 +11,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "zerocal/calib/solver.h"
 #include "zerocal/error.h"
 #include "zerocal/io/durable_file.h"
 #include "zerocal/service/daemon_setup.h"
@@ -280,6 +282,14 @@ int runCellExperiment(const CellExperimentArgs& args) {
   // Results whose verdict refuses them, and offsets a result withholds (not determined): the
   // worst error is judged on usable results only, as a technician would use them.
   int refused_results = 0, withheld = 0;
+  // Whether the reported sigmas are as large as the errors, offset by offset: every offset with a
+  // value and a sigma, withheld ones included (their sigma is what says they are not good enough).
+  struct OffsetSums {
+    double normalised_sq = 0;
+    int count = 0, covered = 0;
+  };
+  std::array<OffsetSums, kOffsetCount> per_offset{};
+  int noise_gated = 0;  // results the noise gate refuses (the poses miss beyond the noise model)
   // Per pose over the worlds: sums for the mean breakdown, maxima of the moves.
   struct PoseSums {
     double move_s = 0, acquisition_s = 0, servo_s = 0, settle_s = 0, overhead_s = 0,
@@ -341,10 +351,18 @@ int runCellExperiment(const CellExperimentArgs& args) {
       Json offsets = Json::array();
       const bool usable = !result.verdict_recorded || result.report.verdict.usable;
       if (!usable) ++refused_results;
+      if (result.report.noise_scale > SolveOptions{}.max_noise_scale) ++noise_gated;
       world["usable"] = usable;
+      world["noise_scale"] = result.report.noise_scale;
       for (int k = 0; k < kOffsetCount; ++k) {
         const std::string name = unknownName(k);
         const ParameterEstimate& e = result.report.parameters[k];
+        if (std::isfinite(e.value) && e.sigma > 0 && std::isfinite(e.sigma)) {
+          const double z = (e.value - result.truth->offsets_deg[k]) / e.sigma;
+          per_offset[k].normalised_sq += z * z;
+          ++per_offset[k].count;
+          if (std::abs(z) <= 1.959964) ++per_offset[k].covered;
+        }
         if (!e.identifiable || !std::isfinite(e.value) || !std::isfinite(e.sigma)) {
           ++withheld;
           line += "   withheld       ";
@@ -388,6 +406,16 @@ int runCellExperiment(const CellExperimentArgs& args) {
       failed_runs == 0 && most_moves <= args.max_moves && most_pose_moves <= args.max_pose_moves;
   const bool pass = sigmas_ok && rms_ok && time_ok && moves_ok;
 
+  Json normalised = Json::array();
+  for (int k = 0; k < kOffsetCount; ++k) {
+    const OffsetSums& o = per_offset[k];
+    const double n = std::max(1, o.count);
+    normalised.push_back({{"name", unknownName(k)},
+                          {"count", o.count},
+                          {"rms_normalised_error", std::sqrt(o.normalised_sq / n)},
+                          {"coverage_95", o.covered / n}});
+  }
+
   Json breakdown = Json::array();
   for (std::size_t i = 0; i < per_pose.size(); ++i) {
     const PoseSums& p = per_pose[i];
@@ -413,6 +441,8 @@ int runCellExperiment(const CellExperimentArgs& args) {
                       {"coverage_95", coverage},
                       {"refused_results", refused_results},
                       {"withheld_offsets", withheld},
+                      {"noise_gated_results", noise_gated},
+                      {"per_offset", normalised},
                       {"world", args.ideal_world ? "ideal" : "realistic"},
                       {"max_cell_time_s", max_cell_s},
                       {"max_moves", most_moves},
@@ -448,6 +478,13 @@ int runCellExperiment(const CellExperimentArgs& args) {
                 estimates);
     std::printf("refused        %d results not usable by their verdict, %d offsets withheld\n",
                 refused_results, withheld);
+    std::printf("noise gate     %d results refused for missing beyond the noise model\n",
+                noise_gated);
+    std::printf("per offset     RMS error/sigma and 95%% coverage, withheld offsets included:\n");
+    for (const Json& o : normalised)
+      std::printf("               %s  %.2f  %5.1f%%  (%d)\n",
+                  o["name"].get<std::string>().c_str(), o["rms_normalised_error"].get<double>(),
+                  100 * o["coverage_95"].get<double>(), o["count"].get<int>());
     std::printf("worst error    %.2f sigma   (<= %.1f)  %s  (usable results)\n", worst_sigmas,
                 args.max_sigmas, sigmas_ok ? "ok" : "FAIL");
     std::printf("RMS error      %.5f deg (<= %.3f) %s\n", rms, args.max_rms_deg,

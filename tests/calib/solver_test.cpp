@@ -79,9 +79,11 @@ TEST(Solver, TheLinkTolerancesCoverWhatAWrongLinkDoesToTheOffsets) {
     const double error = b.parameters[k].value - sc.truth.delta_rad[k] * kRadToDeg;
     EXPECT_EQ(a.parameters[k].model_sigma, 0);
     EXPECT_GT(b.parameters[k].model_sigma, 0) << k;
-    // The model's part is added to the statistical one, not put in its place.
+    // The model's part is added to the statistical one, not put in its place; the statistical
+    // one is that of the given noise, scaled by what the link-weighted misses show beyond it.
+    const double statistical = all.parameters[k].sigma / all.noise_scale * b.noise_scale;
     EXPECT_NEAR(b.parameters[k].sigma * b.parameters[k].sigma,
-                all.parameters[k].sigma * all.parameters[k].sigma +
+                statistical * statistical +
                     b.parameters[k].model_sigma * b.parameters[k].model_sigma,
                 1e-3 * b.parameters[k].sigma * b.parameters[k].sigma)
         << k;
@@ -91,6 +93,11 @@ TEST(Solver, TheLinkTolerancesCoverWhatAWrongLinkDoesToTheOffsets) {
   EXPECT_GT(worst_exact, 3.0) << worst_exact;        // the exact model claims more than it knows
   EXPECT_LT(worst_tolerant, 3.0) << worst_tolerant;  // the tolerances account for it
   EXPECT_EQ(b.model_length_mm, 0.1);
+  // The link misfit is counted once: the exact model's chi-square holds it (and scales its sigma
+  // up by it), the tolerant solve's is that of the misses the tolerated links do not explain.
+  EXPECT_GT(all.noise_scale, 3.0) << all.noise_scale;
+  EXPECT_LT(b.noise_scale, 1.5) << b.noise_scale;
+  EXPECT_LT(*b.chi2_per_dof, *all.chi2_per_dof / 5);
 
   // Held to 0.01 deg, an offset the link tolerances blur beyond it is not offered.
   tolerant.required_accuracy_deg = 0.01;

@@ -57,6 +57,7 @@ struct Calibration {
   ResultFile result;    // when completed
   double cell_time_s = 0;
   std::vector<Pose> plan;
+  Prediction prediction;            // the plan's, before any move
   std::vector<PoseRecord> records;  // the journal's, when completed
 };
 
@@ -71,7 +72,9 @@ Calibration calibrate(const DaemonConfig& config) {
   service::SessionManager manager(*backend, settings);
   Calibration out;
   try {
-    out.plan = manager.preview(manager.defaultRequest()).poses;
+    const Plan plan = manager.preview(manager.defaultRequest());
+    out.plan = plan.poses;
+    out.prediction = plan.prediction;
     manager.start(manager.defaultRequest());
   } catch (const service::Refused& e) {
     out.message = e.what();
@@ -290,6 +293,8 @@ int runCellExperiment(const CellExperimentArgs& args) {
   };
   std::array<OffsetSums, kOffsetCount> per_offset{};
   int noise_gated = 0;  // results the noise gate refuses (the poses miss beyond the noise model)
+  // The plans' predicted total sigma of delta2 (deg), the least determined offset at one placement.
+  double delta2_predicted_min = INFINITY, delta2_predicted_max = 0;
   // Per pose over the worlds: sums for the mean breakdown, maxima of the moves.
   struct PoseSums {
     double move_s = 0, acquisition_s = 0, servo_s = 0, settle_s = 0, overhead_s = 0,
@@ -313,6 +318,14 @@ int runCellExperiment(const CellExperimentArgs& args) {
     const double cell_time_s = run.cell_time_s;
 
     Json world{{"seed", seed}, {"cell_time_s", cell_time_s}};
+    Json predicted = Json::array();
+    for (int k = 0; k < kOffsetCount && k < static_cast<int>(run.prediction.sigma.size()); ++k)
+      predicted.push_back(run.prediction.sigma[k]);
+    world["predicted_sigma_deg"] = predicted;
+    if (!run.prediction.sigma.empty()) {
+      delta2_predicted_min = std::min(delta2_predicted_min, run.prediction.sigma[0]);
+      delta2_predicted_max = std::max(delta2_predicted_max, run.prediction.sigma[0]);
+    }
     world["state"] = completed ? "completed" : service::stateName(run.state);
     if (!completed) {
       ++failed_runs;
@@ -442,6 +455,7 @@ int runCellExperiment(const CellExperimentArgs& args) {
                       {"refused_results", refused_results},
                       {"withheld_offsets", withheld},
                       {"noise_gated_results", noise_gated},
+                      {"delta2_predicted_sigma_deg", {delta2_predicted_min, delta2_predicted_max}},
                       {"per_offset", normalised},
                       {"world", args.ideal_world ? "ideal" : "realistic"},
                       {"max_cell_time_s", max_cell_s},
@@ -480,6 +494,8 @@ int runCellExperiment(const CellExperimentArgs& args) {
                 refused_results, withheld);
     std::printf("noise gate     %d results refused for missing beyond the noise model\n",
                 noise_gated);
+    std::printf("predicted      delta2's sigma before any move %.4f..%.4f deg over the plans\n",
+                delta2_predicted_min, delta2_predicted_max);
     std::printf("per offset     RMS error/sigma and 95%% coverage, withheld offsets included:\n");
     for (const Json& o : normalised)
       std::printf("               %s  %.2f  %5.1f%%  (%d)\n",

@@ -4,7 +4,7 @@ set -euo pipefail
 packages=(
   build-essential cmake ninja-build pkg-config git
   libeigen3-dev libceres-dev libboost-dev libyaml-cpp-dev nlohmann-json3-dev libcli11-dev
-  libspdlog-dev libfmt-dev libusb-1.0-0-dev
+  libspdlog-dev libfmt-dev libusb-1.0-0-dev libsqlite3-dev
   libgtest-dev libgmock-dev libbenchmark-dev umockdev libumockdev-dev
   zlib1g-dev chromium
   libsystemd-dev systemd help2man dpkg-dev file

@@ -23,6 +23,9 @@ inline constexpr const char* kResultFileName = "result.json";
 // Written into a session that will never be resumed or finished (the verification of an apply
 // that was recovered since), with why.
 inline constexpr const char* kClosedFileName = "closed.json";
+// The online apply's and the verifications' journal of a session's offsets
+// (zerocal/apply/online_apply.h), and the file apply's records (docs/apply.md).
+inline constexpr const char* kApplyJournalFileName = "apply.jsonl";
 
 // The three files of a session folder, read. Throws FileError naming the file that is missing,
 // unreadable or not JSON, InputError for a member missing or of the wrong type, JournalError for

@@ -9,6 +9,7 @@
 #include "zerocal/apply/online_apply.h"
 #include "zerocal/daemon/logging.h"
 #include "zerocal/service/request_planner.h"
+#include "zerocal/service/session_recording.h"
 
 namespace zerocal::service {
 
@@ -478,6 +479,7 @@ void ApplyCoordinator::runRecovery(const std::vector<std::string>& ids, bool wai
     if (event.outcome == ApplyOutcome::kUnrecovered)
       log->error("session {}: {}", id, event.message);
     if (i + 1 < ids.size()) {
+      recordSession(settings_.record, store_, id);
       board_.emit(event);
       continue;
     }
@@ -585,7 +587,10 @@ void ApplyCoordinator::runAcknowledge(const std::vector<std::string>& ids) {
       event.outcome = ApplyOutcome::kUnrecovered;
       event.message = std::string("the acknowledgement could not be journalled: ") + e.what();
     }
-    if (i + 1 < ids.size()) board_.emit(event);
+    if (i + 1 < ids.size()) {
+      recordSession(settings_.record, store_, id);
+      board_.emit(event);
+    }
   }
   endApply(event, event.outcome == ApplyOutcome::kAcknowledged);
 }
@@ -618,6 +623,7 @@ std::string ApplyCoordinator::unrecoveredMessage() const {
 
 void ApplyCoordinator::endApply(const ApplyEvent& event, bool ok) {
   auto log = makeLogger("apply");
+  recordSession(settings_.record, store_, event.session);
   const std::string summary = std::string(applyOutcomeName(event.outcome)) + ": " + event.message;
   if (ok)
     log->info("session {}: {}", event.session, summary);

@@ -44,6 +44,14 @@ bool isActive(SessionState state) {
          state != SessionState::kUnrecovered;
 }
 
+std::vector<record::RobotSummary> SessionControl::robots() const {
+  throw Refused("no_record", "this daemon keeps no robot's record");
+}
+
+std::vector<record::HistoryEntry> SessionControl::history(const record::RobotId&) const {
+  throw Refused("no_record", "this daemon keeps no robot's record");
+}
+
 namespace {
 
 PlannerSettings plannerSettingsOf(const ManagerSettings& settings) {
@@ -81,6 +89,24 @@ SessionManager::~SessionManager() {
 }
 
 void SessionManager::setEventSink(EventSink sink) { board_.setEventSink(std::move(sink)); }
+
+std::vector<record::RobotSummary> SessionManager::robots() const {
+  if (settings_.record == nullptr) return SessionControl::robots();
+  try {
+    return settings_.record->robots();
+  } catch (const Error& e) {
+    throw Refused("record", std::string("the robot's record cannot be read: ") + e.what());
+  }
+}
+
+std::vector<record::HistoryEntry> SessionManager::history(const record::RobotId& robot) const {
+  if (settings_.record == nullptr) return SessionControl::history(robot);
+  try {
+    return settings_.record->history(robot);
+  } catch (const Error& e) {
+    throw Refused("record", std::string("the robot's record cannot be read: ") + e.what());
+  }
+}
 
 SessionStatus SessionManager::status() const {
   SessionStatus s = board_.status();

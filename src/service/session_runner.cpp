@@ -5,6 +5,7 @@
 
 #include "zerocal/daemon/logging.h"
 #include "zerocal/service/result_assembly.h"
+#include "zerocal/service/session_recording.h"
 
 namespace zerocal::service {
 namespace {
@@ -253,6 +254,7 @@ void SessionRunner::complete(const std::string& id, const RunOutcome& outcome, R
   } catch (const std::exception& e) {
     return finish(SessionState::kFaulted, std::string("cannot write the result: ") + e.what());
   }
+  recordSession(settings_.record, store_, id);
   // The session is done with its result on disk whatever happens to the report, but whoever
   // follows it must learn that summary.txt and report.html are missing (a full disk, say).
   std::string report_error;

@@ -21,6 +21,7 @@
 #include "zerocal/daemon/logging.h"
 #include "zerocal/daemon/systemd.h"
 #include "zerocal/error.h"
+#include "zerocal/record/sqlite_record.h"
 #include "zerocal/service/daemon_setup.h"
 #include "zerocal/store/session_store.h"
 
@@ -54,6 +55,29 @@ void logUnfinished(SessionManager& manager) {
           "session {} is unfinished ({} of {} poses recorded): `zerocal resume {}` "
           "continues it",
           s.id, s.recorded_poses, s.planned_poses, s.id);
+}
+
+// The robot's record in the data folder (docs/record.md), opened, rebuilt or caught up with the
+// session folders, and what that took said in the log. Throws FileError when it cannot be kept
+// (a newer zerocal's record: the message says how to go on).
+std::unique_ptr<record::SqliteRecord> openTheRecord(const std::string& data_dir) {
+  auto log = makeLogger("record");
+  record::OpenedRecord opened = record::openRecord(SessionStore(data_dir), data_dir);
+  if (!opened.damage.empty())
+    log->error("the robot's record was damaged ({}){}; rebuilt from the session folders",
+               opened.damage, opened.moved_aside.empty() ? "" : ", kept as " + opened.moved_aside);
+  if (opened.migrated_from > 0)
+    log->info("the robot's record migrated from schema version {} to {}", opened.migrated_from,
+              record::kRecordSchemaVersion);
+  if (opened.built)
+    log->info("the robot's record built from the session folders: {} sessions, {} apply events",
+              opened.filled.sessions, opened.filled.events);
+  else if (opened.filled.sessions > 0 || opened.filled.events > 0)
+    log->warn("the robot's record lacked {} sessions and {} apply events; recorded them now",
+              opened.filled.sessions, opened.filled.events);
+  for (const std::string& problem : opened.filled.problems)
+    log->warn("not in the robot's record: {}", problem);
+  return std::move(opened.record);
 }
 
 // One calibration, then exit; progress on stderr, the result on stdout.
@@ -184,6 +208,9 @@ int main(int argc, char** argv) {
     // What a write cut short (a full disk, a kill) left behind is no session's file.
     for (const std::string& stale : SessionStore(cfg.session.data_dir).removeStaleTemporaries())
       log->warn("removed {}, left by a write that did not complete", stale);
+    // Outlives the manager, which records into it.
+    const std::unique_ptr<record::SqliteRecord> robot_record = openTheRecord(cfg.session.data_dir);
+    settings.record = robot_record.get();
     service::SessionManager manager(*backend, std::move(settings));
     log->info("backend {}; sessions in {}", backend->name(), cfg.session.data_dir);
     logUnfinished(manager);

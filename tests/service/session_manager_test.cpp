@@ -21,6 +21,7 @@
 #include "zerocal/apply/online_apply.h"
 #include "zerocal/cell/link_error.h"
 #include "zerocal/io/joint_set.h"
+#include "zerocal/record/sqlite_record.h"
 #include "zerocal/report/session_report.h"
 #include "zerocal/sim/sim_backend.h"
 #include "zerocal/sim/sim_controller.h"
@@ -1085,6 +1086,59 @@ std::vector<nlohmann::json> applyLines(const std::string& path) {
   std::ifstream in(path);
   for (std::string line; std::getline(in, line);) lines.push_back(nlohmann::json::parse(line));
   return lines;
+}
+
+// The robot's record kept by the manager: the calibration recorded when its result is written,
+// the apply and its verification when the apply ends; the same as the record rebuilt from the
+// folders afterwards. Without a record, `robots` says so.
+TEST(SessionManagerRecord, RecordsEachSessionWhenItsResultIsWrittenAndTheApplyWhenItEnds) {
+  const TempDir dir;
+  sim::SimBackend backend(cellFor(6));
+  record::SqliteRecord kept(dir.path + "/" + record::kRecordFileName);
+  ManagerSettings settings = applySettingsIn(dir.path);
+  settings.record = &kept;
+  SessionManager manager(backend, std::move(settings));
+  const std::string id = manager.start(manager.defaultRequest());
+  ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
+  const std::vector<record::RobotSummary> robots = manager.robots();
+  ASSERT_EQ(robots.size(), 1u);
+  const ResultFile calibrated = manager.result(id);
+  ASSERT_TRUE(calibrated.cell);
+  EXPECT_EQ(robots[0].id.serial, calibrated.cell->controller.serial);
+  std::vector<record::HistoryEntry> h = manager.history(robots[0].id);
+  ASSERT_EQ(h.size(), 1u);
+  EXPECT_EQ(h[0].session.session, id);
+  ASSERT_TRUE(h[0].session.offsets[0]);
+  EXPECT_EQ(h[0].session.offsets[0]->value_deg, calibrated.report.parameters[0].value);
+  EXPECT_TRUE(h[0].events.empty());
+
+  EXPECT_EQ(manager.apply({id, true}), id);
+  ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
+  h = manager.history(robots[0].id);
+  ASSERT_EQ(h.size(), 2u);
+  EXPECT_EQ(h[1].session.kind, "verification");
+  EXPECT_EQ(h[1].session.verifies, id);
+  ASSERT_EQ(h[0].events.size(), 2u);
+  EXPECT_EQ(h[0].events[0].kind, record::ControllerEventKind::kApply);
+  EXPECT_EQ(h[0].events[0].outcome, "verified");
+  EXPECT_EQ(h[0].events[0].before_rad, calibrated.cal_offset_rad);
+  EXPECT_EQ(h[0].events[1].kind, record::ControllerEventKind::kVerification);
+  EXPECT_EQ(h[0].events[1].outcome, "pass");
+  EXPECT_EQ(h[0].events[1].verification, h[1].session.session);
+
+  record::SqliteRecord rebuilt(dir.path + "/rebuilt.sqlite");
+  rebuilt.rebuild(SessionStore(dir.path));
+  EXPECT_EQ(rebuilt.history(robots[0].id), h);
+
+  sim::SimBackend other(cellFor(6));
+  const TempDir elsewhere;
+  SessionManager without(other, applySettingsIn(elsewhere.path));
+  try {
+    without.robots();
+    ADD_FAILURE() << "a manager without a record listed robots";
+  } catch (const Refused& e) {
+    EXPECT_EQ(e.code(), "no_record");
+  }
 }
 
 // Calibrate, apply online, verify: the new zeros remove the world's offsets (the verification's

@@ -12,6 +12,7 @@
 #include "zerocal/apply/transmission_check.h"
 #include "zerocal/cell/controller_link.h"
 #include "zerocal/daemon/config.h"
+#include "zerocal/record/robot_record.h"
 #include "zerocal/session/calibration_run.h"
 
 namespace zerocal::service {
@@ -45,6 +46,11 @@ struct ManagerSettings {
   // whose PSD moves itself): a session at several placements goes on to the next one at once, at
   // its planned centre, instead of waiting for a continue.
   bool unattended_placements = false;
+  // The robot's record (docs/record.md), when the daemon keeps one; not owned, it outlives the
+  // manager. A session is recorded when its result is written and again whenever its apply
+  // journal changes (an apply, a verification, a rollback, a recovery, an acknowledgement); the
+  // control port's `robots` and `history` read it.
+  record::RobotRecord* record = nullptr;
 };
 
 }  // namespace zerocal::service

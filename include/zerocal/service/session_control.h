@@ -15,6 +15,7 @@
 #include "zerocal/calib/solver.h"
 #include "zerocal/cell/psd_reader.h"
 #include "zerocal/error.h"
+#include "zerocal/record/robot_record.h"
 #include "zerocal/service/plan_kind.h"
 #include "zerocal/store/journal.h"
 #include "zerocal/store/session_store.h"
@@ -296,6 +297,11 @@ class SessionControl {
   // The sink is called on the worker thread, without a lock held, and must not block.
   using EventSink = std::function<void(const SessionEvent& event)>;
   virtual void setEventSink(EventSink sink) = 0;
+  // The robot's record (docs/record.md): every robot it knows, and one robot's sessions oldest
+  // first with what was written into its controller. Throw Refused: "no_record" (this daemon
+  // keeps none), "record" (it cannot be read, with why).
+  virtual std::vector<record::RobotSummary> robots() const;
+  virtual std::vector<record::HistoryEntry> history(const record::RobotId& robot) const;
 };
 
 }  // namespace zerocal::service

@@ -53,6 +53,8 @@ class SessionManager final : public SessionControl {
   ResultFile result(const std::string& id) const override;
   void readPsd(ReadingDone done) override;
   void setEventSink(EventSink sink) override;
+  std::vector<record::RobotSummary> robots() const override;
+  std::vector<record::HistoryEntry> history(const record::RobotId& robot) const override;
 
   // At the daemon's start: finds sessions whose apply journal (apply.jsonl) ends inside an online
   // apply (the daemon was stopped or killed during it) and restores each one's backed-up values

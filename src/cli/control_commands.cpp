@@ -7,6 +7,7 @@
 #include <utility>
 #include <vector>
 
+#include "record_view.h"
 #include "zerocal/calib/pose_count.h"
 #include "zerocal/control/client.h"
 #include "zerocal/control/token.h"
@@ -539,6 +540,28 @@ int run(const ClientArgs& args, std::ostream& out, std::ostream& err, bool tty) 
     }
     return kClientOk;
   }
+  if (cmd == "robots") {
+    const json robots = client.call("robots", json::object(), timeout)["robots"];
+    if (args.json)
+      out << robots.dump(2) << "\n";
+    else
+      printRobots(robots, out);
+    return kClientOk;
+  }
+  if (cmd == "history") {
+    json members = json::object();
+    if (!args.serial.empty()) members["serial"] = args.serial;
+    if (!args.robot_type.empty()) members["robot_type"] = args.robot_type;
+    const json r = client.call("history", members, timeout);
+    const json answer{{"robot", r["robot"]}, {"history", r["history"]}};
+    if (args.json)
+      out << answer.dump(2) << "\n";
+    else if (args.csv)
+      printHistoryCsv(answer, out);
+    else
+      printHistory(answer, out);
+    return kClientOk;
+  }
   if (cmd == "result") {
     const auto r = client.call(
         "result", args.session.empty() ? json::object() : json{{"session", args.session}},
@@ -662,6 +685,15 @@ void addClientCommands(CLI::App& app, ClientCommands& commands) {
   acknowledge->add_flag("--confirm", a.confirm,
                         "the values were checked on the controller and are the ones the robot is "
                         "to run on");
+  add("robots", "the robots in the daemon's record: each one's sessions, first and latest");
+  auto* history = add("history",
+                      "a robot's sessions from the daemon's record, oldest first: date, kind, "
+                      "verdict, each offset with its sigma, and each apply, verification and "
+                      "rollback with the controller's values");
+  history->add_option("serial", a.serial,
+                      "the robot's controller serial (default the record's only robot)");
+  history->add_option("--type", a.robot_type, "the robot's type, when two robots share a serial");
+  history->add_flag("--csv", a.csv, "CSV, a row per session (for a spreadsheet)");
   add("version", "this zerocal's version, and zerocald's and its protocol when one answers");
 }
 

@@ -1,6 +1,6 @@
 // The client subcommands of zerocal, which drive zerocald's control port (docs/protocol.md):
-// start, status, watch, abort, resume, continue, sessions, result, verify, acknowledge, version;
-// main.cpp adds plan and apply, which run through runClient too.
+// start, status, watch, abort, resume, continue, sessions, result, verify, acknowledge, robots,
+// history, version; main.cpp adds plan and apply, which run through runClient too.
 #pragma once
 
 #include <CLI/CLI.hpp>
@@ -47,6 +47,9 @@ struct ClientArgs {
   double timeout_s = 10;          // per request; `plan` takes its own time on the daemon
   int limit = 20;                 // sessions: the newest this many
   bool all = false;               // sessions: every one, page after page
+  std::string serial;             // history: the robot (default the record's only one)
+  std::string robot_type;         // history: its type, when two robots share the serial
+  bool csv = false;               // history: CSV instead of text
 };
 
 struct ClientCommands {

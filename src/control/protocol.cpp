@@ -178,4 +178,92 @@ struct EventJson {
 
 json toJson(const service::SessionEvent& event) { return std::visit(EventJson{}, event); }
 
+namespace {
+
+std::string robotText(const record::RobotId& r) { return r.robot_type + " serial " + r.serial; }
+
+json offsetsJson(const record::RecordedOffsets& offsets) {
+  json o = json::object();
+  for (int k = 0; k < kOffsetCount; ++k)
+    o[unknownName(k)] =
+        offsets[k] ? json{{"value", offsets[k]->value_deg}, {"sigma", offsets[k]->sigma_deg}}
+                   : json(nullptr);
+  return o;
+}
+
+json valuesJson(const std::optional<std::array<double, 6>>& v) {
+  return v ? json(*v) : json(nullptr);
+}
+
+}  // namespace
+
+record::RobotId parseHistoryRequest(const json& request,
+                                    const std::vector<record::RobotSummary>& robots) {
+  const auto member = [&](const char* name) -> std::optional<std::string> {
+    const auto it = request.find(name);
+    if (it == request.end() || it->is_null()) return std::nullopt;
+    if (!it->is_string()) throw BadRequest(std::string(name) + ": expected a string");
+    return it->get<std::string>();
+  };
+  const std::optional<std::string> serial = member("serial"), type = member("robot_type");
+  std::vector<record::RobotId> matching;
+  for (const record::RobotSummary& r : robots)
+    if ((!serial || r.id.serial == *serial) && (!type || r.id.robot_type == *type))
+      matching.push_back(r.id);
+  if (matching.size() == 1) return matching.front();
+  std::string known;
+  for (const record::RobotSummary& r : robots)
+    known += (known.empty() ? "" : "; ") + robotText(r.id);
+  if (robots.empty()) throw BadRequest("the record knows no robot yet");
+  if (matching.empty())
+    throw BadRequest("the record knows no robot" + (serial ? " of serial " + *serial : "") +
+                     (type ? " of type " + *type : "") + "; it knows " + known);
+  throw BadRequest(std::string(serial ? "serial " + *serial + " names" : "the record knows") +
+                   " several robots (" + known + "): name one by serial and robot_type");
+}
+
+json toJson(const std::vector<record::RobotSummary>& robots) {
+  json a = json::array();
+  for (const record::RobotSummary& r : robots)
+    a.push_back({{"robot_type", r.id.robot_type},
+                 {"serial", r.id.serial},
+                 {"software_version", r.software_version},
+                 {"sessions", r.sessions},
+                 {"first_unix_s", r.first_unix_s},
+                 {"last_unix_s", r.last_unix_s}});
+  return a;
+}
+
+json toJson(const record::HistoryEntry& entry) {
+  const record::SessionEntry& s = entry.session;
+  json events = json::array();
+  for (const record::ControllerEvent& e : entry.events) {
+    json j{{"kind", record::controllerEventKindName(e.kind)},
+           {"time_unix_s", e.time_unix_s},
+           {"outcome", e.outcome},
+           {"before_rad", valuesJson(e.before_rad)},
+           {"after_rad", valuesJson(e.after_rad)},
+           {"message", e.message}};
+    if (!e.verification.empty()) j["verification"] = e.verification;
+    if (e.kind == record::ControllerEventKind::kVerification)
+      j["remaining"] = offsetsJson(e.remaining);
+    events.push_back(j);
+  }
+  json j{{"session", s.session},
+         {"kind", s.kind},
+         {"usable", s.usable ? json(*s.usable) : json(nullptr)},
+         {"reasons", s.reasons},
+         {"converged", s.converged},
+         {"poses_used", s.poses_used},
+         {"offsets", offsetsJson(s.offsets)},
+         {"cell_time_s", s.cell_time_s ? json(*s.cell_time_s) : json(nullptr)},
+         {"started_unix_s", s.started_unix_s},
+         {"finished_unix_s", s.finished_unix_s ? json(*s.finished_unix_s) : json(nullptr)},
+         {"software_version", s.software_version},
+         {"cal_offset_rad", valuesJson(s.cal_offset_rad)},
+         {"events", events}};
+  if (!s.verifies.empty()) j["verifies"] = s.verifies;
+  return j;
+}
+
 }  // namespace zerocal::control

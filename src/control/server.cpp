@@ -61,9 +61,9 @@ service::StartRequest planFileInPlanDir(service::StartRequest start, const json&
 }
 
 const std::vector<std::string> kCommands{
-    "hello",  "version",  "auth",   "status",    "start",       "abort",
-    "resume", "sessions", "result", "subscribe", "unsubscribe", "psd",
-    "plan",   "apply",    "verify", "continue",  "acknowledge"};
+    "hello",    "version",  "auth",        "status",      "start",  "abort", "resume",
+    "sessions", "result",   "subscribe",   "unsubscribe", "psd",    "plan",  "apply",
+    "verify",   "continue", "acknowledge", "robots",      "history"};
 
 }  // namespace
 
@@ -326,6 +326,16 @@ class Connection : public std::enable_shared_from_this<Connection> {
       r["aborted"] = aborted;
     } else if (cmd == "sessions") {
       r.update(sessionsPage(session.sessions(), parseSessionsRequest(request)));
+    } else if (cmd == "robots") {
+      r["robots"] = toJson(session.robots());
+    } else if (cmd == "history") {
+      // A query of the record (about a millisecond for a robot's hundred sessions): answered
+      // here, as `sessions` is.
+      const record::RobotId robot = parseHistoryRequest(request, session.robots());
+      json history = json::array();
+      for (const record::HistoryEntry& e : session.history(robot)) history.push_back(toJson(e));
+      r["robot"] = {{"robot_type", robot.robot_type}, {"serial", robot.serial}};
+      r["history"] = std::move(history);
     } else if (cmd == "result") {
       r["result"] = toJson(session.result(optionalString(request, "session")));
     } else if (cmd == "subscribe") {

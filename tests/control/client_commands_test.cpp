@@ -140,6 +140,103 @@ TEST_F(ClientCommandsTest, AbortResumeSessionsResult) {
   EXPECT_THAT(err_.str(), HasSubstr("not_found"));
 }
 
+// A robot's record as the fake daemon holds it: two robots of one serial, a calibration applied
+// and verified, then a verification.
+void fillRecord(testing::FakeSession& session) {
+  session.robot_list = {
+      {{"IRB 1600-10/1.45", "SN-0001"}, "6.13.02", 2, 1'795'000'000, 1'795'003'600},
+      {{"IRB 2600-20/1.65", "SN-0001"}, "7.1.0", 1, 1'795'000'000, 1'795'000'000}};
+  record::HistoryEntry calibration;
+  record::SessionEntry& c = calibration.session;
+  c.session = "20261122T070000Z";
+  c.robot = {"IRB 1600-10/1.45", "SN-0001"};
+  c.kind = "calibration";
+  c.usable = true;
+  c.offsets = {record::RecordedOffset{0.31, 0.002}, record::RecordedOffset{-0.52, 0.003},
+               std::nullopt, record::RecordedOffset{0.05, 0.005}};
+  c.cell_time_s = 61.5;
+  c.started_unix_s = 1'795'000'000;
+  c.software_version = "6.13.02";
+  record::ControllerEvent apply;
+  apply.outcome = "verified";
+  apply.time_unix_s = 1'795'000'200;
+  apply.before_rad = std::array<double, 6>{1, 2, 3, 3.2, 5, 6};
+  apply.after_rad = std::array<double, 6>{1, 2.000541, 3, 3.2, 5, 6};
+  apply.verification = "20261122T080000Z";
+  calibration.events = {apply};
+  record::HistoryEntry verification;
+  verification.session = c;
+  verification.session.session = "20261122T080000Z";
+  verification.session.kind = "verification";
+  verification.session.usable.reset();
+  verification.session.reasons = {"one, with a comma"};
+  verification.session.started_unix_s = 1'795'003'600;
+  session.history_list = {calibration, verification};
+}
+
+TEST_F(ClientCommandsTest, RobotsAndAHistoryAsTextCsvAndJson) {
+  fillRecord(session_);
+  EXPECT_EQ(run(args("robots")), 0);
+  EXPECT_THAT(out_.str(),
+              HasSubstr("IRB 1600-10/1.45 serial SN-0001  software 6.13.02  2 sessions"));
+  EXPECT_THAT(out_.str(), HasSubstr("IRB 2600-20/1.65 serial SN-0001"));
+
+  auto h = args("history");
+  h.serial = "SN-0001";
+  EXPECT_EQ(run(h), 2) << "the serial names two robots";
+  EXPECT_THAT(err_.str(), HasSubstr("several robots"));
+  h.robot_type = "IRB 1600-10/1.45";
+  EXPECT_EQ(run(h), 0) << err_.str();
+  const std::string text = out_.str();
+  EXPECT_THAT(text, HasSubstr("IRB 1600-10/1.45 serial SN-0001: 2 sessions"));
+  EXPECT_THAT(text, HasSubstr("2026-11-18"));
+  EXPECT_THAT(text, HasSubstr("calibration  usable"));
+  EXPECT_THAT(text, HasSubstr("+0.31000 +- 0.00200"));
+  EXPECT_THAT(text, HasSubstr("withheld"));
+  EXPECT_THAT(text, HasSubstr("apply verified: cal_offset rob1_2 2.000000 rob1_3 3.000000"));
+  EXPECT_THAT(text, HasSubstr("-> rob1_2 2.000541"));
+  EXPECT_THAT(text, HasSubstr("no verdict"));
+
+  h.csv = true;
+  EXPECT_EQ(run(h), 0);
+  std::istringstream csv(out_.str());
+  std::string header, first, second, rest;
+  std::getline(csv, header);
+  std::getline(csv, first);
+  std::getline(csv, second);
+  EXPECT_FALSE(std::getline(csv, rest));
+  EXPECT_EQ(header,
+            "robot_type,serial,session,started_utc,finished_utc,kind,verifies,usable,delta2_deg,"
+            "delta2_deg_sigma,delta3_deg,delta3_deg_sigma,delta4_deg,delta4_deg_sigma,delta5_deg,"
+            "delta5_deg_sigma,cell_time_s,software_version,controller_events");
+  EXPECT_THAT(first, HasSubstr("IRB 1600-10/1.45,SN-0001,20261122T070000Z,"));
+  EXPECT_THAT(first, HasSubstr(",calibration,,true,0.310000,0.002000,-0.520000,0.003000,,,"));
+  EXPECT_THAT(first, HasSubstr(",61.5,6.13.02,apply verified"));
+  EXPECT_THAT(second, HasSubstr(",verification,,,"));
+
+  h.csv = false;
+  h.json = true;
+  EXPECT_EQ(run(h), 0);
+  const nlohmann::json j = nlohmann::json::parse(out_.str());
+  EXPECT_EQ(j["robot"]["serial"], "SN-0001");
+  EXPECT_EQ(j["history"][0]["events"][0]["kind"], "apply");
+  EXPECT_TRUE(j["history"][0]["offsets"]["delta4_deg"].is_null());
+  EXPECT_TRUE(j["history"][1]["usable"].is_null());
+
+  h.serial = "SN-9999";
+  h.json = false;
+  EXPECT_EQ(run(h), 2);
+  EXPECT_THAT(err_.str(), HasSubstr("no robot of serial SN-9999"));
+}
+
+TEST_F(ClientCommandsTest, ADaemonWithoutARecordSaysSo) {
+  session_.record_kept = false;
+  EXPECT_EQ(run(args("robots")), 2);
+  EXPECT_THAT(err_.str(), HasSubstr("no_record"));
+  EXPECT_EQ(run(args("history")), 2);
+  EXPECT_THAT(err_.str(), HasSubstr("keeps no robot's record"));
+}
+
 TEST_F(ClientCommandsTest, SessionsShowsTheNewestWithAHintAndFollowsPagesForMore) {
   session_.session_list.clear();
   for (int i = 0; i < 2500; ++i)

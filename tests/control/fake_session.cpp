@@ -140,6 +140,16 @@ bool FakeSession::abort() {
 
 std::vector<SessionInfo> FakeSession::sessions() const { return session_list; }
 
+std::vector<record::RobotSummary> FakeSession::robots() const {
+  if (!record_kept) return SessionControl::robots();
+  return robot_list;
+}
+
+std::vector<record::HistoryEntry> FakeSession::history(const record::RobotId& robot) const {
+  if (!record_kept) return SessionControl::history(robot);
+  return history_list;
+}
+
 ResultFile FakeSession::result(const std::string& id) const {
   if (!id.empty() && id != result_session) throw Refused("not_found", "no result for " + id);
   return result_value;

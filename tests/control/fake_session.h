@@ -35,6 +35,9 @@ class FakeSession : public service::SessionControl {
   ResultFile result(const std::string& id) const override;
   void readPsd(ReadingDone done) override;
   void setEventSink(EventSink sink) override;
+  // robot_list and history_list when record_kept, else the daemon without a record.
+  std::vector<record::RobotSummary> robots() const override;
+  std::vector<record::HistoryEntry> history(const record::RobotId& robot) const override;
 
   // Test controls.
   void setState(service::SessionState state, int pose = 0, int pose_count = 0);
@@ -54,6 +57,10 @@ class FakeSession : public service::SessionControl {
   std::vector<SessionInfo> session_list{
       SessionInfo{"20261122-0000", "/tmp/s0", true, 8, 8, 0, ""},
       SessionInfo{"20261122-0001", "/tmp/s1", false, 8, 3, 1, ""}};
+  // The robot's record: what robots() and history() (of any robot) answer.
+  bool record_kept = true;
+  std::vector<record::RobotSummary> robot_list;
+  std::vector<record::HistoryEntry> history_list;
   // What result() answers for the session `result_session` (and for an empty id).
   std::string result_session = "20261122-0000";
   ResultFile result_value = [] {

@@ -52,6 +52,15 @@ SessionsPage parseSessionsRequest(const nlohmann::json& request);
 // them): "sessions" (newest first), "total" and, when older ones remain, "next".
 nlohmann::json sessionsPage(const std::vector<SessionInfo>& sessions, const SessionsPage& page);
 
+// The robot a `history` request names among those the record knows: by "serial" and, when two
+// robots of different types share it, "robot_type"; with neither, the record's only robot.
+// Throws BadRequest naming the robots there are when none or several match.
+record::RobotId parseHistoryRequest(const nlohmann::json& request,
+                                    const std::vector<record::RobotSummary>& robots);
+// The `robots` answer's list, and one session of a `history` answer (docs/protocol.md).
+nlohmann::json toJson(const std::vector<record::RobotSummary>& robots);
+nlohmann::json toJson(const record::HistoryEntry& entry);
+
 const char* planKindName(PlanKind kind);
 // Throws BadRequest for an unknown name.
 PlanKind parsePlanKind(const std::string& name);

@@ -14,8 +14,15 @@ nlohmann::json toJson(const Plan& plan) {
   j["candidates_considered"] = plan.candidates_considered;
   j["poses"] = nlohmann::json::array();
   for (const auto& p : plan.poses) j["poses"].push_back(p.q_deg);
-  nlohmann::json pred;
+  // A parameter the prediction holds nothing for (a plan not predicted) is left out, as
+  // planFromJson reads it: "not predicted".
+  const Prediction& pr = plan.prediction;
+  const auto holds = [](std::size_t k, const auto&... vectors) {
+    return ((k < vectors.size()) && ...);
+  };
+  nlohmann::json pred = nlohmann::json::object();
   for (int k = 0; k < kIdentifiedCount; ++k) {
+    if (!holds(k, pr.identifiable, pr.sigma, pr.reason)) continue;
     nlohmann::json e{{"identifiable", plan.prediction.identifiable[k]},
                      {"sigma", numberOrNull(plan.prediction.sigma[k])}};
     if (!plan.prediction.identifiable[k]) e["reason"] = plan.prediction.reason[k];
@@ -28,6 +35,7 @@ nlohmann::json toJson(const Plan& plan) {
     for (const auto& p : plan.poses) j["pose_placements"].push_back(p.placement);
     nlohmann::json links = nlohmann::json::object();
     for (int l = 0; l < kLinkParamCount; ++l) {
+      if (!holds(l, pr.link_identifiable, pr.link_sigma, pr.link_reason)) continue;
       nlohmann::json e{{"identifiable", plan.prediction.link_identifiable[l]},
                        {"sigma", numberOrNull(plan.prediction.link_sigma[l])}};
       if (!plan.prediction.link_identifiable[l]) e["reason"] = plan.prediction.link_reason[l];

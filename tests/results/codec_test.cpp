@@ -81,3 +81,24 @@ TEST(ResultsCodec, ASessionFileComesBack) {
 
 }  // namespace
 }  // namespace zerocal
+
+namespace zerocal {
+namespace {
+
+// A plan nobody predicted (empty prediction vectors) writes and reads back as "not predicted",
+// instead of reading past the vectors' end.
+TEST(ResultsCodec, APlanWithoutAPredictionWritesAndReadsBack) {
+  Plan plan;
+  plan.poses.push_back(Pose{Joints{1, 2, 3, 4, 5, 6}, {}, 0});
+  plan.prediction.placements = 2;  // the link part is written too, and is empty as well
+  const nlohmann::json j = toJson(plan);
+  EXPECT_TRUE(j["predicted"].empty()) << j.dump();
+  const Plan back = planFromJson(j, "plan");
+  ASSERT_EQ(back.poses.size(), 1u);
+  ASSERT_EQ(back.prediction.identifiable.size(), static_cast<std::size_t>(kIdentifiedCount));
+  EXPECT_FALSE(back.prediction.identifiable[0]);
+  EXPECT_EQ(back.prediction.reason[0], "not predicted");
+}
+
+}  // namespace
+}  // namespace zerocal

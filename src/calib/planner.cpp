@@ -182,13 +182,14 @@ Prediction predictUncertainty(const CellModel& cell, const std::vector<Pose>& po
   constexpr double kMeaningfulDeg = 0.5;
   const Identifiability id = analyseIdentifiability(jac, cell, poses, at, 1.0, kMeaningfulDeg);
   Eigen::MatrixXd cov = id.unit_covariance;  // jac is in noise sigmas: this is the covariance
-  if (tolerances.length_mm > 0 || tolerances.angle_deg > 0) {
-    // As the solve: the link errors' consider covariance, with the misses in noise sigmas.
+  if (tolerances.length_mm > 0 || tolerances.angle_deg > 0 || tolerances.sag_deg > 0) {
+    // As the solve: the link errors' (and sag's) consider covariance, with the misses in noise
+    // sigmas.
     const Eigen::MatrixXd u = cov.unaryExpr([](double x) { return std::isfinite(x) ? x : 0.0; });
-    const Eigen::MatrixXd s =
-        u * jac.transpose() *
-        detail::linkSpread(cell, poses, at, false, tolerances.length_mm, tolerances.angle_deg) /
-        sigma_mm;
+    const Eigen::MatrixXd s = u * jac.transpose() *
+                              detail::linkSpread(cell, poses, at, false, tolerances.length_mm,
+                                                 tolerances.angle_deg, tolerances.sag_deg) /
+                              sigma_mm;
     if (s.allFinite()) cov += s * s.transpose();
   }
   Prediction out;
@@ -303,49 +304,79 @@ std::vector<Pose> sweepPattern(const CellModel& cell, const Eigen::Vector3d& tar
   return poses;
 }
 
+// What one candidate pose adds to a plan: its information J_i^T J_i and, with the link
+// tolerances counted, J_i^T G_i (G_i: its misses' derivatives by the link parameters times their
+// tolerances, in noise sigmas), whose sum over the plan is what the links move the estimate by.
+using InfoMatrix = Eigen::Matrix<double, kUnknownCount, kUnknownCount>;
+// a, d, alpha per joint and the sag of joints 2 and 3 (zero when not counted)
+using LinkMatrix = Eigen::Matrix<double, kUnknownCount, 3 * kJointCount + kComplianceCount>;
+struct CandidateInfo {
+  std::vector<InfoMatrix> info;
+  std::vector<LinkMatrix> link;  // empty: the model taken as exact
+};
+
 // A-optimal selection of n poses from the candidates: minimise the summed variance of
 // delta2..delta5, plus a tenth of the laser's (slopes as radians, offsets as radians at a 600 mm
 // lever arm) so that a set leaving the laser undetermined is never chosen; the target is a
-// nuisance. Greedy start and random starts, each improved by exchange passes (Fedorov); the
-// best wins. Deterministic: the random starts are seeded.
-std::vector<int> selectOptimal(
-    const std::vector<Eigen::Matrix<double, kUnknownCount, kUnknownCount>>& info, int n) {
-  using Mat = Eigen::Matrix<double, kUnknownCount, kUnknownCount>;
+// nuisance. The variance is the total the solve reports: the statistical part M^-1 and, with the
+// link tolerances, their consider part M^-1 C C^T M^-1 (C the summed J_i^T G_i), which at one
+// placement is the larger. Greedy start and random starts, each improved by exchange passes
+// (Fedorov); the best wins. Deterministic: the random starts are seeded.
+std::vector<int> selectOptimal(const CandidateInfo& candidates, int n) {
+  using Mat = InfoMatrix;
+  const std::vector<Mat>& info = candidates.info;
+  const bool with_links = !candidates.link.empty();
   const int count = static_cast<int>(info.size());
   Mat ridge = Mat::Zero();
   for (const auto& m : info) ridge += m;
   // Keeps a rank-deficient sum invertible: its null directions then cost about 1e9 times more.
   ridge = 1e-9 * ridge.diagonal().mean() * Mat::Identity();
-  auto criterion = [&](const Mat& m) {
-    const Eigen::LDLT<Mat> ldlt(m + ridge);
+  // A plan's sums: its information and, with the links, its C.
+  struct Sums {
+    Mat info = Mat::Zero();
+    LinkMatrix link = LinkMatrix::Zero();
+  };
+  const auto add = [&](Sums sums, int c, double sign) {
+    sums.info += sign * info[c];
+    if (with_links) sums.link += sign * candidates.link[c];
+    return sums;
+  };
+  const Sums none;
+  auto criterion = [&](const Sums& sums) {
+    const Eigen::LDLT<Mat> ldlt(sums.info + ridge);
     if (ldlt.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
-    const Mat inv = ldlt.solve(Mat::Identity());
+    Mat inv = ldlt.solve(Mat::Identity());
+    if (with_links) {  // only the diagonal of the offsets' and the laser's rows is summed
+      const Eigen::Matrix<double, kIdentifiedCount, LinkMatrix::ColsAtCompileTime> moved =
+          inv.topRows<kIdentifiedCount>() * sums.link;
+      for (int k = 0; k < kIdentifiedCount; ++k) inv(k, k) += moved.row(k).squaredNorm();
+    }
     double t = 0;
     for (int k = 0; k < kOffsetCount; ++k) t += inv(k, k);
     t += 0.1 * (inv(4, 4) + inv(5, 5) + (inv(6, 6) + inv(7, 7)) / (600.0 * 600.0));
     return t > 0 && std::isfinite(t) ? t : std::numeric_limits<double>::infinity();
   };
   auto sum = [&](const std::vector<int>& set) {
-    Mat total = Mat::Zero();
-    for (int c : set) total += info[c];
+    Sums total = none;
+    for (int c : set) total = add(std::move(total), c, 1);
     return total;
   };
   auto improve = [&](std::vector<int> chosen) {
-    Mat total = sum(chosen);
+    Sums total = sum(chosen);
     double current = criterion(total);
     for (int pass = 0; pass < 20; ++pass) {
       bool improved = false;
       for (int slot = 0; slot < n; ++slot) {
-        const Mat without = total - info[chosen[slot]];
+        const Sums without = add(total, chosen[slot], -1);
         int best = -1;
         double best_value = current * (1 - 1e-9);
         for (int c = 0; c < count; ++c) {
           if (std::find(chosen.begin(), chosen.end(), c) != chosen.end()) continue;
-          const double v = criterion(without + info[c]);
+          const double v = criterion(add(without, c, 1));
           if (v < best_value) best_value = v, best = c;
         }
         if (best >= 0) {
-          total = without + info[best];
+          total = add(without, best, 1);
           chosen[slot] = best;
           current = best_value;
           improved = true;
@@ -357,18 +388,18 @@ std::vector<int> selectOptimal(
   };
 
   std::vector<int> greedy;
-  Mat total = Mat::Zero();
+  Sums total = none;
   for (int slot = 0; slot < n; ++slot) {
     int best = -1;
     double best_value = std::numeric_limits<double>::infinity();
     for (int c = 0; c < count; ++c) {
       if (std::find(greedy.begin(), greedy.end(), c) != greedy.end()) continue;
-      const double v = criterion(total + info[c]);
+      const double v = criterion(add(total, c, 1));
       if (v < best_value) best_value = v, best = c;
     }
     if (best < 0) best = slot;  // nothing finite yet: any pose will do as a start
     greedy.push_back(best);
-    total += info[best];
+    total = add(std::move(total), best, 1);
   }
   auto best = improve(greedy);
   std::mt19937 rng(12345);
@@ -490,6 +521,9 @@ Plan planPoses(const CellModel& cell, const Eigen::Vector3d& target, const PlanO
     // Each placement planned on its own, aimed at its centre; the prediction is the joint one.
     PlanOptions one = o;
     one.more_placements.clear();
+    // Several placements identify the link errors together: a placement's poses are chosen for
+    // what they measure, not for the link errors one placement alone would be left with.
+    one.tolerances = {};
     Plan plan;
     std::vector<Eigen::Vector3d> centres{target};
     centres.insert(centres.end(), o.more_placements.begin(), o.more_placements.end());
@@ -571,15 +605,28 @@ Plan planPoses(const CellModel& cell, const Eigen::Vector3d& target, const PlanO
                          " reachable poses aim at the target; " + std::to_string(o.poses) +
                          " were asked for (move the target or widen the stand-off range)");
       const Eigen::MatrixXd jac = pointToLineJacobian(cell, candidates, at, o.noise_mm, false);
-      std::vector<Eigen::Matrix<double, kUnknownCount, kUnknownCount>> info;
+      const bool with_links =
+          o.tolerances.length_mm > 0 || o.tolerances.angle_deg > 0 || o.tolerances.sag_deg > 0;
+      const Eigen::MatrixXd spread =
+          with_links ? Eigen::MatrixXd(
+                           detail::linkSpread(cell, candidates, at, false, o.tolerances.length_mm,
+                                              o.tolerances.angle_deg, o.tolerances.sag_deg) /
+                           o.noise_mm)
+                     : Eigen::MatrixXd();
+      CandidateInfo info;
       for (std::size_t i = 0; i < candidates.size(); ++i) {
         const auto rows = jac.middleRows<2>(2 * i);
-        info.push_back(rows.transpose() * rows);
+        info.info.push_back(rows.transpose() * rows);
+        if (!with_links) continue;
+        LinkMatrix link = LinkMatrix::Zero();
+        link.leftCols(spread.cols()) = rows.transpose() * spread.middleRows<2>(2 * i);
+        info.link.push_back(link);
       }
       for (int idx : selectOptimal(info, o.poses)) plan.poses.push_back(candidates[idx]);
       what << "optimal: the " << o.poses << " of " << candidates.size()
-           << " reachable candidate poses that minimise the predicted variance of "
-              "delta2..delta5";
+           << " reachable candidate poses that minimise the predicted "
+           << (with_links ? "total (noise and link tolerances) " : "")
+           << "variance of delta2..delta5";
       break;
     }
   }

@@ -16,6 +16,7 @@
 #include "solver_detail.h"
 #include "zerocal/calib/identifiability.h"
 #include "zerocal/error.h"
+#include "zerocal/model/gravity.h"
 
 namespace zerocal {
 using detail::subset;
@@ -320,9 +321,10 @@ namespace detail {
 
 Eigen::MatrixXd linkSpread(const CellModel& cell, const std::vector<Pose>& poses,
                            const CalibrationParameters& est, bool readings, double length_mm,
-                           double angle_deg) {
+                           double angle_deg, double sag_deg) {
   const Eigen::VectorXd r0 = misses(cell, poses, est, readings);
-  Eigen::MatrixXd g(r0.size(), 3 * kJointCount);
+  const bool with_sag = sag_deg > 0 && cell.robot.hasGravityModel();
+  Eigen::MatrixXd g(r0.size(), 3 * kJointCount + (with_sag ? kComplianceCount : 0));
   for (int j = 0; j < kJointCount; ++j)
     for (int kind = 0; kind < 3; ++kind) {
       CellModel perturbed = cell;
@@ -332,6 +334,22 @@ Eigen::MatrixXd linkSpread(const CellModel& cell, const std::vector<Pose>& poses
       const double tolerance = kind == 2 ? angle_deg * kDegToRad : length_mm;
       g.col(3 * j + kind) = (misses(perturbed, poses, est, readings) - r0) / h * tolerance;
     }
+  if (with_sag) {
+    // The sag of joints 2 and 3 turns the joint by c_j tau_j(q): at each pose what a change of
+    // that joint's offset does, times the pose's torque, with c_j known to the sag tolerance at
+    // the largest torque (as the several-placement solve counts it, docs/maths.md section 8).
+    const auto bound = gravityTorqueBoundKnm(cell.robot, cell.robot.masses);
+    for (int c = 0; c < kComplianceCount; ++c) {
+      CalibrationParameters turned = est;
+      constexpr double h = 1e-6;  // rad
+      turned.delta_rad[c] += h;
+      Eigen::VectorXd column = (misses(cell, poses, turned, readings) - r0) / h;
+      for (std::size_t i = 0; i < poses.size(); ++i)
+        column.segment<2>(2 * static_cast<Eigen::Index>(i)) *=
+            gravityTorqueKnm(cell.robot, cell.robot.masses, poses[i].q_deg)[c] / bound[c];
+      g.col(3 * kJointCount + c) = column * sag_deg * kDegToRad;
+    }
+  }
   return g;
 }
 
@@ -584,9 +602,9 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
     estimates.push_back(f.est);
     t.misses_mm = misses(cell, chosen, f.est, readings);
     t.jacobian_mm = pointToLineJacobian(cell, chosen, f.est, 1.0, readings);
-    if (options.model_length_mm > 0 || options.model_angle_deg > 0)
+    if (options.model_length_mm > 0 || options.model_angle_deg > 0 || options.model_sag_deg > 0)
       t.spread_mm = detail::linkSpread(cell, chosen, f.est, readings, options.model_length_mm,
-                                       options.model_angle_deg);
+                                       options.model_angle_deg, options.model_sag_deg);
     const auto s = standoffs(cell, chosen, f.est);
     t.beam_points_away = *std::min_element(s.begin(), s.end()) <= 0;
     return t;
@@ -667,9 +685,9 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
   // misses (W^T W = (I + G G^T / sigma^2)^-1, the deletion test's), so that the link misfit is
   // counted once, in the model part below, and not a second time in a scaled-up noise.
   const Eigen::MatrixXd spread =
-      options.model_length_mm > 0 || options.model_angle_deg > 0
+      options.model_length_mm > 0 || options.model_angle_deg > 0 || options.model_sag_deg > 0
           ? detail::linkSpread(cell, used, est, readings, options.model_length_mm,
-                               options.model_angle_deg)
+                               options.model_angle_deg, options.model_sag_deg)
           : Eigen::MatrixXd();
   const bool link_weighted = spread.cols() > 0 && options.noise_mm &&
                              options.loss == RobustLoss::kNone && jac_mm.rows() > 0;
@@ -700,7 +718,9 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
   Eigen::MatrixXd model_cov = Eigen::MatrixXd::Zero(kUnknownCount, kUnknownCount);
   report.model_length_mm = options.model_length_mm;
   report.model_angle_deg = options.model_angle_deg;
-  if (options.model_length_mm > 0 || options.model_angle_deg > 0) {
+  report.model_sag_deg =
+      spread.cols() > 3 * kJointCount ? options.model_sag_deg : 0;  // counted: a gravity model
+  if (spread.cols() > 0) {
     // A parameter the poses do not determine has no covariance (NaN) and no model part either.
     const Eigen::MatrixXd u =
         ident.unit_covariance.unaryExpr([](double x) { return std::isfinite(x) ? x : 0.0; });

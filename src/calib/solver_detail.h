@@ -96,11 +96,12 @@ GrossErrorSearch findGrossErrors(
     const std::function<std::string(const std::vector<int>& remaining, int i)>& cannot_leave_out);
 
 // The misses' derivatives by each link length and twist (a, d, alpha of every joint) times its
-// tolerance, mm: 2 rows per pose, 3 columns per joint. What the link errors the tolerances allow
-// do to the misses, one standard deviation per column.
+// tolerance, mm: 2 rows per pose, 3 columns per joint; with a sag tolerance and a robot file with
+// a gravity model, 2 more, joints 2 and 3's compliance. What the model errors the tolerances
+// allow do to the misses, one standard deviation per column.
 Eigen::MatrixXd linkSpread(const CellModel& cell, const std::vector<Pose>& poses,
                            const CalibrationParameters& est, bool readings, double length_mm,
-                           double angle_deg);
+                           double angle_deg, double sag_deg = 0);
 
 // The several-placement fit's consider covariance (its unknowns' units: rad, mm): what it holds
 // at nominal but knows only to a tolerance moves the identified unknowns by S = unit_cov J^T G.

@@ -74,8 +74,9 @@ class HardwareBackendOnSimulatedCell : public ::testing::Test {
     config_.session.psd_rpy_deg = rpyDegOf(world.psd_rotation);
     config_.session.data_dir = dir_.path + "/sessions";
     // The cell behind the board and the port is the ideal world: its links are the robot
-    // file's exactly, and the result is checked against its truth.
+    // file's exactly, it has no sag, and the result is checked against its truth.
     config_.session.model_length_mm = config_.session.model_angle_deg = 0;
+    config_.session.model_sag_deg = 0;
   }
 
   static usb1408fs::BoardSettings& boardOf(DaemonConfig& config) {

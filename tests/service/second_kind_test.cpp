@@ -111,8 +111,9 @@ TEST_F(SecondControllerKind, CalibratesTheSimulatedArmThroughItsOwnProtocol) {
   config.session.data_dir = dir.path + "/sessions";
   const Eigen::Vector3d taught = sim::knowledgeOf(world).taught_centre;
   config.session.target_mm = {taught.x(), taught.y(), taught.z()};
-  // The ideal world's links are the robot file's exactly.
+  // The ideal world's links are the robot file's exactly, and it has no sag.
   config.session.model_length_mm = config.session.model_angle_deg = 0;
+  config.session.model_sag_deg = 0;
 
   LineCellBackend cell(world);
   config.controller.sections.get<LineSettings>("line")->port = cell.server().port();

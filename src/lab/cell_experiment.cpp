@@ -498,9 +498,9 @@ int runCellExperiment(const CellExperimentArgs& args) {
                 delta2_predicted_min, delta2_predicted_max);
     std::printf("per offset     RMS error/sigma and 95%% coverage, withheld offsets included:\n");
     for (const Json& o : normalised)
-      std::printf("               %s  %.2f  %5.1f%%  (%d)\n",
-                  o["name"].get<std::string>().c_str(), o["rms_normalised_error"].get<double>(),
-                  100 * o["coverage_95"].get<double>(), o["count"].get<int>());
+      std::printf("               %s  %.2f  %5.1f%%  (%d)\n", o["name"].get<std::string>().c_str(),
+                  o["rms_normalised_error"].get<double>(), 100 * o["coverage_95"].get<double>(),
+                  o["count"].get<int>());
     std::printf("worst error    %.2f sigma   (<= %.1f)  %s  (usable results)\n", worst_sigmas,
                 args.max_sigmas, sigmas_ok ? "ok" : "FAIL");
     std::printf("RMS error      %.5f deg (<= %.3f) %s\n", rms, args.max_rms_deg,

@@ -82,10 +82,10 @@ TEST(Solver, TheLinkTolerancesCoverWhatAWrongLinkDoesToTheOffsets) {
     // The model's part is added to the statistical one, not put in its place; the statistical
     // one is that of the given noise, scaled by what the link-weighted misses show beyond it.
     const double statistical = all.parameters[k].sigma / all.noise_scale * b.noise_scale;
-    EXPECT_NEAR(b.parameters[k].sigma * b.parameters[k].sigma,
-                statistical * statistical +
-                    b.parameters[k].model_sigma * b.parameters[k].model_sigma,
-                1e-3 * b.parameters[k].sigma * b.parameters[k].sigma)
+    EXPECT_NEAR(
+        b.parameters[k].sigma * b.parameters[k].sigma,
+        statistical * statistical + b.parameters[k].model_sigma * b.parameters[k].model_sigma,
+        1e-3 * b.parameters[k].sigma * b.parameters[k].sigma)
         << k;
     worst_exact = std::max(worst_exact, std::abs(error) / a.parameters[k].sigma);
     worst_tolerant = std::max(worst_tolerant, std::abs(error) / b.parameters[k].sigma);

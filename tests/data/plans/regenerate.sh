@@ -1,10 +1,10 @@
 #!/bin/sh
-# Makes every stored plan again with the optimal planner: `zerocal plan` on the nominal cell a
+# Makes every stored plan again with the optimal planner: `zerocal-lab plan` on the nominal cell a
 # test gives the planner (the built-in IRB 1600, the nominal laser along the flange x axis), aimed
 # at the PSD centre as taught, with the PSD's normal as configured. Run from the build folder:
-#   ../tests/data/plans/regenerate.sh bin/zerocal
+#   ../tests/data/plans/regenerate.sh bin/zerocal-lab
 set -eu
-zerocal=${1:?usage: regenerate.sh path/to/zerocal}
+zerocal=${1:?usage: regenerate.sh path/to/zerocal-lab}
 here=$(cd "$(dirname "$0")" && pwd)
 
 # NAME.csv: the optimal plan of POSES poses aimed at the target T (mm, base frame) for a PSD whose

@@ -49,12 +49,15 @@ std::string MotionModel::validate() const {
   return {};
 }
 
+std::uint64_t grossSeed(std::uint64_t seed) { return seed ^ 0x67726f7373ull; }
+std::uint64_t searchSeed(std::uint64_t seed) { return seed ^ 0x736561726368ull; }
+
 struct SimulatedArm::State {
   explicit State(SimulatedArmOptions o)
       : options(std::move(o)),
         rng(options.seed),
-        gross_rng(options.seed ^ 0x67726f7373ull),
-        search_rng(options.seed ^ 0x736561726368ull) {
+        gross_rng(grossSeed(options.seed)),
+        search_rng(searchSeed(options.seed)) {
     const std::string motion = options.motion.validate();
     if (!motion.empty()) throw ConfigError(kOrigin, {"motion: " + motion});
     if (!(options.restart_s >= 0 && options.restart_s <= 3600))
@@ -140,6 +143,7 @@ struct SimulatedArm::State {
   std::mt19937_64 rng;
   std::mt19937_64 gross_rng;   // its own stream: the repeatability draws stay those of the seed
   std::mt19937_64 search_rng;  // the search signal's latency, its own stream for the same reason
+  std::uint64_t noise_seed = options.seed;  // what the three streams above were last seeded from
   Joints commanded{};
   Joints move_error{};  // this move's repeatability error plus an unsettled reading's
   GrossState gross;
@@ -397,6 +401,19 @@ MotionTotals SimulatedArm::motionTotals() const {
 const RobotInfo& SimulatedArm::identity() const { return state_->options.identity; }
 
 std::uint64_t SimulatedArm::seed() const { return state_->options.seed; }
+
+void SimulatedArm::reseedNoise(std::uint64_t seed) {
+  std::lock_guard<std::mutex> lock(state_->mutex);
+  state_->rng.seed(seed);
+  state_->gross_rng.seed(grossSeed(seed));
+  state_->search_rng.seed(searchSeed(seed));
+  state_->noise_seed = seed;
+}
+
+std::uint64_t SimulatedArm::noiseSeed() const {
+  std::lock_guard<std::mutex> lock(state_->mutex);
+  return state_->noise_seed;
+}
 
 const World& SimulatedArm::world() const { return state_->options.world; }
 

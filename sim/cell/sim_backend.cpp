@@ -19,9 +19,11 @@ constexpr const char* kExternalPlacements =
     "PSD placements on the in-process simulated cell (leave backend.sim_host unset)";
 
 // The world as a world file, when its robot is the built-in one (a world file's own robot file is
-// not known here; that world is on disk already).
-std::optional<std::string> truthFile(const World& world) {
+// not known here; that world is on disk already), naming the seed of the session's noise when
+// there is one: the file then replays the session.
+std::optional<std::string> truthFile(World world, std::optional<std::uint64_t> noise_seed = {}) {
   if (world.robot.name != builtinIrb1600().name) return std::nullopt;
+  if (noise_seed) world.noise.seed = noise_seed;
   return worldYaml(world);
 }
 
@@ -60,12 +62,14 @@ std::unique_ptr<Irc5Client> irc5Link(std::unique_ptr<ControllerConnection> link)
 
 class SimulatedLinkedCell final : public service::LinkedCell {
  public:
-  SimulatedLinkedCell(SimulatedCell& cell, std::unique_ptr<ControllerConnection> link)
+  SimulatedLinkedCell(SimBackend& backend, SimulatedCell& cell,
+                      std::unique_ptr<ControllerConnection> link)
       : LinkedCell(std::move(link),
                    std::make_unique<usb1408fs::Usb1408fsReadout>(cell.boardOpener(), cell.psdMap(),
                                                                  cell, simulatedReadout().board,
                                                                  simulatedReadout().psd),
                    cell),
+        backend_(backend),
         cell_(cell),
         calibration_(*LinkedCell::calibration(), cell.controller(),
                      cell.options().remote_counter_update) {}
@@ -77,20 +81,27 @@ class SimulatedLinkedCell final : public service::LinkedCell {
     return std::array<double, 4>{t[1] + shift[1], t[2] + shift[2], t[3] + shift[3],
                                  t[4] + shift[4]};
   }
-  std::optional<std::string> truthWorldYaml() const override { return truthFile(cell_.world()); }
+  std::optional<std::string> truthWorldYaml() const override {
+    return truthFile(cell_.world(), backend_.sessionNoiseSeed());
+  }
+  void beginSession() override { backend_.beginSession(); }
+  std::optional<std::uint64_t> truthNoiseSeed() const override {
+    return backend_.sessionNoiseSeed();
+  }
   void placePsd(int placement, const std::vector<Eigen::Vector3d>& planned_centres_mm) override {
     cell_.controller().placePsd(placement, planned_centres_mm);
   }
 
  private:
+  SimBackend& backend_;
   SimulatedCell& cell_;
   SimCalibration calibration_;
 };
 
 }  // namespace
 
-SimBackend::SimBackend(SimulatedCellOptions options, SimLinkFactory link)
-    : cell_(std::move(options)), link_(std::move(link)) {
+SimBackend::SimBackend(SimulatedCellOptions options, SimLinkFactory link, SessionNoise noise)
+    : cell_(std::move(options)), link_(std::move(link)), noise_(noise) {
   // Refused when the daemon starts, not at every session: a link, not connected, shows its kind.
   if (link_) irc5Link(link_({"127.0.0.1", cell_.clientOptions().port, {}}));
 }
@@ -104,9 +115,18 @@ CellKnowledge SimBackend::knowledge() const {
 std::unique_ptr<ConnectedCell> SimBackend::connect() {
   const Irc5Options own = cell_.clientOptions();
   if (!link_)
-    return std::make_unique<SimulatedLinkedCell>(cell_, std::make_unique<Irc5Client>(own));
+    return std::make_unique<SimulatedLinkedCell>(*this, cell_, std::make_unique<Irc5Client>(own));
   return std::make_unique<SimulatedLinkedCell>(
-      cell_, irc5Link(link_({own.host, own.port, own.backoff_initial})));
+      *this, cell_, irc5Link(link_({own.host, own.port, own.backoff_initial})));
+}
+
+std::optional<std::uint64_t> SimBackend::beginSession() {
+  if (!noise_.first) return std::nullopt;
+  session_seed_ =
+      zerocal::sessionNoiseSeed(*noise_.first, noise_.sessions_before + sessions_begun_);
+  ++sessions_begun_;
+  cell_.reseedNoise(*session_seed_);
+  return session_seed_;
 }
 
 class ExternalSimBackend::Cell final : public service::LinkedCell {

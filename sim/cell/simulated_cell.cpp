@@ -90,6 +90,11 @@ Irc5Options SimulatedCell::clientOptions() const {
   return o;
 }
 
+void SimulatedCell::reseedNoise(std::uint64_t seed) {
+  controller_->reseedNoise(seed);
+  psd_.reseed(static_cast<std::uint32_t>(seed) + 100);
+}
+
 double SimulatedCell::nowS() noexcept {
   return controller_->simTimeS() + std::chrono::duration<double>(board_.now()).count() + waited_s_;
 }

@@ -606,6 +606,8 @@ void SimController::updateRevolutionCounter(int joint) {
   impl_->arm->updateRevolutionCounter(joint);
 }
 Joints SimController::zeroShiftDeg() const { return impl_->arm->zeroShiftDeg(); }
+void SimController::reseedNoise(std::uint64_t seed) { impl_->arm->reseedNoise(seed); }
+std::uint64_t SimController::noiseSeed() const { return impl_->arm->noiseSeed(); }
 void SimController::placePsd(int placement,
                              const std::vector<Eigen::Vector3d>& planned_centres_mm) {
   impl_->arm->placePsd(placement, planned_centres_mm);

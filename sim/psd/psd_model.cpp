@@ -60,6 +60,12 @@ PsdVoltages PsdModel::measure(const std::optional<PsdSpot>& spot) {
   return v;
 }
 
+void PsdModel::reseed(std::uint32_t seed) {
+  options_.seed = seed;
+  rng_.seed(seed);
+  noise_.reset();  // a pair half drawn from the old stream is not the new stream's
+}
+
 Usb1408fsModel::AnalogSource psdAnalogSource(
     PsdModel& psd, std::function<std::optional<PsdSpot>(double t)> spot_at, PsdWiring wiring) {
   struct Cache {

@@ -4,8 +4,11 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <cctype>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <random>
 #include <sstream>
@@ -401,9 +404,21 @@ void readWorld(const YAML::Node& root, const std::string& base_dir, Reader& read
     if (read.vec<3>(psd, "rpy_deg", "psd.", kMaxAngleDeg, &angles)) w.psd_rotation = rpy(angles);
   }
   if (const YAML::Node noise = read.section(root, "noise")) {
-    read.onlyKeys(noise, "noise", {"repeatability_deg", "psd_mm"});
+    read.onlyKeys(noise, "noise", {"repeatability_deg", "psd_mm", "seed"});
     read.number(noise, "repeatability_deg", "noise.", kMaxAngleDeg, &w.noise.repeatability_deg);
     read.number(noise, "psd_mm", "noise.", kMaxSpotMm, &w.noise.psd_mm);
+    if (const YAML::Node seed = noise["seed"]) {
+      // A seed is a whole number of 64 bits; a sign or a fraction is a typing error.
+      const std::string text = seed.IsScalar() ? seed.Scalar() : "";
+      char* end = nullptr;
+      errno = 0;
+      const unsigned long long v = std::strtoull(text.c_str(), &end, 10);
+      if (text.empty() || !std::isdigit(static_cast<unsigned char>(text[0])) || *end != '\0' ||
+          errno == ERANGE)
+        read.problem(seed, "noise.seed: must be a whole number 0..18446744073709551615");
+      else
+        w.noise.seed = v;
+    }
   }
   read.onlyKeys(root, "",
                 {"robot", "true_offsets_deg", "laser", "psd", "noise", "dh_errors", "compliance",
@@ -507,6 +522,22 @@ void readWorld(const YAML::Node& root, const std::string& base_dir, Reader& read
 }
 
 }  // namespace
+
+std::uint64_t sessionNoiseSeed(std::uint64_t first, std::uint64_t session) {
+  if (session == 0) return first;
+  // splitmix64 of the pair: neighbouring sessions (and neighbouring worlds' sessions) get
+  // unrelated streams, and no later session's seed is a plain small number another world uses.
+  std::uint64_t z = first + 0x9e3779b97f4a7c15ull * (session + 1);
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+  return z ^ (z >> 31);
+}
+
+void applyZeroChange(const ZeroChange& change, World* world) {
+  const std::string problem = zeroChangeProblem(change);
+  if (!problem.empty()) throw InputError("zero change: " + problem);
+  if (change.joint != 0) world->true_offsets_deg[change.joint - 1] += change.deg;
+}
 
 World parseWorld(const std::string& yaml_text, const std::string& origin,
                  const std::string& base_dir) {
@@ -656,6 +687,7 @@ std::string worldYaml(const World& w, const std::string& robot_file) {
     << "\n  taught_centre_mm: " << list(w.psd_centre_taught_mm, 3) << "\n"
     << "noise:\n  repeatability_deg: " << num(w.noise.repeatability_deg)
     << "\n  psd_mm: " << num(w.noise.psd_mm) << "\n";
+  if (w.noise.seed) o << "  seed: " << *w.noise.seed << "\n";
   Joints a, d, alpha;
   for (int i = 0; i < kJointCount; ++i) {
     a[i] = w.dh_errors[i].a_mm;

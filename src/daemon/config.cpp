@@ -18,6 +18,7 @@
 #include "zerocal/calib/planner.h"
 #include "zerocal/cell/kinds.h"
 #include "zerocal/error.h"
+#include "zerocal/sim/zero_change.h"
 
 namespace zerocal {
 namespace {
@@ -60,6 +61,8 @@ std::vector<Field> schema(DaemonConfig& c) {
   f.push_back(seedField("backend.sim_seed", c.backend.sim_seed));
   f.push_back(choiceField<bool>("backend.sim_ideal_world", c.backend.sim_ideal_world,
                                 {{"false", false}, {"true", true}}));
+  f.push_back(integerField("backend.sim_zero_change_joint", c.backend.sim_zero_change_joint));
+  f.push_back(realField("backend.sim_zero_change_deg", c.backend.sim_zero_change_deg));
   f.push_back(realField("backend.sim_gross_rate", c.backend.sim_gross_rate));
   f.push_back(realField("backend.sim_pace", c.backend.sim_pace));
   f.push_back(realField("backend.sim_move_overhead_s", c.backend.sim_move_overhead_s));
@@ -289,6 +292,19 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
     if (!b.sim_world.empty() && b.sim_seed)
       check.fail("backend.sim_seed", "give backend.sim_world or backend.sim_seed, not both");
     if (!b.sim_world.empty()) check.fileExists("backend.sim_world", b.sim_world);
+    const std::string change =
+        zeroChangeProblem(ZeroChange{b.sim_zero_change_joint, b.sim_zero_change_deg});
+    if (!change.empty())
+      check.fail(b.sim_zero_change_joint == 0 ||
+                         (b.sim_zero_change_joint >= 2 && b.sim_zero_change_joint <= 5)
+                     ? "backend.sim_zero_change_deg"
+                     : "backend.sim_zero_change_joint",
+                 change);
+    else if (b.sim_zero_change_joint != 0 && !b.sim_host.empty())
+      check.fail("backend.sim_zero_change_joint",
+                 "an external zerocal-sim simulates its own world: change a zero on the "
+                 "in-process simulated cell (leave backend.sim_host unset), or give zerocal-sim a "
+                 "world file with the changed offsets");
     if (b.sim_host.empty() != (b.sim_port == 0))
       check.fail(b.sim_host.empty() ? "backend.sim_port" : "backend.sim_host",
                  "an external zerocal-sim needs both backend.sim_host and backend.sim_port");

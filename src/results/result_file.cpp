@@ -76,6 +76,7 @@ Json toJson(const ResultFile& r) {
     Json truth = Json::object();
     for (int k = 0; k < kOffsetCount; ++k) truth[unknownName(k)] = r.truth->offsets_deg[k];
     if (!r.truth->world_file.empty()) truth["world_file"] = r.truth->world_file;
+    if (r.truth->noise_seed) truth["noise_seed"] = *r.truth->noise_seed;
     j["truth"] = truth;
   }
   if (r.pose_breakdown) {
@@ -132,6 +133,13 @@ ResultFile resultFileFromJson(const Json& json) {
     for (int k = 0; k < kOffsetCount; ++k)
       t.offsets_deg[k] = truth.numberOrNan(unknownName(k).c_str());
     t.world_file = truth.stringOr("world_file", "");
+    if (truth.present("noise_seed")) {
+      // A seed is 64 bits unsigned: more than integer64 holds.
+      const nlohmann::json& seed = truth.at("noise_seed");
+      if (!seed.is_number_unsigned())
+        throw InputError(truth.where() + ": 'noise_seed' is not a whole number >= 0");
+      t.noise_seed = seed.get<std::uint64_t>();
+    }
     r.truth = t;
   }
   if (j.has("pose_breakdown")) {

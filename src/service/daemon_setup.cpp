@@ -4,6 +4,7 @@
 #include "zerocal/service/cell_factory.h"
 #include "zerocal/service/hardware_backend.h"
 #include "zerocal/sim/sim_backend.h"
+#include "zerocal/store/session_store.h"
 
 namespace zerocal::service {
 
@@ -43,6 +44,9 @@ std::unique_ptr<CellBackend> makeBackend(const DaemonConfig& cfg) {
     o.world.gross.unsettled_rate = cfg.backend.sim_gross_rate;
   }
   if (!cfg.backend.sim_world.empty()) o.world = loadWorld(cfg.backend.sim_world);
+  // A motor replaced: on top of the world's offsets, in the truth too (validated with the
+  // configuration; applyZeroChange throws for what a caller's own configuration let through).
+  applyZeroChange({cfg.backend.sim_zero_change_joint, cfg.backend.sim_zero_change_deg}, &o.world);
   if (!cfg.backend.sim_host.empty()) {
     // The controller in an external zerocal-sim, the board in-process (sim::ExternalSimBackend).
     sim::ExternalSimOptions e;
@@ -60,7 +64,14 @@ std::unique_ptr<CellBackend> makeBackend(const DaemonConfig& cfg) {
   o.motion.overhead_s = cfg.backend.sim_move_overhead_s;
   // The controller section applies to the simulated controller as to a real one; only where the
   // controller listens and how quickly to retry come from the simulated cell.
-  return std::make_unique<sim::SimBackend>(std::move(o), linkTo(cfg.controller));
+  // Each session its own noise, the world's errors fixed: the first session in a data folder
+  // draws from the seed's (or the world file's noise.seed, else 1: what a world always drew from),
+  // each later one from a seed mixed from it and the number of sessions before it
+  // (docs/simulated-cell.md); its truth names the seed.
+  sim::SessionNoise noise;
+  noise.first = cfg.backend.sim_world.empty() ? seed : o.world.noise.seed.value_or(1);
+  noise.sessions_before = SessionStore(cfg.session.data_dir).list().size();
+  return std::make_unique<sim::SimBackend>(std::move(o), linkTo(cfg.controller), noise);
 }
 
 ManagerSettings managerSettingsOf(const DaemonConfig& cfg) {

@@ -22,6 +22,10 @@ ResultFile assembleResult(const std::string& session_id, const RunOutcome& outco
     result.truth.emplace();
     result.truth->offsets_deg = *facts.truth_deg;
   }
+  if (facts.truth_noise_seed) {
+    if (!result.truth) result.truth.emplace();
+    result.truth->noise_seed = facts.truth_noise_seed;
+  }
   if (!facts.truth_world_file.empty()) {
     if (!result.truth) result.truth.emplace();
     result.truth->world_file = facts.truth_world_file;

@@ -114,6 +114,7 @@ void SessionRunner::runMeasurement(const RunRequest& request) {
   }
   const CellIdentity identity = connection_.identify(id);
   ConnectedCell& cell = connection_.cell();
+  cell.beginSession();
 
   std::optional<RunOutcome> outcome;
   double cell_time_s = 0;
@@ -234,6 +235,7 @@ void SessionRunner::runMeasurement(const RunRequest& request) {
   facts.cell_time_s = cell_time_s;
   facts.finished_unix_s = unixSeconds();
   facts.truth_deg = cell.truthDeg();
+  facts.truth_noise_seed = cell.truthNoiseSeed();
   facts.move_overhead = settings_.move_overhead;
   if (const auto world = cell.truthWorldYaml()) {
     try {

@@ -226,6 +226,30 @@ TEST_F(ConfigTest, OutOfRangeValuesNameWhereTheyWereSet) {
       << joined(p);
 }
 
+TEST_F(ConfigTest, AZeroChangeIsAJointOf2To5AndAFewDegrees) {
+  write("main.yaml", "backend:\n  kind: sim\n");
+  const DaemonConfig ok = loadDaemonConfig(
+      sources({"backend.sim_zero_change_joint=3", "backend.sim_zero_change_deg=-0.25"}));
+  EXPECT_EQ(ok.backend.sim_zero_change_joint, 3);
+  EXPECT_DOUBLE_EQ(ok.backend.sim_zero_change_deg, -0.25);
+
+  auto p =
+      problems(sources({"backend.sim_zero_change_joint=1", "backend.sim_zero_change_deg=0.1"}));
+  EXPECT_TRUE(reported(p, {"backend.sim_zero_change_joint", "joints 2..5"})) << joined(p);
+  p = problems(sources({"backend.sim_zero_change_joint=4", "backend.sim_zero_change_deg=2.5"}));
+  EXPECT_TRUE(reported(p, {"backend.sim_zero_change_deg", "within +-2 deg", "2.5 given"}))
+      << joined(p);
+  p = problems(sources({"backend.sim_zero_change_joint=4"}));
+  EXPECT_TRUE(reported(p, {"backend.sim_zero_change_deg", "non-zero"})) << joined(p);
+  p = problems(sources({"backend.sim_zero_change_deg=0.1"}));
+  EXPECT_TRUE(reported(p, {"backend.sim_zero_change_deg", "needs its joint"})) << joined(p);
+  p = problems(sources({"backend.sim_zero_change_joint=three"}));
+  EXPECT_TRUE(reported(p, {"backend.sim_zero_change_joint"})) << joined(p);
+  p = problems(sources({"backend.sim_zero_change_joint=2", "backend.sim_zero_change_deg=0.1",
+                        "backend.sim_host=127.0.0.1", "backend.sim_port=5010"}));
+  EXPECT_TRUE(reported(p, {"backend.sim_zero_change_joint", "external zerocal-sim"})) << joined(p);
+}
+
 TEST_F(ConfigTest, InconsistentCombinations) {
   write("main.yaml",
         "backend:\n  kind: sim\n  sim_world: /nonexistent/world.yaml\n  sim_seed: 3\n"

@@ -6,6 +6,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <string>
@@ -42,6 +43,12 @@ class ConnectedCell {
   virtual void reopenPsd() = 0;
   // Stops the robot (between moves: the controller finishes a move in progress). Never throws.
   virtual void stopRobot() noexcept = 0;
+  // A session begins on this cell: called once per session, after the controller's identity is
+  // read and before its first move. The simulated cell starts the session's own noise here
+  // (docs/simulated-cell.md); a real cell has nothing to do.
+  virtual void beginSession() {}
+  // The seed the session's noise was drawn from, on a simulated cell only (its truth).
+  virtual std::optional<std::uint64_t> truthNoiseSeed() const { return std::nullopt; }
   // The true offsets delta2..delta5 in degrees, on a simulated cell only (for its reports).
   virtual std::optional<std::array<double, 4>> truthDeg() const { return std::nullopt; }
   // The whole simulated world as a world file (docs/simulated-cell.md), on a simulated cell only:

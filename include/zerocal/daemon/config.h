@@ -32,12 +32,17 @@ enum class BackendKind { kHardware, kSim };
 struct BackendConfig {
   BackendKind kind = BackendKind::kHardware;
   // Simulated cell: a world file, or a seed from which a random world is drawn; not both. With
-  // neither, the seed 1 world.
+  // neither, the seed 1 world. Each session draws its own noise on it (sim::SessionNoise).
   std::string sim_world;
   std::optional<std::uint64_t> sim_seed;
   // A seed's world: realistic (the arm's geometry, compliance and warming, the PSD's orientation
   // and centre as known, gross errors; docs/simulated-cell.md) or ideal (exact, for tests).
   bool sim_ideal_world = false;
+  // A motor replaced: joint sim_zero_change_joint's (2..5; 0 none) true zero moved by
+  // sim_zero_change_deg (non-zero, within +-kMaxZeroChangeDeg = 2 deg) on top of the world's
+  // offsets (sim::ZeroChange).
+  int sim_zero_change_joint = 0;
+  double sim_zero_change_deg = 0;
   // Realistic seeded worlds: the chance per pose of each kind of gross error.
   double sim_gross_rate = 0.01;
   // Wall seconds per simulated second of a move: 0 as fast as the computer goes, 1 real time,

@@ -62,6 +62,8 @@ struct ResultFile {
   struct Truth {
     std::array<double, 4> offsets_deg{};
     std::string world_file;  // empty: not written
+    // The seed the session's noise was drawn from (WorldNoise::seed); nullopt: not recorded.
+    std::optional<std::uint64_t> noise_seed;
   };
   std::optional<Truth> truth;
   std::optional<std::vector<PoseTimes>> pose_breakdown;

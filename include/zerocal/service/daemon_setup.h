@@ -20,8 +20,10 @@ RunSettings runSettingsOf(const DaemonConfig& config);
 // The backend of the backend section: the hardware cell (HardwareBackend), or the simulated cell
 // of backend.sim_world or backend.sim_seed (seed 1 when neither): in-process (SimBackend), or with
 // the controller in the external zerocal-sim at backend.sim_host:sim_port
-// (ExternalSimBackend, which checks at connect that it simulates the same world). Throws
-// ConfigError.
+// (ExternalSimBackend, which checks at connect that it simulates the same world). The in-process
+// cell gives each session its own noise (sim::SessionNoise: the data folder's sessions before it
+// count) and applies backend.sim_zero_change_*. Throws ConfigError, and InputError for a zero
+// change the configuration's validation would have refused.
 std::unique_ptr<CellBackend> makeBackend(const DaemonConfig& config);
 
 // The session manager's settings: data folder, run settings, plan defaults, the nominal target on a

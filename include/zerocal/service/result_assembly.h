@@ -26,6 +26,7 @@ struct RunFacts {
   // beside the result (empty: none written).
   std::optional<std::array<double, 4>> truth_deg;
   std::string truth_world_file;
+  std::optional<std::uint64_t> truth_noise_seed;
   std::int64_t finished_unix_s = 0;
   // What every move costs the controller beyond its motion, when known: each measured pose's
   // breakdown then shows it, as moves x cost.

@@ -46,6 +46,8 @@ class PsdModel {
   PsdVoltages ideal(const std::optional<PsdSpot>& spot) const;
   // With the board's noise (advances the seeded generator).
   PsdVoltages measure(const std::optional<PsdSpot>& spot);
+  // Starts the reading noise afresh from `seed` (options().seed becomes it): a session's own.
+  void reseed(std::uint32_t seed);
 
   const PsdModelOptions& options() const noexcept { return options_; }
 

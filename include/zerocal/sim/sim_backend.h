@@ -6,6 +6,7 @@
 
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "zerocal/cell/cell.h"
@@ -19,22 +20,40 @@ namespace zerocal::sim {
 // simulator.
 using SimLinkFactory = std::function<std::unique_ptr<ControllerConnection>(const LinkEndpoint&)>;
 
+// How the sessions on a SimBackend draw their noise (docs/simulated-cell.md): the backend's k-th
+// session (k = 0, 1, ...) starts from sessionNoiseSeed(*first, sessions_before + k), and its
+// truth names that seed. Without `first`, the sessions continue the cell's noise streams (the
+// seeds of its options) and their truth names none.
+struct SessionNoise {
+  std::optional<std::uint64_t> first;
+  std::uint64_t sessions_before = 0;  // the sessions the data folder held when the daemon started
+};
+
 class SimBackend final : public CellBackend {
  public:
   // `link` makes the controller link of each session; without it, an Irc5Client with the
   // simulated cell's own options (SimulatedCell::clientOptions). The simulated controller speaks
   // the IRC5 protocol: a link of another kind is refused here (ConfigError naming
   // controller.kind).
-  explicit SimBackend(SimulatedCellOptions options, SimLinkFactory link = {});
+  explicit SimBackend(SimulatedCellOptions options, SimLinkFactory link = {},
+                      SessionNoise noise = {});
   const char* name() const override { return "sim"; }
   CellKnowledge knowledge() const override;
   std::unique_ptr<ConnectedCell> connect() override;
 
   SimulatedCell& cell() { return cell_; }
+  // A session begins: its noise starts from its own seed (SessionNoise). Returns that seed, or
+  // nullopt when the backend has no SessionNoise::first.
+  std::optional<std::uint64_t> beginSession();
+  // The seed the current session's noise started from, as beginSession returned it.
+  std::optional<std::uint64_t> sessionNoiseSeed() const { return session_seed_; }
 
  private:
   SimulatedCell cell_;
   SimLinkFactory link_;
+  SessionNoise noise_;
+  std::uint64_t sessions_begun_ = 0;
+  std::optional<std::uint64_t> session_seed_;
 };
 
 struct ExternalSimOptions {

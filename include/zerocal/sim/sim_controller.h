@@ -134,6 +134,10 @@ class SimController {
   // How far each joint's true zero has moved since start (deg): true joint angles are the
   // commanded ones plus world().true_offsets_deg plus this (plus the move's error).
   Joints zeroShiftDeg() const;
+  // SimulatedArm::reseedNoise and noiseSeed: a session's own repeatability noise, gross errors
+  // and latch latency.
+  void reseedNoise(std::uint64_t seed);
+  std::uint64_t noiseSeed() const;
   // The PSD is moved to `placement` (1-based) of a session whose placements are planned at
   // `planned_centres_mm` (placement 1's first): placement 1 is where the world has it; each
   // further one's truth is drawPlacement(world, seed, placement, planned centre). world() then

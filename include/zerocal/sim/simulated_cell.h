@@ -45,7 +45,8 @@ struct SimulatedCellOptions {
 };
 
 // The simulated cell of one seed: the world randomWorld(seed, kind), and the controller's and the
-// PSD's noise drawn from the same seed (backend.sim_seed of the daemon, the seeded cells of the
+// PSD's noise drawn from the same seed (the first session's; SimBackend's SessionNoise gives each
+// later session its own) (backend.sim_seed of the daemon, the seeded cells of the
 // tests). kIdeal is for tests that need exact figures; a session's default is kRealistic.
 SimulatedCellOptions seededCellOptions(std::uint64_t seed, WorldKind kind = WorldKind::kRealistic);
 
@@ -70,6 +71,14 @@ class SimulatedCell final : public CellClock {
   Irc5Options clientOptions() const;
   const World& world() const { return controller_->world(); }
   const SimulatedCellOptions& options() const { return options_; }
+
+  // Starts a session's own noise from `seed`: the controller's per-session draws
+  // (SimController::reseedNoise) and the PSD's reading noise (from seed + 100, paired as
+  // seededCellOptions pairs them, so that reseeding with a seed's own number changes nothing).
+  // The PSD map stays the bench's. From the thread that drives the cell, between moves.
+  void reseedNoise(std::uint64_t seed);
+  // The seed the controller's per-session draws last started from.
+  std::uint64_t noiseSeed() const { return controller_->noiseSeed(); }
 
   double nowS() noexcept override;
   // Advances the cell's clock; nothing sleeps.

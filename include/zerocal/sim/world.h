@@ -17,6 +17,7 @@
 
 #include "zerocal/model/robot.h"
 #include "zerocal/psd/spot.h"
+#include "zerocal/sim/zero_change.h"
 
 namespace zerocal {
 
@@ -29,7 +30,18 @@ struct WorldNoise {
   double repeatability_deg = 1.5e-3;
   // Standard deviation of a PSD reading (mm); applied by the PSD simulator, not here.
   double psd_mm = 0.001;
+  // Where a session's random draws start (the repeatability noise, the gross errors, the latch
+  // latency, the PSD's reading noise), when the world says: a truth file names the seed its
+  // session drew from, so that the file replays that session. Absent, the daemon derives it
+  // (sessionNoiseSeed). Not part of worldHash: the same cell, another session.
+  std::optional<std::uint64_t> seed;
 };
+
+// The noise seed of the session numbered `session` (0, 1, ...: the sessions the data folder held
+// before it) of a world whose first session draws from `first`: `first` itself for session 0, so
+// that a fresh data folder plays what the world always played; a well-mixed other seed for every
+// later one, so that two sessions on one world never share a noise stream.
+std::uint64_t sessionNoiseSeed(std::uint64_t first, std::uint64_t session);
 
 // How one link of the true arm differs from the nominal DH row (added to a, d and alpha).
 struct DhError {
@@ -137,6 +149,10 @@ struct World {
   int active_placement = 1;
 };
 
+// The world with `change` (zerocal/sim/zero_change.h) applied to its true offsets. Throws
+// InputError for a bad change.
+void applyZeroChange(const ZeroChange& change, World* world);
+
 // Where the PSD truly stands when a session puts it at `placement` (2, 3, ...) planned at
 // `planned_mm`: as far from the planned centre as the world's taught centre is from its PSD
 // (|psd_centre_taught_mm - psd_position_mm|), and turned from psd_rotation_configured by as much
@@ -194,7 +210,8 @@ std::string worldHash(const World& world);
 //   psd: {position_mm: [x, y, z], rpy_deg: [roll, pitch, yaw]}  # base frame, R = Rz Ry Rx
 //        optional: configured_rpy_deg (default rpy_deg), taught_centre_mm (default position
 //        + (3, -3, 3))
-//   noise: {repeatability_deg: 1.5e-3, psd_mm: 0.001}           # optional
+//   noise: {repeatability_deg: 1.5e-3, psd_mm: 0.001, seed: 7}  # optional; seed: the
+//        session noise's (WorldNoise::seed)
 //   optional, each absent = none (the ideal arm):
 //   dh_errors: {a_mm: [6], d_mm: [6], alpha_deg: [6]}
 //   compliance: {joint2_sag_deg: x, joint3_sag_deg: x, mass_share: [3], mass_position: [2]}

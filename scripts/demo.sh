@@ -42,7 +42,7 @@ echo "zerocald (pid ${daemon}) serves 127.0.0.1:${port}; its log: ${log}"
 echo
 echo "=== zerocal start --watch: a calibration from the shop-floor client ==="
 build/bin/zerocal plan --port "${port}"
-build/bin/zerocal start --port "${port}" --watch
+build/bin/zerocal start --port "${port}" --even-if-not-usable --watch
 echo
 build/bin/zerocal status --port "${port}"
 

@@ -357,6 +357,7 @@ json startMembers(const ClientArgs& args) {
   if (!args.target.empty()) m["target_mm"] = args.target;
   if (args.noise_mm) m["noise_mm"] = *args.noise_mm;
   if (args.placements) m["placements"] = *args.placements;
+  if (args.even_if_not_usable) m["even_if_not_usable"] = true;
   return m;
 }
 
@@ -639,6 +640,10 @@ void addClientCommands(CLI::App& app, ClientCommands& commands) {
                    "PSD placements, --poses at each; the session waits for the PSD to be moved "
                    "between them (default the daemon's)")
       ->check(CLI::Range(1, kMaxDefaultPlacements));
+  start->add_flag("--even-if-not-usable", a.even_if_not_usable,
+                  "start even when the plan is predicted not to determine every offset to the "
+                  "daemon's session.required_accuracy_deg (refused otherwise, before anything "
+                  "moves); the result then withholds those offsets");
   start->add_flag("--watch", a.watch,
                   "then show its progress until it ends or waits for the PSD to be moved");
   add("status", "the daemon's session state");
@@ -703,7 +708,7 @@ int runClient(const ClientArgs& args, std::ostream& out, std::ostream& err, bool
   } catch (const CommandError& e) {
     err << "zerocal: " << args.command << " refused (" << e.code() << "): " << e.what() << "\n";
     if (e.code() == "auth_failed" || e.code() == "unauthenticated") return kClientAuthRefused;
-    if (e.code() == "not_identifiable") return kClientNotIdentifiable;
+    if (e.code() == "not_identifiable" || e.code() == "not_accurate") return kClientNotIdentifiable;
     if (e.code() == "internal") return kClientFailure;
     return kClientBadRequest;
   } catch (const ConnectionError& e) {

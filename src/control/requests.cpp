@@ -12,7 +12,8 @@ using nlohmann::json;
 namespace {
 
 const std::set<std::string> kStartMembers{
-    "id", "cmd", "token", "plan", "poses", "plan_file", "target_mm", "noise_mm", "placements"};
+    "id",        "cmd",       "token",    "plan",       "poses",
+    "plan_file", "target_mm", "noise_mm", "placements", "even_if_not_usable"};
 const std::set<std::string> kContinueMembers{"id", "cmd", "token", "centre_mm"};
 
 // [x, y, z] in mm, finite. Throws BadRequest naming `member`.
@@ -86,6 +87,11 @@ service::StartRequest parseStartRequest(const json& request,
       throw BadRequest("placements: expected an integer 1.." +
                        std::to_string(kMaxDefaultPlacements));
     r.placements = p.get<int>();
+  }
+  if (request.contains("even_if_not_usable")) {
+    if (!request["even_if_not_usable"].is_boolean())
+      throw BadRequest("even_if_not_usable: expected true or false");
+    r.even_if_not_usable = request["even_if_not_usable"].get<bool>();
   }
   return r;
 }

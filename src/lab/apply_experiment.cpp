@@ -70,6 +70,7 @@ WorldRun runWorld(std::uint64_t seed, const ApplyExperimentArgs& args, const std
   const auto calibrate = [&]() {
     service::StartRequest request = manager.defaultRequest();
     request.poses = args.poses;
+    request.even_if_not_usable = true;  // measured whatever its plan predicts
     if (found) {
       request.target_mm = found->target_mm;
       request.found_before = found;

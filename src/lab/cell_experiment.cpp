@@ -72,10 +72,13 @@ Calibration calibrate(const DaemonConfig& config) {
   service::SessionManager manager(*backend, settings);
   Calibration out;
   try {
-    const Plan plan = manager.preview(manager.defaultRequest());
+    // What a calibration gives is measured whatever its plan predicts: asked for explicitly.
+    service::StartRequest request = manager.defaultRequest();
+    request.even_if_not_usable = true;
+    const Plan plan = manager.preview(request);
     out.plan = plan.poses;
     out.prediction = plan.prediction;
-    manager.start(manager.defaultRequest());
+    manager.start(request);
   } catch (const service::Refused& e) {
     out.message = e.what();
   }

@@ -63,6 +63,34 @@ void refuseUnlessIdentifiable(const Prediction& prediction) {
                   "the plan cannot identify every offset, nothing moved: " + refusal);
 }
 
+std::string fixedDeg(double deg) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.4f", deg);
+  return text;
+}
+
+// A calibration whose plan is predicted not to reach the required accuracy would move the robot
+// for minutes to answer "not usable": it is refused before anything moves, with what would reach
+// it, unless asked for explicitly.
+void refuseUnlessAccurate(const Prediction& prediction, double required_deg, int placements) {
+  std::string short_of;
+  for (int k = 0; k < kOffsetCount; ++k)
+    if (!(prediction.sigma[k] <= required_deg))
+      short_of += std::string(short_of.empty() ? "" : ", ") + unknownName(k).substr(0, 6) +
+                  " only to " + fixedDeg(prediction.sigma[k]);
+  if (short_of.empty()) return;
+  throw Refused("not_accurate",
+                "the plan is predicted to determine " + short_of +
+                    " deg (one sigma, the robot's link tolerances counted) against the required " +
+                    fixedDeg(required_deg) +
+                    " deg: its result would not be usable, nothing moved. " +
+                    (placements > 1 ? std::string("More poses at each placement")
+                                    : std::string("Several PSD placements (--placements 3)")) +
+                    " would reach it, or, for a robot with a reference, a restore against it; to "
+                    "calibrate anyway (the result then withholds those offsets), ask for it "
+                    "(--even-if-not-usable)");
+}
+
 // The servo and the controller keep limit_margin_deg from every joint limit and fault a move into
 // it, which a plan would find only once the robot got there: every pose is checked before
 // anything moves.
@@ -226,6 +254,9 @@ PlannedSession RequestPlanner::plan(const StartRequest& request) const {
   PlannedSession p;
   p.plan = makePlan(request, p.run.target, p.run.noise_mm);
   refuseUnlessIdentifiable(p.plan.prediction);
+  // A verification is the daemon's own check of an apply, judged by what it changed.
+  if (!request.even_if_not_usable && request.verifies.empty())
+    refuseUnlessAccurate(p.plan.prediction, settings_.required_accuracy_deg, request.placements);
   p.run.poses = p.plan.poses;
   p.run.centres = plannedCentres(knowledge_.cell, p.run.poses, p.run.target);
   checkPlaceable(p.run);  // a plan file's placements

@@ -61,6 +61,7 @@ PlannerSettings plannerSettingsOf(const ManagerSettings& settings) {
   const SolveOptions& solve = settings.run.solve;
   p.tolerances = {solve.model_length_mm, solve.model_angle_deg, solve.model_sag_deg};
   p.limit_margin_deg = settings.run.servo.limit_margin_deg;
+  p.required_accuracy_deg = solve.required_accuracy_deg;
   p.travel_s = settings.travel_s;
   return p;
 }

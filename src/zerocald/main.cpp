@@ -81,7 +81,7 @@ std::unique_ptr<record::SqliteRecord> openTheRecord(const std::string& data_dir)
 }
 
 // One calibration, then exit; progress on stderr, the result on stdout.
-int runOnce(SessionManager& manager, asio::io_context& io, bool json) {
+int runOnce(SessionManager& manager, asio::io_context& io, bool json, bool even_if_not_usable) {
   manager.setEventSink([&io](const service::SessionEvent& event) {
     if (const auto* plan = std::get_if<service::PlanEvent>(&event)) {
       std::fprintf(stderr, "plan: %s\n", plan->description.c_str());
@@ -106,11 +106,14 @@ int runOnce(SessionManager& manager, asio::io_context& io, bool json) {
     }
   });
   try {
-    manager.start(manager.defaultRequest());
+    service::StartRequest request = manager.defaultRequest();
+    request.even_if_not_usable = even_if_not_usable;
+    manager.start(request);
   } catch (const service::Refused& e) {
     std::cerr << "zerocald: " << e.what() << "\n";
     if (e.code() == "unrecovered") return kStopped;
-    return e.code() == "not_identifiable" ? kNotIdentifiable : kBadInput;
+    return e.code() == "not_identifiable" || e.code() == "not_accurate" ? kNotIdentifiable
+                                                                        : kBadInput;
   }
   io.run();  // until the session ends or a signal aborts it
   const service::SessionStatus status = manager.waitIdle();
@@ -159,7 +162,7 @@ int main(int argc, char** argv) {
       "one calibration as configured and exits. docs/daemon.md explains it."};
   app.set_version_flag("--version", std::string(PROJECT_VERSION));
   ConfigSources sources;
-  bool sim = false, once = false, json = false;
+  bool sim = false, once = false, json = false, even_if_not_usable = false;
   std::optional<std::uint64_t> seed;
   std::string data_dir;
   app.add_option("--config", sources.config_path, "main configuration file")
@@ -176,6 +179,9 @@ int main(int argc, char** argv) {
                "docs/simulated-cell.md)");
   app.add_option("--data-dir", data_dir, "where session folders go (session.data_dir)");
   app.add_flag("--json", json, "--once: print the result as one JSON object");
+  app.add_flag("--even-if-not-usable", even_if_not_usable,
+               "--once: calibrate even when the plan is predicted not to determine every offset "
+               "to session.required_accuracy_deg (refused otherwise, before anything moves)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -225,7 +231,7 @@ int main(int argc, char** argv) {
       // A calibration of its own runs on the controller's present values: only once an apply
       // interrupted earlier is recovered (else the start is refused and says what to check).
       if (manager.recoverInterruptedApplies() > 0) manager.waitIdle();
-      return runOnce(manager, io, json);
+      return runOnce(manager, io, json, even_if_not_usable);
     }
 
     // Before the port opens: an apply the daemon was stopped in is restored first (the board is

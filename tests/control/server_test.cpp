@@ -260,6 +260,10 @@ TEST_F(ControlServerTest, StartPassesThePlanChoice) {
   ASSERT_TRUE(req.target_mm);
   EXPECT_DOUBLE_EQ(req.target_mm->z(), 400.5);
   EXPECT_DOUBLE_EQ(req.noise_mm.value_or(0), 0.02);
+  EXPECT_FALSE(req.even_if_not_usable);
+  session_.setState(service::SessionState::kIdle);
+  c->call("start", {{"even_if_not_usable", true}});
+  EXPECT_TRUE(session_.lastRequest().even_if_not_usable);
   // NaN (not identifiable) travels as null.
   EXPECT_TRUE(c->call("status")["status"]["predicted_sigma_deg"][2].is_null());
 }
@@ -595,6 +599,7 @@ TEST_F(ControlServerTest, WrongTypesAreBadRequestsNamingTheMember) {
       {{{"cmd", "start"}, {"target_mm", {1, 2}}}, "target_mm"},
       {{{"cmd", "start"}, {"target_mm", "900 0 400"}}, "target_mm"},
       {{{"cmd", "start"}, {"noise_mm", -1}}, "noise_mm"},
+      {{{"cmd", "start"}, {"even_if_not_usable", 1}}, "even_if_not_usable"},
       {{{"cmd", "start"}, {"pose", 8}}, "pose"},
       {{{"cmd", "plan"}, {"poses", json::object()}}, "poses"},
       {{{"cmd", "result"}, {"session", 12}}, "session"},

@@ -26,7 +26,7 @@ for _ in $(seq 1 500); do
 done
 [ -n "$port" ] || fail "zerocal-sim printed no port"
 
-"$zerocald" --sim --once --seed $seed --config /dev/null --set backend.sim_host=127.0.0.1 \
+"$zerocald" --sim --once --even-if-not-usable --seed $seed --config /dev/null --set backend.sim_host=127.0.0.1 \
   --set backend.sim_port="$port" --set servo.settle_s=0.02 --data-dir "$dir/sessions" \
   >"$dir/out" 2>"$dir/log"
 code=$?
@@ -34,7 +34,7 @@ code=$?
 ls "$dir"/sessions/*/result.json >/dev/null 2>&1 || fail "no result.json written"
 
 # A zerocal-sim of another world is refused, naming both, and nothing is written as a result.
-"$zerocald" --sim --once --seed $((seed + 1)) --config /dev/null --set backend.sim_host=127.0.0.1 \
+"$zerocald" --sim --once --even-if-not-usable --seed $((seed + 1)) --config /dev/null --set backend.sim_host=127.0.0.1 \
   --set backend.sim_port="$port" --data-dir "$dir/other" >"$dir/out" 2>"$dir/log"
 code=$?
 [ $code -eq 3 ] || fail "exit code $code for a mismatched world, expected 3 (session faulted)"

@@ -8,7 +8,7 @@ dir=$(mktemp -d /tmp/zerocal-sigterm-XXXXXX)
 trap 'rm -rf "$dir"' EXIT
 fail() { echo "FAIL: $*"; cat "$dir/log" 2>/dev/null | tail -20; exit 1; }
 
-"$zerocald" --sim --once --seed 3 --config /dev/null --set backend.sim_pace=0.05 --data-dir "$dir/sessions" >"$dir/out" 2>"$dir/log" &
+"$zerocald" --sim --once --even-if-not-usable --seed 3 --config /dev/null --set backend.sim_pace=0.05 --data-dir "$dir/sessions" >"$dir/out" 2>"$dir/log" &
 pid=$!
 # Paced at 1/20 of real time, the session takes a few seconds of wall time: wait for its journal,
 # then half a second, and it is surely mid-session.

@@ -49,6 +49,32 @@ bool identifiesEveryOffset(const Prediction& p) {
 const ModelTolerances kLargeTolerances{3.8, 0.38, 0.38};
 constexpr const char* kTwoPlacements = "ideal-5-2-placements";
 
+// A plan predicted short of the required accuracy moves nothing unless asked for: the robot's
+// link tolerances at one placement leave delta2..delta5 beyond 0.01 deg.
+TEST(RequestPlanner, APlanPredictedShortOfTheRequiredAccuracyStartsOnlyWhenAskedFor) {
+  StartRequest request;
+  request.plan = PlanKind::kFile;
+  request.plan_file = testing::storedPlanPath("ideal-5");
+  const PlannerFixture exact({}, "ideal-5");
+  EXPECT_NO_THROW(exact.planner->plan(request));  // the model taken as exact: 0.003 deg
+  const PlannerFixture tolerant({0.1, 0.01, 0.0}, "ideal-5");
+  const Plan preview = tolerant.planner->preview(request);  // a preview is never refused
+  ASSERT_GT(preview.prediction.sigma[0], 0.01);
+  try {
+    tolerant.planner->plan(request);
+    FAIL() << "a plan short of 0.01 deg was let go";
+  } catch (const Refused& e) {
+    EXPECT_EQ(e.code(), "not_accurate") << e.what();
+    const std::string what = e.what();
+    for (const char* part : {"delta2 only to", "against the required 0.0100 deg", "nothing moved",
+                             "--placements 3", "--even-if-not-usable"})
+      EXPECT_NE(what.find(part), std::string::npos) << part << " in: " << what;
+  }
+  request.even_if_not_usable = true;
+  const PlannedSession asked = tolerant.planner->plan(request);
+  EXPECT_EQ(asked.run.poses.size(), preview.poses.size());
+}
+
 TEST(RequestPlanner, ASkipTheSolveWouldRefuseIsRefusedAtResumeAndNotOfferedAfterAFault) {
   PlannerFixture f(kLargeTolerances, kTwoPlacements);
   CalibrationParameters nominal;

@@ -34,6 +34,9 @@ struct PlannerSettings {
   ModelTolerances tolerances;
   // The servo's margin from every joint limit (deg): a plan's pose inside it is refused.
   double limit_margin_deg = 0;
+  // The one-sigma accuracy a result must reach (the solve's): a plan predicted short of it
+  // starts only when asked for explicitly (StartRequest::even_if_not_usable).
+  double required_accuracy_deg = 0.01;
   // The controller's time for a move between two poses (s): a plan is then ordered for travel.
   std::function<double(const Robot& robot, const Joints& from, const Joints& to)> travel_s;
 };
@@ -72,8 +75,9 @@ class RequestPlanner {
   // a plan file's pose inside the limits' margin, ("unsupported") for placements the cell cannot
   // have.
   Plan preview(const StartRequest& request) const;
-  // The plan of a request for a new session; throws as preview(), and Refused("not_identifiable")
-  // when the plan does not identify delta2..delta5.
+  // The plan of a request for a new session; throws as preview(), Refused("not_identifiable")
+  // when the plan does not identify delta2..delta5, and ("not_accurate") when it is predicted
+  // short of the required accuracy and the request does not ask for it anyway.
   PlannedSession plan(const StartRequest& request) const;
   // Session `id`'s run plan from its session.json, checked exactly as a new plan is (anyone with
   // access may have edited the file). Throws Refused("bad_session"), ("out_of_limits").

@@ -78,6 +78,10 @@ struct StartRequest {
   // A verification's: the session whose apply it verifies (session.json's kind and verifies).
   // Not on the control port.
   std::string verifies;
+  // Start even when the plan is predicted not to determine every offset to the required
+  // accuracy (session.required_accuracy_deg): a calibration asked for explicitly, whose result
+  // will withhold those offsets. Without it such a plan is refused before anything moves.
+  bool even_if_not_usable = false;
 };
 
 // Goes on with the session that waits for the PSD at its next placement.

@@ -390,6 +390,21 @@ int printPlan(const json& plan, const ClientArgs& args, std::ostream& out) {
       out << line;
     }
     out << plan.value("poses", json::array()).size() << " poses\n";
+    // The daemon's verdict on the plan, as `start` will apply it.
+    const double required = plan.value("required_accuracy_deg", 0.0);
+    std::string short_of;
+    for (const char* name : {"delta2_deg", "delta3_deg", "delta4_deg", "delta5_deg"})
+      if (required > 0 && predicted.contains(name) && predicted[name]["sigma"].is_number() &&
+          !(predicted[name]["sigma"].get<double>() <= required))
+        short_of += std::string(short_of.empty() ? "" : ", ") + std::string(name).substr(0, 6);
+    if (!short_of.empty()) {
+      char line[200];
+      std::snprintf(line, sizeof line, "%.4f", required);
+      out << "short of the required " << line << " deg: " << short_of
+          << ". `zerocal start` refuses this plan unless --even-if-not-usable (its result would "
+             "withhold them); several PSD placements (--placements 3) would reach it, or a "
+             "restore against the robot's reference\n";
+    }
   }
   return identifiable ? kClientOk : kClientNotIdentifiable;
 }

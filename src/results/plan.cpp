@@ -44,6 +44,7 @@ nlohmann::json toJson(const Plan& plan) {
     j["predicted_link_errors"] = links;
   }
   j["predicted_rms_offset_sigma_deg"] = numberOrNull(plan.prediction.rms_offset_sigma_deg);
+  if (pr.required_accuracy_deg > 0) j["required_accuracy_deg"] = pr.required_accuracy_deg;
   j["rank"] = plan.prediction.rank;
   j["condition_number"] = numberOrNull(plan.prediction.condition_number);
   return j;
@@ -86,6 +87,11 @@ Plan planFromJson(const nlohmann::json& json, const std::string& where) {
     p.rms_offset_sigma_deg = j.numberOrNan("predicted_rms_offset_sigma_deg");
     p.rank = j.has("rank") ? j.integer("rank") : 0;
     p.condition_number = j.numberOrNan("condition_number");
+  }
+  if (j.present("required_accuracy_deg")) {
+    p.required_accuracy_deg = j.numberOrNan("required_accuracy_deg");
+    if (!(p.required_accuracy_deg > 0 && p.required_accuracy_deg <= 1))
+      throw InputError(where + " required_accuracy_deg: not a number in (0, 1] deg");
   }
   // A plan at several PSD placements: each pose's placement, and what it predicts of the link
   // errors (toJson writes these only then).

@@ -247,12 +247,15 @@ Plan RequestPlanner::makePlan(const StartRequest& request, Eigen::Vector3d& targ
 Plan RequestPlanner::preview(const StartRequest& request) const {
   Eigen::Vector3d target;
   double noise_mm = 0;
-  return makePlan(request, target, noise_mm);
+  Plan plan = makePlan(request, target, noise_mm);
+  plan.prediction.required_accuracy_deg = settings_.required_accuracy_deg;
+  return plan;
 }
 
 PlannedSession RequestPlanner::plan(const StartRequest& request) const {
   PlannedSession p;
   p.plan = makePlan(request, p.run.target, p.run.noise_mm);
+  p.plan.prediction.required_accuracy_deg = settings_.required_accuracy_deg;
   refuseUnlessIdentifiable(p.plan.prediction);
   // A verification is the daemon's own check of an apply, judged by what it changed.
   if (!request.even_if_not_usable && request.verifies.empty())

@@ -49,6 +49,8 @@ Plan FakeSession::preview(const service::StartRequest& request) const {
   plan.prediction.identifiable.assign(kIdentifiedCount, true);
   plan.prediction.reason.assign(kIdentifiedCount, "");
   plan.prediction.rank = 11;
+  plan.prediction.required_accuracy_deg = 0.01;
+  if (request.poses == 10) plan.prediction.sigma[0] = 0.02;  // a plan short of the accuracy
   return plan;
 }
 

@@ -98,6 +98,13 @@ TEST(ResultsCodec, APlanWithoutAPredictionWritesAndReadsBack) {
   ASSERT_EQ(back.prediction.identifiable.size(), static_cast<std::size_t>(kIdentifiedCount));
   EXPECT_FALSE(back.prediction.identifiable[0]);
   EXPECT_EQ(back.prediction.reason[0], "not predicted");
+  EXPECT_FALSE(j.contains("required_accuracy_deg"));  // not judged
+  // The accuracy a daemon judged the plan by travels with it, and a wrong one is refused.
+  plan.prediction.required_accuracy_deg = 0.01;
+  nlohmann::json judged = toJson(plan);
+  EXPECT_EQ(planFromJson(judged, "plan").prediction.required_accuracy_deg, 0.01);
+  judged["required_accuracy_deg"] = -1;
+  EXPECT_THROW(planFromJson(judged, "plan"), InputError);
 }
 
 }  // namespace

@@ -28,6 +28,9 @@ struct Prediction {
   std::vector<double> link_sigma;
   std::vector<bool> link_identifiable;
   std::vector<std::string> link_reason;
+  // The one-sigma accuracy a result must reach, when the daemon's planner judged the plan by it
+  // (a session is refused unless every offset's sigma is within it); 0 when not judged.
+  double required_accuracy_deg = 0;
 };
 
 struct Plan {

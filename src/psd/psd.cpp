@@ -164,7 +164,10 @@ PsdMap PsdMap::fit(const std::vector<SweepPoint>& sweep, const MapFitOptions& op
 }
 
 std::size_t PsdMap::termCount(int degree) {
-  return degree < 0 ? 0 : static_cast<std::size_t>((degree + 1) * (degree + 2) / 2);
+  // In size_t: a degree read from a file may be any int, and (degree + 1) (degree + 2) overflows
+  // an int from degree 46340 on.
+  const auto d = static_cast<std::size_t>(degree);
+  return degree < 0 ? 0 : (d + 1) * (d + 2) / 2;
 }
 
 PsdMap PsdMap::fromParts(int degree, std::vector<double> u_coeff, std::vector<double> v_coeff,

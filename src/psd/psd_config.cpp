@@ -136,8 +136,8 @@ std::optional<PsdMap> psdMapFromYaml(const YAML::Node& node, const std::string& 
   }
   if (node["u"]) u = readNumbers(node["u"], where + ".u", problems);
   if (node["v"]) v = readNumbers(node["v"], where + ".v", problems);
-  const std::size_t m = PsdMap::termCount(degree);
   if (degree >= 1 && degree <= 12) {
+    const std::size_t m = PsdMap::termCount(degree);
     if (node["u"] && u.size() != m) {
       problems.push_back(where + ".u: " + std::to_string(u.size()) + " coefficients; degree " +
                          std::to_string(degree) + " needs " + std::to_string(m));

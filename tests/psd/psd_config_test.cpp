@@ -77,6 +77,14 @@ v: [1, 2, 3, 4, 5, x]
   problems.clear();
   EXPECT_FALSE(psdMapFromYaml(YAML::Load("{zone_mm: {u: [0, 1], v: [0, 1]}}"), "map", problems));
   EXPECT_TRUE(mentions(problems, "map: missing 'degree'"));
+  // A degree far out of range is a problem to report, not an overflow (the fuzzer's finding).
+  problems.clear();
+  EXPECT_FALSE(psdMapFromYaml(YAML::Load("{degree: 62338, zone_mm: {u: [0, 1], v: [0, 1]}}"), "map",
+                              problems));
+  EXPECT_FALSE(problems.empty());
+  EXPECT_EQ(PsdMap::termCount(62338), std::size_t{62339} * 62340 / 2);
+  EXPECT_EQ(PsdMap::termCount(2), 6u);
+  EXPECT_EQ(PsdMap::termCount(-1), 0u);
 }
 
 TEST(PsdMapYaml, MapFileProblemsAreConfigErrors) {

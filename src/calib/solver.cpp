@@ -27,6 +27,10 @@ void checkPoses(const CellModel& cell, const std::vector<Pose>& poses) {
                      std::to_string(kIdentifiedCount) +
                      " parameters and the target point needs at least " +
                      std::to_string(kMinimumPoses) + " (use 8 or more)");
+  checkJointLimits(cell, poses);
+}
+
+void checkJointLimits(const CellModel& cell, const std::vector<Pose>& poses) {
   for (std::size_t i = 0; i < poses.size(); ++i) {
     const std::string v = cell.robot.limitViolation(poses[i].q_deg);
     if (!v.empty())
@@ -351,6 +355,11 @@ Eigen::MatrixXd linkSpread(const CellModel& cell, const std::vector<Pose>& poses
     }
   }
   return g;
+}
+
+Eigen::VectorXd poseMisses(const CellModel& cell, const std::vector<Pose>& poses,
+                           const CalibrationParameters& est, bool readings) {
+  return misses(cell, poses, est, readings);
 }
 
 ceres::Solver::Options solverOptions(const SolveOptions& options, CancelCallback* cancel) {

@@ -95,6 +95,10 @@ GrossErrorSearch findGrossErrors(
     const SolveOptions& options, const SubsetFitter& refit,
     const std::function<std::string(const std::vector<int>& remaining, int i)>& cannot_leave_out);
 
+// The line's miss of each pose's hit point (mm, 2 per pose) at `est`.
+Eigen::VectorXd poseMisses(const CellModel& cell, const std::vector<Pose>& poses,
+                           const CalibrationParameters& est, bool readings);
+
 // The misses' derivatives by each link length and twist (a, d, alpha of every joint) times its
 // tolerance, mm: 2 rows per pose, 3 columns per joint; with a sag tolerance and a robot file with
 // a gravity model, 2 more, joints 2 and 3's compliance. What the model errors the tolerances

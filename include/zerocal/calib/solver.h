@@ -62,6 +62,8 @@ struct SolveOptions {
 // (naming the pose and its source line): what every pose set must pass before a solve, and
 // before the robot moves for a plan.
 void checkPoses(const CellModel& cell, const std::vector<Pose>& poses);
+// Throws InputError for a pose outside the robot's joint limits, naming the pose and its line.
+void checkJointLimits(const CellModel& cell, const std::vector<Pose>& poses);
 
 // Throws InputError for fewer than kMinimumPoses distinct poses, joints outside the robot's
 // limits, or invalid options; with poses at two or more PSD placements (Pose::placement), also

@@ -1,0 +1,74 @@
+// The change of the zeros since a reference (docs/maths.md section 10): a session re-measures
+// poses of a reference session, each from the joints the reference recorded, and what it finds is
+// the change of delta2..delta5 since then. The link errors the method cannot identify cancel: at
+// the same joints they move the beam alike in both sessions, so what is left of them is the
+// difference of their effect between the two joint sets, which is counted (as a consider
+// covariance) and small. A check re-measures a few poses, a restore all of them.
+#pragma once
+
+#include <vector>
+
+#include "zerocal/calib/cell_model.h"
+#include "zerocal/calib/solver.h"
+#include "zerocal/results/check_judgement.h"
+#include "zerocal/results/solve_report.h"
+
+namespace zerocal {
+
+// A reference as the change is measured against it: the poses it recorded (those its solve used)
+// and its own solve's parameters (the laser line and the PSD centre it found).
+struct ReferenceFit {
+  std::vector<Pose> poses;
+  CalibrationParameters estimate;
+};
+
+struct ChangeOptions {
+  // The noise (given, per measurement: each pair of poses has twice its variance), the link and
+  // sag tolerances counted, the required accuracy and the gates: as the solve's.
+  SolveOptions solve;
+  // The PSD may have been taken off its base and put back: its centre is an unknown of the
+  // change (3 more), and a centre further than max_psd_shift_mm from the reference's is refused
+  // (the poses then no longer see the arm where the reference saw it, and the link errors no
+  // longer cancel; docs/simulated-cell.md measures how far is too far).
+  bool psd_remounted = true;
+  double max_psd_shift_mm = 5.0;
+  // The laser was taken off the flange and put back: its four parameters are unknowns too.
+  bool laser_remounted = false;
+  // Returns a description of the first problem, or empty when usable.
+  std::string validate() const;
+};
+
+// The number of unknowns of a change with these options: 4 offsets, the PSD centre's 3 when
+// re-mounted, the laser's 4 when re-mounted.
+int changeUnknownCount(const ChangeOptions& options);
+
+// The change since `reference` from poses `now`, now[k] re-measuring reference.poses[pairs[k]].
+// The report's offsets (parameters delta2..delta5, estimate.delta_rad) are the change since the
+// reference, the values that written into the controller bring its zeros back to the
+// reference's; its laser and target are the line and PSD centre now; its poses' misses are the
+// differences of the pairs. Its verdict says whether each change is known to the required
+// accuracy, the misses agree with the noise, and the PSD is where the reference had it. Throws
+// InputError for pairs that do not name reference poses, fewer poses than unknowns need, or
+// invalid options.
+SolveReport solveChange(const CellModel& cell, const ReferenceFit& reference,
+                        const std::vector<Pose>& now, const std::vector<int>& pairs,
+                        const ChangeOptions& options);
+
+// The predicted one-sigma uncertainty of each offset's change (deg) when the reference poses at
+// `pairs` are re-measured (the noise alone: at the same joints the link errors cancel). Infinite
+// where the poses do not determine it.
+Eigen::Vector4d predictChangeSigma(const CellModel& cell, const ReferenceFit& reference,
+                                   const std::vector<int>& pairs, const ChangeOptions& options);
+
+// The reference poses a check re-measures: the fewest (at least enough for the unknowns) whose
+// predicted sigma of every offset's change is at most `sigma_deg`, chosen greedily for the
+// largest gain, in reference order; all of them when even all do not reach it.
+std::vector<int> choosePosesForCheck(const CellModel& cell, const ReferenceFit& reference,
+                                     const ChangeOptions& options, double sigma_deg);
+
+// What a check concludes from a change: each zero within `bound_deg` of the reference's with 95%
+// confidence (pass); one or more moved beyond the bound by more than three of their sigmas
+// (changed, naming them); or neither (marginal).
+CheckJudgement judgeCheck(const SolveReport& change, double bound_deg);
+
+}  // namespace zerocal

@@ -1,0 +1,398 @@
+#include "zerocal/calib/change.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/SVD>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+#include "solver_detail.h"
+#include "zerocal/calib/identifiability.h"
+#include "zerocal/calib/planner.h"
+#include "zerocal/error.h"
+
+namespace zerocal {
+namespace {
+
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+
+// The unknowns of a change, in unknownName order: the 4 offsets, then the laser's and the
+// centre's when re-mounted.
+std::vector<int> freeColumns(const ChangeOptions& options) {
+  std::vector<int> columns;
+  for (int k = 0; k < kOffsetCount; ++k) columns.push_back(k);
+  if (options.laser_remounted)
+    for (int k = kOffsetCount; k < kIdentifiedCount; ++k) columns.push_back(k);
+  if (options.psd_remounted)
+    for (int k = kIdentifiedCount; k < kUnknownCount; ++k) columns.push_back(k);
+  return columns;
+}
+
+Eigen::MatrixXd columnsOf(const Eigen::MatrixXd& m, const std::vector<int>& columns) {
+  Eigen::MatrixXd out(m.rows(), static_cast<Eigen::Index>(columns.size()));
+  for (std::size_t c = 0; c < columns.size(); ++c)
+    out.col(static_cast<Eigen::Index>(c)) = m.col(columns[c]);
+  return out;
+}
+
+void addStep(CalibrationParameters& p, const std::vector<int>& columns, const Eigen::VectorXd& dx) {
+  for (std::size_t c = 0; c < columns.size(); ++c) {
+    const int k = columns[c];
+    const double step = dx[static_cast<Eigen::Index>(c)];
+    if (k < kOffsetCount)
+      p.delta_rad[k] += step;
+    else if (k < kIdentifiedCount)
+      p.laser[k - kOffsetCount] += step;
+    else
+      p.target_mm[k - kIdentifiedCount] += step;
+  }
+}
+
+// The unit-variance covariance (J^T J)^-1 of the free unknowns, the rank and condition number of
+// J column-scaled; the covariance is infinite on the diagonal where J is rank-deficient.
+struct UnitCovariance {
+  Eigen::MatrixXd cov;
+  int rank = 0;
+  double condition = kInfinity;
+};
+UnitCovariance unitCovariance(const Eigen::MatrixXd& j) {
+  UnitCovariance out;
+  Eigen::VectorXd scale = j.colwise().norm().transpose();
+  for (Eigen::Index k = 0; k < scale.size(); ++k)
+    if (!(scale[k] > 0)) scale[k] = 1;
+  const Eigen::MatrixXd scaled = j * scale.cwiseInverse().asDiagonal();
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd(scaled, Eigen::ComputeThinU | Eigen::ComputeThinV);
+  const Eigen::VectorXd s = svd.singularValues();
+  for (Eigen::Index i = 0; i < s.size(); ++i) out.rank += s[i] > 1e-9 * s[0] ? 1 : 0;
+  const Eigen::Index n = j.cols();
+  out.cov = Eigen::MatrixXd::Constant(n, n, kInfinity);
+  if (out.rank < n) return out;
+  out.condition = s[0] / s[n - 1];
+  const Eigen::MatrixXd v = svd.matrixV() * s.cwiseInverse().asDiagonal();
+  out.cov =
+      scale.cwiseInverse().asDiagonal() * (v * v.transpose()) * scale.cwiseInverse().asDiagonal();
+  return out;
+}
+
+bool readingsOf(const std::vector<Pose>& a, const std::vector<Pose>& b, const SolveOptions& o) {
+  bool readings = o.use_readings;
+  for (const Pose& p : a) readings = readings && p.spot.has_value();
+  for (const Pose& p : b) readings = readings && p.spot.has_value();
+  return readings;
+}
+
+std::vector<Pose> pairedReference(const ReferenceFit& reference, const std::vector<int>& pairs) {
+  std::vector<Pose> out;
+  for (const int i : pairs) out.push_back(reference.poses[static_cast<std::size_t>(i)]);
+  return out;
+}
+
+void checkPairs(const ReferenceFit& reference, const std::vector<int>& pairs, std::size_t now,
+                int unknowns) {
+  if (pairs.size() != now)
+    throw InputError("the change needs one reference pose for each pose (" + std::to_string(now) +
+                     " poses, " + std::to_string(pairs.size()) + " pairs)");
+  std::vector<int> sorted = pairs;
+  std::sort(sorted.begin(), sorted.end());
+  for (std::size_t k = 0; k < sorted.size(); ++k) {
+    if (sorted[k] < 0 || sorted[k] >= static_cast<int>(reference.poses.size()))
+      throw InputError("pose pair " + std::to_string(k + 1) + " names reference pose " +
+                       std::to_string(sorted[k] + 1) + ", and the reference has " +
+                       std::to_string(reference.poses.size()));
+    if (k > 0 && sorted[k] == sorted[k - 1])
+      throw InputError("reference pose " + std::to_string(sorted[k] + 1) +
+                       " is paired twice: each reference pose is re-measured once");
+  }
+  // At least one degree of freedom, so that the misfit is checked against the noise.
+  if (2 * static_cast<int>(now) <= unknowns)
+    throw InputError("a change with " + std::to_string(unknowns) + " unknowns needs at least " +
+                     std::to_string(unknowns / 2 + 1) + " re-measured poses; " +
+                     std::to_string(now) + " given");
+}
+
+}  // namespace
+
+std::string ChangeOptions::validate() const {
+  if (std::string why = solve.validate(); !why.empty()) return why;
+  if (!solve.noise_mm)
+    return "the change is measured against a given noise (noise_mm): a few re-measured poses "
+           "cannot estimate it";
+  if (!(max_psd_shift_mm > 0) || !std::isfinite(max_psd_shift_mm))
+    return "max_psd_shift_mm must be a positive number of millimetres";
+  return "";
+}
+
+int changeUnknownCount(const ChangeOptions& options) {
+  return static_cast<int>(freeColumns(options).size());
+}
+
+SolveReport solveChange(const CellModel& cell, const ReferenceFit& reference,
+                        const std::vector<Pose>& now, const std::vector<int>& pairs,
+                        const ChangeOptions& options) {
+  if (const std::string why = options.validate(); !why.empty()) throw InputError(why);
+  const std::vector<int> columns = freeColumns(options);
+  const int unknowns = static_cast<int>(columns.size());
+  checkPairs(reference, pairs, now.size(), unknowns);
+  checkJointLimits(cell, now);
+  const std::vector<Pose> before = pairedReference(reference, pairs);
+  const bool readings = readingsOf(now, before, options.solve);
+  SolveReport report = detail::startReport(now, options.solve);
+  report.used_readings = readings;
+  const int n = static_cast<int>(now.size());
+  const double sigma = *options.solve.noise_mm;
+
+  // The reference's own misses at its joints: what the link errors (and its noise) left there.
+  // The change is what makes the misses now equal them: e(x) = m(q_now; p + x) - m(q_ref; p).
+  const Eigen::VectorXd reference_misses =
+      detail::poseMisses(cell, before, reference.estimate, readings);
+  CalibrationParameters p = reference.estimate;
+  Eigen::VectorXd e = detail::poseMisses(cell, now, p, readings) - reference_misses;
+  Eigen::MatrixXd j = columnsOf(pointToLineJacobian(cell, now, p, 1.0, readings), columns);
+  // Gauss-Newton: nearly linear (the change is a fraction of a degree), a few steps converge.
+  constexpr int kMostSteps = 30;
+  report.converged = false;
+  for (int step = 0; step < kMostSteps && !report.converged; ++step) {
+    if (options.solve.cancelled && options.solve.cancelled()) {
+      report.message = "cancelled";
+      break;
+    }
+    const Eigen::VectorXd dx = -(j.transpose() * j).ldlt().solve(j.transpose() * e);
+    if (!dx.allFinite()) {
+      report.message = "the re-measured poses do not determine the change";
+      break;
+    }
+    addStep(p, columns, dx);
+    e = detail::poseMisses(cell, now, p, readings) - reference_misses;
+    j = columnsOf(pointToLineJacobian(cell, now, p, 1.0, readings), columns);
+    report.iterations = step + 1;
+    const double offsets_rad = dx.head(kOffsetCount).cwiseAbs().maxCoeff();
+    const double rest =
+        dx.size() > kOffsetCount ? dx.tail(dx.size() - kOffsetCount).cwiseAbs().maxCoeff() : 0;
+    if (offsets_rad < 1e-11 && rest < 1e-8) {
+      report.converged = true;
+      report.message = "converged in " + std::to_string(step + 1) + " Gauss-Newton steps";
+    }
+  }
+  if (!report.converged && report.message.empty())
+    report.message = "no convergence in " + std::to_string(kMostSteps) + " Gauss-Newton steps";
+
+  // Each pair's misses hold the noise of both sessions: twice the variance of one.
+  const UnitCovariance unit = unitCovariance(j);
+  report.rank = unit.rank;
+  report.condition_number = unit.condition;
+  report.poses_used = n;
+  report.dof = 2 * n - unknowns;
+  detail::applyNoise(report, options.solve, e.squaredNorm() / 2);
+  // The noise is given and known; a few poses' chi-square above 1 is chance, and scaling the
+  // sigma by it would call an unchanged robot marginal. Only a misfit the noise cannot explain
+  // (p < 1%) scales it, and the gate then judges it.
+  if (report.chi2_p_value && *report.chi2_p_value >= 0.01) {
+    report.noise_scale = 1;
+    report.noise_mm = sigma;
+  }
+  const double pair_variance = 2 * report.noise_mm * report.noise_mm;
+  Eigen::MatrixXd cov = pair_variance * unit.cov;
+
+  // What the link tolerances leave: their effect on the misses at the joints now less their
+  // effect at the reference's joints (docs/maths.md section 10).
+  const ModelTolerances t{options.solve.model_length_mm, options.solve.model_angle_deg,
+                          options.solve.model_sag_deg};
+  Eigen::MatrixXd model_cov = Eigen::MatrixXd::Zero(unknowns, unknowns);
+  if ((t.length_mm > 0 || t.angle_deg > 0 || t.sag_deg > 0) && unit.rank == unknowns) {
+    const Eigen::MatrixXd g =
+        detail::linkSpread(cell, now, p, readings, t.length_mm, t.angle_deg, t.sag_deg) -
+        detail::linkSpread(cell, before, reference.estimate, readings, t.length_mm, t.angle_deg,
+                           t.sag_deg);
+    const Eigen::MatrixXd s = unit.cov * j.transpose() * g;
+    model_cov = s * s.transpose();
+    cov += model_cov;
+  }
+  report.model_length_mm = t.length_mm;
+  report.model_angle_deg = t.angle_deg;
+  report.model_sag_deg = cell.robot.hasGravityModel() ? t.sag_deg : 0;
+
+  report.estimate = p;
+  report.estimate.delta_rad = p.delta_rad - reference.estimate.delta_rad;
+  const double quantile = detail::intervalQuantile(report);
+  const auto slot = [&](int k) {
+    const auto it = std::find(columns.begin(), columns.end(), k);
+    return it == columns.end() ? -1 : static_cast<int>(it - columns.begin());
+  };
+  report.not_identifiable.push_back({"delta1_deg", delta1Reason()});
+  report.not_identifiable.push_back({"delta6_deg", delta6Reason()});
+  for (int k = 0; k < kIdentifiedCount; ++k) {
+    ParameterEstimate pe;
+    pe.name = unknownName(k);
+    const int c = slot(k);
+    const double unit_factor = k < kOffsetCount ? kRadToDeg : 1.0;
+    pe.value =
+        k < kOffsetCount ? report.estimate.delta_rad[k] * kRadToDeg : p.laser[k - kOffsetCount];
+    if (c >= 0) {
+      pe.sigma = std::sqrt(cov(c, c)) * unit_factor;
+      pe.model_sigma = std::sqrt(model_cov(c, c)) * unit_factor;
+      pe.identifiable = std::isfinite(pe.sigma);
+      if (!pe.identifiable)
+        pe.reason = "the re-measured poses do not determine it (rank " + std::to_string(unit.rank) +
+                    " of " + std::to_string(unknowns) + ")";
+    } else {
+      pe.reason = "held at the reference's: the laser was not re-mounted";
+    }
+    if (k < kOffsetCount && pe.identifiable && !(pe.sigma <= options.solve.required_accuracy_deg)) {
+      pe.identifiable = false;
+      pe.reason = "its change is known only to " + detail::fixedText(pe.sigma, 4) +
+                  " deg (one standard deviation); the required accuracy is " +
+                  detail::fixedText(options.solve.required_accuracy_deg, 4) + " deg";
+    }
+    pe.ci95_low = pe.value - quantile * pe.sigma;
+    pe.ci95_high = pe.value + quantile * pe.sigma;
+    if (c >= 0 && !pe.identifiable) report.not_identifiable.push_back({pe.name, pe.reason});
+    report.parameters.push_back(pe);
+  }
+  for (int k = kIdentifiedCount; k < kUnknownCount; ++k) {
+    const int c = slot(k);
+    report.target_sigma_mm[k - kIdentifiedCount] = c >= 0 ? std::sqrt(cov(c, c)) : 0.0;
+  }
+  report.correlation = Eigen::MatrixXd::Constant(kIdentifiedCount, kIdentifiedCount, NAN);
+  for (int a = 0; a < kIdentifiedCount; ++a)
+    for (int b = 0; b < kIdentifiedCount; ++b)
+      if (slot(a) >= 0 && slot(b) >= 0)
+        report.correlation(a, b) =
+            cov(slot(a), slot(b)) / std::sqrt(cov(slot(a), slot(a)) * cov(slot(b), slot(b)));
+
+  const std::vector<double> stand = standoffs(cell, now, p);
+  double rss = 0;
+  for (int i = 0; i < n; ++i) {
+    PoseResidual r;
+    r.source_line = now[static_cast<std::size_t>(i)].source_line;
+    r.miss_mm = e.segment<2>(2 * i);
+    r.miss_norm_mm = r.miss_mm.norm();
+    r.normalised = r.miss_norm_mm / std::sqrt(pair_variance);
+    r.standoff_mm = stand[static_cast<std::size_t>(i)];
+    rss += r.miss_mm.squaredNorm();
+    report.poses.push_back(r);
+  }
+  report.rms_miss_mm = std::sqrt(rss / n);
+
+  std::vector<std::string> problems;
+  const double shift = (p.target_mm - reference.estimate.target_mm).norm();
+  if (!(shift <= options.max_psd_shift_mm))
+    problems.push_back(
+        "the PSD's centre is " + detail::fixedText(shift, 1) +
+        " mm from where the reference found it, beyond the " +
+        detail::fixedText(options.max_psd_shift_mm, 1) +
+        " mm within which the robot's link errors cancel: put the PSD back on its base as the "
+        "reference had it, or take a new reference");
+  report.verdict = detail::judge(report, options.solve, problems);
+  return report;
+}
+
+Eigen::Vector4d predictChangeSigma(const CellModel& cell, const ReferenceFit& reference,
+                                   const std::vector<int>& pairs, const ChangeOptions& options) {
+  if (const std::string why = options.validate(); !why.empty()) throw InputError(why);
+  const std::vector<Pose> poses = pairedReference(reference, pairs);
+  const bool readings = readingsOf(poses, poses, options.solve);
+  const UnitCovariance unit = unitCovariance(columnsOf(
+      pointToLineJacobian(cell, poses, reference.estimate, 1.0, readings), freeColumns(options)));
+  Eigen::Vector4d out;
+  const double sigma = *options.solve.noise_mm;
+  for (int k = 0; k < kOffsetCount; ++k)
+    out[k] = std::isfinite(unit.cov(k, k))
+                 ? std::sqrt(2 * sigma * sigma * unit.cov(k, k)) * kRadToDeg
+                 : kInfinity;
+  return out;
+}
+
+std::vector<int> choosePosesForCheck(const CellModel& cell, const ReferenceFit& reference,
+                                     const ChangeOptions& options, double sigma_deg) {
+  if (const std::string why = options.validate(); !why.empty()) throw InputError(why);
+  const int count = static_cast<int>(reference.poses.size());
+  const int unknowns = changeUnknownCount(options);
+  const int fewest = unknowns / 2 + 1;
+  std::vector<int> all(static_cast<std::size_t>(count));
+  for (int i = 0; i < count; ++i) all[static_cast<std::size_t>(i)] = i;
+  if (count <= fewest) return all;
+  const std::vector<int> columns = freeColumns(options);
+  const bool readings = readingsOf(reference.poses, reference.poses, options.solve);
+  const Eigen::MatrixXd j = columnsOf(
+      pointToLineJacobian(cell, reference.poses, reference.estimate, 1.0, readings), columns);
+  // Column scales over every pose, and a small ridge in those units: a set still too small to
+  // determine every unknown is then ranked by how far it gets (the ridge is what it lacks).
+  Eigen::VectorXd scale = j.colwise().norm().transpose() / std::sqrt(double(count));
+  for (Eigen::Index k = 0; k < scale.size(); ++k)
+    if (!(scale[k] > 0)) scale[k] = 1;
+  const Eigen::MatrixXd js = j * scale.cwiseInverse().asDiagonal();
+  const auto worst = [&](const Eigen::MatrixXd& info) {
+    const Eigen::MatrixXd inv =
+        info.ldlt().solve(Eigen::MatrixXd::Identity(info.rows(), info.cols()));
+    double w = 0;
+    for (int k = 0; k < kOffsetCount; ++k) w = std::max(w, inv(k, k) / (scale[k] * scale[k]));
+    return std::sqrt(2 * w) * *options.solve.noise_mm * kRadToDeg;
+  };
+  std::vector<int> chosen;
+  std::vector<bool> taken(static_cast<std::size_t>(count), false);
+  Eigen::MatrixXd info =
+      1e-6 * Eigen::MatrixXd::Identity(static_cast<Eigen::Index>(columns.size()),
+                                       static_cast<Eigen::Index>(columns.size()));
+  while (static_cast<int>(chosen.size()) < count) {
+    int best = -1;
+    double best_worst = kInfinity;
+    for (int i = 0; i < count; ++i) {
+      if (taken[static_cast<std::size_t>(i)]) continue;
+      const Eigen::MatrixXd rows = js.middleRows(2 * i, 2);
+      const double w = worst(info + rows.transpose() * rows);
+      if (w < best_worst) best_worst = w, best = i;
+    }
+    const Eigen::MatrixXd rows = js.middleRows(2 * best, 2);
+    info += rows.transpose() * rows;
+    taken[static_cast<std::size_t>(best)] = true;
+    chosen.push_back(best);
+    if (static_cast<int>(chosen.size()) >= fewest && best_worst <= sigma_deg) {
+      std::vector<int> sorted = chosen;
+      std::sort(sorted.begin(), sorted.end());
+      const Eigen::Vector4d predicted = predictChangeSigma(cell, reference, sorted, options);
+      if (predicted.maxCoeff() <= sigma_deg) return sorted;
+    }
+  }
+  return all;
+}
+
+CheckJudgement judgeCheck(const SolveReport& change, double bound_deg) {
+  CheckJudgement out;
+  out.bound_deg = bound_deg;
+  // A one-sided 95% bound on each change within the bound: the zero is where the reference had it.
+  constexpr double kOneSided95 = 1.6448536269514722;
+  bool all_within = change.verdict.usable;
+  std::string moved;
+  for (int k = 0; k < kOffsetCount && k < static_cast<int>(change.parameters.size()); ++k) {
+    const ParameterEstimate& pe = change.parameters[static_cast<std::size_t>(k)];
+    const double size = std::abs(pe.value);
+    if (!(size + kOneSided95 * pe.sigma <= bound_deg)) all_within = false;
+    if (change.converged && std::isfinite(pe.sigma) && size > bound_deg && size > 3 * pe.sigma) {
+      out.joints.push_back(k + 2);
+      char text[96];
+      std::snprintf(text, sizeof text, "joint %d by %+.4f deg (sigma %.4f)", k + 2, pe.value,
+                    pe.sigma);
+      moved += (moved.empty() ? "" : ", ") + std::string(text);
+    }
+  }
+  char bound[32];
+  std::snprintf(bound, sizeof bound, "%.4f", bound_deg);
+  if (!out.joints.empty()) {
+    out.outcome = CheckJudgement::Outcome::kChanged;
+    out.summary = "changed since the reference: " + moved + "; a restore brings it back";
+  } else if (all_within) {
+    out.outcome = CheckJudgement::Outcome::kPass;
+    out.summary =
+        std::string("pass: every zero within ") + bound + " deg of the reference's (95% one-sided)";
+  } else {
+    out.outcome = CheckJudgement::Outcome::kMarginal;
+    out.summary = std::string("marginal: no zero is shown to have moved beyond ") + bound +
+                  " deg, nor every one to be within it" +
+                  (change.verdict.reasons.empty() ? "" : " (" + change.verdict.reasons[0] + ")") +
+                  "; check again, or restore";
+  }
+  return out;
+}
+
+}  // namespace zerocal

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <limits>
 
 #include "solver_detail.h"
@@ -111,6 +112,62 @@ void checkPairs(const ReferenceFit& reference, const std::vector<int>& pairs, st
                      std::to_string(now) + " given");
 }
 
+// The change fitted to the pairs `active` over the unknowns `columns`, from the reference's
+// parameters: Gauss-Newton, nearly linear (the change is a fraction of a degree).
+struct ChangeFit {
+  CalibrationParameters p;
+  Eigen::VectorXd misses;    // every pair's (2 per pose), at p
+  Eigen::MatrixXd jacobian;  // the active pairs' rows, the free columns
+  bool converged = false;
+  int iterations = 0;
+  std::string message;
+};
+ChangeFit fitChange(const CellModel& cell, const std::vector<Pose>& now,
+                    const Eigen::VectorXd& reference_misses, const CalibrationParameters& start,
+                    const std::vector<int>& columns, const std::vector<int>& active, bool readings,
+                    const std::function<bool()>& cancelled) {
+  ChangeFit fit;
+  fit.p = start;
+  std::vector<Pose> used;
+  for (const int i : active) used.push_back(now[static_cast<std::size_t>(i)]);
+  const auto activeRows = [&](const Eigen::VectorXd& all) {
+    Eigen::VectorXd out(2 * active.size());
+    for (std::size_t k = 0; k < active.size(); ++k)
+      out.segment<2>(2 * static_cast<Eigen::Index>(k)) = all.segment<2>(2 * active[k]);
+    return out;
+  };
+  fit.misses = detail::poseMisses(cell, now, fit.p, readings) - reference_misses;
+  fit.jacobian = columnsOf(pointToLineJacobian(cell, used, fit.p, 1.0, readings), columns);
+  constexpr int kMostSteps = 30;
+  for (int step = 0; step < kMostSteps && !fit.converged; ++step) {
+    if (cancelled && cancelled()) {
+      fit.message = "cancelled";
+      return fit;
+    }
+    const Eigen::MatrixXd& j = fit.jacobian;
+    const Eigen::VectorXd dx =
+        -(j.transpose() * j).ldlt().solve(j.transpose() * activeRows(fit.misses));
+    if (!dx.allFinite()) {
+      fit.message = "the re-measured poses do not determine the change";
+      return fit;
+    }
+    addStep(fit.p, columns, dx);
+    fit.misses = detail::poseMisses(cell, now, fit.p, readings) - reference_misses;
+    fit.jacobian = columnsOf(pointToLineJacobian(cell, used, fit.p, 1.0, readings), columns);
+    fit.iterations = step + 1;
+    const double offsets_rad = dx.head(kOffsetCount).cwiseAbs().maxCoeff();
+    const double rest =
+        dx.size() > kOffsetCount ? dx.tail(dx.size() - kOffsetCount).cwiseAbs().maxCoeff() : 0;
+    if (offsets_rad < 1e-11 && rest < 1e-8) {
+      fit.converged = true;
+      fit.message = "converged in " + std::to_string(step + 1) + " Gauss-Newton steps";
+    }
+  }
+  if (!fit.converged)
+    fit.message = "no convergence in " + std::to_string(kMostSteps) + " Gauss-Newton steps";
+  return fit;
+}
+
 }  // namespace
 
 std::string ChangeOptions::validate() const {
@@ -146,43 +203,57 @@ SolveReport solveChange(const CellModel& cell, const ReferenceFit& reference,
   // The change is what makes the misses now equal them: e(x) = m(q_now; p + x) - m(q_ref; p).
   const Eigen::VectorXd reference_misses =
       detail::poseMisses(cell, before, reference.estimate, readings);
-  CalibrationParameters p = reference.estimate;
-  Eigen::VectorXd e = detail::poseMisses(cell, now, p, readings) - reference_misses;
-  Eigen::MatrixXd j = columnsOf(pointToLineJacobian(cell, now, p, 1.0, readings), columns);
-  // Gauss-Newton: nearly linear (the change is a fraction of a degree), a few steps converge.
-  constexpr int kMostSteps = 30;
-  report.converged = false;
-  for (int step = 0; step < kMostSteps && !report.converged; ++step) {
-    if (options.solve.cancelled && options.solve.cancelled()) {
-      report.message = "cancelled";
-      break;
+  std::vector<int> active(static_cast<std::size_t>(n));
+  for (int i = 0; i < n; ++i) active[static_cast<std::size_t>(i)] = i;
+  ChangeFit fit = fitChange(cell, now, reference_misses, reference.estimate, columns, active,
+                            readings, options.solve.cancelled);
+  // A pose disturbed in either session (stray light, an unsettled reading) misses by far more
+  // than the noise of a pair: the worst pair is left out while its miss alone is beyond what
+  // chance allows among the pairs (Bonferroni at 1%) and enough pairs are left; it is named for
+  // measuring again (the run does so once, then solves anew).
+  std::vector<int> left_out;
+  const double pair_sigma2 = 2 * sigma * sigma;
+  constexpr std::size_t kMostLeftOut = 2;
+  while (fit.converged && left_out.size() < kMostLeftOut &&
+         2 * (static_cast<int>(active.size()) - 1) > unknowns) {
+    int worst = -1;
+    double worst_d = 0;
+    for (const int i : active) {
+      const double d = fit.misses.segment<2>(2 * i).squaredNorm() / pair_sigma2;
+      if (d > worst_d) worst_d = d, worst = i;
     }
-    const Eigen::VectorXd dx = -(j.transpose() * j).ldlt().solve(j.transpose() * e);
-    if (!dx.allFinite()) {
-      report.message = "the re-measured poses do not determine the change";
-      break;
-    }
-    addStep(p, columns, dx);
-    e = detail::poseMisses(cell, now, p, readings) - reference_misses;
-    j = columnsOf(pointToLineJacobian(cell, now, p, 1.0, readings), columns);
-    report.iterations = step + 1;
-    const double offsets_rad = dx.head(kOffsetCount).cwiseAbs().maxCoeff();
-    const double rest =
-        dx.size() > kOffsetCount ? dx.tail(dx.size() - kOffsetCount).cwiseAbs().maxCoeff() : 0;
-    if (offsets_rad < 1e-11 && rest < 1e-8) {
-      report.converged = true;
-      report.message = "converged in " + std::to_string(step + 1) + " Gauss-Newton steps";
-    }
+    // chi-square with 2 degrees of freedom beyond level a: d > -2 ln a.
+    const double limit = -2 * std::log(0.01 / static_cast<double>(active.size()));
+    if (worst < 0 || worst_d <= limit) break;
+    std::vector<int> without;
+    for (const int i : active)
+      if (i != worst) without.push_back(i);
+    ChangeFit refit = fitChange(cell, now, reference_misses, reference.estimate, columns, without,
+                                readings, options.solve.cancelled);
+    if (!refit.converged) break;
+    left_out.push_back(worst);
+    active = without;
+    fit = std::move(refit);
   }
-  if (!report.converged && report.message.empty())
-    report.message = "no convergence in " + std::to_string(kMostSteps) + " Gauss-Newton steps";
+  report.converged = fit.converged;
+  report.message = fit.message;
+  report.iterations = fit.iterations;
+  const CalibrationParameters p = fit.p;
+  const Eigen::MatrixXd& j = fit.jacobian;
+  Eigen::VectorXd e(2 * active.size());
+  std::vector<Pose> now_used, before_used;
+  for (std::size_t k = 0; k < active.size(); ++k) {
+    e.segment<2>(2 * static_cast<Eigen::Index>(k)) = fit.misses.segment<2>(2 * active[k]);
+    now_used.push_back(now[static_cast<std::size_t>(active[k])]);
+    before_used.push_back(before[static_cast<std::size_t>(active[k])]);
+  }
+  const int m = static_cast<int>(active.size());
 
-  // Each pair's misses hold the noise of both sessions: twice the variance of one.
   const UnitCovariance unit = unitCovariance(j);
   report.rank = unit.rank;
   report.condition_number = unit.condition;
-  report.poses_used = n;
-  report.dof = 2 * n - unknowns;
+  report.poses_used = m;
+  report.dof = 2 * m - unknowns;
   detail::applyNoise(report, options.solve, e.squaredNorm() / 2);
   // The noise is given and known; a few poses' chi-square above 1 is chance, and scaling the
   // sigma by it would call an unchanged robot marginal. Only a misfit the noise cannot explain
@@ -201,9 +272,9 @@ SolveReport solveChange(const CellModel& cell, const ReferenceFit& reference,
   Eigen::MatrixXd model_cov = Eigen::MatrixXd::Zero(unknowns, unknowns);
   if ((t.length_mm > 0 || t.angle_deg > 0 || t.sag_deg > 0) && unit.rank == unknowns) {
     const Eigen::MatrixXd g =
-        detail::linkSpread(cell, now, p, readings, t.length_mm, t.angle_deg, t.sag_deg) -
-        detail::linkSpread(cell, before, reference.estimate, readings, t.length_mm, t.angle_deg,
-                           t.sag_deg);
+        detail::linkSpread(cell, now_used, p, readings, t.length_mm, t.angle_deg, t.sag_deg) -
+        detail::linkSpread(cell, before_used, reference.estimate, readings, t.length_mm,
+                           t.angle_deg, t.sag_deg);
     const Eigen::MatrixXd s = unit.cov * j.transpose() * g;
     model_cov = s * s.transpose();
     cov += model_cov;
@@ -265,17 +336,53 @@ SolveReport solveChange(const CellModel& cell, const ReferenceFit& reference,
   for (int i = 0; i < n; ++i) {
     PoseResidual r;
     r.source_line = now[static_cast<std::size_t>(i)].source_line;
-    r.miss_mm = e.segment<2>(2 * i);
+    r.miss_mm = fit.misses.segment<2>(2 * i);
     r.miss_norm_mm = r.miss_mm.norm();
     r.normalised = r.miss_norm_mm / std::sqrt(pair_variance);
     r.standoff_mm = stand[static_cast<std::size_t>(i)];
-    rss += r.miss_mm.squaredNorm();
+    r.used = std::find(active.begin(), active.end(), i) != active.end();
+    r.outlier = !r.used;
+    if (r.used) rss += r.miss_mm.squaredNorm();
     report.poses.push_back(r);
   }
-  report.rms_miss_mm = std::sqrt(rss / n);
+  report.rms_miss_mm = std::sqrt(rss / m);
+  for (const int i : left_out) {
+    report.remeasure.push_back(i + 1);
+    report.suspect_poses.push_back(
+        {i + 1, now[static_cast<std::size_t>(i)].source_line,
+         "its miss differs from the reference's by " +
+             detail::fixedText(report.poses[static_cast<std::size_t>(i)].normalised, 1) +
+             " sigmas of a pair, beyond chance: disturbed in this session or in the reference's "
+             "(stray light, an unsettled reading); left out",
+         std::numeric_limits<double>::quiet_NaN()});
+  }
 
   std::vector<std::string> problems;
   const double shift = (p.target_mm - reference.estimate.target_mm).norm();
+  if (!options.psd_remounted && 2 * m > unknowns + kTargetCount) {
+    // The PSD taken as where the reference had it: were it moved, the change would take the
+    // move for a change of the zeros. The same poses with its centre free tell: a centre
+    // significantly elsewhere (chi-square of 3 at 0.1%) is a PSD moved.
+    std::vector<int> with_centre = columns;
+    for (int k = kIdentifiedCount; k < kUnknownCount; ++k) with_centre.push_back(k);
+    const ChangeFit free = fitChange(cell, now, reference_misses, reference.estimate, with_centre,
+                                     active, readings, options.solve.cancelled);
+    const UnitCovariance u = unitCovariance(free.jacobian);
+    if (free.converged && u.rank == static_cast<int>(with_centre.size())) {
+      const int c = static_cast<int>(columns.size());
+      const Eigen::Vector3d moved = free.p.target_mm - reference.estimate.target_mm;
+      const Eigen::Matrix3d cov_moved = pair_variance * u.cov.block<3, 3>(c, c);
+      const double chi2 = moved.dot(cov_moved.ldlt().solve(moved));
+      constexpr double kChi2Of3At0_1Percent = 16.27;
+      if (chi2 > kChi2Of3At0_1Percent)
+        problems.push_back(
+            "the PSD has moved since the reference: with its centre free the poses put it " +
+            detail::fixedText(moved.norm(), 3) + " mm from where the reference found it (" +
+            detail::fixedText(std::sqrt(chi2), 1) +
+            " sigmas); put it back on its base as the reference had it, or take a new "
+            "reference");
+    }
+  }
   if (!(shift <= options.max_psd_shift_mm))
     problems.push_back(
         "the PSD's centre is " + detail::fixedText(shift, 1) +
@@ -355,6 +462,16 @@ std::vector<int> choosePosesForCheck(const CellModel& cell, const ReferenceFit& 
     }
   }
   return all;
+}
+
+void refuseWithoutChange(SolveReport& change) {
+  for (int k = 0; k < kOffsetCount && k < static_cast<int>(change.parameters.size()); ++k) {
+    const ParameterEstimate& pe = change.parameters[static_cast<std::size_t>(k)];
+    if (!(std::abs(pe.value) <= 3 * pe.sigma)) return;
+  }
+  change.verdict.usable = false;
+  change.verdict.reasons.push_back(
+      "no change: every zero is within three sigmas of the reference's, nothing to write");
 }
 
 CheckJudgement judgeCheck(const SolveReport& change, double bound_deg) {

@@ -358,6 +358,8 @@ json startMembers(const ClientArgs& args) {
   if (args.noise_mm) m["noise_mm"] = *args.noise_mm;
   if (args.placements) m["placements"] = *args.placements;
   if (args.even_if_not_usable) m["even_if_not_usable"] = true;
+  if (!args.kind.empty()) m["kind"] = args.kind == "calibrate" ? "calibration" : args.kind;
+  if (!args.reference.empty()) m["reference"] = args.reference;
   return m;
 }
 
@@ -640,7 +642,19 @@ void addClientCommands(CLI::App& app, ClientCommands& commands) {
     commands.apps.push_back(c);
     return c;
   };
-  auto* start = add("start", "start a calibration session on zerocald");
+  auto* start = add("start",
+                    "start a session on zerocald: a calibration, or a reference, check or restore "
+                    "of the robot's zeros (--kind)");
+  start
+      ->add_option("--kind", a.kind,
+                   "calibrate (the absolute zeros; the default), reference (record the zeros "
+                   "of a robot known good, for later checks and restores), check (have the "
+                   "zeros moved since the reference? a few poses, nothing written) or restore "
+                   "(the change since the reference, which `zerocal apply` writes back)")
+      ->check(CLI::IsMember({"calibrate", "reference", "check", "restore"}));
+  start->add_option("--reference", a.reference,
+                    "the reference session a check or restore compares with (default the "
+                    "latest usable one)");
   start->add_option("--pattern", a.pattern, "optimal, I, II, mixed or file (default the daemon's)")
       ->check(CLI::IsMember({"optimal", "I", "II", "mixed", "file"}));
   start->add_option("--poses", a.poses, "number of poses (default the daemon's)")

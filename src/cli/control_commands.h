@@ -44,13 +44,15 @@ struct ClientArgs {
   std::optional<double> noise_mm;
   std::optional<int> placements;    // start, plan: PSD placements (default the daemon's)
   bool even_if_not_usable = false;  // start: a plan predicted short of the required accuracy
-  std::vector<double> centre;       // continue: empty or the placement's taught centre X Y Z, mm
-  double timeout_s = 10;            // per request; `plan` takes its own time on the daemon
-  int limit = 20;                   // sessions: the newest this many
-  bool all = false;                 // sessions: every one, page after page
-  std::string serial;               // history: the robot (default the record's only one)
-  std::string robot_type;           // history: its type, when two robots share the serial
-  bool csv = false;                 // history: CSV instead of text
+  std::string kind;            // start: calibrate, reference, check or restore (default: calibrate)
+  std::string reference;       // start: the reference a check or restore compares with
+  std::vector<double> centre;  // continue: empty or the placement's taught centre X Y Z, mm
+  double timeout_s = 10;       // per request; `plan` takes its own time on the daemon
+  int limit = 20;              // sessions: the newest this many
+  bool all = false;            // sessions: every one, page after page
+  std::string serial;          // history: the robot (default the record's only one)
+  std::string robot_type;      // history: its type, when two robots share the serial
+  bool csv = false;            // history: CSV instead of text
 };
 
 struct ClientCommands {

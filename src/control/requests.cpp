@@ -13,7 +13,8 @@ namespace {
 
 const std::set<std::string> kStartMembers{
     "id",        "cmd",       "token",    "plan",       "poses",
-    "plan_file", "target_mm", "noise_mm", "placements", "even_if_not_usable"};
+    "plan_file", "target_mm", "noise_mm", "placements", "even_if_not_usable",
+    "kind",      "reference"};
 const std::set<std::string> kContinueMembers{"id", "cmd", "token", "centre_mm"};
 
 // [x, y, z] in mm, finite. Throws BadRequest naming `member`.
@@ -93,6 +94,23 @@ service::StartRequest parseStartRequest(const json& request,
       throw BadRequest("even_if_not_usable: expected true or false");
     r.even_if_not_usable = request["even_if_not_usable"].get<bool>();
   }
+  if (request.contains("kind")) {
+    const std::string kind = optionalString(request, "kind");
+    // A verification is the daemon's own, after an apply (the `verify` request asks for one).
+    if (kind == "calibration" || kind == "calibrate")
+      r.kind = SessionKind::kCalibration;
+    else if (kind == "reference")
+      r.kind = SessionKind::kReference;
+    else if (kind == "check")
+      r.kind = SessionKind::kCheck;
+    else if (kind == "restore")
+      r.kind = SessionKind::kRestore;
+    else
+      throw BadRequest("kind: '" + kind + "' is not one of calibration, reference, check, restore");
+  }
+  r.reference = optionalString(request, "reference", r.reference);
+  if (!r.reference.empty() && r.kind != SessionKind::kCheck && r.kind != SessionKind::kRestore)
+    throw BadRequest("reference: only a check or a restore is measured against a reference");
   return r;
 }
 

@@ -57,6 +57,18 @@ Json toJson(const ResultFile& r) {
   if (!r.verdict_recorded) j.erase("verdict");
   if (r.validation) j["validation"] = toJson(*r.validation);
   if (!r.session.empty()) j["session"] = r.session;
+  j["kind"] = sessionKindName(r.kind);
+  if (!r.reference.empty()) {
+    j["reference"] = r.reference;
+    // The offsets of a report against a reference are the change since it, said as such.
+    Json change = Json::object();
+    for (int k = 0; k < kOffsetCount && k < static_cast<int>(r.report.parameters.size()); ++k) {
+      const ParameterEstimate& p = r.report.parameters[static_cast<std::size_t>(k)];
+      change[p.name] = {{"value", numberOrNull(p.value)}, {"sigma", numberOrNull(p.sigma)}};
+    }
+    j["change"] = change;
+  }
+  if (r.check) j["check"] = toJson(*r.check);
   if (r.cell_time_s) j["cell_time_s"] = *r.cell_time_s;
   if (r.resumed_from) j["resumed_from"] = *r.resumed_from;
   if (r.remeasured) j["remeasured"] = *r.remeasured;
@@ -94,6 +106,9 @@ ResultFile resultFileFromJson(const Json& json) {
   if (j.has("validation"))
     r.validation = holdoutReportFromJson(j.at("validation"), "result.json validation");
   r.session = j.has("session") ? j.string("session") : "";
+  if (j.has("kind")) r.kind = sessionKindFromName(j.string("kind"), kResultWhere);
+  r.reference = j.has("reference") ? j.string("reference") : "";
+  if (j.present("check")) r.check = checkJudgementFromJson(j.at("check"), "result.json check");
   r.cell_time_s = j.optionalNumber("cell_time_s");
   if (j.has("resumed_from")) r.resumed_from = j.integer("resumed_from");
   if (j.has("remeasured")) {

@@ -13,7 +13,27 @@ constexpr const char* kSessionWhere = "session.json";
 }  // namespace
 
 const char* sessionKindName(SessionKind kind) {
-  return kind == SessionKind::kVerification ? "verification" : "calibration";
+  switch (kind) {
+    case SessionKind::kCalibration:
+      return "calibration";
+    case SessionKind::kVerification:
+      return "verification";
+    case SessionKind::kReference:
+      return "reference";
+    case SessionKind::kCheck:
+      return "check";
+    case SessionKind::kRestore:
+      return "restore";
+  }
+  return "calibration";
+}
+
+SessionKind sessionKindFromName(const std::string& name, const std::string& where) {
+  for (const SessionKind k : {SessionKind::kCalibration, SessionKind::kVerification,
+                              SessionKind::kReference, SessionKind::kCheck, SessionKind::kRestore})
+    if (name == sessionKindName(k)) return k;
+  throw InputError(where + ": kind '" + name +
+                   "' is not calibration, reference, check, restore or verification");
 }
 
 Json toJson(const SessionFile& s) {
@@ -32,6 +52,10 @@ Json toJson(const SessionFile& s) {
          {"plan", plan},
          {"config", s.config}};
   if (!s.verifies.empty()) j["verifies"] = s.verifies;
+  if (!s.reference.empty()) {
+    j["reference"] = s.reference;
+    j["reference_poses"] = s.reference_poses;
+  }
   return j;
 }
 
@@ -41,15 +65,21 @@ SessionFile sessionFileFromJson(const Json& json) {
   s.format = j.string("format");
   s.id = j.string("id");
   s.created_unix_s = j.has("created_unix_s") ? j.integer64("created_unix_s") : 0;
-  if (j.has("kind")) {
-    const std::string kind = j.string("kind");
-    if (kind == "verification")
-      s.kind = SessionKind::kVerification;
-    else if (kind != "calibration")
-      throw InputError(std::string(kSessionWhere) + ": kind '" + kind +
-                       "' is not calibration or verification");
-  }
+  if (j.has("kind")) s.kind = sessionKindFromName(j.string("kind"), kSessionWhere);
   s.verifies = j.has("verifies") ? j.string("verifies") : "";
+  if (j.has("reference")) {
+    s.reference = j.string("reference");
+    for (const Json& pose : j.array("reference_poses")) {
+      if (!pose.is_number_integer() || pose.get<int>() < 1)
+        throw InputError(std::string(kSessionWhere) +
+                         ": 'reference_poses' holds something other than a 1-based pose");
+      s.reference_poses.push_back(pose.get<int>());
+    }
+  }
+  const bool measured_against = s.kind == SessionKind::kCheck || s.kind == SessionKind::kRestore;
+  if (measured_against && s.reference.empty())
+    throw InputError(std::string(kSessionWhere) + ": a " + sessionKindName(s.kind) +
+                     " names its 'reference'");
   const JsonReader plan = j.object("plan");
   s.plan = planFromJson(plan.json(), plan.where());
   const std::vector<double> target = plan.numbers("target_mm", 3);
@@ -63,6 +93,10 @@ SessionFile sessionFileFromJson(const Json& json) {
       s.placement_centres_mm.emplace_back(c[0], c[1], c[2]);
     }
   }
+  if (!s.reference.empty() && s.reference_poses.size() != s.plan.poses.size())
+    throw InputError(std::string(kSessionWhere) + ": 'reference_poses' names " +
+                     std::to_string(s.reference_poses.size()) + " poses for a plan of " +
+                     std::to_string(s.plan.poses.size()));
   s.config = j.has("config") ? j.at("config") : Json::object();
   return s;
 }

@@ -29,6 +29,14 @@ apply::Offsets offsetsOf(const ResultFile& result) {
 
 // Why the result's offsets of joints 2..5 cannot be applied; empty when they can.
 std::string unusable(const ResultFile& r) {
+  // Only a calibration's offsets and a restore's change are values for the controller.
+  if (r.kind == SessionKind::kReference)
+    return "it is a reference, what later checks and restores compare with; it writes nothing";
+  if (r.kind == SessionKind::kCheck)
+    return "it is a check, which writes nothing; a restore against its reference finds the "
+           "values that bring the robot back";
+  if (r.kind == SessionKind::kVerification)
+    return "it is the verification of an apply, which writes nothing";
   if (!r.report.converged) return "its solve did not converge";
   if (r.verdict_recorded && !r.report.verdict.usable) {
     std::string why = "its verdict refuses it";

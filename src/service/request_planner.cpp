@@ -257,12 +257,84 @@ PlannedSession RequestPlanner::plan(const StartRequest& request) const {
   p.plan = makePlan(request, p.run.target, p.run.noise_mm);
   p.plan.prediction.required_accuracy_deg = settings_.required_accuracy_deg;
   refuseUnlessIdentifiable(p.plan.prediction);
-  // A verification is the daemon's own check of an apply, judged by what it changed.
-  if (!request.even_if_not_usable && request.verifies.empty())
+  // A verification is the daemon's own check of an apply, judged by what it changed; a reference
+  // claims nothing of the absolute zeros.
+  if (!request.even_if_not_usable && request.verifies.empty() &&
+      request.kind != SessionKind::kReference)
     refuseUnlessAccurate(p.plan.prediction, settings_.required_accuracy_deg, request.placements);
   p.run.poses = p.plan.poses;
   p.run.centres = plannedCentres(knowledge_.cell, p.run.poses, p.run.target);
   checkPlaceable(p.run);  // a plan file's placements
+  return p;
+}
+
+ChangeOptions RequestPlanner::changeOptions() const {
+  ChangeOptions o;
+  o.solve.noise_mm = settings_.noise_mm;
+  o.solve.model_length_mm = settings_.tolerances.length_mm;
+  o.solve.model_angle_deg = settings_.tolerances.angle_deg;
+  o.solve.model_sag_deg = settings_.tolerances.sag_deg;
+  o.solve.required_accuracy_deg = settings_.required_accuracy_deg;
+  return o;
+}
+
+PlannedSession RequestPlanner::planChange(const StartRequest& request,
+                                          const Reference& reference) const {
+  const ChangeOptions options = changeOptions();
+  // Each offset's predicted sigma a fifth of the required accuracy: an unchanged zero then lies
+  // within the bound by more than its one-sided 95% margin with room to spare (judgeCheck), and a
+  // change of twice the bound is named with certainty.
+  constexpr double kCheckSigmaFraction = 0.2;
+  // A restore's values are written: the fewest poses whose predicted sigma is 0.15 of the
+  // required accuracy (0.0015 deg of 0.01), so that the measured error stays within 0.003 deg
+  // RMS with the noise and the links' remainder on top (docs/simulated-cell.md measures it).
+  constexpr double kRestoreSigmaFraction = 0.15;
+  const bool restore = request.kind == SessionKind::kRestore && request.verifies.empty();
+  std::vector<int> pairs;
+  try {
+    pairs = choosePosesForCheck(
+        knowledge_.cell, reference.fit, options,
+        (restore ? kRestoreSigmaFraction : kCheckSigmaFraction) * settings_.required_accuracy_deg);
+  } catch (const InputError& e) {
+    throw Refused("bad_request", "reference " + reference.id + ": " + e.what());
+  }
+  PlannedSession p;
+  Plan& plan = p.plan;
+  for (const int i : pairs) {
+    Pose pose = reference.fit.poses[static_cast<std::size_t>(i)];
+    pose.spot.reset();  // a plan's poses are joint targets
+    pose.source_line = 0;
+    plan.poses.push_back(pose);
+    p.reference_poses.push_back(reference.plan_poses[static_cast<std::size_t>(i)]);
+  }
+  refuseOutsideLimits(knowledge_.cell.robot, plan.poses, settings_.limit_margin_deg,
+                      "reference " + reference.id + ": ");
+  const Eigen::Vector4d sigma = predictChangeSigma(knowledge_.cell, reference.fit, pairs, options);
+  Prediction& prediction = plan.prediction;
+  double sum2 = 0;
+  for (int k = 0; k < kIdentifiedCount; ++k) {
+    const bool offset = k < kOffsetCount;
+    prediction.sigma.push_back(offset ? sigma[k] : std::nan(""));
+    prediction.identifiable.push_back(offset && std::isfinite(sigma[k]));
+    prediction.reason.push_back(offset
+                                    ? (std::isfinite(sigma[k]) ? "" : "not determined by the poses")
+                                    : "held at the reference's: the laser was not re-mounted");
+    if (offset) sum2 += sigma[k] * sigma[k];
+  }
+  prediction.rms_offset_sigma_deg = std::sqrt(sum2 / kOffsetCount);
+  prediction.rank = changeUnknownCount(options);
+  prediction.required_accuracy_deg = settings_.required_accuracy_deg;
+  const std::string of = std::to_string(pairs.size()) + " of its " +
+                         std::to_string(reference.fit.poses.size()) + " poses";
+  plan.description = !request.verifies.empty()
+                         ? "verification against reference " + reference.id + ": " + of
+                     : restore ? "restore to reference " + reference.id + ": " + of
+                               : "check against reference " + reference.id + ": " + of;
+  if (restore && !request.even_if_not_usable)
+    refuseUnlessAccurate(prediction, settings_.required_accuracy_deg, 1);
+  p.run.poses = plan.poses;
+  p.run.target = reference.fit.estimate.target_mm;  // where the reference found the PSD
+  p.run.noise_mm = settings_.noise_mm;
   return p;
 }
 
@@ -277,7 +349,10 @@ RunPlan RequestPlanner::runPlanOf(const std::string& id, const SessionFile& sess
   // checked exactly as a new plan is.
   try {
     checkPlanInput(plan.target, plan.noise_mm);
-    checkPoses(knowledge_.cell, plan.poses);
+    if (session.reference.empty())
+      checkPoses(knowledge_.cell, plan.poses);
+    else
+      checkJointLimits(knowledge_.cell, plan.poses);  // a check re-measures a few poses
     if (plan.centres.empty())
       plan.centres = plannedCentres(knowledge_.cell, plan.poses, plan.target);
     if (placementCount(plan.poses) > 1 &&

@@ -9,6 +9,9 @@ ResultFile assembleResult(const std::string& session_id, const RunOutcome& outco
   ResultFile result;
   result.report = *outcome.report;
   result.session = session_id;
+  result.kind = facts.kind;
+  result.reference = facts.reference;
+  result.check = facts.check;
   result.cell_time_s = facts.cell_time_s;
   result.resumed_from = outcome.resumed_from;
   result.remeasured.emplace();

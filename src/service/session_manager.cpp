@@ -146,13 +146,31 @@ Plan SessionManager::preview(const StartRequest& request) const {
 }
 
 SessionManager::NewSession SessionManager::createSession(const StartRequest& request) {
-  const PlannedSession planned = planner_.plan(request);
+  SessionFile draft;
+  const bool against_reference = request.kind == SessionKind::kCheck ||
+                                 request.kind == SessionKind::kRestore ||
+                                 !request.reference.empty();
+  PlannedSession planned;
+  if (against_reference) {
+    draft.reference = request.reference.empty() ? latestReference(store_) : request.reference;
+    if (draft.reference.empty())
+      throw Refused("no_reference",
+                    std::string("a ") + sessionKindName(request.kind) +
+                        " compares with the robot's reference, and " + store_.dataDir() +
+                        " holds none: take one with `zerocal start --kind reference` while the "
+                        "robot is known good (or `--kind calibrate --placements 3` for its "
+                        "absolute zeros)");
+    planned = planner_.planChange(request, loadReference(store_, draft.reference));
+    draft.reference_poses = planned.reference_poses;
+  } else {
+    planned = planner_.plan(request);
+  }
   const Plan& plan = planned.plan;
   NewSession n;
   n.run.plan = planned.run;
   n.run.found_before = request.found_before;
+  draft.kind = request.kind;
 
-  SessionFile draft;
   draft.plan = plan;
   draft.target_mm = planned.run.target;
   draft.noise_mm = planned.run.noise_mm;
@@ -391,10 +409,17 @@ ResultFile SessionManager::verificationRun(const std::string& applied,
   // laser line: the same code as any session, so the verification's numbers mean what a
   // calibration's mean.
   StartRequest request = defaultRequest();
-  request.target_mm = found.target_mm;
-  request.found_before = found;
   request.placements = 1;  // a verification runs unattended: the PSD stays where it is
   request.verifies = applied;
+  // A restore's apply is verified against its reference: the zeros should be the reference's
+  // again, which a check of its poses sees (found is then a change, no cell's parameters).
+  if (const std::string reference = store_.readSession(applied).reference; !reference.empty()) {
+    request.kind = SessionKind::kRestore;
+    request.reference = reference;
+  } else {
+    request.target_mm = found.target_mm;
+    request.found_before = found;
+  }
   const NewSession n = createSession(request);
   id = n.id;
   runner_.run(n.run);

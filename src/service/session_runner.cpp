@@ -1,8 +1,10 @@
 #include "zerocal/service/session_runner.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 
+#include "zerocal/calib/change.h"
 #include "zerocal/daemon/logging.h"
 #include "zerocal/service/result_assembly.h"
 #include "zerocal/service/session_recording.h"
@@ -31,6 +33,25 @@ class ObservedReader final : public PsdReader {
   LiveReadingSlot& slot_;
   SessionWorker& worker_;
 };
+
+// Each measured pose's 0-based position among the reference's fit poses: plan pose p re-measures
+// the reference's plan pose reference_poses[p].
+std::vector<int> pairsOf(const Reference& reference, const std::vector<int>& reference_poses,
+                         const std::vector<int>& plan_indices) {
+  std::vector<int> pairs;
+  for (const int p : plan_indices) {
+    if (p < 0 || p >= static_cast<int>(reference_poses.size()))
+      throw InputError("plan pose " + std::to_string(p + 1) + " has no reference pose");
+    const auto it = std::find(reference.plan_poses.begin(), reference.plan_poses.end(),
+                              reference_poses[static_cast<std::size_t>(p)]);
+    if (it == reference.plan_poses.end())
+      throw InputError("plan pose " + std::to_string(p + 1) + " re-measures reference pose " +
+                       std::to_string(reference_poses[static_cast<std::size_t>(p)]) +
+                       ", which reference " + reference.id + "'s solve did not use");
+    pairs.push_back(static_cast<int>(it - reference.plan_poses.begin()));
+  }
+  return pairs;
+}
 
 SessionState stateOf(RunPhase phase) {
   switch (phase) {
@@ -71,6 +92,9 @@ void SessionRunner::run(const RunRequest& request) {
   switch (request.kind) {
     case SessionKind::kCalibration:
     case SessionKind::kVerification:
+    case SessionKind::kReference:
+    case SessionKind::kCheck:
+    case SessionKind::kRestore:
       return runMeasurement(request);
   }
   finish(SessionState::kFaulted,
@@ -113,6 +137,26 @@ void SessionRunner::runMeasurement(const RunRequest& request) {
     return finish(SessionState::kFaulted, std::string("cannot connect to the cell: ") + e.what());
   }
   const CellIdentity identity = connection_.identify(id);
+  // Measured against a reference: its poses and fit, and the robot must be the reference's.
+  std::optional<Reference> reference;
+  std::vector<int> reference_poses;
+  try {
+    const SessionFile session = store_.readSession(id);
+    if (!session.reference.empty()) {
+      reference = loadReference(store_, session.reference);
+      reference_poses = session.reference_poses;
+    }
+  } catch (const std::exception& e) {
+    return finish(SessionState::kFaulted, e.what());
+  }
+  if (reference && !reference->robot.serial.empty() &&
+      (identity.robot.serial != reference->robot.serial ||
+       identity.robot.robot_type != reference->robot.robot_type))
+    return finish(SessionState::kFaulted,
+                  "the controller names its robot " + identity.robot.robot_type + " serial " +
+                      identity.robot.serial + ", and reference " + reference->id + " is of " +
+                      reference->robot.robot_type + " serial " + reference->robot.serial +
+                      ": a robot is compared only with its own reference");
   ConnectedCell& cell = connection_.cell();
   cell.beginSession();
 
@@ -124,6 +168,19 @@ void SessionRunner::runMeasurement(const RunRequest& request) {
       log->warn("session {}: {} (the pose will be measured again)", id, journal.dropped());
     RunSettings run_settings = settings_.run;
     run_settings.solve.noise_mm = run_plan.noise_mm;
+    // A reference claims nothing of the absolute zeros: its offsets are not judged by the
+    // required accuracy, only its fit by the noise.
+    if (request.kind == SessionKind::kReference)
+      run_settings.solve.required_accuracy_deg = run_settings.solve.max_offset_deg;
+    if (reference)
+      run_settings.solver = [this, &reference, &reference_poses](
+                                const std::vector<Pose>& poses,
+                                const std::vector<int>& plan_indices, const SolveOptions& options) {
+        ChangeOptions change = planner_.changeOptions();
+        change.solve = options;
+        return solveChange(knowledge_.cell, reference->fit, poses,
+                           pairsOf(*reference, reference_poses, plan_indices), change);
+      };
     // A dropped controller connection or an unplugged board is recovered by reopening it; the
     // pose in progress (not journalled) is then measured again from its planned move.
     run_settings.reconnect_link = [&cell] { cell.reconnectRobot(); };
@@ -230,6 +287,13 @@ void SessionRunner::runMeasurement(const RunRequest& request) {
   }
 
   RunFacts facts;
+  facts.kind = request.kind;
+  if (reference) {
+    facts.reference = reference->id;
+    const double bound = settings_.run.solve.required_accuracy_deg;
+    if (request.kind == SessionKind::kCheck) facts.check = judgeCheck(*outcome->report, bound);
+    if (request.kind == SessionKind::kRestore) refuseWithoutChange(*outcome->report);
+  }
   facts.cell = ResultFile::Cell{identity.robot, knowledge_.psd_map};
   facts.cal_offset_rad = identity.cal_offset_rad;
   facts.cell_time_s = cell_time_s;

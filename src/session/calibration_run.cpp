@@ -88,15 +88,14 @@ int planLines(const std::vector<PoseRecord>& records) {
                                         [](const PoseRecord& r) { return r.remeasure_of < 0; }));
 }
 
-// The 0-based plan pose of each of posesOf's poses.
+}  // namespace
+
 std::vector<int> planIndicesOf(const std::vector<PoseRecord>& records) {
   std::vector<int> indices;
   for (const PoseRecord* r : latestRecords(records))
     if (r && r->measured()) indices.push_back(r->planIndex());
   return indices;
 }
-
-}  // namespace
 
 void CalibrationRun::journalFault(const servo::ServoFault& fault, int plan_index,
                                   bool again) const {
@@ -385,7 +384,12 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
   phase(n, RunPhase::kSolving);
   SolveOptions solve_options = settings_.solve;
   solve_options.cancelled = [&abort] { return abort.load(); };
-  out.report = solve(knowledge_, posesOf(out.records), solve_options);
+  const auto solveRecorded = [&] {
+    return settings_.solver
+               ? settings_.solver(posesOf(out.records), planIndicesOf(out.records), solve_options)
+               : solve(knowledge_, posesOf(out.records), solve_options);
+  };
+  out.report = solveRecorded();
   // The poses the solve names are measured once more and the solve run anew on each pose's
   // latest measurement: a spot disturbed once, or a reading taken before the arm settled, is
   // then replaced, not just left out. Once per session: a journal that has a second measurement
@@ -419,7 +423,7 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
       return out;
     }
     phase(n, RunPhase::kSolving);
-    out.report = solve(knowledge_, posesOf(out.records), solve_options);
+    out.report = solveRecorded();
   }
   if (abort.load()) {
     out.state = RunState::kAborted;

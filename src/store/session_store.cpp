@@ -173,7 +173,7 @@ std::vector<SessionInfo> SessionStore::unfinished() const {
   sessions.erase(std::remove_if(sessions.begin(), sessions.end(),
                                 [](const SessionInfo& s) {
                                   return s.finished || !s.damaged.empty() || !s.closed.empty() ||
-                                         s.kind != SessionKind::kCalibration;
+                                         s.kind == SessionKind::kVerification;
                                 }),
                  sessions.end());
   return sessions;

@@ -80,8 +80,32 @@ std::unique_ptr<record::SqliteRecord> openTheRecord(const std::string& data_dir)
   return std::move(opened.record);
 }
 
-// One calibration, then exit; progress on stderr, the result on stdout.
-int runOnce(SessionManager& manager, asio::io_context& io, bool json, bool even_if_not_usable) {
+// What --once runs: the session's kind and reference, and whether its result is applied.
+struct OnceOptions {
+  bool json = false;
+  bool even_if_not_usable = false;
+  std::string kind;  // empty: a calibration
+  std::string reference;
+  bool apply = false;
+};
+
+// Applies the session's result online (its backup, verification and rollback), as `zerocal apply
+// --confirm` does; the outcome on stderr. kOk when verified.
+int applyOnce(SessionManager& manager, const std::string& id) {
+  try {
+    manager.apply({id, true});
+  } catch (const service::Refused& e) {
+    std::cerr << "zerocald: not applied: " << e.what() << "\n";
+    return kStopped;
+  }
+  const service::SessionStatus end = manager.waitIdle();
+  std::fprintf(stderr, "apply: %s\n", end.apply.c_str());
+  return end.apply.rfind("session " + id + " verified", 0) == 0 ? kOk : kStopped;
+}
+
+// One session, then exit; progress on stderr, the result on stdout.
+int runOnce(SessionManager& manager, asio::io_context& io, const OnceOptions& once) {
+  const bool json = once.json;
   manager.setEventSink([&io](const service::SessionEvent& event) {
     if (const auto* plan = std::get_if<service::PlanEvent>(&event)) {
       std::fprintf(stderr, "plan: %s\n", plan->description.c_str());
@@ -107,7 +131,11 @@ int runOnce(SessionManager& manager, asio::io_context& io, bool json, bool even_
   });
   try {
     service::StartRequest request = manager.defaultRequest();
-    request.even_if_not_usable = even_if_not_usable;
+    request.even_if_not_usable = once.even_if_not_usable;
+    if (!once.kind.empty())
+      request.kind = once.kind == "calibrate" ? SessionKind::kCalibration
+                                              : sessionKindFromName(once.kind, "--kind");
+    request.reference = once.reference;
     manager.start(request);
   } catch (const service::Refused& e) {
     std::cerr << "zerocald: " << e.what() << "\n";
@@ -123,12 +151,24 @@ int runOnce(SessionManager& manager, asio::io_context& io, bool json, bool even_
     return kStopped;
   }
   const ResultFile result = manager.result(status.session_id);
+  const int applied = once.apply ? applyOnce(manager, status.session_id) : kOk;
   if (json) {
     std::cout << toJson(result).dump(2) << "\n";
-    return kOk;
+    return applied;
   }
-  std::printf("%-12s %12s %10s %24s", "offset", "identified", "sigma", "95% interval");
-  if (result.truth) std::printf(" %12s %12s", "truth", "error");
+  // Against a reference, the truth is the change of the simulated world's zeros since then.
+  std::optional<std::array<double, 4>> truth;
+  if (result.truth) truth = result.truth->offsets_deg;
+  if (truth && !result.reference.empty()) {
+    const ResultFile reference = manager.result(result.reference);
+    if (reference.truth)
+      for (int k = 0; k < kOffsetCount; ++k) (*truth)[k] -= reference.truth->offsets_deg[k];
+    else
+      truth.reset();
+  }
+  std::printf("%-12s %12s %10s %24s", "offset", result.reference.empty() ? "identified" : "change",
+              "sigma", "95% interval");
+  if (truth) std::printf(" %12s %12s", "truth", "error");
   std::printf("\n");
   for (int k = 0; k < kOffsetCount; ++k) {
     const ParameterEstimate& e = result.report.parameters[k];  // delta2..delta5
@@ -138,16 +178,20 @@ int runOnce(SessionManager& manager, asio::io_context& io, bool json, bool even_
     }
     std::printf("%-12s %12.5f %10.5f  [%10.5f, %10.5f]", e.name.c_str(), e.value, e.sigma,
                 e.ci95_low, e.ci95_high);
-    if (result.truth) {
-      const double truth = result.truth->offsets_deg[k];
-      std::printf(" %12.5f %+12.5f (%.1f sigma)", truth, e.value - truth,
-                  std::abs(e.value - truth) / e.sigma);
-    }
+    if (truth)
+      std::printf(" %12.5f %+12.5f (%.1f sigma)", (*truth)[k], e.value - (*truth)[k],
+                  std::abs(e.value - (*truth)[k]) / e.sigma);
     std::printf("\n");
   }
-  std::printf("cell time %.1f s for %d poses; session %s\n", result.cell_time_s.value_or(0),
-              status.pose_count, status.session_id.c_str());
-  return kOk;
+  std::printf("cell time %.1f s for %d poses; %s %s\n", result.cell_time_s.value_or(0),
+              status.pose_count, sessionKindName(result.kind), status.session_id.c_str());
+  if (!result.reference.empty())
+    std::printf("the offsets are the change since reference %s\n", result.reference.c_str());
+  if (result.check) std::printf("check: %s\n", result.check->summary.c_str());
+  std::printf("verdict: %s\n", result.report.verdict.usable ? "usable" : "NOT USABLE");
+  for (const std::string& reason : result.report.verdict.reasons)
+    std::printf("  %s\n", reason.c_str());
+  return applied;
 }
 
 }  // namespace
@@ -162,7 +206,8 @@ int main(int argc, char** argv) {
       "one calibration as configured and exits. docs/daemon.md explains it."};
   app.set_version_flag("--version", std::string(PROJECT_VERSION));
   ConfigSources sources;
-  bool sim = false, once = false, json = false, even_if_not_usable = false;
+  bool sim = false, once = false;
+  OnceOptions once_options;
   std::optional<std::uint64_t> seed;
   std::string data_dir;
   app.add_option("--config", sources.config_path, "main configuration file")
@@ -178,8 +223,16 @@ int main(int argc, char** argv) {
                "the seed's ideal world instead of its realistic one (backend.sim_ideal_world; "
                "docs/simulated-cell.md)");
   app.add_option("--data-dir", data_dir, "where session folders go (session.data_dir)");
-  app.add_flag("--json", json, "--once: print the result as one JSON object");
-  app.add_flag("--even-if-not-usable", even_if_not_usable,
+  app.add_flag("--json", once_options.json, "--once: print the result as one JSON object");
+  app.add_option("--kind", once_options.kind,
+                 "--once: calibrate (default), reference, check or restore (docs/record.md)")
+      ->check(CLI::IsMember({"calibrate", "reference", "check", "restore"}));
+  app.add_option("--reference", once_options.reference,
+                 "--once: the reference a check or restore compares with (default the latest)");
+  app.add_flag("--apply", once_options.apply,
+               "--once: apply a usable result online (backup, verification, rollback), as "
+               "`zerocal apply --confirm`; exits 3 unless it is verified");
+  app.add_flag("--even-if-not-usable", once_options.even_if_not_usable,
                "--once: calibrate even when the plan is predicted not to determine every offset "
                "to session.required_accuracy_deg (refused otherwise, before anything moves)");
   try {
@@ -231,7 +284,7 @@ int main(int argc, char** argv) {
       // A calibration of its own runs on the controller's present values: only once an apply
       // interrupted earlier is recovered (else the start is refused and says what to check).
       if (manager.recoverInterruptedApplies() > 0) manager.waitIdle();
-      return runOnce(manager, io, json, even_if_not_usable);
+      return runOnce(manager, io, once_options);
     }
 
     // Before the port opens: an apply the daemon was stopped in is restored first (the board is

@@ -26,11 +26,14 @@ struct ChangeOptions {
   // The noise (given, per measurement: each pair of poses has twice its variance), the link and
   // sag tolerances counted, the required accuracy and the gates: as the solve's.
   SolveOptions solve;
-  // The PSD may have been taken off its base and put back: its centre is an unknown of the
-  // change (3 more), and a centre further than max_psd_shift_mm from the reference's is refused
-  // (the poses then no longer see the arm where the reference saw it, and the link errors no
-  // longer cancel; docs/simulated-cell.md measures how far is too far).
-  bool psd_remounted = true;
+  // The PSD stands where the reference had it (on its base in the cell): its centre is the
+  // reference's, and the same poses fitted with it free tell whether it moved (the verdict then
+  // refuses the change). With psd_remounted, the centre is an unknown of the change (3 more;
+  // delta2 is then much less well determined, a turn of joint 2 moving the beams as a move of the
+  // centre does), and a centre further than max_psd_shift_mm from the reference's is refused: the
+  // poses then no longer see the arm where the reference saw it, and the link errors no longer
+  // cancel.
+  bool psd_remounted = false;
   double max_psd_shift_mm = 5.0;
   // The laser was taken off the flange and put back: its four parameters are unknowns too.
   bool laser_remounted = false;
@@ -65,6 +68,10 @@ Eigen::Vector4d predictChangeSigma(const CellModel& cell, const ReferenceFit& re
 // largest gain, in reference order; all of them when even all do not reach it.
 std::vector<int> choosePosesForCheck(const CellModel& cell, const ReferenceFit& reference,
                                      const ChangeOptions& options, double sigma_deg);
+
+// A restore whose change is not significant (every offset's within three of its sigmas) has
+// nothing to write: its verdict is made not usable, saying so. Otherwise leaves it as it is.
+void refuseWithoutChange(SolveReport& change);
 
 // What a check concludes from a change: each zero within `bound_deg` of the reference's with 95%
 // confidence (pass); one or more moved beyond the bound by more than three of their sigmas

@@ -14,8 +14,10 @@
 #include <vector>
 
 #include "zerocal/cell/robot_info.h"
+#include "zerocal/results/check_judgement.h"
 #include "zerocal/results/holdout_report.h"
 #include "zerocal/results/servo_stats.h"
+#include "zerocal/results/session_file.h"
 #include "zerocal/results/solve_report.h"
 
 namespace zerocal {
@@ -40,6 +42,12 @@ struct ResultFile {
   bool verdict_recorded = true;
   std::optional<HoldoutReport> validation;  // when poses were held out of the solve
   std::string session;                      // the session's id; empty when not a session's
+  // What the session was for. A check's, a restore's and a restore's verification's report is
+  // the change since `reference` (the reference session's id): its offsets are the change of
+  // each zero, written as "change" too; a check adds its judgement.
+  SessionKind kind = SessionKind::kCalibration;
+  std::string reference;
+  std::optional<CheckJudgement> check;
   std::optional<double> cell_time_s;
   std::optional<int> resumed_from;
   std::optional<std::vector<int>> remeasured;  // 1-based plan poses measured again

@@ -17,6 +17,7 @@
 
 #include "zerocal/calib/planner.h"
 #include "zerocal/cell/cell.h"
+#include "zerocal/service/reference.h"
 #include "zerocal/service/session_control.h"
 #include "zerocal/store/journal.h"
 #include "zerocal/store/session_files.h"
@@ -55,6 +56,8 @@ struct RunPlan {
 struct PlannedSession {
   Plan plan;
   RunPlan run;
+  // Measured against a reference: per plan pose, the reference's 1-based plan pose it re-measures.
+  std::vector<int> reference_poses;
 };
 
 // What a fault at a plan pose lets the technician do: skip it at a resume (skippable_pose, 1-based)
@@ -79,6 +82,17 @@ class RequestPlanner {
   // when the plan does not identify delta2..delta5, and ("not_accurate") when it is predicted
   // short of the required accuracy and the request does not ask for it anyway.
   PlannedSession plan(const StartRequest& request) const;
+  // The plan of a session measured against `reference` (a check, a restore, or with
+  // request.verifies the verification of a restore's apply): a check and a verification
+  // re-measure the fewest of its poses that see a change of the required accuracy's size (each
+  // offset's predicted sigma a fifth of it, so that an unchanged robot passes), a restore the
+  // fewest whose values are good to write (0.15 of it), each from the joints the reference
+  // recorded. Throws Refused("not_accurate") when a
+  // restore is predicted short of the required accuracy and the request does not ask for it
+  // anyway, ("out_of_limits") for a reference pose inside the limits' margin.
+  PlannedSession planChange(const StartRequest& request, const Reference& reference) const;
+  // The change's options of this daemon: its noise, tolerances and required accuracy.
+  ChangeOptions changeOptions() const;
   // Session `id`'s run plan from its session.json, checked exactly as a new plan is (anyone with
   // access may have edited the file). Throws Refused("bad_session"), ("out_of_limits").
   RunPlan runPlanOf(const std::string& id, const SessionFile& session) const;

@@ -17,7 +17,10 @@ namespace zerocal::service {
 
 // What a session learned of the cell around its poses.
 struct RunFacts {
-  ResultFile::Cell cell;  // the controller as it named the robot, the PSD map
+  SessionKind kind = SessionKind::kCalibration;
+  std::string reference;                // the reference session measured against, if any
+  std::optional<CheckJudgement> check;  // a check's judgement
+  ResultFile::Cell cell;                // the controller as it named the robot, the PSD map
   // The controller's motor calibration while the session measured (rad); absent when its link
   // offers none or it did not answer.
   std::optional<std::array<double, 6>> cal_offset_rad;

@@ -82,6 +82,11 @@ struct StartRequest {
   // accuracy (session.required_accuracy_deg): a calibration asked for explicitly, whose result
   // will withhold those offsets. Without it such a plan is refused before anything moves.
   bool even_if_not_usable = false;
+  // What the session is for (docs/record.md): a calibration, a reference, a check or a restore.
+  // A check or a restore is measured against `reference` (a reference session's id), by default
+  // the latest usable one in the data folder.
+  SessionKind kind = SessionKind::kCalibration;
+  std::string reference;
 };
 
 // Goes on with the session that waits for the PSD at its next placement.

@@ -41,6 +41,12 @@ struct RunSettings {
   // The most poses measured again when the solve names them (0: none): a session of poses with
   // no gross error measures none again.
   int remeasure_most = 3;
+  // What solves the measured poses: the absolute solve (zerocal/calib/solver.h) when unset. A
+  // session measured against a reference sets its own (the change since it); plan_indices[k] is
+  // poses[k]'s 0-based plan pose.
+  std::function<SolveReport(const std::vector<Pose>& poses, const std::vector<int>& plan_indices,
+                            const SolveOptions& options)>
+      solver;
 };
 
 // kAwaitingPlacement: every pose of the PSD's placement is recorded and the next plan pose is at
@@ -139,5 +145,7 @@ class CalibrationRun {
 // keeps its record's journal line as its source_line, so the solve's residuals and messages name
 // the line.
 std::vector<Pose> posesOf(const std::vector<PoseRecord>& records);
+// The 0-based plan pose of each of posesOf's poses.
+std::vector<int> planIndicesOf(const std::vector<PoseRecord>& records);
 
 }  // namespace zerocal

@@ -61,6 +61,7 @@ class SessionStore {
   void writeFile(const std::string& id, const std::string& name, const std::string& text);
   std::string journalPath(const std::string& id) const;
   std::string sessionDir(const std::string& id) const;
+  const std::string& dataDir() const { return data_dir_; }
 
  private:
   struct Cache;

@@ -1,0 +1,152 @@
+// A robot's life through the session manager on the simulated cell: a reference at known-good
+// zeros, a check that passes, a motor replaced (one joint's true zero moved), a check that names
+// the joint, a restore that measures the change, its apply verified against the reference, and
+// what is refused on the way.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+
+#include "stored_plan_request.h"
+#include "zerocal/model/kinematics.h"
+#include "zerocal/service/session_manager.h"
+#include "zerocal/sim/sim_backend.h"
+#include "zerocal/sim/sim_controller.h"
+
+namespace zerocal::service {
+namespace {
+
+struct TempDir {
+  TempDir() {
+    char pattern[] = "/tmp/zerocal-reference-XXXXXX";
+    if (!::mkdtemp(pattern)) throw std::runtime_error("mkdtemp failed");
+    path = pattern;
+  }
+  ~TempDir() { std::filesystem::remove_all(path); }
+  std::string path;
+};
+
+// The ideal world of seed 5 on its stored plan (no seconds of planning), the sessions' noise the
+// simulated repeatability at the detector.
+ManagerSettings settingsIn(const std::string& dir) {
+  ManagerSettings s;
+  s.session.data_dir = dir;
+  s.run.servo.stop = servo::ServoStop::kZone;
+  s.session.noise_mm = 0.020;
+  s.session.plan = PlanKind::kFile;
+  s.session.plan_file = testing::storedPlanPath("ideal-5");
+  return s;
+}
+
+StartRequest kindOf(SessionManager& manager, SessionKind kind) {
+  StartRequest r = manager.defaultRequest();
+  r.kind = kind;
+  return r;
+}
+
+std::string refusalOf(const std::function<void()>& call) {
+  try {
+    call();
+  } catch (const Refused& e) {
+    return e.code();
+  }
+  return "";
+}
+
+// A motor replaced: joint's true zero moves by `deg`, its cal_offset with it (the technician
+// synchronised the new motor by its marks).
+void replaceMotor(sim::SimBackend& backend, const Robot& robot, int joint, double deg) {
+  SimController& controller = backend.cell().controller();
+  const double k = robot.transmission[joint - 1];
+  double rad = controller.calOffsets()[joint - 1] + k * deg * kDegToRad;
+  rad = std::fmod(std::fmod(rad, 2 * kPi) + 2 * kPi, 2 * kPi);
+  controller.writeCalOffset(joint, rad);
+}
+
+TEST(ReferenceSessions, AReferenceACheckAMotorReplacedARestoreAppliedAndVerified) {
+  const TempDir dir;
+  sim::SimBackend backend(sim::seededCellOptions(5, WorldKind::kIdeal));
+  const Robot robot = backend.knowledge().cell.robot;
+  SessionManager manager(backend, settingsIn(dir.path));
+
+  // Nothing to compare with yet.
+  EXPECT_EQ(refusalOf([&] { manager.start(kindOf(manager, SessionKind::kCheck)); }),
+            "no_reference");
+
+  const std::string reference = manager.start(kindOf(manager, SessionKind::kReference));
+  ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
+  const ResultFile taken = manager.result(reference);
+  EXPECT_EQ(taken.kind, SessionKind::kReference);
+  EXPECT_TRUE(taken.report.verdict.usable)
+      << ::testing::PrintToString(taken.report.verdict.reasons);
+  // A reference writes nothing.
+  EXPECT_EQ(refusalOf([&] { manager.apply({reference, true}); }), "not_usable");
+
+  // The robot unchanged: a check of a few of the reference's poses passes.
+  const std::string same = manager.start(kindOf(manager, SessionKind::kCheck));
+  ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
+  const ResultFile passed = manager.result(same);
+  EXPECT_EQ(passed.kind, SessionKind::kCheck);
+  EXPECT_EQ(passed.reference, reference);
+  ASSERT_TRUE(passed.check);
+  EXPECT_EQ(passed.check->outcome, CheckJudgement::Outcome::kPass) << passed.check->summary;
+  EXPECT_LT(passed.report.pose_count, taken.report.pose_count);
+  EXPECT_EQ(refusalOf([&] { manager.apply({same, true}); }), "not_usable");
+
+  // Joint 3's motor replaced: its zero moved by 0.3 deg. A check names it, a restore measures it.
+  replaceMotor(backend, robot, 3, 0.3);
+  const double moved_deg = backend.cell().controller().zeroShiftDeg()[2];
+  ASSERT_NEAR(moved_deg, 0.3, 1e-4);
+  const std::string named = manager.start(kindOf(manager, SessionKind::kCheck));
+  ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
+  const ResultFile changed = manager.result(named);
+  ASSERT_TRUE(changed.check);
+  EXPECT_EQ(changed.check->outcome, CheckJudgement::Outcome::kChanged) << changed.check->summary;
+  EXPECT_EQ(changed.check->joints, std::vector<int>{3});
+
+  const std::string restore = manager.start(kindOf(manager, SessionKind::kRestore));
+  ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
+  const ResultFile found = manager.result(restore);
+  EXPECT_EQ(found.kind, SessionKind::kRestore);
+  EXPECT_TRUE(found.report.verdict.usable)
+      << ::testing::PrintToString(found.report.verdict.reasons);
+  for (int k = 0; k < kOffsetCount; ++k) {
+    const ParameterEstimate& p = found.report.parameters[k];
+    EXPECT_NEAR(p.value, k == 1 ? moved_deg : 0.0, 4 * p.sigma) << p.name;
+    EXPECT_LT(p.sigma, 0.003) << p.name;
+  }
+
+  // Applied: the zeros are the reference's again, the verification a check against it.
+  EXPECT_EQ(manager.apply({restore, true}), restore);
+  const SessionStatus end = manager.waitIdle();
+  EXPECT_EQ(end.apply.rfind("session " + restore + " verified", 0), 0u) << end.apply;
+  EXPECT_NEAR(backend.cell().controller().zeroShiftDeg()[2], 0.0, 0.004);
+  const std::vector<SessionInfo> sessions = manager.sessions();
+  ASSERT_FALSE(sessions.empty());
+  const SessionInfo& verification = sessions.back();
+  EXPECT_EQ(verification.kind, SessionKind::kVerification);
+  EXPECT_EQ(verification.verifies, restore);
+  EXPECT_EQ(manager.result(verification.id).reference, reference);
+}
+
+TEST(ReferenceSessions, ACheckAgainstWhatIsNoReferenceIsRefusedSayingWhy) {
+  const TempDir dir;
+  sim::SimBackend backend(sim::seededCellOptions(5, WorldKind::kIdeal));
+  SessionManager manager(backend, settingsIn(dir.path));
+  const std::string calibration = manager.start(manager.defaultRequest());
+  ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
+  StartRequest check = kindOf(manager, SessionKind::kCheck);
+  check.reference = calibration;
+  EXPECT_EQ(refusalOf([&] { manager.start(check); }), "not_a_reference");
+  check.reference = "20991231T000000Z";
+  EXPECT_EQ(refusalOf([&] { manager.start(check); }), "not_found");
+  check.reference = "../etc";
+  EXPECT_EQ(refusalOf([&] { manager.start(check); }), "bad_request");
+  // The latest usable reference is the default: with none, a check is refused.
+  EXPECT_EQ(refusalOf([&] { manager.start(kindOf(manager, SessionKind::kRestore)); }),
+            "no_reference");
+}
+
+}  // namespace
+}  // namespace zerocal::service

@@ -1,5 +1,6 @@
 #include "control_commands.h"
 
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -104,9 +105,21 @@ std::pair<bool, std::vector<std::string>> verdictOf(const ResultFile& r) {
 // What a technician reads: the verdict first, then the offsets and what to do with them.
 void printResult(const ResultFile& r, std::ostream& out) {
   const auto [usable, reasons] = verdictOf(r);
-  const bool simulated = r.truth.has_value();
-  out << "session " << (r.session.empty() ? "-" : r.session)
-      << (simulated ? " (SIMULATED cell: the truth is known)" : "") << "\n";
+  // Against a reference the offsets are changes since it, and the simulated truth (absolute)
+  // is not theirs: the reference's result holds the other half.
+  const bool against = !r.reference.empty();
+  const bool simulated = r.truth.has_value() && !against;
+  out << "session " << (r.session.empty() ? "-" : r.session) << ": " << sessionKindName(r.kind)
+      << (against ? " against reference " + r.reference : std::string())
+      << (r.truth ? " (SIMULATED cell)" : "") << "\n";
+  if (r.check) {
+    std::string outcome = checkOutcomeName(r.check->outcome);
+    for (char& c : outcome) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+    out << "check: " << outcome << ": " << r.check->summary << "\n";
+  }
+  if (r.kind == SessionKind::kReference)
+    out << "a reference: the robot's zeros as they are now, recorded for later checks and "
+           "restores; it claims nothing of the absolute zeros and writes nothing\n";
   out << "verdict: " << (usable ? "USABLE" : "NOT USABLE");
   if (!r.verdict_recorded) out << " (convergence and identifiability only)";
   out << "\n";
@@ -121,8 +134,8 @@ void printResult(const ResultFile& r, std::ostream& out) {
     if (p.name.rfind("delta", 0) == 0) offsets.push_back(&p);
   if (!offsets.empty()) {
     char line[200];
-    std::snprintf(line, sizeof line, "%-7s %12s %11s   %-26s", "offset", "value deg", "sigma deg",
-                  "95% interval deg");
+    std::snprintf(line, sizeof line, "%-7s %12s %11s   %-26s", "offset",
+                  against ? "change deg" : "value deg", "sigma deg", "95% interval deg");
     out << "\n" << line << (simulated ? "  truth deg      error" : "") << "\n";
     for (std::size_t k = 0; k < offsets.size(); ++k) {
       const ParameterEstimate& p = *offsets[k];
@@ -141,19 +154,31 @@ void printResult(const ResultFile& r, std::ostream& out) {
       }
       out << "\n";
     }
-    out << "\nOn the controller (arm side, joint angles; nothing was written to it):\n";
-    if (!usable) out << "  change nothing: the verdict is not usable.\n";
-    for (std::size_t k = 0; usable && k < offsets.size(); ++k) {
-      const ParameterEstimate& p = *offsets[k];
-      if (!p.identifiable || !std::isfinite(p.value)) continue;
-      std::snprintf(line, sizeof line,
-                    "  joint %c: the reading grows by %+.5f deg (its zero moves %+.5f deg)\n",
-                    p.name[5], p.value, -p.value);
-      out << line;
+    const bool writes = r.kind == SessionKind::kCalibration || r.kind == SessionKind::kRestore;
+    if (!writes) {
+      out << "\nNothing is written by a " << sessionKindName(r.kind)
+          << (r.kind == SessionKind::kCheck ? "; a restore against its reference finds the values "
+                                              "that bring the robot back.\n"
+                                            : ".\n");
+    } else {
+      out << "\nOn the controller (arm side, joint angles; nothing was written to it):\n";
+      if (against && usable)
+        out << "  the values that bring the robot back to reference " << r.reference
+            << " (`zerocal apply --confirm` writes them, verifies them by a check, and rolls "
+               "back unless it passes):\n";
+      if (!usable) out << "  change nothing: the verdict is not usable.\n";
+      for (std::size_t k = 0; usable && k < offsets.size(); ++k) {
+        const ParameterEstimate& p = *offsets[k];
+        if (!p.identifiable || !std::isfinite(p.value)) continue;
+        std::snprintf(line, sizeof line,
+                      "  joint %c: the reading grows by %+.5f deg (its zero moves %+.5f deg)\n",
+                      p.name[5], p.value, -p.value);
+        out << line;
+      }
+      if (usable) out << "  joints 1 and 6: unchanged (this method cannot determine them).\n";
+      out << "summary.txt and report.html in the session folder say where the IRC5 keeps the\n"
+             "calibration and how to enter it (zerocal-lab report DIR).\n";
     }
-    if (usable) out << "  joints 1 and 6: unchanged (this method cannot determine them).\n";
-    out << "summary.txt and report.html in the session folder say where the IRC5 keeps the\n"
-           "calibration and how to enter it (zerocal-lab report DIR).\n";
   }
   if (r.cell_time_s) {
     char line[80];

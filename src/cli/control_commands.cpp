@@ -86,6 +86,7 @@ void printStatus(const json& s, std::ostream& out) {
   out << "predicted:  " << sigmaText(s.value("predicted_sigma_deg", json::array())) << "\n";
   out << "achieved:   " << sigmaText(s.value("achieved_sigma_deg", json::array())) << "\n";
   if (s.contains("message")) out << "message:    " << s["message"].get<std::string>() << "\n";
+  if (s.contains("suggestion")) out << "next:       " << s["suggestion"].get<std::string>() << "\n";
 }
 
 // The verdict of a result: the solver's own when result.json has one, else what convergence and

@@ -64,7 +64,9 @@ Json toJson(const ResultFile& r) {
     Json change = Json::object();
     for (int k = 0; k < kOffsetCount && k < static_cast<int>(r.report.parameters.size()); ++k) {
       const ParameterEstimate& p = r.report.parameters[static_cast<std::size_t>(k)];
-      change[p.name] = {{"value", numberOrNull(p.value)}, {"sigma", numberOrNull(p.sigma)}};
+      // As the parameters hold it: an offset not determined has no value.
+      change[p.name] = {{"value", p.identifiable ? numberOrNull(p.value) : Json(nullptr)},
+                        {"sigma", p.identifiable ? numberOrNull(p.sigma) : Json(nullptr)}};
     }
     j["change"] = change;
   }

@@ -64,4 +64,14 @@ std::string latestReference(const SessionStore& store, const std::string& serial
   return "";
 }
 
+std::string suggestedKind(const std::string& latest) {
+  if (latest.empty())
+    return "no reference yet: with the robot known good, `zerocal start --kind reference` "
+           "records its zeros for later checks and restores; `zerocal start --placements 3` "
+           "calibrates them absolutely";
+  return "reference " + latest +
+         ": `zerocal start --kind check` sees in about 30 s whether a "
+         "zero moved; `--kind restore` brings them back after a motor or encoder change";
+}
+
 }  // namespace zerocal::service

@@ -111,6 +111,17 @@ std::vector<record::HistoryEntry> SessionManager::history(const record::RobotId&
 
 SessionStatus SessionManager::status() const {
   SessionStatus s = board_.status();
+  {
+    // The store is read again only when a session has begun or ended since: the status is asked
+    // for several times a second by every terminal watching.
+    const std::lock_guard<std::mutex> lock(suggestion_mutex_);
+    const std::string key = s.session_id + "/" + stateName(s.state);
+    if (key != suggestion_key_ || suggestion_.empty()) {
+      suggestion_ = suggestedKind(latestReference(store_));
+      suggestion_key_ = key;
+    }
+    s.suggestion = suggestion_;
+  }
   if (s.state == SessionState::kServoing)
     if (const std::optional<PsdReading> r = live_.load())
       s.live_servo_error_um = r->spot_present ? 1e3 * r->spot.norm() : std::nan("");

@@ -264,6 +264,14 @@ TEST_F(ControlServerTest, StartPassesThePlanChoice) {
   session_.setState(service::SessionState::kIdle);
   c->call("start", {{"even_if_not_usable", true}});
   EXPECT_TRUE(session_.lastRequest().even_if_not_usable);
+  EXPECT_EQ(session_.lastRequest().kind, SessionKind::kCalibration);
+  session_.setState(service::SessionState::kIdle);
+  c->call("start", {{"kind", "restore"}, {"reference", "20261121T060000Z"}});
+  EXPECT_EQ(session_.lastRequest().kind, SessionKind::kRestore);
+  EXPECT_EQ(session_.lastRequest().reference, "20261121T060000Z");
+  session_.setState(service::SessionState::kIdle);
+  c->call("start", {{"kind", "calibrate"}});
+  EXPECT_EQ(session_.lastRequest().kind, SessionKind::kCalibration);
   // NaN (not identifiable) travels as null.
   EXPECT_TRUE(c->call("status")["status"]["predicted_sigma_deg"][2].is_null());
 }
@@ -600,6 +608,10 @@ TEST_F(ControlServerTest, WrongTypesAreBadRequestsNamingTheMember) {
       {{{"cmd", "start"}, {"target_mm", "900 0 400"}}, "target_mm"},
       {{{"cmd", "start"}, {"noise_mm", -1}}, "noise_mm"},
       {{{"cmd", "start"}, {"even_if_not_usable", 1}}, "even_if_not_usable"},
+      {{{"cmd", "start"}, {"kind", "verification"}}, "kind"},
+      {{{"cmd", "start"}, {"kind", 3}}, "kind"},
+      {{{"cmd", "start"}, {"reference", "20261121T060000Z"}}, "reference"},
+      {{{"cmd", "start"}, {"kind", "check"}, {"reference", 5}}, "reference"},
       {{{"cmd", "start"}, {"pose", 8}}, "pose"},
       {{{"cmd", "plan"}, {"poses", json::object()}}, "poses"},
       {{{"cmd", "result"}, {"session", 12}}, "session"},

@@ -79,6 +79,70 @@ TEST(ResultsCodec, ASessionFileComesBack) {
   EXPECT_EQ(toJson(sessionFileFromJson(j)), j);
 }
 
+// A restore's and a check's result: the kind, the reference, the change said as such, the
+// check's judgement; an unknown kind or outcome is refused, naming it.
+TEST(ResultsCodec, AResultAgainstAReferenceSaysSoAndComesBack) {
+  ResultFile r = aResult();
+  r.kind = SessionKind::kCheck;
+  r.reference = "20261121T060000Z";
+  r.check = CheckJudgement{CheckJudgement::Outcome::kChanged, {3}, 0.01, "joint 3 moved"};
+  const json j = toJson(r);
+  EXPECT_EQ(j["kind"], "check");
+  EXPECT_EQ(j["reference"], "20261121T060000Z");
+  EXPECT_DOUBLE_EQ(j["change"]["delta3_deg"]["value"].get<double>(), 0.1);
+  EXPECT_DOUBLE_EQ(j["change"]["delta3_deg"]["sigma"].get<double>(), 0.002);
+  EXPECT_EQ(j["check"]["outcome"], "changed");
+  const ResultFile back = resultFileFromJson(j);
+  EXPECT_EQ(toJson(back), j);
+  EXPECT_EQ(back.kind, SessionKind::kCheck);
+  ASSERT_TRUE(back.check);
+  EXPECT_EQ(back.check->joints, std::vector<int>{3});
+  // A calibration's says its kind and nothing of a reference.
+  const json calibration = toJson(aResult());
+  EXPECT_EQ(calibration["kind"], "calibration");
+  EXPECT_FALSE(calibration.contains("change"));
+  json bad = j;
+  bad["kind"] = "recalibration";
+  EXPECT_THROW(resultFileFromJson(bad), InputError);
+  bad = j;
+  bad["check"]["outcome"] = "fine";
+  EXPECT_THROW(resultFileFromJson(bad), InputError);
+  bad = j;
+  bad["check"]["joints"] = {7};
+  EXPECT_THROW(resultFileFromJson(bad), InputError);
+}
+
+TEST(ResultsCodec, ASessionAgainstAReferenceNamesItAndAPosePerPlanPose) {
+  SessionFile s;
+  s.id = "20261122T073447Z";
+  s.kind = SessionKind::kRestore;
+  s.reference = "20261121T060000Z";
+  Pose pose;
+  pose.q_deg = {10, -5, 20, 45, -30, 0};
+  s.plan.poses = {pose, pose};
+  s.reference_poses = {4, 9};
+  s.plan.prediction.sigma.assign(kIdentifiedCount, 0.002);
+  s.plan.prediction.identifiable.assign(kIdentifiedCount, true);
+  s.plan.prediction.reason.assign(kIdentifiedCount, "");
+  s.target_mm = {900, -50, 400};
+  s.noise_mm = 0.02;
+  const json j = toJson(s);
+  const SessionFile back = sessionFileFromJson(j);
+  EXPECT_EQ(toJson(back), j);
+  EXPECT_EQ(back.kind, SessionKind::kRestore);
+  EXPECT_EQ(back.reference_poses, (std::vector<int>{4, 9}));
+  json bad = j;
+  bad["reference_poses"] = {4};
+  EXPECT_THROW(sessionFileFromJson(bad), InputError);  // one per plan pose
+  bad = j;
+  bad.erase("reference");
+  bad.erase("reference_poses");
+  EXPECT_THROW(sessionFileFromJson(bad), InputError);  // a restore names its reference
+  bad = j;
+  bad["kind"] = "rehearsal";
+  EXPECT_THROW(sessionFileFromJson(bad), InputError);
+}
+
 }  // namespace
 }  // namespace zerocal
 

@@ -70,9 +70,11 @@ TEST(ReferenceSessions, AReferenceACheckAMotorReplacedARestoreAppliedAndVerified
   const Robot robot = backend.knowledge().cell.robot;
   SessionManager manager(backend, settingsIn(dir.path));
 
-  // Nothing to compare with yet.
+  // Nothing to compare with yet: the daemon suggests a reference.
   EXPECT_EQ(refusalOf([&] { manager.start(kindOf(manager, SessionKind::kCheck)); }),
             "no_reference");
+  EXPECT_NE(manager.status().suggestion.find("--kind reference"), std::string::npos)
+      << manager.status().suggestion;
 
   const std::string reference = manager.start(kindOf(manager, SessionKind::kReference));
   ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
@@ -80,6 +82,12 @@ TEST(ReferenceSessions, AReferenceACheckAMotorReplacedARestoreAppliedAndVerified
   EXPECT_EQ(taken.kind, SessionKind::kReference);
   EXPECT_TRUE(taken.report.verdict.usable)
       << ::testing::PrintToString(taken.report.verdict.reasons);
+  // With one, a check against it.
+  EXPECT_NE(manager.status().suggestion.find("reference " + reference +
+                                             ": `zerocal start --kind "
+                                             "check`"),
+            std::string::npos)
+      << manager.status().suggestion;
   // A reference writes nothing.
   EXPECT_EQ(refusalOf([&] { manager.apply({reference, true}); }), "not_usable");
 

@@ -34,4 +34,8 @@ Reference loadReference(const SessionStore& store, const std::string& id);
 // serial when given; empty when there is none.
 std::string latestReference(const SessionStore& store, const std::string& serial = "");
 
+// The kind to run next, in a sentence for the status (SessionStatus::suggestion): a reference
+// when `latest` (latestReference's answer) is empty, else a check against it.
+std::string suggestedKind(const std::string& latest);
+
 }  // namespace zerocal::service

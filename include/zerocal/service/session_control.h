@@ -133,6 +133,9 @@ struct SessionStatus {
   // The latest online apply, verification or recovery of an interrupted apply, in a sentence:
   // what was applied and how it ended. Empty when there was none since the daemon started.
   std::string apply;
+  // What to run next, in a sentence: with no usable reference in the data folder, a reference
+  // (or an absolute calibration from three placements); with one, a check against it.
+  std::string suggestion;
 };
 
 // An online apply of a finished session's offsets to the controller (docs/apply.md).

@@ -17,6 +17,7 @@
 #pragma once
 
 #include <chrono>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
@@ -94,6 +95,9 @@ class SessionManager final : public SessionControl {
   CellConnection connection_;
   SessionRunner runner_;
   ApplyCoordinator apply_;
+  // The status' suggestion, kept until a session begins or ends (status()).
+  mutable std::mutex suggestion_mutex_;
+  mutable std::string suggestion_key_, suggestion_;
   SessionWorker worker_;  // last member: its thread starts after the others exist
 };
 

@@ -118,6 +118,7 @@ void printResult(const ResultFile& r, std::ostream& out) {
     for (char& c : outcome) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
     out << "check: " << outcome << ": " << r.check->summary << "\n";
   }
+  for (const Drift& d : r.drift) out << "DRIFT: " << d.summary << "\n";
   if (r.kind == SessionKind::kReference)
     out << "a reference: the robot's zeros as they are now, recorded for later checks and "
            "restores; it claims nothing of the absolute zeros and writes nothing\n";

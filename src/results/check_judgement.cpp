@@ -1,5 +1,9 @@
 #include "zerocal/results/check_judgement.h"
 
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
 #include "zerocal/error.h"
 #include "zerocal/io/json_reader.h"
 
@@ -43,6 +47,57 @@ CheckJudgement checkJudgementFromJson(const nlohmann::json& json, const std::str
   c.bound_deg = j.number("bound_deg");
   c.summary = j.string("summary");
   return c;
+}
+
+std::vector<Drift> driftBetween(const std::string& then_session,
+                                const std::vector<double>& then_deg,
+                                const std::vector<double>& then_sigma_deg,
+                                const std::vector<double>& now_deg,
+                                const std::vector<double>& now_sigma_deg) {
+  std::vector<Drift> out;
+  const std::size_t n = std::min({then_deg.size(), then_sigma_deg.size(), now_deg.size(),
+                                  now_sigma_deg.size(), std::size_t{4}});
+  for (std::size_t k = 0; k < n; ++k) {
+    const double sigma = std::hypot(then_sigma_deg[k], now_sigma_deg[k]);
+    const double moved = now_deg[k] - then_deg[k];
+    if (!std::isfinite(moved) || !(sigma > 0) || !(std::abs(moved) > 3 * sigma)) continue;
+    Drift d;
+    d.joint = static_cast<int>(k) + 2;
+    d.since = then_session;
+    d.then_deg = then_deg[k];
+    d.then_sigma_deg = then_sigma_deg[k];
+    d.now_deg = now_deg[k];
+    d.now_sigma_deg = now_sigma_deg[k];
+    char text[200];
+    std::snprintf(text, sizeof text,
+                  "joint %d's zero moved %+.4f deg since session %s (%.1f sigma): a drift, or "
+                  "something happened to the robot in between",
+                  d.joint, moved, then_session.c_str(), std::abs(moved) / sigma);
+    d.summary = text;
+    out.push_back(d);
+  }
+  return out;
+}
+
+nlohmann::json toJson(const Drift& d) {
+  return {{"joint", d.joint},       {"since", d.since},
+          {"then_deg", d.then_deg}, {"then_sigma_deg", d.then_sigma_deg},
+          {"now_deg", d.now_deg},   {"now_sigma_deg", d.now_sigma_deg},
+          {"summary", d.summary}};
+}
+
+Drift driftFromJson(const nlohmann::json& json, const std::string& where) {
+  const JsonReader j(json, where);
+  Drift d;
+  d.joint = j.integer("joint");
+  if (d.joint < 2 || d.joint > 5) throw InputError(where + ": 'joint' is not one of 2..5");
+  d.since = j.string("since");
+  d.then_deg = j.number("then_deg");
+  d.then_sigma_deg = j.number("then_sigma_deg");
+  d.now_deg = j.number("now_deg");
+  d.now_sigma_deg = j.number("now_sigma_deg");
+  d.summary = j.string("summary");
+  return d;
 }
 
 }  // namespace zerocal

@@ -71,6 +71,10 @@ Json toJson(const ResultFile& r) {
     j["change"] = change;
   }
   if (r.check) j["check"] = toJson(*r.check);
+  if (!r.reference.empty()) {
+    j["drift"] = Json::array();
+    for (const Drift& d : r.drift) j["drift"].push_back(toJson(d));
+  }
   if (r.cell_time_s) j["cell_time_s"] = *r.cell_time_s;
   if (r.resumed_from) j["resumed_from"] = *r.resumed_from;
   if (r.remeasured) j["remeasured"] = *r.remeasured;
@@ -111,6 +115,9 @@ ResultFile resultFileFromJson(const Json& json) {
   if (j.has("kind")) r.kind = sessionKindFromName(j.string("kind"), kResultWhere);
   r.reference = j.has("reference") ? j.string("reference") : "";
   if (j.present("check")) r.check = checkJudgementFromJson(j.at("check"), "result.json check");
+  if (j.present("drift"))
+    for (std::size_t i = 0; i < j.array("drift").size(); ++i)
+      r.drift.push_back(driftFromJson(j.array("drift")[i], "result.json drift"));
   r.cell_time_s = j.optionalNumber("cell_time_s");
   if (j.has("resumed_from")) r.resumed_from = j.integer("resumed_from");
   if (j.has("remeasured")) {

@@ -12,6 +12,7 @@ ResultFile assembleResult(const std::string& session_id, const RunOutcome& outco
   result.kind = facts.kind;
   result.reference = facts.reference;
   result.check = facts.check;
+  result.drift = facts.drift;
   result.cell_time_s = facts.cell_time_s;
   result.resumed_from = outcome.resumed_from;
   result.remeasured.emplace();

@@ -53,6 +53,35 @@ std::vector<int> pairsOf(const Reference& reference, const std::vector<int>& ref
   return pairs;
 }
 
+// The zeros that moved since the robot's latest comparison with `reference` before session `id`
+// (a check, a restore, a verification against it), by more than the history explains.
+std::vector<Drift> driftSinceLastComparison(const SessionStore& store, const std::string& id,
+                                            const Reference& reference, const SolveReport& now) {
+  const auto changes = [](const SolveReport& r, std::vector<double>& value,
+                          std::vector<double>& sigma) {
+    for (int k = 0; k < kOffsetCount && k < static_cast<int>(r.parameters.size()); ++k) {
+      const ParameterEstimate& p = r.parameters[static_cast<std::size_t>(k)];
+      value.push_back(p.identifiable ? p.value : std::nan(""));
+      sigma.push_back(p.identifiable ? p.sigma : std::nan(""));
+    }
+  };
+  const std::vector<SessionInfo> sessions = store.list();  // oldest first
+  for (auto s = sessions.rbegin(); s != sessions.rend(); ++s) {
+    if (s->id >= id || !s->finished) continue;
+    try {
+      const ResultFile then = store.readResult(s->id);
+      if (then.reference != reference.id || !then.report.converged) continue;
+      std::vector<double> then_deg, then_sigma, now_deg, now_sigma;
+      changes(then.report, then_deg, then_sigma);
+      changes(now, now_deg, now_sigma);
+      return driftBetween(s->id, then_deg, then_sigma, now_deg, now_sigma);
+    } catch (const Error&) {
+      continue;  // an unreadable result is no history
+    }
+  }
+  return {};
+}
+
 SessionState stateOf(RunPhase phase) {
   switch (phase) {
     case RunPhase::kMoving:
@@ -293,6 +322,10 @@ void SessionRunner::runMeasurement(const RunRequest& request) {
     const double bound = settings_.run.solve.required_accuracy_deg;
     if (request.kind == SessionKind::kCheck) facts.check = judgeCheck(*outcome->report, bound);
     if (request.kind == SessionKind::kRestore) refuseWithoutChange(*outcome->report);
+    // A verification measures what an apply just changed: no drift of its own.
+    if (request.kind != SessionKind::kVerification)
+      facts.drift = driftSinceLastComparison(store_, id, *reference, *outcome->report);
+    for (const Drift& d : facts.drift) log->warn("session {}: {}", id, d.summary);
   }
   facts.cell = ResultFile::Cell{identity.robot, knowledge_.psd_map};
   facts.cal_offset_rad = identity.cal_offset_rad;

@@ -112,11 +112,17 @@ TEST(ReferenceSessions, AReferenceACheckAMotorReplacedARestoreAppliedAndVerified
   ASSERT_TRUE(changed.check);
   EXPECT_EQ(changed.check->outcome, CheckJudgement::Outcome::kChanged) << changed.check->summary;
   EXPECT_EQ(changed.check->joints, std::vector<int>{3});
+  // Against the check before it, that is a drift of joint 3 alone.
+  ASSERT_EQ(changed.drift.size(), 1u);
+  EXPECT_EQ(changed.drift[0].joint, 3);
+  EXPECT_EQ(changed.drift[0].since, same);
+  EXPECT_TRUE(passed.drift.empty());
 
   const std::string restore = manager.start(kindOf(manager, SessionKind::kRestore));
   ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
   const ResultFile found = manager.result(restore);
   EXPECT_EQ(found.kind, SessionKind::kRestore);
+  EXPECT_TRUE(found.drift.empty());  // the zero as the check before it found it
   EXPECT_TRUE(found.report.verdict.usable)
       << ::testing::PrintToString(found.report.verdict.reasons);
   for (int k = 0; k < kOffsetCount; ++k) {
@@ -136,6 +142,14 @@ TEST(ReferenceSessions, AReferenceACheckAMotorReplacedARestoreAppliedAndVerified
   EXPECT_EQ(verification.kind, SessionKind::kVerification);
   EXPECT_EQ(verification.verifies, restore);
   EXPECT_EQ(manager.result(verification.id).reference, reference);
+  EXPECT_TRUE(manager.result(verification.id).drift.empty());
+  // A check after the apply: against the verification, nothing moved.
+  const std::string after = manager.start(kindOf(manager, SessionKind::kCheck));
+  ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
+  const ResultFile back = manager.result(after);
+  ASSERT_TRUE(back.check);
+  EXPECT_EQ(back.check->outcome, CheckJudgement::Outcome::kPass) << back.check->summary;
+  EXPECT_TRUE(back.drift.empty());
 }
 
 TEST(ReferenceSessions, ACheckAgainstWhatIsNoReferenceIsRefusedSayingWhy) {

@@ -48,6 +48,8 @@ struct ResultFile {
   SessionKind kind = SessionKind::kCalibration;
   std::string reference;
   std::optional<CheckJudgement> check;
+  // Against a reference: the zeros that moved since the robot's last comparison with it.
+  std::vector<Drift> drift;
   std::optional<double> cell_time_s;
   std::optional<int> resumed_from;
   std::optional<std::vector<int>> remeasured;  // 1-based plan poses measured again

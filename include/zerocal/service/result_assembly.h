@@ -20,6 +20,7 @@ struct RunFacts {
   SessionKind kind = SessionKind::kCalibration;
   std::string reference;                // the reference session measured against, if any
   std::optional<CheckJudgement> check;  // a check's judgement
+  std::vector<Drift> drift;             // zeros moved since the last comparison
   ResultFile::Cell cell;                // the controller as it named the robot, the PSD map
   // The controller's motor calibration while the session measured (rad); absent when its link
   // offers none or it did not answer.

@@ -112,7 +112,10 @@ void printResult(const ResultFile& r, std::ostream& out) {
   const bool simulated = r.truth.has_value() && !against;
   out << "session " << (r.session.empty() ? "-" : r.session) << ": " << sessionKindName(r.kind)
       << (against ? " against reference " + r.reference : std::string())
-      << (r.truth ? " (SIMULATED cell)" : "") << "\n";
+      << (simulated ? " (SIMULATED cell: the truth is known)"
+          : r.truth ? " (SIMULATED cell: the true change is the reference's truth less this one's)"
+                    : "")
+      << "\n";
   if (r.check) {
     std::string outcome = checkOutcomeName(r.check->outcome);
     for (char& c : outcome) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));

@@ -268,13 +268,47 @@ Section otherControllerSection(const SessionReport& r, const std::string& kind) 
 }  // namespace
 
 Section controllerSection(const SessionReport& r) {
+  const ResultFile& result = r.result;
+  // A reference, a check and a verification write nothing: what they are instead.
+  if (result.kind == SessionKind::kReference || result.kind == SessionKind::kCheck ||
+      result.kind == SessionKind::kVerification) {
+    Section s;
+    s.heading = std::string("A ") + sessionKindName(result.kind) + ": nothing is written";
+    if (result.kind == SessionKind::kReference)
+      s.paragraphs.push_back(
+          "This session recorded the robot's zeros as they are: its poses, the PSD centre and "
+          "the laser line its solve found, and the controller's calibration values. Later checks "
+          "and restores of this robot compare with it (zerocal start --kind check, --kind "
+          "restore); against it the robot's link errors cancel. Its offsets above are absolute "
+          "estimates, not offered for use.");
+    if (result.check)
+      s.paragraphs.push_back("Check against reference " + result.reference + ": " +
+                             result.check->summary + ".");
+    if (result.kind == SessionKind::kVerification)
+      s.paragraphs.push_back(
+          "This session measured what an apply left" +
+          (result.reference.empty() ? std::string() : " against reference " + result.reference) +
+          "; the apply's own session says whether it was kept.");
+    for (const Drift& d : result.drift) s.paragraphs.push_back("Drift: " + d.summary + ".");
+    return s;
+  }
   // Sessions from before the kinds recorded none: they all ran on an IRC5.
   const nlohmann::json& config = r.session.config;
   std::string kind = "irc5";
   if (config.is_object() && config.contains("controller") && config["controller"].is_object() &&
       config["controller"].contains("kind") && config["controller"]["kind"].is_string())
     kind = config["controller"]["kind"].get<std::string>();
-  return kind == "irc5" ? abbSection(r) : otherControllerSection(r, kind);
+  Section s = kind == "irc5" ? abbSection(r) : otherControllerSection(r, kind);
+  if (!result.reference.empty())
+    s.paragraphs.insert(
+        s.paragraphs.begin(),
+        "A restore against reference " + result.reference +
+            ": each offset below is the change of the joint's zero since the reference, and the "
+            "correction brings the robot back to the zeros it had then (its programs' zeros). "
+            "zerocal apply --confirm writes it online and verifies it by a check against the "
+            "reference.");
+  for (const Drift& d : result.drift) s.paragraphs.push_back("Drift: " + d.summary + ".");
+  return s;
 }
 
 std::string wrap(const std::string& text, std::size_t width, std::size_t indent) {

@@ -62,6 +62,10 @@ struct SimulatedArm::State {
     if (!motion.empty()) throw ConfigError(kOrigin, {"motion: " + motion});
     if (!(options.restart_s >= 0 && options.restart_s <= 3600))
       throw ConfigError(kOrigin, {"restart_s must be within 0..3600 s"});
+    if (!(options.warm_s >= 0 && options.warm_s <= kMaxWarmS))
+      throw ConfigError(kOrigin, {"warm_s must be within 0.." +
+                                  std::to_string(static_cast<long>(kMaxWarmS)) + " s (a week)"});
+    time_s = options.warm_s;
     commanded = store(options.start_joints);
     initMotorCalibration();
     const std::string violation = options.world.robot.limitViolation(commanded);

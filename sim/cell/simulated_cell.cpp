@@ -54,6 +54,7 @@ SimControllerOptions controllerOptions(const SimulatedCellOptions& o) {
   c.world = o.world;
   c.seed = o.controller_seed;
   c.pace = o.pace;
+  c.warm_s = o.warm_s;
   c.motion = o.motion;
   c.search.wired = o.search_signal;
   c.search.psd = o.psd;  // the comparator watches this cell's detector

@@ -68,6 +68,7 @@ std::unique_ptr<sim::SimulatedArm> makeArm(SimControllerOptions& o) {
   a.search = o.search;
   a.motion = irc5MotionModel(o.motion);
   a.restart_s = o.restart_s;
+  a.warm_s = o.warm_s;
   a.seed = o.seed;
   a.start_joints = o.start_joints;
   a.single_precision = true;  // RAPID's num

@@ -18,6 +18,7 @@
 #include "zerocal/calib/planner.h"
 #include "zerocal/cell/kinds.h"
 #include "zerocal/error.h"
+#include "zerocal/sim/world.h"
 #include "zerocal/sim/zero_change.h"
 
 namespace zerocal {
@@ -63,6 +64,7 @@ std::vector<Field> schema(DaemonConfig& c) {
                                 {{"false", false}, {"true", true}}));
   f.push_back(integerField("backend.sim_zero_change_joint", c.backend.sim_zero_change_joint));
   f.push_back(realField("backend.sim_zero_change_deg", c.backend.sim_zero_change_deg));
+  f.push_back(realField("backend.sim_warm_s", c.backend.sim_warm_s));
   f.push_back(realField("backend.sim_gross_rate", c.backend.sim_gross_rate));
   f.push_back(realField("backend.sim_pace", c.backend.sim_pace));
   f.push_back(realField("backend.sim_move_overhead_s", c.backend.sim_move_overhead_s));
@@ -288,6 +290,7 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
   check.range("backend.sim_pace", b.sim_pace, 0.0, 10.0);
   check.range("backend.sim_gross_rate", b.sim_gross_rate, 0.0, 1.0);
   check.range("backend.sim_move_overhead_s", b.sim_move_overhead_s, 0.0, 60.0);
+  check.range("backend.sim_warm_s", b.sim_warm_s, 0.0, kMaxWarmS);
   if (b.kind == BackendKind::kSim) {
     if (!b.sim_world.empty() && b.sim_seed)
       check.fail("backend.sim_seed", "give backend.sim_world or backend.sim_seed, not both");
@@ -305,6 +308,10 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
                  "an external zerocal-sim simulates its own world: change a zero on the "
                  "in-process simulated cell (leave backend.sim_host unset), or give zerocal-sim a "
                  "world file with the changed offsets");
+    if (b.sim_warm_s != 0 && !b.sim_host.empty())
+      check.fail("backend.sim_warm_s",
+                 "an external zerocal-sim keeps its own clock: warm the arm on the in-process "
+                 "simulated cell (leave backend.sim_host unset)");
     if (b.sim_host.empty() != (b.sim_port == 0))
       check.fail(b.sim_host.empty() ? "backend.sim_port" : "backend.sim_host",
                  "an external zerocal-sim needs both backend.sim_host and backend.sim_port");

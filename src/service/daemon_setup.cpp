@@ -61,6 +61,7 @@ std::unique_ptr<CellBackend> makeBackend(const DaemonConfig& cfg) {
     return std::make_unique<sim::ExternalSimBackend>(std::move(e));
   }
   o.pace = cfg.backend.sim_pace;
+  o.warm_s = cfg.backend.sim_warm_s;  // the arm's thermal state when this daemon starts it
   o.motion.overhead_s = cfg.backend.sim_move_overhead_s;
   // The controller section applies to the simulated controller as to a real one; only where the
   // controller listens and how quickly to retry come from the simulated cell.

@@ -250,6 +250,22 @@ TEST_F(ConfigTest, AZeroChangeIsAJointOf2To5AndAFewDegrees) {
   EXPECT_TRUE(reported(p, {"backend.sim_zero_change_joint", "external zerocal-sim"})) << joined(p);
 }
 
+TEST_F(ConfigTest, TheArmsWarmUpIsSecondsFromZeroToAWeekOnTheInProcessCell) {
+  write("main.yaml", "backend:\n  kind: sim\n");
+  EXPECT_EQ(loadDaemonConfig(sources()).backend.sim_warm_s, 0.0);  // cold, as before
+  EXPECT_EQ(loadDaemonConfig(sources({"backend.sim_warm_s=3600"})).backend.sim_warm_s, 3600.0);
+  auto p = problems(sources({"backend.sim_warm_s=-1"}));
+  EXPECT_TRUE(reported(p, {"command line", "backend.sim_warm_s"})) << joined(p);
+  p = problems(sources({"backend.sim_warm_s=1e6"}));
+  EXPECT_TRUE(reported(p, {"backend.sim_warm_s", "604800"})) << joined(p);
+  p = problems(sources({"backend.sim_warm_s=warm"}));
+  EXPECT_TRUE(reported(p, {"backend.sim_warm_s"})) << joined(p);
+  p = problems(
+      sources({"backend.sim_warm_s=60", "backend.sim_host=127.0.0.1", "backend.sim_port=5010"}));
+  EXPECT_TRUE(reported(p, {"backend.sim_warm_s", "external zerocal-sim keeps its own clock"}))
+      << joined(p);
+}
+
 TEST_F(ConfigTest, InconsistentCombinations) {
   write("main.yaml",
         "backend:\n  kind: sim\n  sim_world: /nonexistent/world.yaml\n  sim_seed: 3\n"

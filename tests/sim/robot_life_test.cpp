@@ -11,6 +11,7 @@
 #include "zerocal/error.h"
 #include "zerocal/service/daemon_setup.h"
 #include "zerocal/service/session_manager.h"
+#include "zerocal/sim/sim_backend.h"
 #include "zerocal/sim/world.h"
 
 namespace zerocal {
@@ -116,6 +117,24 @@ TEST(RobotLife, AMotorReplacementMovesThatZeroInTheTruthAndInTheResult) {
     const double expected = k == 1 ? 0.1 : 0.0;
     EXPECT_LT(std::abs(b.value - a.value - expected), 4 * std::hypot(a.sigma, b.sigma))
         << unknownName(k) << ": " << b.value - a.value;
+  }
+}
+
+// backend.sim_warm_s: the daemon starts its simulated controller with that much time behind it,
+// the arm as warm as that; without it, cold (the controller's clock at 0), as before.
+TEST(RobotLife, TheDaemonStartsTheSimulatedArmAsWarmAsConfigured) {
+  const testing::TempDir dir("zerocal-life");
+  DaemonConfig c = idealWorld(dir.path);
+  c.backend.sim_ideal_world = false;  // the realistic world warms
+  for (const double warm_s : {0.0, 3600.0}) {
+    c.backend.sim_warm_s = warm_s;
+    const std::unique_ptr<CellBackend> backend = service::makeBackend(c);
+    auto* sim = dynamic_cast<sim::SimBackend*>(backend.get());
+    ASSERT_NE(sim, nullptr);
+    EXPECT_EQ(sim->cell().controller().simTimeS(), warm_s);
+    // The cell's clock goes on from there; a session's cell time is a difference of it.
+    EXPECT_GE(sim->cell().nowS(), warm_s);
+    EXPECT_LT(sim->cell().nowS(), warm_s + 1);
   }
 }
 

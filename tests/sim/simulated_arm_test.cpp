@@ -255,6 +255,55 @@ TEST(SimulatedArm, TheClockAdvancesByTheMovesAndRestartsOnly) {
   EXPECT_DOUBLE_EQ(arm.timeS(), expected);
 }
 
+// A warm arm (warm_s: the controller has been working that long) starts its clock there, and its
+// links have grown by what ThermalDrift says: the beam meets the PSD where the flange, displaced
+// by the growth of the arm (every length scaled, the orientations not), puts it.
+TEST(SimulatedArm, AWarmArmHasGrownByWhatItsThermalDriftSays) {
+  SimulatedArmOptions cold = armOptions();
+  cold.world = randomWorld(11);  // realistic: link errors, sag and warming
+  cold.world.noise.repeatability_deg = 0;
+  cold.world.gross = GrossErrors{};
+  SimulatedArmOptions warm = cold;
+  warm.warm_s = 7200;
+  SimulatedArm cold_arm(cold), warm_arm(warm);
+  EXPECT_EQ(cold_arm.timeS(), 0.0);
+  EXPECT_EQ(warm_arm.timeS(), 7200.0);
+  // A pose that puts the beam on the PSD of this world.
+  const Joints q{0, 30, 10, 0, 40, 0};
+  const double cost = cold_arm.moveJoints(q).cost.total();
+  ASSERT_EQ(warm_arm.moveJoints(q).cost.total(), cost);
+  EXPECT_DOUBLE_EQ(warm_arm.timeS() - cold_arm.timeS(), 7200.0);
+
+  const ThermalDrift& t = cold.world.thermal;
+  ASSERT_GT(t.rise_k, 0);
+  const auto growth = [&](double time_s) {
+    return t.expansion_per_k * t.rise_k * (1 - std::exp(-time_s / t.time_constant_s));
+  };
+  // Every length scales by 1 + growth, so the flange (and the laser on it) moves by the ratio of
+  // the two scales, less one, times its position from the base.
+  const Eigen::Vector3d flange = trueFlangePositionMm(cold.world, q, cold_arm.timeS());
+  const Eigen::Vector3d moved =
+      ((1 + growth(warm_arm.timeS())) / (1 + growth(cold_arm.timeS())) - 1) * flange;
+  EXPECT_GT(moved.norm(), 0.02);  // tens of micrometres at least: measurable on the PSD
+  EXPECT_NEAR((trueFlangePositionMm(cold.world, q, warm_arm.timeS()) - flange - moved).norm(), 0,
+              1e-9);
+  // On the PSD: the beam is parallel to the cold one, shifted by `moved` along the plane.
+  const Eigen::Matrix3d& r = cold.world.psd_rotation;
+  const Eigen::Vector3d n = r.col(2);
+  const Frame<double> f = flangePoseDeg(cold.world.robot, q, cold.world.true_offsets_deg);
+  const Eigen::Vector3d d = (f.R * cold.world.laser_direction).normalized();
+  const Eigen::Vector3d on_plane = r.transpose() * (moved - d * n.dot(moved) / n.dot(d));
+  const std::optional<BeamHit> a = cold_arm.beamHitNow(), b = warm_arm.beamHitNow();
+  ASSERT_TRUE(a && b);
+  const Eigen::Vector2d shift(b->spot.u_mm - a->spot.u_mm, b->spot.v_mm - a->spot.v_mm);
+  // Within 5%: the beam's direction is the nominal arm's here, the true one's differs by the
+  // link twists and the sag, a fraction of a degree.
+  EXPECT_NEAR((shift - on_plane.head<2>()).norm(), 0, 0.05 * on_plane.head<2>().norm())
+      << "spot moved by (" << shift.transpose() << ") mm, the growth predicts ("
+      << on_plane.head<2>().transpose() << ")";
+  EXPECT_GT(shift.norm(), 0.01);
+}
+
 // A server's I/O thread moves the arm while another thread reads it: every reading is a state
 // the arm was in (a target reached, a clock that only grows).
 TEST(SimulatedArm, ReadersSeeWholeMovesWhileAnotherThreadMoves) {
@@ -288,6 +337,17 @@ TEST(SimulatedArm, OptionsItCannotRunWithAreAConfigError) {
   o = armOptions();
   o.restart_s = -1;
   EXPECT_THROW(SimulatedArm{o}, ConfigError);
+  for (const double warm_s : {-1.0, kMaxWarmS + 1, std::nan("")}) {
+    o = armOptions();
+    o.warm_s = warm_s;
+    try {
+      SimulatedArm arm(o);
+      ADD_FAILURE() << "warm_s " << warm_s << " taken";
+    } catch (const ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find("warm_s must be within 0..604800 s"), std::string::npos)
+          << e.what();
+    }
+  }
 }
 
 TEST(SimulatedArm, ItsIdentityIsData) {

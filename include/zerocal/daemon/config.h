@@ -43,6 +43,11 @@ struct BackendConfig {
   // offsets (sim::ZeroChange).
   int sim_zero_change_joint = 0;
   double sim_zero_change_deg = 0;
+  // The arm's thermal state: the simulated controller's time when the daemon starts it (s), as
+  // if the robot had been working that long (World::thermal warms with the controller's time);
+  // 0 a cold arm, 0..kMaxWarmS (a week). Two daemons with different values play a robot measured
+  // warm and cold.
+  double sim_warm_s = 0;
   // Realistic seeded worlds: the chance per pose of each kind of gross error.
   double sim_gross_rate = 0.01;
   // Wall seconds per simulated second of a move: 0 as fast as the computer goes, 1 real time,

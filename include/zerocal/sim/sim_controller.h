@@ -71,6 +71,9 @@ struct SimControllerOptions {
   // the controller refuses connections. A real IRC5's warm start takes tens of seconds
   // (docs/irc5.md: inferred, not measured).
   double restart_s = 30.0;
+  // How long the controller has been running when it starts (s): the arm's warm-up carried in
+  // (SimulatedArmOptions::warm_s); 0 cold.
+  double warm_s = 0.0;
   // Seeds the repeatability noise.
   std::uint64_t seed = 1;
   // A request still missing its '#' after this long gets a bad-message reply and is discarded

@@ -107,6 +107,10 @@ struct SimulatedArmOptions {
   MotionModel motion;  // required: no default timing model
   // Simulated seconds restart() charges to the clock.
   double restart_s = 30.0;
+  // The controller's time at construction (s): how long the arm has been working already, so
+  // that its thermal state (World::thermal, a function of the controller's time) is that of a
+  // warm arm; 0 a cold one. 0..kMaxWarmS.
+  double warm_s = 0.0;
   // Seeds the repeatability noise, the gross errors, the latch latency and drawn cal_offsets.
   std::uint64_t seed = 1;
   // Initial joints (deg), as the controller believes them; within the robot's limits.
@@ -157,8 +161,8 @@ double roundToFloat32(double v);
 class SimulatedArm {
  public:
   // Throws ConfigError (every problem of the motor calibration, else the first other) when the
-  // motion model is unusable, restart_s is outside 0..3600 s, a cal_offset is outside
-  // [0, 2 pi) or the start joints are outside the robot's limits.
+  // motion model is unusable, restart_s is outside 0..3600 s, warm_s outside 0..kMaxWarmS, a
+  // cal_offset is outside [0, 2 pi) or the start joints are outside the robot's limits.
   explicit SimulatedArm(SimulatedArmOptions options);
   ~SimulatedArm();
   SimulatedArm(const SimulatedArm&) = delete;
@@ -200,7 +204,8 @@ class SimulatedArm {
   // light while there is some.
   std::optional<BeamHit> beamHitNow() const;
   bool searchSignalWired() const;
-  // Simulated seconds since construction: every move's cost and every restart's duration.
+  // The controller's simulated time (s): options.warm_s at construction, then every move's cost
+  // and every restart's duration. The arm's thermal state follows it.
   double timeS() const;
   MotionTotals motionTotals() const;
   const RobotInfo& identity() const;

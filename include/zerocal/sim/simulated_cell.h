@@ -3,9 +3,9 @@
 // the world's current beam hit. Clients connect to it with the real Irc5Client and the real
 // Usb1408fs protocol code (through FakeTransport), exactly as to a real cell.
 //
-// Time: nowS() is the controller's simulated time (moves) plus the board's (scans) plus the
-// waits asked through waitS() (settling, back-off); nothing sleeps. The board must be driven from
-// one thread (the one that owns the Usb1408fs).
+// Time: nowS() is the controller's simulated time (warm_s at start, then its moves) plus the
+// board's (scans) plus the waits asked through waitS() (settling, back-off); nothing sleeps. The
+// board must be driven from one thread (the one that owns the Usb1408fs).
 #pragma once
 
 #include <cstdint>
@@ -29,6 +29,9 @@ struct SimulatedCellOptions {
   World world;
   std::uint64_t controller_seed = 1;  // repeatability noise of the moves
   double pace = 0.0;  // wall seconds per simulated second of a move (SimControllerOptions::pace)
+  // The controller's time at start (s): a robot that has been working that long, its arm warm
+  // (SimControllerOptions::warm_s, backend.sim_warm_s); 0 a cold arm.
+  double warm_s = 0.0;
   irc5::MotionCosts motion;  // what each move costs the controller (SimControllerOptions::motion)
   // The PSD's light signal wired to the controller (the continuous spot search, SimSearchSignal).
   bool search_signal = true;

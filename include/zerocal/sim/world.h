@@ -69,12 +69,17 @@ struct Compliance {
 
 // Thermal growth of the arm: every DH length (a, d) grows by expansion_per_k * dT(t), where
 // dT(t) = rise_k * (1 - exp(-t / time_constant_s)) and t is the controller's time (its moves
-// since it started): the arm starts at ambient temperature and warms towards rise_k.
+// since it started, plus the work it had done before when it starts warm: backend.sim_warm_s):
+// a cold arm starts at ambient temperature and warms towards rise_k.
 struct ThermalDrift {
   double expansion_per_k = 0;
   double rise_k = 0;
   double time_constant_s = 3600;
 };
+// The longest a simulated controller may have been running when a session starts (s, the arm's
+// warm-up carried in: SimulatedArmOptions::warm_s, backend.sim_warm_s): a week, many time
+// constants, the arm long at its steady state.
+constexpr double kMaxWarmS = 7 * 24 * 3600.0;
 
 // Occasional gross errors, drawn per pose: whenever the arm comes to rest more than
 // kGrossPoseExtentDeg (any joint) from the pose of the last draw, each kind happens with its

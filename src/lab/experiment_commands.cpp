@@ -23,6 +23,7 @@ void addExperimentCommands(CLI::App& app, ExperimentCommands& commands) {
   addRobustnessExperiments(*exp, commands.robustness_args);
   addPlacementExperiment(*exp, commands.placement_args);
   addApplyExperiment(*exp, commands.apply_args);
+  addLifeExperiment(*exp, commands.life_args);
 }
 
 int runExperimentCommands(const ExperimentCommands& commands, std::ostream& out,
@@ -38,6 +39,7 @@ int runExperimentCommands(const ExperimentCommands& commands, std::ostream& out,
   if (commands.cell->parsed()) return runCellExperiment(commands.cell_args);
   if (commands.placement_args.cmd->parsed()) return runPlacementExperiment(commands.placement_args);
   if (commands.apply_args.cmd->parsed()) return runApplyExperiment(commands.apply_args, out, err);
+  if (commands.life_args.cmd->parsed()) return runLifeExperiment(commands.life_args);
   return runRobustnessExperiment(commands.robustness_args);
 }
 

@@ -20,6 +20,10 @@ constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
 // The unknowns of a change, in unknownName order: the 4 offsets, then the laser's and the
 // centre's when re-mounted.
+// The arm's uniform growth (all link lengths times 1 + g, its thermal state), after the
+// unknowns of unknownName order.
+constexpr int kGrowthColumn = kUnknownCount;
+
 std::vector<int> freeColumns(const ChangeOptions& options) {
   std::vector<int> columns;
   for (int k = 0; k < kOffsetCount; ++k) columns.push_back(k);
@@ -27,21 +31,54 @@ std::vector<int> freeColumns(const ChangeOptions& options) {
     for (int k = kOffsetCount; k < kIdentifiedCount; ++k) columns.push_back(k);
   if (options.psd_remounted)
     for (int k = kIdentifiedCount; k < kUnknownCount; ++k) columns.push_back(k);
+  if (options.thermal_growth) columns.push_back(kGrowthColumn);
   return columns;
 }
 
-Eigen::MatrixXd columnsOf(const Eigen::MatrixXd& m, const std::vector<int>& columns) {
-  Eigen::MatrixXd out(m.rows(), static_cast<Eigen::Index>(columns.size()));
-  for (std::size_t c = 0; c < columns.size(); ++c)
-    out.col(static_cast<Eigen::Index>(c)) = m.col(columns[c]);
+// The cell with its arm grown by `growth` (every link length a, d times 1 + growth).
+CellModel grownCell(const CellModel& cell, double growth) {
+  if (growth == 0) return cell;
+  CellModel grown = cell;
+  for (DhRow& row : grown.robot.dh) {
+    row.a_mm *= 1 + growth;
+    row.d_mm *= 1 + growth;
+  }
+  return grown;
+}
+
+Eigen::VectorXd grownMisses(const CellModel& cell, const std::vector<Pose>& poses,
+                            const CalibrationParameters& p, double growth, bool readings) {
+  return detail::poseMisses(grownCell(cell, growth), poses, p, readings);
+}
+
+// The misses' derivatives by the free unknowns at `p` and `growth`.
+Eigen::MatrixXd changeJacobian(const CellModel& cell, const std::vector<Pose>& poses,
+                               const CalibrationParameters& p, double growth, bool readings,
+                               const std::vector<int>& columns) {
+  const Eigen::MatrixXd base =
+      pointToLineJacobian(grownCell(cell, growth), poses, p, 1.0, readings);
+  Eigen::MatrixXd out(base.rows(), static_cast<Eigen::Index>(columns.size()));
+  for (std::size_t c = 0; c < columns.size(); ++c) {
+    if (columns[c] < kUnknownCount) {
+      out.col(static_cast<Eigen::Index>(c)) = base.col(columns[c]);
+      continue;
+    }
+    constexpr double h = 1e-7;
+    out.col(static_cast<Eigen::Index>(c)) = (grownMisses(cell, poses, p, growth + h, readings) -
+                                             grownMisses(cell, poses, p, growth - h, readings)) /
+                                            (2 * h);
+  }
   return out;
 }
 
-void addStep(CalibrationParameters& p, const std::vector<int>& columns, const Eigen::VectorXd& dx) {
+void addStep(CalibrationParameters& p, double& growth, const std::vector<int>& columns,
+             const Eigen::VectorXd& dx) {
   for (std::size_t c = 0; c < columns.size(); ++c) {
     const int k = columns[c];
     const double step = dx[static_cast<Eigen::Index>(c)];
-    if (k < kOffsetCount)
+    if (k == kGrowthColumn)
+      growth += step;
+    else if (k < kOffsetCount)
       p.delta_rad[k] += step;
     else if (k < kIdentifiedCount)
       p.laser[k - kOffsetCount] += step;
@@ -116,6 +153,7 @@ void checkPairs(const ReferenceFit& reference, const std::vector<int>& pairs, st
 // parameters: Gauss-Newton, nearly linear (the change is a fraction of a degree).
 struct ChangeFit {
   CalibrationParameters p;
+  double growth = 0;         // the arm's growth since the reference (thermal_growth)
   Eigen::VectorXd misses;    // every pair's (2 per pose), at p
   Eigen::MatrixXd jacobian;  // the active pairs' rows, the free columns
   bool converged = false;
@@ -136,8 +174,8 @@ ChangeFit fitChange(const CellModel& cell, const std::vector<Pose>& now,
       out.segment<2>(2 * static_cast<Eigen::Index>(k)) = all.segment<2>(2 * active[k]);
     return out;
   };
-  fit.misses = detail::poseMisses(cell, now, fit.p, readings) - reference_misses;
-  fit.jacobian = columnsOf(pointToLineJacobian(cell, used, fit.p, 1.0, readings), columns);
+  fit.misses = grownMisses(cell, now, fit.p, fit.growth, readings) - reference_misses;
+  fit.jacobian = changeJacobian(cell, used, fit.p, fit.growth, readings, columns);
   constexpr int kMostSteps = 30;
   for (int step = 0; step < kMostSteps && !fit.converged; ++step) {
     if (cancelled && cancelled()) {
@@ -151,14 +189,14 @@ ChangeFit fitChange(const CellModel& cell, const std::vector<Pose>& now,
       fit.message = "the re-measured poses do not determine the change";
       return fit;
     }
-    addStep(fit.p, columns, dx);
-    fit.misses = detail::poseMisses(cell, now, fit.p, readings) - reference_misses;
-    fit.jacobian = columnsOf(pointToLineJacobian(cell, used, fit.p, 1.0, readings), columns);
+    addStep(fit.p, fit.growth, columns, dx);
+    fit.misses = grownMisses(cell, now, fit.p, fit.growth, readings) - reference_misses;
+    fit.jacobian = changeJacobian(cell, used, fit.p, fit.growth, readings, columns);
     fit.iterations = step + 1;
     const double offsets_rad = dx.head(kOffsetCount).cwiseAbs().maxCoeff();
     const double rest =
         dx.size() > kOffsetCount ? dx.tail(dx.size() - kOffsetCount).cwiseAbs().maxCoeff() : 0;
-    if (offsets_rad < 1e-11 && rest < 1e-8) {
+    if (offsets_rad < 1e-11 && rest < 1e-10) {
       fit.converged = true;
       fit.message = "converged in " + std::to_string(step + 1) + " Gauss-Newton steps";
     }
@@ -237,6 +275,12 @@ SolveReport solveChange(const CellModel& cell, const ReferenceFit& reference,
   }
   report.converged = fit.converged;
   report.message = fit.message;
+  if (options.thermal_growth) {
+    char growth[96];
+    std::snprintf(growth, sizeof growth, "; the arm grown by %+.1f ppm since the reference",
+                  fit.growth * 1e6);
+    report.message += growth;
+  }
   report.iterations = fit.iterations;
   const CalibrationParameters p = fit.p;
   const Eigen::MatrixXd& j = fit.jacobian;
@@ -399,8 +443,8 @@ Eigen::Vector4d predictChangeSigma(const CellModel& cell, const ReferenceFit& re
   if (const std::string why = options.validate(); !why.empty()) throw InputError(why);
   const std::vector<Pose> poses = pairedReference(reference, pairs);
   const bool readings = readingsOf(poses, poses, options.solve);
-  const UnitCovariance unit = unitCovariance(columnsOf(
-      pointToLineJacobian(cell, poses, reference.estimate, 1.0, readings), freeColumns(options)));
+  const UnitCovariance unit = unitCovariance(
+      changeJacobian(cell, poses, reference.estimate, 0, readings, freeColumns(options)));
   Eigen::Vector4d out;
   const double sigma = *options.solve.noise_mm;
   for (int k = 0; k < kOffsetCount; ++k)
@@ -411,18 +455,18 @@ Eigen::Vector4d predictChangeSigma(const CellModel& cell, const ReferenceFit& re
 }
 
 std::vector<int> choosePosesForCheck(const CellModel& cell, const ReferenceFit& reference,
-                                     const ChangeOptions& options, double sigma_deg) {
+                                     const ChangeOptions& options, double sigma_deg, int at_least) {
   if (const std::string why = options.validate(); !why.empty()) throw InputError(why);
   const int count = static_cast<int>(reference.poses.size());
   const int unknowns = changeUnknownCount(options);
-  const int fewest = unknowns / 2 + 1;
+  const int fewest = std::max(unknowns / 2 + 1, at_least);
   std::vector<int> all(static_cast<std::size_t>(count));
   for (int i = 0; i < count; ++i) all[static_cast<std::size_t>(i)] = i;
   if (count <= fewest) return all;
   const std::vector<int> columns = freeColumns(options);
   const bool readings = readingsOf(reference.poses, reference.poses, options.solve);
-  const Eigen::MatrixXd j = columnsOf(
-      pointToLineJacobian(cell, reference.poses, reference.estimate, 1.0, readings), columns);
+  const Eigen::MatrixXd j =
+      changeJacobian(cell, reference.poses, reference.estimate, 0, readings, columns);
   // Column scales over every pose, and a small ridge in those units: a set still too small to
   // determine every unknown is then ranked by how far it gets (the ridge is what it lacks).
   Eigen::VectorXd scale = j.colwise().norm().transpose() / std::sqrt(double(count));

@@ -202,10 +202,10 @@ void SessionRunner::runMeasurement(const RunRequest& request) {
     if (request.kind == SessionKind::kReference)
       run_settings.solve.required_accuracy_deg = run_settings.solve.max_offset_deg;
     if (reference)
-      run_settings.solver = [this, &reference, &reference_poses](
+      run_settings.solver = [this, &request, &reference, &reference_poses](
                                 const std::vector<Pose>& poses,
                                 const std::vector<int>& plan_indices, const SolveOptions& options) {
-        ChangeOptions change = planner_.changeOptions();
+        ChangeOptions change = planner_.changeOptions(request.kind);
         change.solve = options;
         return solveChange(knowledge_.cell, reference->fit, poses,
                            pairsOf(*reference, reference_poses, plan_indices), change);

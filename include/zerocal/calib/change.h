@@ -35,6 +35,11 @@ struct ChangeOptions {
   // cancel.
   bool psd_remounted = false;
   double max_psd_shift_mm = 5.0;
+  // The arm's thermal state may differ from the reference's: its uniform growth (every link
+  // length times 1 + g, 23 ppm per kelvin of an aluminium arm) is an unknown of the change, so
+  // that a reference taken warm and a restore taken cold do not bias the zeros (delta3 moves by
+  // about 6e-5 deg per ppm on the IRB 1600's plans, docs/simulated-cell.md).
+  bool thermal_growth = false;
   // The laser was taken off the flange and put back: its four parameters are unknowns too.
   bool laser_remounted = false;
   // Returns a description of the first problem, or empty when usable.
@@ -63,11 +68,13 @@ SolveReport solveChange(const CellModel& cell, const ReferenceFit& reference,
 Eigen::Vector4d predictChangeSigma(const CellModel& cell, const ReferenceFit& reference,
                                    const std::vector<int>& pairs, const ChangeOptions& options);
 
-// The reference poses a check re-measures: the fewest (at least enough for the unknowns) whose
+// The reference poses a check re-measures: the fewest (at least `at_least`, and enough for the
+// unknowns with a degree of freedom to spare) whose
 // predicted sigma of every offset's change is at most `sigma_deg`, chosen greedily for the
 // largest gain, in reference order; all of them when even all do not reach it.
 std::vector<int> choosePosesForCheck(const CellModel& cell, const ReferenceFit& reference,
-                                     const ChangeOptions& options, double sigma_deg);
+                                     const ChangeOptions& options, double sigma_deg,
+                                     int at_least = 0);
 
 // A restore whose change is not significant (every offset's within three of its sigmas) has
 // nothing to write: its verdict is made not usable, saying so. Otherwise leaves it as it is.

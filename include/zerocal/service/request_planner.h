@@ -91,8 +91,9 @@ class RequestPlanner {
   // restore is predicted short of the required accuracy and the request does not ask for it
   // anyway, ("out_of_limits") for a reference pose inside the limits' margin.
   PlannedSession planChange(const StartRequest& request, const Reference& reference) const;
-  // The change's options of this daemon: its noise, tolerances and required accuracy.
-  ChangeOptions changeOptions() const;
+  // The change's options of this daemon for a session of `kind`: its noise, tolerances and
+  // required accuracy; a restore's with the arm's thermal growth an unknown.
+  ChangeOptions changeOptions(SessionKind kind) const;
   // Session `id`'s run plan from its session.json, checked exactly as a new plan is (anyone with
   // access may have edited the file). Throws Refused("bad_session"), ("out_of_limits").
   RunPlan runPlanOf(const std::string& id, const SessionFile& session) const;

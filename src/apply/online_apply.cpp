@@ -83,9 +83,7 @@ Verdict judge(const std::array<CalOffsetChange, 4>& changes, const Offsets& befo
   for (int k = 0; k < 4; ++k) {
     const int j = k + 2;
     const double a = after[k].value_deg, b = before[k].value_deg;
-    // The remaining offset is the first calibration's error (sigma before) measured by the
-    // second (sigma after): its standard uncertainty combines both.
-    const double sigma = std::hypot(before[k].sigma_deg, after[k].sigma_deg);
+    const double sigma = after[k].sigma_deg;
     const double bound = std::max(3 * sigma, required_deg);
     if (std::abs(a) <= bound) continue;
     v.pass = false;

@@ -118,7 +118,12 @@ WorldRun runWorld(std::uint64_t seed, const ApplyExperimentArgs& args, const std
     for (int i = 0; i < kJointCount; ++i)
       run.true_at_verify[i] = so.world.true_offsets_deg[i] + sim.zeroShiftDeg()[i];
     run.verify_ran = true;
-    return calibrate();
+    // What remains is the first calibration's error measured by the second: its standard
+    // uncertainty combines both.
+    apply::Offsets after = calibrate();
+    for (int k = 0; k < 4; ++k)
+      after[k].sigma_deg = std::hypot(run.before[k].sigma_deg, after[k].sigma_deg);
+    return after;
   };
   options.update_revolution_counter = [&](int joint, double) {
     sim.updateRevolutionCounter(joint);  // the technician at the synchronisation mark

@@ -27,6 +27,40 @@ apply::Offsets offsetsOf(const ResultFile& result) {
   return o;
 }
 
+// What remains of the applied session's offsets after its apply, as its verification measured
+// it. A restore's verification measures the change since the reference, which a right restore
+// made zero; that remainder is the restore's error and the check's, both counted. A
+// calibration's verification measures the change since the calibration's own poses, which a
+// right apply made the opposite of what was written: the remainder tells whether the write took
+// effect as computed (sign, ratio, revolution counter), and has the verification's uncertainty
+// alone (the calibration's own error is not measured again there, docs/apply.md).
+apply::Offsets remainingAfter(const ResultFile& applied, const ResultFile& verification) {
+  apply::Offsets written = offsetsOf(applied), left = offsetsOf(verification);
+  const bool against_write = verification.reference != applied.reference;
+  for (int k = 0; k < 4; ++k) {
+    if (against_write)
+      left[k].value_deg += written[k].value_deg;
+    else
+      left[k].sigma_deg = std::hypot(written[k].sigma_deg, left[k].sigma_deg);
+  }
+  return left;
+}
+
+// Where the PSD must stand for session `s`'s verification, in a sentence for the technician.
+std::string whereTheVerificationMeasures(const SessionFile& s) {
+  if (!s.reference.empty())
+    return "the verification re-measures poses of reference " + s.reference +
+           ": the PSD must stand where it stood for the reference";
+  const std::size_t placements = s.placement_centres_mm.size();
+  if (placements <= 1)
+    return "the verification re-measures poses of this calibration: the PSD must stand where it "
+           "stood for them";
+  return "the verification re-measures poses of this calibration's placement " +
+         std::to_string(placements) + ": the PSD must stand where it stood for them (planned " +
+         "centre " + centreText(s.placement_centres_mm.back()) +
+         " in the robot base frame), not on its base";
+}
+
 // Why the result's offsets of joints 2..5 cannot be applied; empty when they can.
 std::string unusable(const ResultFile& r) {
   // Only a calibration's offsets and a restore's change are values for the controller.
@@ -276,12 +310,13 @@ void ApplyCoordinator::runApply(const std::string& id, const ResultFile& result)
       return went_on;
     };
     options.verify = [&]() {
+      progress(whereTheVerificationMeasures(store_.readSession(id)));
       std::string vid;
       try {
-        const ResultFile v = verification_(id, result.report.estimate, vid);
+        const ResultFile v = verification_(id, vid);
         event.verification = vid;
         journal.append({{"step", "verification"}, {"session", vid}});
-        return offsetsOf(v);
+        return remainingAfter(result, v);
       } catch (...) {
         event.verification = vid;
         throw;
@@ -348,13 +383,13 @@ void ApplyCoordinator::runVerify(const std::string& id, const ResultFile& result
     std::string vid;
     ResultFile v;
     try {
-      v = verification_(id, result.report.estimate, vid);
+      v = verification_(id, vid);
     } catch (...) {
       event.verification = vid;
       throw;
     }
     event.verification = vid;
-    const apply::Offsets after = offsetsOf(v);
+    const apply::Offsets after = remainingAfter(result, v);
     for (const apply::MeasuredOffset& m : after) {
       event.remaining_deg.push_back(m.value_deg);
       event.remaining_sigma_deg.push_back(m.sigma_deg);

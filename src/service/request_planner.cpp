@@ -338,7 +338,10 @@ PlannedSession RequestPlanner::planChange(const StartRequest& request,
   prediction.required_accuracy_deg = settings_.required_accuracy_deg;
   const std::string of = std::to_string(pairs.size()) + " of its " +
                          std::to_string(reference.fit.poses.size()) + " poses";
-  plan.description = !request.verifies.empty()
+  plan.description = reference.placement > 0
+                         ? "verification of the apply, against calibration " + reference.id +
+                               "'s placement " + std::to_string(reference.placement) + ": " + of
+                     : !request.verifies.empty()
                          ? "verification against reference " + reference.id + ": " + of
                      : restore ? "restore to reference " + reference.id + ": " + of
                                : "check against reference " + reference.id + ": " + of;

@@ -77,8 +77,9 @@ SessionManager::SessionManager(CellBackend& backend, ManagerSettings settings)
       connection_(backend, worker_),
       runner_(connection_, board_, worker_, store_, planner_, knowledge_, live_, settings_),
       apply_(connection_, board_, worker_, store_, knowledge_, settings_,
-             [this](const std::string& applied, const CalibrationParameters& found,
-                    std::string& id) { return verificationRun(applied, found, id); }) {
+             [this](const std::string& applied, std::string& id) {
+               return verificationRun(applied, id);
+             }) {
   worker_.setIdleTask(settings_.recovery_retry, [this] { apply_.retryRecovery(); });
 }
 
@@ -171,7 +172,9 @@ SessionManager::NewSession SessionManager::createSession(const StartRequest& req
                         " holds none: take one with `zerocal start --kind reference` while the "
                         "robot is known good (or `--kind calibrate --placements 3` for its "
                         "absolute zeros)");
-    planned = planner_.planChange(request, loadReference(store_, draft.reference));
+    planned = planner_.planChange(request, request.verifies == draft.reference
+                                               ? loadAppliedCalibration(store_, draft.reference)
+                                               : loadReference(store_, draft.reference));
     draft.reference_poses = planned.reference_poses;
   } else {
     planned = planner_.plan(request);
@@ -414,23 +417,19 @@ std::string SessionManager::acknowledge(const AcknowledgeRequest& request) {
 
 int SessionManager::recoverInterruptedApplies() { return apply_.recoverInterruptedApplies(); }
 
-ResultFile SessionManager::verificationRun(const std::string& applied,
-                                           const CalibrationParameters& found, std::string& id) {
-  // The configured plan around the PSD centre the calibration found, the spot predicted from its
-  // laser line: the same code as any session, so the verification's numbers mean what a
-  // calibration's mean.
+ResultFile SessionManager::verificationRun(const std::string& applied, std::string& id) {
+  // Measured against what the apply came from: a restore's reference (the zeros should be the
+  // reference's again), a calibration's own poses at its last PSD placement, where the detector
+  // stands (the zeros should have moved by what was written). Either way the link errors cancel,
+  // so that a right apply passes at the PSD where it is (docs/apply.md).
   StartRequest request = defaultRequest();
   request.placements = 1;  // a verification runs unattended: the PSD stays where it is
   request.verifies = applied;
-  // A restore's apply is verified against its reference: the zeros should be the reference's
-  // again, which a check of its poses sees (found is then a change, no cell's parameters).
-  if (const std::string reference = store_.readSession(applied).reference; !reference.empty()) {
-    request.kind = SessionKind::kRestore;
-    request.reference = reference;
-  } else {
-    request.target_mm = found.target_mm;
-    request.found_before = found;
-  }
+  request.kind = SessionKind::kVerification;
+  const std::string reference = store_.readSession(applied).reference;
+  request.reference = reference.empty() ? applied : reference;
+  // The spot predicted from the calibration's laser line and its last placement's centre.
+  if (reference.empty()) request.found_before = loadAppliedCalibration(store_, applied).fit.estimate;
   const NewSession n = createSession(request);
   id = n.id;
   runner_.run(n.run);

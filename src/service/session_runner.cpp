@@ -172,7 +172,7 @@ void SessionRunner::runMeasurement(const RunRequest& request) {
   try {
     const SessionFile session = store_.readSession(id);
     if (!session.reference.empty()) {
-      reference = loadReference(store_, session.reference);
+      reference = loadComparedWith(store_, session);
       reference_poses = session.reference_poses;
     }
   } catch (const std::exception& e) {
@@ -224,7 +224,12 @@ void SessionRunner::runMeasurement(const RunRequest& request) {
       cell.placePsd(placement, centres);
       board_.update([&](SessionStatus& s) { s.placement = placement_count > 1 ? placement : 0; });
     };
-    placed(journal.placement());
+    if (reference && reference->placement > 1)
+      // A verification re-measures a calibration's last placement, where the PSD stands after
+      // it: the simulated cell keeps its detector there too.
+      cell.placePsd(reference->placement, reference->placement_centres_mm);
+    else
+      placed(journal.placement());
     const double start_s = cell.clock().nowS();
     run.on_phase = [this, &cell, start_s](int i, RunPhase phase) {
       // The cell's clock is the worker's to read: the status gets its time at each phase.

@@ -26,10 +26,11 @@ struct MeasuredOffset {
 using Offsets = std::array<MeasuredOffset, 4>;  // joints 2..5
 
 struct OnlineApplyOptions {
-  // Pass when every remaining offset is within max(3 sigma, required_deg), sigma combining the
-  // calibration the change came from and the verification (hypot of the two).
+  // Pass when every remaining offset is within max(3 sigma, required_deg).
   double required_deg = 0.003;
-  // Measures joints 2..5 now (a verification calibration). Throws to abort (then rolled back).
+  // Measures what remains of joints 2..5's offsets now, each with the whole standard uncertainty
+  // of that remainder (a verification that measures the write alone has only its own; one that
+  // measures the zeros anew also has the calibration's). Throws to abort (then rolled back).
   std::function<Offsets()> verify;
   // For a joint whose new value crosses the seam, after the restart: have its revolution
   // counter updated at its synchronisation mark (the technician on the FlexPendant, or the
@@ -65,7 +66,8 @@ class ApplyJournal {
 
 // The verdict on a verification: pass, or per failing joint what the numbers point to (a doubled
 // offset: the transmission's sign; one motor turn: the revolution counter; a part left: the
-// ratio, with the ratio the numbers imply).
+// ratio, with the ratio the numbers imply). `before` holds the offsets the apply wrote (their
+// values name the cause), `after` what remains, with its whole uncertainty (OnlineApplyOptions).
 struct Verdict {
   bool pass = false;
   std::string message;

@@ -23,12 +23,12 @@ namespace zerocal::service {
 
 class ApplyCoordinator {
  public:
-  // Runs a verification of session `applied` (a short calibration around the PSD centre `found`
-  // found, the spot predicted from its laser line) on the worker thread, setting `id` to the
-  // verification session's id as soon as it exists, and returns its result. Throws Error when it
-  // does not finish with delta2..delta5.
-  using VerificationRun = std::function<ResultFile(
-      const std::string& applied, const CalibrationParameters& found, std::string& id)>;
+  // Runs the verification of session `applied`'s apply on the worker thread (the change of the
+  // zeros since the poses the apply came from: SessionManager::verificationRun), setting `id` to
+  // the verification session's id as soon as it exists, and returns its result. Throws Error
+  // when it does not finish with delta2..delta5.
+  using VerificationRun =
+      std::function<ResultFile(const std::string& applied, std::string& id)>;
 
   // Every part outlives the coordinator.
   ApplyCoordinator(CellConnection& connection, SessionBoard& board, SessionWorker& worker,

@@ -22,6 +22,10 @@ struct Reference {
   // The controller's cal_offset values (rad, joints 1..6) while it measured, when recorded.
   std::optional<std::array<double, 6>> cal_offset_rad;
   double noise_mm = 0;  // the measurement sigma it was planned and solved with
+  // The PSD placement its poses aimed at, for a calibration of several (0: a reference's poses,
+  // at its one placement), and the centres its placements were planned at (session.json).
+  int placement = 0;
+  std::vector<Eigen::Vector3d> placement_centres_mm;
 };
 
 // Reference session `id` of `store`. Throws Refused("bad_request") for an id no session has the
@@ -29,6 +33,16 @@ struct Reference {
 // finished reference whose result may be used (its verdict says why not), ("damaged") when its
 // files cannot be read.
 Reference loadReference(const SessionStore& store, const std::string& id);
+
+// The verification of calibration `id`'s apply compares with it: the poses its solve used at its
+// last PSD placement, where the detector stands after it, and that placement's centre. After a
+// right apply their zeros have moved by exactly what was written, and the link errors cancel as
+// for a reference. Throws as loadReference, and Refused("not_a_calibration") for another kind.
+Reference loadAppliedCalibration(const SessionStore& store, const std::string& id);
+
+// What `session` measures its change against: its verified calibration (the verification of a
+// calibration's apply names the calibration as its reference), else its reference session.
+Reference loadComparedWith(const SessionStore& store, const SessionFile& session);
 
 // The latest finished reference of `store` whose verdict is usable, of the robot with this
 // serial when given; empty when there is none.

@@ -80,10 +80,10 @@ class SessionManager final : public SessionControl {
   };
   // Plans `request` (refusing it as start() does), creates its folder, and begins it on the board.
   NewSession createSession(const StartRequest& request);
-  // Runs a short calibration (the configured plan around `found`'s PSD centre), a verification
-  // of session `applied`, on the worker thread (ApplyCoordinator::VerificationRun).
-  ResultFile verificationRun(const std::string& applied, const CalibrationParameters& found,
-                             std::string& id);
+  // Runs the verification of session `applied`'s apply on the worker thread: the change of the
+  // zeros since its reference (a restore) or since its own poses at its last PSD placement (a
+  // calibration), ApplyCoordinator::VerificationRun.
+  ResultFile verificationRun(const std::string& applied, std::string& id);
 
   ManagerSettings settings_;
   SessionStore store_;

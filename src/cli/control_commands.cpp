@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <ctime>
 #include <limits>
 #include <utility>
 #include <vector>
@@ -66,23 +67,72 @@ std::string progressLine(const json& s) {
   return line;
 }
 
+// The terminal's one line, redrawn: pose i of N, a bar, the servo error against its zone, the
+// time left at the pace so far.
+std::string barLine(const json& s) {
+  const int count = s.value("pose_count", 0), recorded = s.value("recorded", 0);
+  if (count <= 0 || !s.value("active", false)) return progressLine(s);
+  constexpr int kWidth = 20;
+  const int filled = std::min(kWidth, recorded * kWidth / count);
+  std::string line = "pose " + std::to_string(std::min(count, s.value("pose", 0))) + " of " +
+                     std::to_string(count) + " [" + std::string(filled, '#') +
+                     std::string(kWidth - filled, '.') + "] " + s.value("state", "?");
+  const json live = s.value("live_servo_error_um", json(nullptr));
+  if (live.is_number()) line += format("  %.0f um", live.get<double>());
+  if (s.value("placement_count", 0) > 1)
+    line += "  placement " + std::to_string(s.value("placement", 0)) + " of " +
+            std::to_string(s.value("placement_count", 0));
+  const double elapsed = s.value("cell_time_s", 0.0);
+  if (recorded > 0 && elapsed > 0 && recorded < count) {
+    const double left = elapsed / recorded * (count - recorded);
+    line += left >= 60 ? format("  about %.0f min left", std::ceil(left / 60))
+                       : format("  about %.0f s left", std::ceil(left));
+  }
+  return line;
+}
+
+// A pipe's line for a pose just recorded: its servo error beside the zone it is judged by.
+std::string poseLine(const json& s) {
+  std::string line = "pose " + std::to_string(s.value("recorded", 0)) + " of " +
+                     std::to_string(s.value("pose_count", 0)) + " recorded: spot " +
+                     format("%.1f um from its aim", s.value("last_servo_error_um", 0.0));
+  // The zone is widened where the arm scatters more at the detector (docs/servo.md).
+  if (s.value("servo_zone_um", 0.0) > 0)
+    line += format(" (zone at least %.0f um)", s["servo_zone_um"].get<double>());
+  if (s.value("placement_count", 0) > 1)
+    line += ", placement " + std::to_string(s.value("placement", 0)) + " of " +
+            std::to_string(s.value("placement_count", 0));
+  return line;
+}
+
+bool isPoseState(const std::string& state) {
+  return state == "moving" || state == "servoing" || state == "recording";
+}
+
 void printStatus(const json& s, std::ostream& out) {
   out << "state:      " << s.value("state", "?") << (s.value("active", false) ? " (active)" : "")
       << "\n";
   out << "backend:    " << s.value("backend", "") << "\n";
   out << "session:    " << (s.value("session", "").empty() ? "-" : s.value("session", "")) << "\n";
-  out << "pose:       " << s.value("pose", 0) << " of " << s.value("pose_count", 0) << ", recorded "
-      << s.value("recorded", 0);
-  if (s.value("resumed_from", 0) > 0) out << " (resumed from " << s["resumed_from"] << ")";
-  out << "\n";
+  if (s.value("pose_count", 0) > 0) {
+    out << "pose:       " << s.value("pose", 0) << " of " << s.value("pose_count", 0)
+        << ", recorded " << s.value("recorded", 0);
+    if (s.value("resumed_from", 0) > 0) out << " (resumed from " << s["resumed_from"] << ")";
+    out << "\n";
+  }
   if (s.value("placement_count", 0) > 1)
     out << "placement:  " << s.value("placement", 0) << " of " << s.value("placement_count", 0)
         << "\n";
-  out << "servo:      " << format("%.2f", s.value("last_servo_error_um", 0.0))
-      << " um at the last recorded pose";
-  const json live = s.value("live_servo_error_um", json(nullptr));
-  if (live.is_number()) out << ", " << format("%.2f", live.get<double>()) << " um now";
-  out << "\n";
+  if (s.value("recorded", 0) > 0) {
+    out << "servo:      " << format("%.2f", s.value("last_servo_error_um", 0.0))
+        << " um from the aim point at the last recorded pose";
+    if (s.value("servo_zone_um", 0.0) > 0)
+      out << format(" (recorded within %.0f um or the wider zone the arm's scatter needs)",
+                    s["servo_zone_um"].get<double>());
+    const json live = s.value("live_servo_error_um", json(nullptr));
+    if (live.is_number()) out << ", " << format("%.2f", live.get<double>()) << " um now";
+    out << "\n";
+  }
   out << "predicted:  " << sigmaText(s.value("predicted_sigma_deg", json::array())) << "\n";
   out << "achieved:   " << sigmaText(s.value("achieved_sigma_deg", json::array())) << "\n";
   if (s.contains("message")) out << "message:    " << s["message"].get<std::string>() << "\n";
@@ -103,15 +153,77 @@ std::pair<bool, std::vector<std::string>> verdictOf(const ResultFile& r) {
   return {reasons.empty(), reasons};
 }
 
+// What a technician does after a result that is not usable, by the session's kind.
+std::string nextStepAfterNotUsable(const ResultFile& r) {
+  switch (r.kind) {
+    case SessionKind::kCalibration:
+      return "nothing was written. To determine every offset absolutely, calibrate at several "
+             "PSD placements (`zerocal start --placements 3`, the technician moves the PSD "
+             "twice); to bring the robot back to the zeros its programs were taught with, "
+             "restore against its reference (`zerocal start --kind restore`); or enter values by "
+             "hand only from a usable result";
+    case SessionKind::kReference:
+      return "this is no reference: take it again with the robot known good and the PSD "
+             "undisturbed (`zerocal start --kind reference`)";
+    case SessionKind::kCheck:
+    case SessionKind::kRestore:
+      return "nothing was written: measure again (`zerocal start --kind " +
+             std::string(sessionKindName(r.kind)) +
+             "`); when it fails again, see whether the PSD or the laser was moved since the "
+             "reference (docs/record.md)";
+    case SessionKind::kVerification:
+      return "the apply was rolled back: its session's result says why (`zerocal result " +
+             r.reference + "`)";
+  }
+  return "";
+}
+
+// When a daemon's `time_unix_s` was, in UTC.
+std::string utcText(double unix_s) {
+  const std::time_t t = static_cast<std::time_t>(unix_s);
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char text[32];
+  std::strftime(text, sizeof text, "%Y-%m-%d %H:%M UTC", &tm);
+  return text;
+}
+
+// What became of a result's offsets on the controller (the `result` answer's `apply`): the
+// lines that replace "nothing was written" once an apply ran.
+void printApplied(const json& a, std::ostream& out) {
+  const std::string outcome = a.value("outcome", "");
+  const std::string when = utcText(a.value("time_unix_s", 0.0));
+  const std::string by = a.contains("verification")
+                             ? ", verified by session " + a.value("verification", "")
+                             : std::string();
+  if (outcome == "verified")
+    out << "\nWritten to the controller on " << when << by << ": " << a.value("message", "")
+        << "\n  it holds these offsets now: do not enter them again.\n";
+  else if (outcome == "rolled_back" || outcome == "recovered" || outcome == "not_written" ||
+           outcome == "refused")
+    out << "\nApplied on " << when << " and " << (outcome == "refused" ? "refused" : "undone")
+        << " (" << outcome << "): " << a.value("message", "")
+        << "\n  the controller holds its values from before the apply.\n";
+  else
+    out << "\nAn apply on " << when << " ended " << outcome << ": " << a.value("message", "")
+        << "\n  check the controller's values (zerocal status) before anything runs.\n";
+  if (a.contains("later_check"))
+    out << "  verified again later by session " << a["later_check"].value("session", "") << ": "
+        << a["later_check"].value("outcome", "") << "\n";
+}
+
 // What a technician reads: the verdict first, then the offsets and what to do with them.
-void printResult(const ResultFile& r, std::ostream& out) {
+void printResult(const ResultFile& r, const json& applied, std::ostream& out) {
   const auto [usable, reasons] = verdictOf(r);
   // Against a reference the offsets are changes since it, and the simulated truth (absolute)
   // is not theirs: the reference's result holds the other half.
   const bool against = !r.reference.empty();
   const bool simulated = r.truth.has_value() && !against;
+  const bool verification = r.kind == SessionKind::kVerification;
   out << "session " << (r.session.empty() ? "-" : r.session) << ": " << sessionKindName(r.kind)
-      << (against ? " against reference " + r.reference : std::string())
+      << (verification && against ? " of an apply, the change since session " + r.reference
+          : against                ? " against reference " + r.reference
+                                   : std::string())
       << (simulated ? " (SIMULATED cell: the truth is known)"
           : r.truth ? " (SIMULATED cell: the true change is the reference's truth less this one's)"
                     : "")
@@ -125,10 +237,18 @@ void printResult(const ResultFile& r, std::ostream& out) {
   if (r.kind == SessionKind::kReference)
     out << "a reference: the robot's zeros as they are now, recorded for later checks and "
            "restores; it claims nothing of the absolute zeros and writes nothing\n";
-  out << "verdict: " << (usable ? "USABLE" : "NOT USABLE");
+  if (verification)
+    out << "what it measured: the change of each zero since the poses the apply came from; the "
+           "apply's verdict, and what remains of each offset, are with the session applied (`zerocal "
+           "result "
+        << r.reference << "`)\n";
+  out << (verification ? "measurement: " : "verdict: ")
+      << (usable ? (verification ? "complete" : "USABLE")
+                 : (verification ? "not usable" : "NOT USABLE"));
   if (!r.verdict_recorded) out << " (convergence and identifiability only)";
   out << "\n";
   for (const auto& why : reasons) out << "  - " << why << "\n";
+  if (!usable) out << "next: " << nextStepAfterNotUsable(r) << "\n";
   // Whose offsets these are: a value entered on the wrong robot is worse than none.
   if (r.cell && !r.cell->controller.serial.empty())
     out << "robot: " << r.cell->controller.robot_type << ", serial " << r.cell->controller.serial
@@ -165,6 +285,8 @@ void printResult(const ResultFile& r, std::ostream& out) {
           << (r.kind == SessionKind::kCheck ? "; a restore against its reference finds the values "
                                               "that bring the robot back.\n"
                                             : ".\n");
+    } else if (applied.is_object() && !applied.empty()) {
+      printApplied(applied, out);
     } else {
       out << "\nOn the controller (arm side, joint angles; nothing was written to it):\n";
       if (against && usable)
@@ -181,8 +303,8 @@ void printResult(const ResultFile& r, std::ostream& out) {
         out << line;
       }
       if (usable) out << "  joints 1 and 6: unchanged (this method cannot determine them).\n";
-      out << "summary.txt and report.html in the session folder say where the IRC5 keeps the\n"
-             "calibration and how to enter it (zerocal-lab report DIR).\n";
+      out << "summary.txt and report.html in the session folder (`zerocal sessions` lists it) say\n"
+             "where the IRC5 keeps the calibration and how to enter it.\n";
     }
   }
   if (r.cell_time_s) {
@@ -209,6 +331,14 @@ bool watchEnds(const json& status) {
   return !status.value("active", false) || status.value("state", "") == "awaiting_placement";
 }
 
+// What a finished session's result says, as an exit status (docs/cli.md's table): 0 usable
+// (a check: passed), 8 not usable, 9 a check that found a zero moved or could not tell.
+int exitForOutcome(const ResultFile& r) {
+  if (!verdictOf(r).first) return kClientNotUsable;
+  if (r.check && r.check->outcome != CheckJudgement::Outcome::kPass) return kClientCheckNotPassed;
+  return kClientOk;
+}
+
 int exitFor(const std::string& state) {
   return state == "aborted" || state == "faulted" || state == "unrecovered" ? kClientSessionFailed
                                                                             : kClientOk;
@@ -220,14 +350,26 @@ int watch(control::ControlClient& client, const ClientArgs& args, std::ostream& 
   const auto timeout = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
       std::chrono::duration<double>(args.timeout_s));
   json status = client.call("subscribe", json::object(), timeout)["status"];
+  // A terminal gets one line, redrawn; a pipe a line per pose recorded and per change of state
+  // outside the poses (connecting, planning, solving, awaiting the technician, the end).
+  int shown_recorded = status.value("recorded", 0);
+  std::string shown_state;
   auto show = [&](const json& s, bool changed) {
     if (args.json) return;
-    if (tty)
-      out << "\r\033[K" << progressLine(s) << std::flush;
-    else if (changed)
-      out << progressLine(s) << "\n" << std::flush;
+    if (tty) {
+      if (changed) out << "\r\033[K" << barLine(s) << std::flush;
+      return;
+    }
+    const std::string state = s.value("state", "");
+    const int recorded = s.value("recorded", 0);
+    if (recorded > shown_recorded) {
+      shown_recorded = recorded;
+      out << poseLine(s) << "\n" << std::flush;
+    }
+    if (state != shown_state && !isPoseState(state)) out << progressLine(s) << "\n" << std::flush;
+    if (!isPoseState(state) || shown_state.empty()) shown_state = state;
   };
-  std::string last_line = progressLine(status);
+  std::string last_line = barLine(status);
   show(status, true);
   auto last_poll = std::chrono::steady_clock::now();
   while (!watchEnds(status)) {
@@ -254,7 +396,7 @@ int watch(control::ControlClient& client, const ClientArgs& args, std::ostream& 
       status = client.call("status", json::object(), timeout)["status"];
       last_poll = std::chrono::steady_clock::now();
     }
-    const auto line = progressLine(status);
+    const auto line = barLine(status);
     show(status, line != last_line);
     last_line = line;
   }
@@ -264,21 +406,26 @@ int watch(control::ControlClient& client, const ClientArgs& args, std::ostream& 
     out << json{{"status", status}}.dump() << "\n";
   } else {
     // Plain lines: the last one shown may already be the final one.
-    if (tty || progressLine(status) != last_line) out << progressLine(status) << "\n";
+    if (tty || status.value("state", "") != shown_state) out << progressLine(status) << "\n";
     if (status.contains("message")) out << status["message"].get<std::string>() << "\n";
-    if (status.value("state", "") == "done") {  // the outcome: the verdict and the offsets
-      out << "\n";
-      try {
-        printResult(resultOf(client.call("result", json{{"session", status.value("session", "")}},
-                                         timeout)["result"]),
-                    out);
-      } catch (const CommandError& e) {  // done, but its result cannot be read: say so, exit 0
-        out << "the result of session " << status.value("session", "")
-            << " cannot be shown: " << e.what() << " (zerocal result)\n";
-      }
-    }
   }
-  return exitFor(status.value("state", ""));
+  if (status.value("state", "") != "done") return exitFor(status.value("state", ""));
+  // The outcome: the verdict and the offsets, and the exit status a script reads it by.
+  try {
+    const json answer =
+        client.call("result", json{{"session", status.value("session", "")}}, timeout);
+    const ResultFile result = resultOf(answer["result"]);
+    if (!args.json) {
+      out << "\n";
+      printResult(result, answer.value("apply", json()), out);
+    }
+    return exitForOutcome(result);
+  } catch (const CommandError& e) {  // done, but its result cannot be read: say so
+    if (!args.json)
+      out << "the result of session " << status.value("session", "")
+          << " cannot be shown: " << e.what() << " (zerocal result)\n";
+    return kClientFailure;
+  }
 }
 
 // The numbers of an apply event, as the technician reads them.
@@ -306,6 +453,20 @@ void printApplyEvent(const json& e, std::ostream& out) {
       out << line;
     }
   }
+}
+
+// An apply's or verification's outcome as an exit status: one cause, one code, whether `apply`
+// or `verify` met it. A verification that could not complete (the apply then rolled back) is 3,
+// one that found the values wrong 8.
+int exitForApply(const std::string& outcome, const std::string& message) {
+  if (outcome == "verified" || outcome == "pass" || outcome == "recovered" ||
+      outcome == "acknowledged")
+    return kClientOk;
+  // The daemon's words for it (ApplyCoordinator), the same in both.
+  const bool incomplete = message.rfind("the verification did not complete", 0) == 0;
+  if ((outcome == "rolled_back" || outcome == "fail") && !incomplete)
+    return kClientVerificationFailed;
+  return kClientSessionFailed;
 }
 
 // Sends `apply` or `verify` and follows it to its apply event: progress lines, the verification's
@@ -353,11 +514,7 @@ int followApply(control::ControlClient& client, const std::string& cmd, const js
                    "  - Absolute Accuracy data (MOC ARM_CALIB) and a later fine calibration at the "
                    "synchronisation marks refer to the old zeros: they no longer match.\n";
         }
-        if (outcome == "verified" || outcome == "pass" || outcome == "recovered" ||
-            outcome == "acknowledged")
-          return kClientOk;
-        if (outcome == "rolled_back" || outcome == "fail") return kClientVerificationFailed;
-        return kClientSessionFailed;
+        return exitForApply(outcome, event->value("message", ""));
       }
     }
     if (!event || std::chrono::steady_clock::now() - last_poll > std::chrono::seconds(5)) {
@@ -368,12 +525,10 @@ int followApply(control::ControlClient& client, const std::string& cmd, const js
       const std::string prefix = "session " + id + " ";
       if (!status.value("active", false) && apply.rfind(prefix, 0) == 0) {
         if (!args.json) out << apply.substr(prefix.size()) << "\n";
-        const std::string outcome = apply.substr(prefix.size(), apply.find(':') - prefix.size());
-        if (outcome == "verified" || outcome == "pass" || outcome == "recovered" ||
-            outcome == "acknowledged")
-          return kClientOk;
-        if (outcome == "rolled_back" || outcome == "fail") return kClientVerificationFailed;
-        return kClientSessionFailed;
+        const std::size_t colon = apply.find(':');
+        const std::string outcome = apply.substr(prefix.size(), colon - prefix.size());
+        return exitForApply(outcome,
+                            colon == std::string::npos ? "" : apply.substr(colon + 2));
       }
     }
   }
@@ -611,14 +766,15 @@ int run(const ClientArgs& args, std::ostream& out, std::ostream& err, bool tty) 
     return kClientOk;
   }
   if (cmd == "result") {
-    const auto r = client.call(
+    const json answer = client.call(
         "result", args.session.empty() ? json::object() : json{{"session", args.session}},
-        timeout)["result"];
+        timeout);
+    const ResultFile result = resultOf(answer["result"]);
     if (args.json)
-      out << r.dump(2) << "\n";
+      out << answer["result"].dump(2) << "\n";
     else
-      printResult(resultOf(r), out);
-    return kClientOk;
+      printResult(result, answer.value("apply", json()), out);
+    return exitForOutcome(result);
   }
   if (cmd == "apply") {
     json members{{"confirm", args.confirm}};

@@ -22,9 +22,12 @@ enum ClientExit {
   kClientNotIdentifiable = 4,
   kClientCannotConnect = 5,  // no daemon at --host:--port, or the connection broke
   kClientAuthRefused = 6,    // the token file cannot be used, or the daemon refused the token
-  // apply: the verification found the new values wrong and the backup was restored; verify: an
-  // offset left is beyond its bound.
+  // result, watch: the verdict is not usable; apply: the verification found the new values wrong
+  // and the backup was restored; verify: an offset left is beyond its bound.
   kClientVerificationFailed = 8,
+  kClientNotUsable = 8,
+  // result, watch: a check found a zero moved, or could not tell (changed, marginal).
+  kClientCheckNotPassed = 9,
 };
 
 struct ClientArgs {

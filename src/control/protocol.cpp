@@ -28,6 +28,7 @@ json toJson(const service::SessionStatus& s) {
          {"recorded", s.recorded},
          {"resumed_from", s.resumed_from},
          {"last_servo_error_um", s.last_servo_error_um},
+         {"servo_zone_um", s.servo_zone_um},
          // While servoing, the latest reading's distance from the centre; null otherwise, or
          // when the spot is off the detector.
          {"live_servo_error_um", s.live_servo_error_um && std::isfinite(*s.live_servo_error_um)
@@ -48,6 +49,28 @@ json toJson(const service::SessionStatus& s) {
     j["next_placement"] = s.next_placement;
     j["next_centre_mm"] = {s.next_centre_mm.x(), s.next_centre_mm.y(), s.next_centre_mm.z()};
   }
+  return j;
+}
+
+json toJson(const apply::ApplyRecord& a) {
+  const auto offsets = [](const apply::Offsets& o) {
+    json out = json::array();
+    for (const apply::MeasuredOffset& m : o)
+      out.push_back({{"value_deg", m.value_deg}, {"sigma_deg", m.sigma_deg}});
+    return out;
+  };
+  json j{{"outcome", a.outcome}, {"time_unix_s", a.time_unix_s}, {"message", a.message}};
+  if (a.outcome != "pass" && a.outcome != "fail") {
+    j["before_rad"] = a.before_rad;
+    j["written_rad"] = a.written_rad;
+  }
+  if (!a.verification.empty()) j["verification"] = a.verification;
+  if (a.remaining) j["remaining"] = offsets(*a.remaining);
+  if (a.later_check)
+    j["later_check"] = {{"outcome", a.later_check->outcome},
+                        {"session", a.later_check->session},
+                        {"message", a.later_check->message},
+                        {"remaining", offsets(a.later_check->remaining)}};
   return j;
 }
 

@@ -337,7 +337,11 @@ class Connection : public std::enable_shared_from_this<Connection> {
       r["robot"] = {{"robot_type", robot.robot_type}, {"serial", robot.serial}};
       r["history"] = std::move(history);
     } else if (cmd == "result") {
-      r["result"] = toJson(session.result(optionalString(request, "session")));
+      const ResultFile result = session.result(optionalString(request, "session"));
+      r["result"] = toJson(result);
+      // What became of the offsets: a result the controller holds reads otherwise than one it
+      // does not.
+      if (const auto applied = session.lastApply(result.session)) r["apply"] = toJson(*applied);
     } else if (cmd == "subscribe") {
       subscribed_ = true;
       server_->startStatusTimer();

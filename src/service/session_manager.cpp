@@ -54,6 +54,10 @@ std::vector<record::HistoryEntry> SessionControl::history(const record::RobotId&
 
 namespace {
 
+double servoZoneUm(const servo::ServoOptions& servo) {
+  return servo.stop == servo::ServoStop::kZone ? servo.hit_zone_mm * 1000 : servo.tolerance_um;
+}
+
 PlannerSettings plannerSettingsOf(const ManagerSettings& settings) {
   PlannerSettings p;
   p.noise_mm = settings.session.noise_mm;
@@ -204,6 +208,7 @@ SessionManager::NewSession SessionManager::createSession(const StartRequest& req
   s.state = SessionState::kConnecting;
   s.session_id = created.id;
   s.pose_count = static_cast<int>(plan.poses.size());
+  s.servo_zone_um = servoZoneUm(settings_.run.servo);
   s.placement_count =
       planned.run.centres.empty() ? 0 : static_cast<int>(planned.run.centres.size());
   s.placement = s.placement_count > 0 ? 1 : 0;
@@ -289,6 +294,7 @@ std::string SessionManager::resume(const ResumeRequest& request) {
     s.state = SessionState::kConnecting;
     s.session_id = id;
     s.pose_count = static_cast<int>(plan.poses.size());
+    s.servo_zone_um = servoZoneUm(settings_.run.servo);
     s.recorded = info->recorded_poses;
     s.resumed_from = info->recorded_poses;
     s.placement_count = plan.centres.empty() ? 0 : static_cast<int>(plan.centres.size());
@@ -382,6 +388,11 @@ std::vector<SessionInfo> SessionManager::sessions() const { return store_.list()
 
 ResultFile SessionManager::result(const std::string& requested) const {
   return finishedResult(store_, requested);
+}
+
+std::optional<apply::ApplyRecord> SessionManager::lastApply(const std::string& id) const {
+  checkSessionId(id);
+  return apply::lastApplyRecord(apply::ApplyJournal(store_.sessionDir(id) + "/apply.jsonl"));
 }
 
 void SessionManager::readPsd(ReadingDone done) {

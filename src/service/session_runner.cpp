@@ -34,6 +34,15 @@ class ObservedReader final : public PsdReader {
   SessionWorker& worker_;
 };
 
+// The cell time the recorded poses took: each one's planned move, search, servo and settling.
+double recordedCellTimeS(const std::vector<PoseRecord>& records) {
+  double t = 0;
+  for (const PoseRecord& r : records)
+    if (r.measured())
+      t += r.servo.move_s + r.servo.acquisition_s + r.servo.servo_s + r.servo.settle_s;
+  return t;
+}
+
 // Each measured pose's 0-based position among the reference's fit poses: plan pose p re-measures
 // the reference's plan pose reference_poses[p].
 std::vector<int> pairsOf(const Reference& reference, const std::vector<int>& reference_poses,
@@ -230,7 +239,9 @@ void SessionRunner::runMeasurement(const RunRequest& request) {
       cell.placePsd(reference->placement, reference->placement_centres_mm);
     else
       placed(journal.placement());
-    const double start_s = cell.clock().nowS();
+    // A session resumed (after a PSD placement by the technician, or a restart) already spent
+    // the cell time of the poses it recorded before: the journal's servo times say how much.
+    const double start_s = cell.clock().nowS() - recordedCellTimeS(journal.records());
     run.on_phase = [this, &cell, start_s](int i, RunPhase phase) {
       // The cell's clock is the worker's to read: the status gets its time at each phase.
       const double elapsed_s = cell.clock().nowS() - start_s;

@@ -129,9 +129,10 @@ TEST_F(ClientCommandsTest, AbortResumeSessionsResult) {
   EXPECT_THAT(out_.str(), HasSubstr("1 of them skipped"));
   auto as_json = args("result");
   as_json.json = true;
-  EXPECT_EQ(run(as_json), 0);
+  // The exit status says what the result says: this one has no offsets to offer.
+  EXPECT_EQ(run(as_json), cli::kClientNotUsable);
   EXPECT_THAT(out_.str(), HasSubstr("\"converged\": true"));
-  EXPECT_EQ(run(args("result")), 0);  // for a person: this one has no offsets to offer
+  EXPECT_EQ(run(args("result")), cli::kClientNotUsable);
   EXPECT_THAT(out_.str(), HasSubstr("verdict: NOT USABLE"));
   EXPECT_THAT(out_.str(), HasSubstr("the result carries no offsets"));
   auto a = args("result");
@@ -299,7 +300,7 @@ ResultFile offsetsResult() {
 
 TEST_F(ClientCommandsTest, ResultOpensWithTheVerdictThenTheOffsetsAndWhatToDo) {
   session_.result_value = offsetsResult();
-  EXPECT_EQ(run(args("result")), 0);
+  EXPECT_EQ(run(args("result")), cli::kClientNotUsable);
   const std::string text = out_.str();
   EXPECT_THAT(text, HasSubstr("(SIMULATED cell: the truth is known)"));
   // Without the solver's verdict: convergence and identifiability decide.
@@ -309,6 +310,10 @@ TEST_F(ClientCommandsTest, ResultOpensWithTheVerdictThenTheOffsetsAndWhatToDo) {
   EXPECT_THAT(text, HasSubstr("+0.41200   +0.00003"));  // truth and error
   EXPECT_THAT(text, HasSubstr("delta5  not identifiable: joint 5 never moved"));
   EXPECT_THAT(text, HasSubstr("change nothing: the verdict is not usable"));
+  // What to do next, after the reasons.
+  EXPECT_THAT(text, HasSubstr("next: nothing was written. To determine every offset absolutely, "
+                              "calibrate at several PSD placements (`zerocal start --placements "
+                              "3`"));
   EXPECT_THAT(text, HasSubstr("cell time 84.2 s, 8 poses"));
   EXPECT_LT(text.find("verdict:"), text.find("delta2 "));
 
@@ -321,15 +326,43 @@ TEST_F(ClientCommandsTest, ResultOpensWithTheVerdictThenTheOffsetsAndWhatToDo) {
       out_.str(),
       HasSubstr("joint 2: the reading grows by +0.41203 deg (its zero moves -0.41203 deg)"));
   session_.result_value.report.verdict = {false, {"chi-square per dof 7.1: the poses miss"}};
-  EXPECT_EQ(run(args("result")), 0);
+  EXPECT_EQ(run(args("result")), cli::kClientNotUsable);
   EXPECT_THAT(out_.str(),
               HasSubstr("verdict: NOT USABLE\n  - chi-square per dof 7.1: the poses miss\n"));
   EXPECT_THAT(out_.str(), Not(HasSubstr("robot:")));  // not recorded: nothing made up
   // The robot as its controller named itself, right after the verdict.
   session_.result_value.cell = ResultFile::Cell{{"1600-504321", "6.15", "IRB 1600-10/1.45"}, ""};
+  EXPECT_EQ(run(args("result")), cli::kClientNotUsable);
+  EXPECT_THAT(out_.str(), HasSubstr("robot: IRB 1600-10/1.45, serial 1600-504321, RobotWare 6.15\n"));
+
+  // Once applied and verified, the controller holds the values: the result says so instead of
+  // how to enter them.
+  session_.result_value.report.verdict = {true, {}};
+  apply::ApplyRecord applied;
+  applied.outcome = "verified";
+  applied.time_unix_s = 1796396424;
+  applied.verification = "20261122-0002";
+  applied.message = "every remaining offset of joints 2..5 is within max(3 sigma, 0.0100 deg)";
+  session_.last_apply = applied;
   EXPECT_EQ(run(args("result")), 0);
-  EXPECT_THAT(out_.str(), HasSubstr("the poses miss\nrobot: IRB 1600-10/1.45, serial 1600-504321, "
-                                    "RobotWare 6.15\n"));
+  EXPECT_THAT(out_.str(), HasSubstr("Written to the controller on 2026-12-04 15:00 UTC, verified by "
+                                    "session 20261122-0002"));
+  EXPECT_THAT(out_.str(), HasSubstr("do not enter them again"));
+  EXPECT_THAT(out_.str(), Not(HasSubstr("nothing was written")));
+  applied.outcome = "rolled_back";
+  session_.last_apply = applied;
+  EXPECT_EQ(run(args("result")), 0);
+  EXPECT_THAT(out_.str(), HasSubstr("the controller holds its values from before the apply"));
+
+  // A check that found a zero moved exits 9, whatever its verdict.
+  session_.last_apply.reset();
+  session_.result_value.kind = SessionKind::kCheck;
+  session_.result_value.reference = "20261122-0000";
+  session_.result_value.check = CheckJudgement{};
+  session_.result_value.check->outcome = CheckJudgement::Outcome::kChanged;
+  EXPECT_EQ(run(args("result")), cli::kClientCheckNotPassed);
+  session_.result_value.check->outcome = CheckJudgement::Outcome::kPass;
+  EXPECT_EQ(run(args("result")), 0);
 }
 
 TEST_F(ClientCommandsTest, VersionShowsTheDaemonsVersionAndProtocolWhenOneAnswers) {
@@ -363,6 +396,10 @@ TEST_F(ClientCommandsTest, PlanOnTheDaemon) {
 }
 
 TEST_F(ClientCommandsTest, WatchFollowsTheSessionToItsEnd) {
+  session_.result_session = "20261122-0001";
+  session_.result_value = offsetsResult();
+  session_.result_value.verdict_recorded = true;
+  session_.result_value.report.verdict = {true, {}};
   session_.start({});
   session_.setState(SessionState::kMoving, 1, 8);
   std::thread cell([this] {
@@ -374,10 +411,17 @@ TEST_F(ClientCommandsTest, WatchFollowsTheSessionToItsEnd) {
   });
   EXPECT_EQ(run(args("watch")), 0);
   cell.join();
-  EXPECT_THAT(out_.str(), HasSubstr("moving  pose 1 of 8"));
-  EXPECT_THAT(out_.str(), HasSubstr("servoing  pose 2 of 8"));
-  EXPECT_THAT(out_.str(), HasSubstr("servo error 1.2 um"));
+  // On a pipe: a line per pose recorded, with its servo error and the zone it is judged by, and
+  // a line per state outside the poses; no line per move.
+  EXPECT_THAT(out_.str(), HasSubstr("pose 2 of 8 recorded: spot 1.2 um from its aim"));
+  EXPECT_THAT(out_.str(), Not(HasSubstr("moving")));
+  EXPECT_THAT(out_.str(), Not(HasSubstr("servoing")));
   EXPECT_THAT(out_.str(), HasSubstr("done"));
+  EXPECT_THAT(out_.str(), HasSubstr("verdict: USABLE"));
+  // Not usable: the watch's exit status says so.
+  session_.result_value.report.verdict = {false, {"delta2 is not determined"}};
+  session_.setState(SessionState::kDone, 8, 8);
+  EXPECT_EQ(run(args("watch")), cli::kClientNotUsable);
   // Plain lines: the final one once, with the recorded error, not the servo's live one.
   const std::string text = out_.str();
   const auto done = text.find("  done  ");
@@ -414,7 +458,6 @@ TEST_F(ClientCommandsTest, WatchStopsAtAPlacementAndContinueGoesOn) {
   EXPECT_EQ(run(args("watch")), 0);
   cell.join();
   EXPECT_THAT(out_.str(), HasSubstr("awaiting_placement"));
-  EXPECT_THAT(out_.str(), HasSubstr("placement 1 of 2"));
   EXPECT_THAT(out_.str(), HasSubstr("move the PSD to placement 2"));
   EXPECT_EQ(run(args("status")), 0);
   EXPECT_THAT(out_.str(), HasSubstr("placement:  1 of 2"));
@@ -457,6 +500,10 @@ TEST_F(ClientCommandsTest, WatchOfAnAbortedSessionIsExitCode3) {
 }
 
 TEST_F(ClientCommandsTest, StartWatchAsJsonLines) {
+  session_.result_session = "20261122-0001";
+  session_.result_value = offsetsResult();
+  session_.result_value.verdict_recorded = true;
+  session_.result_value.report.verdict = {true, {}};
   auto a = args("start");
   a.watch = true;
   a.json = true;

@@ -33,6 +33,9 @@ class FakeSession : public service::SessionControl {
   bool abort() override;
   std::vector<SessionInfo> sessions() const override;
   ResultFile result(const std::string& id) const override;
+  std::optional<apply::ApplyRecord> lastApply(const std::string&) const override {
+    return last_apply;
+  }
   void readPsd(ReadingDone done) override;
   void setEventSink(EventSink sink) override;
   // robot_list and history_list when record_kept, else the daemon without a record.
@@ -61,6 +64,8 @@ class FakeSession : public service::SessionControl {
   bool record_kept = true;
   std::vector<record::RobotSummary> robot_list;
   std::vector<record::HistoryEntry> history_list;
+  // What lastApply() answers for any session.
+  std::optional<apply::ApplyRecord> last_apply;
   // What result() answers for the session `result_session` (and for an empty id).
   std::string result_session = "20261122-0000";
   ResultFile result_value = [] {

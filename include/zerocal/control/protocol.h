@@ -66,6 +66,10 @@ const char* planKindName(PlanKind kind);
 PlanKind parsePlanKind(const std::string& name);
 
 nlohmann::json toJson(const service::SessionStatus& status);
+// A session's latest apply (the `result` answer's `apply`): outcome, when, the values before and
+// written (rad, joints 1..6; absent for a verification alone), the verification's session and
+// its verdict, and a later verification's.
+nlohmann::json toJson(const apply::ApplyRecord& applied);
 nlohmann::json toJson(const service::LiveReading& reading);
 nlohmann::json toJson(const std::vector<SessionInfo>& sessions);
 // An event line's object: {"event": "plan" | "state" | "pose" | "remeasure" | "result" |

@@ -11,6 +11,7 @@
 #include <variant>
 #include <vector>
 
+#include "zerocal/apply/online_apply.h"
 #include "zerocal/calib/planner.h"
 #include "zerocal/calib/solver.h"
 #include "zerocal/cell/psd_reader.h"
@@ -124,6 +125,10 @@ struct SessionStatus {
   // without: that pose, 1-based, for `resume` with skip_pose. 0 otherwise.
   int skippable_pose = 0;
   double last_servo_error_um = 0;  // at the last recorded pose
+  // The servo records a pose once the spot is this close to its aim (servo.tolerance_um, or the
+  // zone's radius, which the servo widens where the arm scatters more at the detector): what a
+  // servo error is judged against.
+  double servo_zone_um = 0;
   // While servoing: the spot's distance from the PSD centre at the latest reading, um (NaN when
   // the spot is off the detector). Read without disturbing the servo; poll it for live display.
   std::optional<double> live_servo_error_um;
@@ -302,6 +307,12 @@ class SessionControl {
   // result.json of a finished session (the latest one when `id` is empty). Throws
   // Refused("not_found").
   virtual ResultFile result(const std::string& id) const = 0;
+  // The latest online apply or verification of finished session `id` as its apply journal tells
+  // it; nullopt when it was never applied (or the journal cannot be read).
+  virtual std::optional<apply::ApplyRecord> lastApply(const std::string& id) const {
+    (void)id;
+    return std::nullopt;
+  }
   // One PSD reading: the running session's latest, or one taken now when no session runs (on the
   // worker thread). `done` is called exactly once, from any thread, with the reading or an error.
   using ReadingDone = std::function<void(std::optional<LiveReading>, const std::string& error)>;

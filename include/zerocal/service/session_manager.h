@@ -52,6 +52,7 @@ class SessionManager final : public SessionControl {
   bool abort() override;
   std::vector<SessionInfo> sessions() const override;
   ResultFile result(const std::string& id) const override;
+  std::optional<apply::ApplyRecord> lastApply(const std::string& id) const override;
   void readPsd(ReadingDone done) override;
   void setEventSink(EventSink sink) override;
   std::vector<record::RobotSummary> robots() const override;

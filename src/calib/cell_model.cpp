@@ -2,6 +2,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <cmath>
 
 #include "costs.h"
 #include "zerocal/error.h"
@@ -24,6 +25,47 @@ Robot calibratedRobot(const Robot& robot, const CalibrationParameters& params) {
   for (int k = 0; k < kComplianceCount; ++k)
     out.compliance_deg_per_knm[k] += params.compliance[k] * kRadToDeg;
   return out;
+}
+
+double MissNoise::referenceMm() const {
+  constexpr double kLeverMm = 1000;
+  const double joint_mm = joint_repeatability_deg * kDegToRad * kLeverMm;
+  return std::sqrt(joint_mm * joint_mm + psd_mm * psd_mm);
+}
+
+Eigen::Matrix2d missCovariance(const CellModel& cell, const Pose& pose,
+                               const CalibrationParameters& at, bool use_readings,
+                               double noise_mm) {
+  if (!cell.noise.perPose()) return noise_mm * noise_mm * Eigen::Matrix2d::Identity();
+  DisturbedMiss functor(cell, pose, at, use_readings);
+  ceres::AutoDiffCostFunction<DisturbedMiss, 2, kJointCount, 2> cost(&functor,
+                                                                     ceres::DO_NOT_TAKE_OWNERSHIP);
+  const double zeros[kJointCount] = {};
+  const double* blocks[2] = {zeros, zeros};
+  Eigen::Matrix<double, 2, kJointCount, Eigen::RowMajor> jq;
+  Eigen::Matrix<double, 2, 2, Eigen::RowMajor> juv;
+  double* jacobians[2] = {jq.data(), juv.data()};
+  double miss[2];
+  cost.Evaluate(blocks, miss, jacobians);
+  const double sq = cell.noise.joint_repeatability_deg * kDegToRad;
+  return sq * sq * jq * jq.transpose() +
+         cell.noise.psd_mm * cell.noise.psd_mm * juv * juv.transpose();
+}
+
+CellModel atDetector(CellModel cell) {
+  cell.noise = {};
+  return cell;
+}
+
+Eigen::Matrix2d missWeight(const CellModel& cell, const Pose& pose, const CalibrationParameters& at,
+                           bool use_readings) {
+  if (!cell.noise.perPose()) return Eigen::Matrix2d::Identity();
+  // W = s_ref Sigma^-1/2 (symmetric), so that W Sigma W^T = s_ref^2 I.
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(
+      missCovariance(cell, pose, at, use_readings, 0));
+  const Eigen::Vector2d inv_sqrt = eig.eigenvalues().cwiseMax(1e-30).cwiseSqrt().cwiseInverse();
+  return cell.noise.referenceMm() * eig.eigenvectors() * inv_sqrt.asDiagonal() *
+         eig.eigenvectors().transpose();
 }
 
 const Eigen::Matrix3d& CellModel::psdRotation(int placement) const {

@@ -206,6 +206,12 @@ ChangeFit fitChange(const CellModel& cell, const std::vector<Pose>& now,
   return fit;
 }
 
+// The options with the cell's per-pose noise in force (its reference sigma the pairs' unit).
+ChangeOptions withCellNoise(const CellModel& cell, ChangeOptions options) {
+  options.solve = zerocal::withCellNoise(cell, options.solve);
+  return options;
+}
+
 }  // namespace
 
 std::string ChangeOptions::validate() const {
@@ -224,7 +230,8 @@ int changeUnknownCount(const ChangeOptions& options) {
 
 SolveReport solveChange(const CellModel& cell, const ReferenceFit& reference,
                         const std::vector<Pose>& now, const std::vector<int>& pairs,
-                        const ChangeOptions& options) {
+                        const ChangeOptions& given) {
+  const ChangeOptions options = withCellNoise(cell, given);
   if (const std::string why = options.validate(); !why.empty()) throw InputError(why);
   const std::vector<int> columns = freeColumns(options);
   const int unknowns = static_cast<int>(columns.size());
@@ -232,7 +239,7 @@ SolveReport solveChange(const CellModel& cell, const ReferenceFit& reference,
   checkJointLimits(cell, now);
   const std::vector<Pose> before = pairedReference(reference, pairs);
   const bool readings = readingsOf(now, before, options.solve);
-  SolveReport report = detail::startReport(now, options.solve);
+  SolveReport report = detail::startReport(cell, now, options.solve);
   report.used_readings = readings;
   const int n = static_cast<int>(now.size());
   const double sigma = *options.solve.noise_mm;
@@ -439,7 +446,8 @@ SolveReport solveChange(const CellModel& cell, const ReferenceFit& reference,
 }
 
 Eigen::Vector4d predictChangeSigma(const CellModel& cell, const ReferenceFit& reference,
-                                   const std::vector<int>& pairs, const ChangeOptions& options) {
+                                   const std::vector<int>& pairs, const ChangeOptions& given) {
+  const ChangeOptions options = withCellNoise(cell, given);
   if (const std::string why = options.validate(); !why.empty()) throw InputError(why);
   const std::vector<Pose> poses = pairedReference(reference, pairs);
   const bool readings = readingsOf(poses, poses, options.solve);
@@ -455,7 +463,8 @@ Eigen::Vector4d predictChangeSigma(const CellModel& cell, const ReferenceFit& re
 }
 
 std::vector<int> choosePosesForCheck(const CellModel& cell, const ReferenceFit& reference,
-                                     const ChangeOptions& options, double sigma_deg, int at_least) {
+                                     const ChangeOptions& given, double sigma_deg, int at_least) {
+  const ChangeOptions options = withCellNoise(cell, given);
   if (const std::string why = options.validate(); !why.empty()) throw InputError(why);
   const int count = static_cast<int>(reference.poses.size());
   const int unknowns = changeUnknownCount(options);

@@ -81,7 +81,7 @@ void laserLineInBase(const CellModel& cell, const double* q_rad, const T* delta,
 // target + offset, along b1, b2, divided by sigma: the residual of the point-to-line costs below.
 template <typename T>
 void pointToLineMiss(const CellModel& cell, const Frame<T>& flange, const T* kappa, const T* target,
-                     const Eigen::Vector3d& offset, double inv_sigma, T* residual) {
+                     const Eigen::Vector3d& offset, const Eigen::Matrix2d& weight, T* residual) {
   Vec3<T> p, d;
   cell.laser.line(kappa, &p, &d);
   const Vec3<T> hit(target[0] + offset[0], target[1] + offset[1], target[2] + offset[2]);
@@ -90,9 +90,45 @@ void pointToLineMiss(const CellModel& cell, const Frame<T>& flange, const T* kap
   Vec3<T> b1 = e1 - e1.dot(d) * d;
   b1 /= b1.norm();
   const Vec3<T> b2 = d.cross(b1);
-  residual[0] = b1.dot(w) * inv_sigma;
-  residual[1] = b2.dot(w) * inv_sigma;
+  const T m1 = b1.dot(w), m2 = b2.dot(w);
+  residual[0] = weight(0, 0) * m1 + weight(0, 1) * m2;
+  residual[1] = weight(1, 0) * m1 + weight(1, 1) * m2;
 }
+
+// The miss of pose's line from its hit point (as pointToLineMiss, unweighed) when the arm stands
+// at the pose's joints turned by dq (rad, the six joints) and the reading is off by duv (mm, the
+// detector's u and v): what the arm's repeatability and the detector's noise do to the miss, for
+// MissNoise's covariance. The offsets, laser and target are those of the parameters held.
+class DisturbedMiss {
+ public:
+  DisturbedMiss(const CellModel& cell, const Pose& pose, const CalibrationParameters& at,
+                bool readings)
+      : cell_(cell), at_(at), offset_(hitPointOffset(cell, pose, readings)),
+        psd_(cell.psdRotation(pose.placement)) {
+    jointsRad(cell.robot, pose.q_deg, q_rad_);
+  }
+
+  template <typename T>
+  bool operator()(const T* dq, const T* duv, T* residual) const {
+    T joints[kJointCount];
+    for (int j = 0; j < kJointCount; ++j)
+      joints[j] = T(q_rad_[j]) + dq[j] + (j >= 1 && j <= kOffsetCount ? T(at_.delta_rad[j - 1]) : T(0));
+    const Frame<T> flange = flangePose(cell_.robot, joints);
+    T kappa[kLaserParamCount], target[kTargetCount];
+    for (int k = 0; k < kLaserParamCount; ++k) kappa[k] = T(at_.laser[k]);
+    for (int k = 0; k < kTargetCount; ++k)
+      target[k] = T(at_.target_mm[k]) + T(psd_(k, 0)) * duv[0] + T(psd_(k, 1)) * duv[1];
+    pointToLineMiss(cell_, flange, kappa, target, offset_, Eigen::Matrix2d::Identity(), residual);
+    return true;
+  }
+
+ private:
+  const CellModel& cell_;
+  CalibrationParameters at_;
+  double q_rad_[kJointCount];
+  Eigen::Vector3d offset_;
+  Eigen::Matrix3d psd_;
+};
 
 // Maximum likelihood, target explicit (point-to-line).
 //
@@ -105,31 +141,33 @@ void pointToLineMiss(const CellModel& cell, const Frame<T>& flange, const T* kap
 // the hit point, in units of the measurement sigma: 2 residuals per pose.
 class PointToLineCost {
  public:
+  // `weight`: the pose's missWeight (the identity for one noise for every pose).
   PointToLineCost(const CellModel& cell, const Joints& q_deg, const Eigen::Vector3d& hit_offset,
-                  double sigma_mm)
-      : cell_(cell), offset_(hit_offset), inv_sigma_(1.0 / sigma_mm) {
+                  double sigma_mm, const Eigen::Matrix2d& weight = Eigen::Matrix2d::Identity())
+      : cell_(cell), offset_(hit_offset), weight_(weight / sigma_mm) {
     jointsRad(cell.robot, q_deg, q_rad_);
   }
 
   template <typename T>
   bool operator()(const T* delta, const T* kappa, const T* target, T* residual) const {
     const Frame<T> flange = flangeWithOffsets(cell_.robot, q_rad_, delta);
-    pointToLineMiss(cell_, flange, kappa, target, offset_, inv_sigma_, residual);
+    pointToLineMiss(cell_, flange, kappa, target, offset_, weight_, residual);
     return true;
   }
 
   static ceres::CostFunction* create(const CellModel& cell, const Joints& q_deg,
-                                     const Eigen::Vector3d& hit_offset, double sigma_mm) {
+                                     const Eigen::Vector3d& hit_offset, double sigma_mm,
+                                     const Eigen::Matrix2d& weight = Eigen::Matrix2d::Identity()) {
     return new ceres::AutoDiffCostFunction<PointToLineCost, 2, kOffsetCount, kLaserParamCount,
                                            kTargetCount>(
-        new PointToLineCost(cell, q_deg, hit_offset, sigma_mm));
+        new PointToLineCost(cell, q_deg, hit_offset, sigma_mm, weight));
   }
 
  private:
   const CellModel& cell_;
   double q_rad_[kJointCount];
   Eigen::Vector3d offset_;
-  double inv_sigma_;
+  Eigen::Matrix2d weight_;
 };
 
 // Point-to-line with the link errors and the compliance of joints 2 and 3 as unknowns too
@@ -147,8 +185,8 @@ class PointToLineCost {
 class LinkPointToLineCost {
  public:
   LinkPointToLineCost(const CellModel& cell, const Joints& q_deg, const Eigen::Vector3d& hit_offset,
-                      double sigma_mm)
-      : cell_(cell), offset_(hit_offset), inv_sigma_(1.0 / sigma_mm) {
+                      double sigma_mm, const Eigen::Matrix2d& weight = Eigen::Matrix2d::Identity())
+      : cell_(cell), offset_(hit_offset), weight_(weight / sigma_mm) {
     jointsRad(cell.robot, q_deg, q_rad_);
     const auto torque = gravityTorqueKnm(cell.robot, cell.robot.masses, q_deg);
     for (int k = 0; k < kComplianceCount; ++k) torque_knm_[k] = torque[k];
@@ -159,15 +197,16 @@ class LinkPointToLineCost {
                   const T* target, T* residual) const {
     const Frame<T> flange =
         flangeWithLinkErrors(cell_.robot, q_rad_, delta, link, compliance, torque_knm_);
-    pointToLineMiss(cell_, flange, kappa, target, offset_, inv_sigma_, residual);
+    pointToLineMiss(cell_, flange, kappa, target, offset_, weight_, residual);
     return true;
   }
 
   static ceres::CostFunction* create(const CellModel& cell, const Joints& q_deg,
-                                     const Eigen::Vector3d& hit_offset, double sigma_mm) {
+                                     const Eigen::Vector3d& hit_offset, double sigma_mm,
+                                     const Eigen::Matrix2d& weight = Eigen::Matrix2d::Identity()) {
     return new ceres::AutoDiffCostFunction<LinkPointToLineCost, 2, kOffsetCount, kLaserParamCount,
                                            kLinkParamCount, kComplianceCount, kTargetCount>(
-        new LinkPointToLineCost(cell, q_deg, hit_offset, sigma_mm));
+        new LinkPointToLineCost(cell, q_deg, hit_offset, sigma_mm, weight));
   }
 
  private:
@@ -175,7 +214,7 @@ class LinkPointToLineCost {
   double q_rad_[kJointCount];
   double torque_knm_[kComplianceCount];
   Eigen::Vector3d offset_;
-  double inv_sigma_;
+  Eigen::Matrix2d weight_;
 };
 
 // The paper's cost (eq. 6), kept for comparison. For every pair (i < j) of laser lines the

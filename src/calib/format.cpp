@@ -58,7 +58,12 @@ std::string toText(const SolveReport& r) {
                            "by more than it",
                            r.noise_mm / r.noise_scale, r.noise_scale)
                         .c_str()
-                  : "given");
+                  : r.joint_repeatability_deg > 0
+                      ? printf("the reference of the per-pose model: %.4f deg joint "
+                               "repeatability, each pose weighed by its own covariance",
+                               r.joint_repeatability_deg)
+                            .c_str()
+                      : "given");
   if (r.chi2_per_dof)
     o << printf(", chi-square per degree of freedom %.2f (dof %d, p = %.2g)", *r.chi2_per_dof,
                 r.dof, r.chi2_p_value.value_or(NAN));

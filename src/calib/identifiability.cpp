@@ -66,7 +66,7 @@ Eigen::MatrixXd pointToLineJacobian(const CellModel& cell, const std::vector<Pos
   double residual[2];
   for (int i = 0; i < n; ++i) {
     PointToLineCost functor(cell, poses[i].q_deg, hitPointOffset(cell, poses[i], use_readings),
-                            sigma_mm);
+                            sigma_mm, missWeight(cell, poses[i], params, use_readings));
     ceres::AutoDiffCostFunction<PointToLineCost, 2, kOffsetCount, kLaserParamCount, kTargetCount>
         cost(&functor, ceres::DO_NOT_TAKE_OWNERSHIP);
     cost.Evaluate(blocks, residual, jacobians);
@@ -270,8 +270,10 @@ Eigen::MatrixXd placementJacobian(const CellModel& cell, const std::vector<Pose>
     const int slot = layout.slot(poses[i].placement);
     const double* blocks[5] = {params.delta_rad.data(), params.laser.data(), params.link.data(),
                                params.compliance.data(), targets[slot].data()};
+    CalibrationParameters at = params;
+    at.target_mm = targets[slot];
     LinkPointToLineCost functor(cell, poses[i].q_deg, hitPointOffset(cell, poses[i], use_readings),
-                                sigma_mm);
+                                sigma_mm, missWeight(cell, poses[i], at, use_readings));
     ceres::AutoDiffCostFunction<LinkPointToLineCost, 2, kOffsetCount, kLaserParamCount,
                                 kLinkParamCount, kComplianceCount, kTargetCount>
         cost(&functor, ceres::DO_NOT_TAKE_OWNERSHIP);

@@ -54,12 +54,16 @@ MultiFit fit(const CellModel& cell, const std::vector<Pose>& poses, const Placem
   problem_options.manifold_ownership = ceres::TAKE_OWNERSHIP;
   ceres::Problem problem(problem_options);
   const double sigma_in = options.noise_mm.value_or(1.0);
-  for (const Pose& pose : poses)
+  for (const Pose& pose : poses) {
+    CalibrationParameters at = start;
+    at.target_mm = targets[layout.slot(pose.placement)];
     problem.AddResidualBlock(LinkPointToLineCost::create(
-                                 cell, pose.q_deg, hitPointOffset(cell, pose, readings), sigma_in),
+                                 cell, pose.q_deg, hitPointOffset(cell, pose, readings), sigma_in,
+                                 missWeight(cell, pose, at, readings)),
                              nullptr, f.est.delta_rad.data(), f.est.laser.data(), f.est.link.data(),
                              f.est.compliance.data(),
                              f.targets[layout.slot(pose.placement)].data());
+  }
   holdUnidentified(problem, f.est.delta_rad.data(), 0, kOffsetCount, base);
   holdUnidentified(problem, f.est.laser.data(), kOffsetCount, kLaserParamCount, base);
   holdUnidentified(problem, f.est.link.data(), PlacementLayout::firstLink(), kLinkParamCount, base);
@@ -161,7 +165,7 @@ SolveReport solveMultiPlacement(const CellModel& cell, const std::vector<Pose>& 
   const PlacementLayout layout(poses, cell.robot, options.identify_compliance);
   checkPlacements(poses, layout, options);
   const int n = static_cast<int>(poses.size());
-  SolveReport report = startReport(poses, options);
+  SolveReport report = startReport(cell, poses, options);
   const bool readings = report.used_readings;
   report.model_length_mm = options.model_length_mm;
   report.model_angle_deg = options.model_angle_deg;
@@ -329,15 +333,17 @@ SolveReport solveMultiPlacement(const CellModel& cell, const std::vector<Pose>& 
       report.correlation(a, b) = cov(a, b) / std::sqrt(cov(a, a) * cov(b, b));
 
   // Every given pose's miss and stand-off at the result (duplicates included).
-  Eigen::VectorXd r_all;
+  Eigen::VectorXd r_all, r_at_detector;
   placementJacobian(cell, poses, layout, f.est, f.targets, 1.0, readings, &r_all);
+  placementJacobian(atDetector(cell), poses, layout, f.est, f.targets, 1.0, readings,
+                    &r_at_detector);
   double rss = 0;
   for (int i = 0; i < n; ++i) {
     PoseResidual pr;
     pr.source_line = poses[i].source_line;
-    pr.miss_mm = r_all.segment<2>(2 * i);
+    pr.miss_mm = r_at_detector.segment<2>(2 * i);
     pr.miss_norm_mm = pr.miss_mm.norm();
-    pr.normalised = pr.miss_norm_mm / sigma;
+    pr.normalised = r_all.segment<2>(2 * i).norm() / sigma;
     pr.used = std::binary_search(active.begin(), active.end(), i);
     pr.outlier = std::find(left_out.begin(), left_out.end(), i) != left_out.end();
     pr.duplicate_of = duplicate_of[i] + 1;

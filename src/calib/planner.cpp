@@ -174,6 +174,7 @@ Prediction predictSeveralPlacements(const CellModel& cell, const std::vector<Pos
 Prediction predictUncertainty(const CellModel& cell, const std::vector<Pose>& poses,
                               const CalibrationParameters& at, double sigma_mm,
                               const ModelTolerances& tolerances) {
+  if (cell.noise.perPose()) sigma_mm = cell.noise.referenceMm();
   if (placementCount(poses) > 1)
     return predictSeveralPlacements(cell, poses, at, sigma_mm, tolerances);
   const Eigen::MatrixXd jac = pointToLineJacobian(cell, poses, at, sigma_mm, false);
@@ -514,7 +515,11 @@ std::vector<Eigen::Vector3d> defaultPlacements(const Eigen::Vector3d& first, int
   return out;
 }
 
-Plan planPoses(const CellModel& cell, const Eigen::Vector3d& target, const PlanOptions& o) {
+Plan planPoses(const CellModel& cell, const Eigen::Vector3d& target, const PlanOptions& given) {
+  // With the noise per pose, each candidate is weighed by its own covariance, in the model's
+  // reference sigma.
+  PlanOptions o = given;
+  if (cell.noise.perPose()) o.noise_mm = cell.noise.referenceMm();
   if (const std::string problem = o.validate(); !problem.empty())
     throw InputError("plan options: " + problem);
   if (!o.more_placements.empty()) {

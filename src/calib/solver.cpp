@@ -163,7 +163,8 @@ Fit runFit(const CellModel& cell, const std::vector<Pose>& poses, const SolveOpt
   if (options.cost == CostKind::kMaximumLikelihood) {
     for (const auto& pose : poses)
       problem.AddResidualBlock(
-          PointToLineCost::create(cell, pose.q_deg, hitPointOffset(cell, pose, readings), sigma_in),
+          PointToLineCost::create(cell, pose.q_deg, hitPointOffset(cell, pose, readings), sigma_in,
+                                  missWeight(cell, pose, start, readings)),
           makeLoss(options).release(), est.delta_rad.data(), est.laser.data(),
           est.target_mm.data());
   } else {
@@ -182,12 +183,13 @@ Fit runFit(const CellModel& cell, const std::vector<Pose>& poses, const SolveOpt
   return fit;
 }
 
-// The line's miss of each pose's hit point, mm: 2 per pose.
+// The line's miss of each pose's hit point, mm: 2 per pose, weighed by each pose's missWeight.
 Eigen::VectorXd misses(const CellModel& cell, const std::vector<Pose>& poses,
                        const CalibrationParameters& est, bool readings) {
   Eigen::VectorXd r(2 * poses.size());
   for (std::size_t i = 0; i < poses.size(); ++i) {
-    PointToLineCost functor(cell, poses[i].q_deg, hitPointOffset(cell, poses[i], readings), 1.0);
+    PointToLineCost functor(cell, poses[i].q_deg, hitPointOffset(cell, poses[i], readings), 1.0,
+                            missWeight(cell, poses[i], est, readings));
     functor(est.delta_rad.data(), est.laser.data(), est.target_mm.data(), r.data() + 2 * i);
   }
   return r;
@@ -534,6 +536,9 @@ void throwUnlessEnoughDistinct(const std::vector<Pose>& poses, const std::vector
                    std::to_string(kMinimumPoses) + " distinct poses");
 }
 
+// The chi-square test's level at which a per-pose noise model is taken as not the cell's.
+constexpr double kNoiseModelRejectedP = 0.01;
+
 void applyNoise(SolveReport& report, const SolveOptions& options, double rss_mm2) {
   if (options.noise_mm) {
     report.noise_mm = *options.noise_mm;
@@ -543,8 +548,13 @@ void applyNoise(SolveReport& report, const SolveOptions& options, double rss_mm2
       report.chi2_p_value =
           boost::math::cdf(boost::math::complement(boost::math::chi_squared(report.dof), chi2));
       // The poses miss by more than the stated noise: the honest sigma is the one they show
-      // (the Birge ratio). Never scaled down: a small chi-square with few poses is chance.
-      report.noise_scale = std::max(1.0, std::sqrt(*report.chi2_per_dof));
+      // (the Birge ratio). Never scaled down: a small chi-square with few poses is chance. A
+      // per-pose model is the arm's own repeatability, not a guess of one sigma: a chi-square
+      // above 1 is chance too (scaling by it would inflate every sigma by about 10% on 24
+      // degrees of freedom), and only a misfit it cannot explain (p < 1%) scales it.
+      const bool model_rejected = report.joint_repeatability_deg == 0 ||
+                                  *report.chi2_p_value < kNoiseModelRejectedP;
+      report.noise_scale = model_rejected ? std::max(1.0, std::sqrt(*report.chi2_per_dof)) : 1.0;
       report.noise_mm *= report.noise_scale;
     }
   } else {
@@ -561,13 +571,15 @@ double intervalQuantile(const SolveReport& report) {
   return 1.959963984540054;
 }
 
-SolveReport startReport(const std::vector<Pose>& poses, const SolveOptions& options) {
+SolveReport startReport(const CellModel& cell, const std::vector<Pose>& poses,
+                         const SolveOptions& options) {
   SolveReport report;
   report.cost = options.cost;
   report.used_readings = options.use_readings;
   for (const auto& p : poses) report.used_readings = report.used_readings && p.spot.has_value();
   report.pose_count = static_cast<int>(poses.size());
   report.required_accuracy_deg = options.required_accuracy_deg;
+  report.joint_repeatability_deg = cell.noise.joint_repeatability_deg;
   return report;
 }
 
@@ -577,13 +589,19 @@ std::string poseLabel(const std::vector<Pose>& poses, int i) { return poseName(p
 
 }  // namespace detail
 
+SolveOptions withCellNoise(const CellModel& cell, SolveOptions options) {
+  if (cell.noise.perPose()) options.noise_mm = cell.noise.referenceMm();
+  return options;
+}
+
 SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
-                  const SolveOptions& options) {
+                  const SolveOptions& given) {
+  const SolveOptions options = withCellNoise(cell, given);
   checkInput(cell, poses, options);
   if (placementCount(poses) > 1) return detail::solveMultiPlacement(cell, poses, options);
   const auto start = std::chrono::steady_clock::now();
   const int n = static_cast<int>(poses.size());
-  SolveReport report = detail::startReport(poses, options);
+  SolveReport report = detail::startReport(cell, poses, options);
   const bool readings = report.used_readings;
 
   // Exact duplicates (the same joints and reading) are one measurement recorded twice: counted
@@ -598,6 +616,13 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
   CalibrationParameters nominal;
   nominal.target_mm = bestTarget(cell, subset(poses, active), nominal, readings);
   Fit fit = runFit(cell, subset(poses, active), options, readings, nominal);
+  // Each pose's weight depends (a little) on where its line meets the detector: weighed at the
+  // nominal start, the fit is repeated with the weights at its estimate.
+  if (cell.noise.perPose() && fit.converged) {
+    const int first_iterations = fit.iterations;
+    fit = runFit(cell, subset(poses, active), options, readings, fit.est);
+    fit.iterations += first_iterations;
+  }
 
   // Gross errors: the deletion diagnostics on the maximum-likelihood fit.
   std::vector<CalibrationParameters> estimates;
@@ -652,6 +677,7 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
   // Residuals in mm (every given pose, at the result), noise level, identifiability, covariance.
   Eigen::MatrixXd jac_mm = pointToLineJacobian(cell, used, est, 1.0, readings);
   const Eigen::VectorXd r_all = misses(cell, poses, est, readings);
+  const Eigen::VectorXd r_at_detector = misses(atDetector(cell), poses, est, readings);
   // A robust loss weighs each pose by rho'(s) at the solution (s: its squared miss in noise
   // sigmas, as Ceres sees it), which is how much it still pulls on the result. The covariance,
   // the chi-square and the degrees of freedom are those of that weighted fit, so that a pose the
@@ -669,13 +695,13 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
   double rss = 0, weights = 0, unweighted_rss = 0;
   for (int i : active) {
     rss += weight[i] * r_all.segment<2>(2 * i).squaredNorm();
-    unweighted_rss += r_all.segment<2>(2 * i).squaredNorm();
+    unweighted_rss += r_at_detector.segment<2>(2 * i).squaredNorm();
     weights += weight[i];
   }
   for (int i = 0; i < n; ++i) {
     PoseResidual pr;
     pr.source_line = poses[i].source_line;
-    pr.miss_mm = r_all.segment<2>(2 * i);
+    pr.miss_mm = r_at_detector.segment<2>(2 * i);
     pr.miss_norm_mm = pr.miss_mm.norm();
     pr.used = std::binary_search(active.begin(), active.end(), i);
     pr.duplicate_of = duplicate_of[i] + 1;
@@ -792,16 +818,16 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
   for (int i = 0; i < n; ++i) {
     auto& pr = report.poses[i];
     pr.standoff_mm = stand[i];
-    pr.normalised = pr.miss_norm_mm / sigma;
+    pr.normalised = r_all.segment<2>(2 * i).norm() / sigma;
   }
   for (int i : active)
     if (options.loss != RobustLoss::kNone &&
-        report.poses[i].miss_norm_mm > options.loss_scale_sigmas * *options.noise_mm) {
+        r_all.segment<2>(2 * i).norm() > options.loss_scale_sigmas * *options.noise_mm) {
       report.poses[i].outlier = true;
       report.suspect_poses.push_back(
           {i + 1, poses[i].source_line,
            "the robust loss weighs it " + fixed(weight[i], 2) + " (it misses by " +
-               fixed(report.poses[i].miss_norm_mm / *options.noise_mm, 1) +
+               fixed(r_all.segment<2>(2 * i).norm() / *options.noise_mm, 1) +
                " given noise sigmas, beyond where the loss bends): it counts for that fraction of "
                "a "
                "pose",

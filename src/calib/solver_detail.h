@@ -53,7 +53,8 @@ double intervalQuantile(const SolveReport& report);
 // A report with what the options and the poses say before any fit: the cost, whether the
 // readings are used (every pose has one and the options want them), the pose count, the
 // required accuracy.
-SolveReport startReport(const std::vector<Pose>& poses, const SolveOptions& options);
+SolveReport startReport(const CellModel& cell, const std::vector<Pose>& poses,
+                         const SolveOptions& options);
 
 std::string fixedText(double v, int precision);
 // "pose 3 (line 5)".

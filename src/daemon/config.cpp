@@ -110,6 +110,8 @@ std::vector<Field> schema(DaemonConfig& c) {
   f.push_back(integerField("session.placements", c.session.placements));
   f.push_back(vec3Field("session.target_mm", c.session.target_mm));
   f.push_back(vec3Field("session.psd_rpy_deg", c.session.psd_rpy_deg));
+  f.push_back(realField("session.joint_repeatability_deg", c.session.joint_repeatability_deg));
+  f.push_back(realField("session.psd_noise_mm", c.session.psd_noise_mm));
   f.push_back(realField("session.noise_mm", c.session.noise_mm));
   f.push_back(realField("session.required_accuracy_deg", c.session.required_accuracy_deg));
   f.push_back(realField("session.model_length_mm", c.session.model_length_mm));
@@ -380,6 +382,9 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
                "not used with session.plan: file (the plan file's "
                "placement column says where each pose is)");
   check.positive("session.noise_mm", n.noise_mm, 10.0);
+  // 0.1 deg per joint would be a loose joint, not repeatability; 0 chooses noise_mm.
+  check.range("session.joint_repeatability_deg", n.joint_repeatability_deg, 0.0, 0.1);
+  check.range("session.psd_noise_mm", n.psd_noise_mm, 0.0, 1.0);
   // Beyond a degree the offsets would be mastering errors, not a calibration's business.
   check.positive("session.required_accuracy_deg", n.required_accuracy_deg, 1.0);
   check.range("session.model_length_mm", n.model_length_mm, 0.0, 10.0);

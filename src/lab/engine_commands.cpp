@@ -50,6 +50,15 @@ void addSolve(CLI::App& app, EngineCommands& commands) {
   cmd->add_option("--noise", a.noise,
                   "measurement sigma in mm (line miss per axis); when absent it is "
                   "estimated from the residuals");
+  auto* joint_noise = cmd->add_option(
+      "--joint-repeatability", a.joint_repeatability,
+      "each joint's repeatability, deg (one sigma per move; the IRB 1600's is about 0.0015): each "
+      "pose weighed by its own noise at the PSD, through its joint Jacobian");
+  joint_noise->check(CLI::Range(1e-6, 0.1))->excludes("--noise");
+  cmd->add_option("--psd-noise", a.psd_noise,
+                  "with --joint-repeatability: the PSD's reading noise per axis, mm (default 0)")
+      ->check(CLI::Range(0.0, 1.0))
+      ->needs(joint_noise);
   cmd->add_option("--psd-rpy", a.psd_rpy,
                   "PSD orientation in the base frame, roll pitch yaw in deg (needed when "
                   "the joint set has u,v readings)")
@@ -154,6 +163,7 @@ void addSensitivity(CLI::App& app, EngineCommands& commands) {
 
 int runSolve(const SolveArgs& a) {
   CellModel cell = a.cell.cell();
+  if (a.joint_repeatability) cell.noise = {*a.joint_repeatability, a.psd_noise.value_or(0.0)};
   const auto poses = readJointSet(a.joints_file);
   SolveOptions options;
   options.cost = a.cost == "ml" ? CostKind::kMaximumLikelihood : CostKind::kPairwise;

@@ -29,6 +29,7 @@ struct SolveArgs {
   CellArgs cell;
   std::string joints_file, cost = "ml", loss = "none";
   std::optional<double> noise;
+  std::optional<double> joint_repeatability, psd_noise;
   std::vector<double> psd_rpy;
   bool ignore_readings = false, json = false;
   double loss_scale = 3.0;

@@ -18,7 +18,9 @@ std::string modelName(const SolveReport& r) {
 }
 
 std::string noiseSourceName(const SolveReport& r) {
-  return r.noise_estimated ? "estimated from the residuals" : "given";
+  return r.noise_estimated            ? "estimated from the residuals"
+         : r.joint_repeatability_deg > 0 ? "per pose, from the joints' repeatability"
+                                         : "given";
 }
 
 nlohmann::json toJson(const Verdict& v) { return {{"usable", v.usable}, {"reasons", v.reasons}}; }
@@ -77,6 +79,7 @@ nlohmann::json toJson(const SolveReport& r) {
   j["dof"] = r.dof;
   j["noise_mm"] = numberOrNull(r.noise_mm);
   j["noise_source"] = noiseSourceName(r);
+  if (r.joint_repeatability_deg > 0) j["joint_repeatability_deg"] = r.joint_repeatability_deg;
   j["chi2_per_dof"] = r.chi2_per_dof ? numberOrNull(*r.chi2_per_dof) : nlohmann::json();
   j["chi2_p_value"] = r.chi2_p_value ? numberOrNull(*r.chi2_p_value) : nlohmann::json();
   j["noise_scale"] = r.noise_scale;
@@ -193,6 +196,8 @@ SolveReport solveReportFromJson(const nlohmann::json& json, const std::string& w
   r.dof = j.integer("dof");
   r.noise_mm = j.numberOrNan("noise_mm");
   r.noise_estimated = j.stringOr("noise_source", "") == "estimated from the residuals";
+  r.joint_repeatability_deg =
+      j.has("joint_repeatability_deg") ? j.number("joint_repeatability_deg") : 0;
   r.chi2_per_dof = j.optionalNumber("chi2_per_dof");
   r.chi2_p_value = j.optionalNumber("chi2_p_value");
   r.noise_scale = j.has("noise_scale") ? j.number("noise_scale") : 1;

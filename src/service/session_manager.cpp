@@ -58,6 +58,12 @@ double servoZoneUm(const servo::ServoOptions& servo) {
   return servo.stop == servo::ServoStop::kZone ? servo.hit_zone_mm * 1000 : servo.tolerance_um;
 }
 
+// The cell as the solves see it: with the configuration's per-pose noise model.
+CellKnowledge withNoiseModel(CellKnowledge knowledge, const SessionConfig& session) {
+  knowledge.cell.noise = {session.joint_repeatability_deg, session.psd_noise_mm};
+  return knowledge;
+}
+
 PlannerSettings plannerSettingsOf(const ManagerSettings& settings) {
   PlannerSettings p;
   p.noise_mm = settings.session.noise_mm;
@@ -75,7 +81,7 @@ PlannerSettings plannerSettingsOf(const ManagerSettings& settings) {
 SessionManager::SessionManager(CellBackend& backend, ManagerSettings settings)
     : settings_(std::move(settings)),
       store_(settings_.session.data_dir),
-      knowledge_(backend.knowledge()),
+      knowledge_(withNoiseModel(backend.knowledge(), settings_.session)),
       board_(backend.name()),
       planner_(knowledge_, backend, plannerSettingsOf(settings_)),
       connection_(backend, worker_),

@@ -195,6 +195,11 @@ TEST(SessionManager, RunsASessionToDoneThroughEveryStateWithAResultNearTheTruth)
   }
   EXPECT_GT(result["cell_time_s"].get<double>(), 0);
   EXPECT_EQ(result["pose_breakdown"].size(), 8u + again);
+  // Each pose weighed by its own noise, from the configuration's joint repeatability (the
+  // default): the result says so, and its noise_mm is the model's reference sigma.
+  EXPECT_EQ(result["noise_source"], "per pose, from the joints' repeatability");
+  EXPECT_EQ(result["joint_repeatability_deg"].get<double>(), SessionConfig{}.joint_repeatability_deg);
+  EXPECT_NEAR(result["noise_mm"].get<double>(), 1.5e-3 * kDegToRad * 1000, 1e-4);
   // Whose result: the robot as the (simulated) controller named itself, the map that read the
   // PSD, this zerocal, and when.
   const SimControllerOptions controller;

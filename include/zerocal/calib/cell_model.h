@@ -14,6 +14,28 @@
 
 namespace zerocal {
 
+// The noise of a pose's two misses (docs/maths.md section 5). A real arm's noise is each joint's
+// repeatability; seen at the detector through the pose's joint Jacobian it is pose-dependent and
+// anisotropic (0.021..0.039 mm per pose on the simulated IRB 1600, axis ratio up to 1.6), and
+// much of it moves the beam as a change of an offset or the laser's slope does. With
+// joint_repeatability_deg set, each pose's misses are weighed by their own covariance
+//
+//   Sigma_i = s_q^2 J_q,i J_q,i^T + s_psd^2 J_uv,i J_uv,i^T
+//
+// (J_q: the misses' derivatives by the six joints, J_uv: by the reading), expressed in units of
+// referenceMm(): the solve's misses are W_i m_i with W_i = referenceMm() Sigma_i^-1/2, so that
+// everything downstream of them (chi-square, covariance, deletion test, the change solve's pairs)
+// reads them as misses of that one sigma. Unset: every pose has the solve's noise_mm.
+struct MissNoise {
+  double joint_repeatability_deg = 0;  // one sigma per joint per move
+  double psd_mm = 0;                   // the detector's reading noise per axis
+  bool perPose() const { return joint_repeatability_deg > 0; }
+  // The sigma the weighed misses are in: what the joints' repeatability moves a point 1 m from
+  // the joint axis by, with the detector's noise, a figure of the model alone (not of the poses,
+  // so that every subset of a pose set, every solve and the plan's prediction share it).
+  double referenceMm() const;
+};
+
 struct CellModel {
   Robot robot;
   LaserModel laser;
@@ -26,7 +48,20 @@ struct CellModel {
 
   // The PSD's orientation at a 1-based placement.
   const Eigen::Matrix3d& psdRotation(int placement) const;
+  MissNoise noise;
 };
+
+// The matrix that weighs pose's two misses (W_i above) at the parameters `at` (their target the
+// pose's placement's); the identity when the noise is not per pose.
+Eigen::Matrix2d missWeight(const CellModel& cell, const Pose& pose, const CalibrationParameters& at,
+                           bool use_readings);
+// The cell with every pose's noise alike: its misses are those at the detector, unweighed (what
+// a report shows the technician).
+CellModel atDetector(CellModel cell);
+// Sigma_i of the pose at `at` (mm^2); noise_mm^2 I when the noise is not per pose.
+Eigen::Matrix2d missCovariance(const CellModel& cell, const Pose& pose,
+                               const CalibrationParameters& at, bool use_readings,
+                               double noise_mm);
 
 // The robot with the link errors added to its DH rows (and kept as its identified errors).
 Robot withLinkErrors(const Robot& robot, const Eigen::Matrix<double, kLinkParamCount, 1>& link);

@@ -58,6 +58,10 @@ struct SolveOptions {
   std::string validate() const;
 };
 
+// The options a solve on this cell runs with: with the noise per pose (cell.noise), noise_mm is
+// the model's reference sigma, in which the weighed misses are (given, not estimated).
+SolveOptions withCellNoise(const CellModel& cell, SolveOptions options);
+
 // Throws InputError for fewer than kMinimumPoses poses or a pose outside the robot's joint limits
 // (naming the pose and its source line): what every pose set must pass before a solve, and
 // before the robot moves for a plan.

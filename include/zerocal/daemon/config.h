@@ -101,7 +101,16 @@ struct SessionConfig {
   std::array<double, 3> target_mm{900.0, -50.0, 400.0};  // nominal PSD centre, robot base frame
   // The PSD's orientation in the base frame: roll, pitch, yaw (fixed x, y, z); 0 0 0 faces up.
   std::array<double, 3> psd_rpy_deg{0.0, 0.0, 0.0};
-  double noise_mm = 0.020;  // measurement sigma: the robot's repeatability seen at the PSD
+  // The measurement noise of every pose (zerocal/calib/cell_model.h MissNoise): each joint's
+  // repeatability (one sigma per move, deg), seen at the PSD through the pose's joint Jacobian,
+  // plus the PSD's reading noise (mm per axis). The IRB 1600's position repeatability RP 0.02 mm
+  // split into equal joint errors gives 1.5e-3 deg (docs/simulated-cell.md). 0: every pose has
+  // noise_mm instead (the isotropic model, a user's explicit choice).
+  double joint_repeatability_deg = 1.5e-3;
+  double psd_noise_mm = 0.001;
+  // The isotropic measurement sigma at the PSD (mm): every pose's when joint_repeatability_deg
+  // is 0; otherwise only a plan file's prediction without a cell uses it.
+  double noise_mm = 0.020;
   // The accuracy the calibration is for: an offset known only worse than this (one sigma) is
   // not identified, and the result not usable (SolveOptions::required_accuracy_deg).
   double required_accuracy_deg = 0.01;

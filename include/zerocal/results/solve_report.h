@@ -96,6 +96,10 @@ struct SolveReport {
   double condition_number = 0;
   int dof = 0;
   double noise_mm = 0;                 // the sigma behind the reported uncertainties
+  // With a per-pose noise model (zerocal/calib/cell_model.h MissNoise): the joints'
+  // repeatability (deg) behind it, and noise_mm is the model's reference sigma, in which each
+  // pose's weighed misses are; 0: noise_mm is every pose's.
+  double joint_repeatability_deg = 0;
   bool noise_estimated = false;        // true: from the residuals; false: given
   std::optional<double> chi2_per_dof;  // only when the noise was given, in the given noise
   std::optional<double> chi2_p_value;  // chance of a chi-square this large with the given noise

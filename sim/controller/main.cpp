@@ -11,7 +11,7 @@
 
 int main(int argc, char** argv) {
   CLI::App app("Simulated ABB IRC5 controller speaking zerocal's RAPID server protocol");
-  app.set_version_flag("--version", std::string(PROJECT_VERSION));
+  app.set_version_flag("--version", "zerocal-sim " + std::string(PROJECT_VERSION));
   zerocal::SimControllerOptions options;
   options.port = 5000;  // the RAPID server's port; 0 picks a free one
   std::string world_file;

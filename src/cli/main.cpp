@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <iostream>
 #include <iterator>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -100,7 +101,7 @@ int main(int argc, char** argv) {
       "the PSD chain, the report and the experiments are zerocal-lab's.",
       "zerocal"};
   app.require_subcommand(1);
-  app.set_version_flag("--version", std::string(PROJECT_VERSION));
+  app.set_version_flag("--version", "zerocal " + std::string(PROJECT_VERSION));
 
   ClientCommands client_cmds;
   addClientCommands(app, client_cmds);
@@ -112,7 +113,12 @@ int main(int argc, char** argv) {
   addMovedCommands(app, moved);
 
   const std::vector<std::string> words(argv + 1, argv + argc);
-  if (argc > 1 && refuseUnknownCommand(app, argv[1], std::cerr)) return kClientBadRequest;
+  if (const int rc = answerHelp(app, words, std::cout, std::cerr); rc >= 0) return rc;
+  // The commands that move the robot or write to its controller: never offered for a typo that
+  // a read-only command is as near to.
+  const std::set<std::string> acting = {"start", "resume", "continue", "apply", "verify",
+                                        "acknowledge"};
+  if (argc > 1 && refuseUnknownCommand(app, argv[1], std::cerr, acting)) return kClientBadRequest;
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -21,22 +21,93 @@ std::size_t editDistance(const std::string& a, const std::string& b) {
   return d[a.size()][b.size()];
 }
 
+// The one name `word` may have meant, or "" when none is close (more than two edits) or two are
+// as close. A word that begins exactly one name means it; an acting name yields to any other
+// within two edits.
+std::string nearestName(const std::string& word, const std::vector<std::string>& names,
+                        const std::set<std::string>& acting) {
+  std::vector<std::string> prefixed;
+  for (const std::string& n : names)
+    if (n.rfind(word, 0) == 0) prefixed.push_back(n);
+  if (prefixed.size() == 1) return prefixed.front();
+  constexpr std::size_t kFarthest = 2;
+  // The nearest name within kFarthest edits among those `among` accepts; tied: none.
+  const auto nearestOf = [&](auto among, bool* any_close) {
+    std::string nearest;
+    std::size_t best = kFarthest + 1;
+    bool tie = false;
+    for (const std::string& n : names) {
+      if (!among(n)) continue;
+      const std::size_t d = editDistance(word, n);
+      if (d < best) {
+        best = d, nearest = n, tie = false;
+      } else if (d == best) {
+        tie = true;
+      }
+    }
+    *any_close = best <= kFarthest;
+    return tie ? std::string() : nearest;
+  };
+  bool quiet_close = false, any_close = false;
+  const std::string quiet =
+      nearestOf([&](const std::string& n) { return acting.count(n) == 0; }, &quiet_close);
+  if (quiet_close) return quiet;  // "" when two are as near: say neither
+  return nearestOf([](const std::string&) { return true; }, &any_close);
+}
+
+std::vector<std::string> commandNames(const CLI::App& app) {
+  std::vector<std::string> names;
+  for (const CLI::App* c : app.get_subcommands([](const CLI::App*) { return true; }))
+    names.push_back(c->get_name());
+  return names;
+}
+
 }  // namespace
 
-bool refuseUnknownCommand(const CLI::App& app, const std::string& word, std::ostream& err) {
-  if (word.empty() || word[0] == '-') return false;
-  std::string nearest;
-  std::size_t best = 3;  // more edits than two: no suggestion
-  for (const CLI::App* c : app.get_subcommands([](const CLI::App*) { return true; })) {
-    if (c->get_name() == word) return false;
-    const std::size_t d = editDistance(word, c->get_name());
-    if (d < best) best = d, nearest = c->get_name();
-  }
+bool refuseUnknownCommand(const CLI::App& app, const std::string& word, std::ostream& err,
+                          const std::set<std::string>& acting) {
   const std::string program = app.get_name();
+  if (word.rfind("--", 0) == 0) {
+    const std::string name = word.substr(0, word.find('='));
+    std::vector<std::string> options;
+    for (const CLI::Option* o : app.get_options())
+      for (const std::string& l : o->get_lnames()) options.push_back("--" + l);
+    if (name == "--" || std::find(options.begin(), options.end(), name) != options.end())
+      return false;
+    err << program << ": unknown option '" << name << "'";
+    if (const std::string n = nearestName(name, options, {}); !n.empty())
+      err << "; did you mean '" << n << "'?";
+    err << " (" << program << " --help)\n";
+    return true;
+  }
+  if (word.empty() || word[0] == '-') return false;
+  const std::vector<std::string> names = commandNames(app);
+  if (std::find(names.begin(), names.end(), word) != names.end()) return false;
   err << program << ": unknown command '" << word << "'";
-  if (!nearest.empty()) err << "; did you mean '" << nearest << "'?";
+  if (const std::string n = nearestName(word, names, acting); !n.empty())
+    err << "; did you mean '" << n << "'?";
   err << " (" << program << " --help lists the commands)\n";
   return true;
+}
+
+int answerHelp(const CLI::App& app, const std::vector<std::string>& words, std::ostream& out,
+               std::ostream& err) {
+  if (words.empty() || words.front() != "help") return -1;
+  if (words.size() == 1) {
+    out << app.help();
+    return 0;
+  }
+  if (words.size() > 2) {
+    err << app.get_name() << ": help takes one command (" << app.get_name() << " help COMMAND)\n";
+    return 2;
+  }
+  for (const CLI::App* c : app.get_subcommands([](const CLI::App*) { return true; }))
+    if (c->get_name() == words[1]) {
+      out << c->help();
+      return 0;
+    }
+  refuseUnknownCommand(app, words[1], err);
+  return 2;
 }
 
 }  // namespace zerocal::cli

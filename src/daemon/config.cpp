@@ -465,7 +465,7 @@ DaemonConfig loadDaemonConfig(const ConfigSources& sources) {
 
   auto invalid = validateDaemonConfig(config, origins);
   problems.insert(problems.end(), invalid.begin(), invalid.end());
-  if (!problems.empty()) throw ConfigError("zerocald configuration", std::move(problems));
+  if (!problems.empty()) throw ConfigError("configuration", std::move(problems));
   return config;
 }
 

@@ -45,7 +45,7 @@ int main(int argc, char** argv) {
       "of zerocald is zerocal.",
       "zerocal-lab"};
   app.require_subcommand(1);
-  app.set_version_flag("--version", std::string(PROJECT_VERSION));
+  app.set_version_flag("--version", "zerocal-lab " + std::string(PROJECT_VERSION));
 
   EngineCommands engine;
   addEngineCommands(app, engine);
@@ -58,6 +58,10 @@ int main(int argc, char** argv) {
   ApplyFileCommand apply_cmd;
   addApplyFileCommand(app, apply_cmd);
 
+  if (const int rc = cli::answerHelp(app, std::vector<std::string>(argv + 1, argv + argc),
+                                     std::cout, std::cerr);
+      rc >= 0)
+    return rc == 0 ? 0 : kBadInput;
   if (argc > 1 && cli::refuseUnknownCommand(app, argv[1], std::cerr)) return kBadInput;
   try {
     app.parse(argc, argv);

@@ -204,7 +204,7 @@ int main(int argc, char** argv) {
       "token in control.token_file; docs/protocol.md) and runs the calibration sessions that "
       "`zerocal start` asks for on the configured cell, until SIGINT or SIGTERM. With --once, runs "
       "one calibration as configured and exits. docs/daemon.md explains it."};
-  app.set_version_flag("--version", std::string(PROJECT_VERSION));
+  app.set_version_flag("--version", "zerocald " + std::string(PROJECT_VERSION));
   ConfigSources sources;
   bool sim = false, once = false;
   OnceOptions once_options;
@@ -259,7 +259,7 @@ int main(int argc, char** argv) {
       // Nobody continues a --once session: the simulated cell moves its PSD itself; a real
       // cell's needs a technician at the control port.
       if (cfg.backend.kind != BackendKind::kSim)
-        throw ConfigError("zerocald", {"session.placements: --once has nobody to move the PSD "
+        throw ConfigError("configuration", {"session.placements: --once has nobody to move the PSD "
                                        "between placements; serve the control port (without "
                                        "--once) and `zerocal continue` at each placement"});
       settings.unattended_placements = true;
@@ -295,7 +295,14 @@ int main(int argc, char** argv) {
     try {
       options.token = control::loadToken(options.token_file);
     } catch (const Error& e) {
-      throw ConfigError("zerocald", {std::string("control.token_file: ") + e.what()});
+      // What to do, not only what is missing: the first run of `zerocald --sim` meets it.
+      const std::string make_one =
+          options.token_file.empty()
+              ? "; make one (umask 077; head -c 24 /dev/urandom | base64 > FILE) and give it "
+                "with --set control.token_file=FILE or in the configuration (docs/daemon.md)"
+              : "";
+      throw ConfigError("configuration",
+                        {std::string("control.token_file: ") + e.what() + make_one});
     }
     options.daemon_version = PROJECT_VERSION;
     // What `start` leaves out comes from the session section.
@@ -303,7 +310,7 @@ int main(int argc, char** argv) {
     try {
       server.start();
     } catch (const std::exception& e) {  // address in use, not an address of this machine
-      throw ConfigError("zerocald", {"control port " + cfg.control.bind_address + ":" +
+      throw ConfigError("configuration", {"control port " + cfg.control.bind_address + ":" +
                                      std::to_string(cfg.control.port) + ": " + e.what()});
     }
     // Ready for systemd (Type=notify) only now that the port accepts connections.

@@ -90,7 +90,8 @@ std::vector<double> standoffs(const CellModel& cell, const std::vector<Pose>& po
 Identifiability analyseIdentifiability(const Eigen::MatrixXd& jacobian, const CellModel& cell,
                                        const std::vector<Pose>& poses,
                                        const CalibrationParameters& params, double sigma_mm,
-                                       double required_accuracy_deg) {
+                                       double required_accuracy_deg,
+                                       const std::string& bound_name) {
   const int n = static_cast<int>(jacobian.cols());
   Identifiability out;
   out.identifiable.assign(n, true);
@@ -205,7 +206,7 @@ Identifiability analyseIdentifiability(const Eigen::MatrixXd& jacobian, const Ce
       const bool angle = k < kOffsetCount;
       why += " (it is determined only to " + fmt(angle ? sigma_k * kRadToDeg : sigma_k, 3) +
              (angle ? " deg" : "") + ", one standard deviation" +
-             (angle ? "; the required accuracy is " + fmt(required_accuracy_deg, 3) + " deg" : "") +
+             (angle ? "; " + bound_name + " is " + fmt(required_accuracy_deg, 3) + " deg" : "") +
              ")";
     }
     out.reason[k] = why;

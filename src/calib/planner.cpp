@@ -181,7 +181,10 @@ Prediction predictUncertainty(const CellModel& cell, const std::vector<Pose>& po
   // A plan predicts; whether its accuracy is enough is the solve's verdict. Here an offset counts
   // as determined up to the half degree beyond which a value means nothing.
   constexpr double kMeaningfulDeg = 0.5;
-  const Identifiability id = analyseIdentifiability(jac, cell, poses, at, 1.0, kMeaningfulDeg);
+  const Identifiability id = analyseIdentifiability(
+      jac, cell, poses, at, 1.0, kMeaningfulDeg,
+      "the largest sigma at which an offset's value means anything (whether the plan reaches the "
+      "calibration's required accuracy is the daemon's verdict on it)");
   Eigen::MatrixXd cov = id.unit_covariance;  // jac is in noise sigmas: this is the covariance
   if (tolerances.length_mm > 0 || tolerances.angle_deg > 0 || tolerances.sag_deg > 0) {
     // As the solve: the link errors' (and sag's) consider covariance, with the misses in noise

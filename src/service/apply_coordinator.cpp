@@ -417,7 +417,7 @@ void ApplyCoordinator::runVerify(const std::string& id, const ResultFile& result
   s.session_id = id;
   s.pose = s.pose_count = s.recorded = 0;
   board_.begin(s);
-  endApply(event, event.outcome == ApplyOutcome::kPassed);
+  endApply(event, event.outcome == ApplyOutcome::kPassed, false);
 }
 
 std::vector<std::string> ApplyCoordinator::interruptedApplies() const {
@@ -664,7 +664,7 @@ std::string ApplyCoordinator::unrecoveredMessage() const {
          "the FlexPendant, acknowledged (`zerocal acknowledge --confirm`)";
 }
 
-void ApplyCoordinator::endApply(const ApplyEvent& event, bool ok) {
+void ApplyCoordinator::endApply(const ApplyEvent& event, bool ok, bool wrote) {
   auto log = makeLogger("apply");
   recordSession(settings_.record, store_, event.session);
   const std::string summary = std::string(applyOutcomeName(event.outcome)) + ": " + event.message;
@@ -699,7 +699,7 @@ void ApplyCoordinator::endApply(const ApplyEvent& event, bool ok) {
                                      event.outcome == ApplyOutcome::kFailed ||
                                      event.outcome == ApplyOutcome::kUnrecovered;
   board_.finish(
-      rolled_back_or_failed ? SessionState::kFaulted : SessionState::kDone,
+      rolled_back_or_failed && wrote ? SessionState::kFaulted : SessionState::kDone,
       rolled_back_or_failed || event.outcome == ApplyOutcome::kNotPassed ? event.message : "");
   board_.release();
 }

@@ -1229,6 +1229,24 @@ TEST(SessionManagerApply, AppliesVerifiesAndKeepsTheNewValues) {
   const std::string updated((std::istreambuf_iterator<char>(again)), {});
   EXPECT_NE(updated.find("Applied to the controller"), std::string::npos) << updated;
   EXPECT_NE(updated.find("Verified again later"), std::string::npos) << updated;
+
+  // A verification alone that cannot complete (the controller answers every joint move with
+  // garbage) leaves the verified calibration as it was: done, with the failure in the message,
+  // not faulted; nothing was written.
+  SimFaults garbled_moves;
+  garbled_moves.garbage_code = 2;  // MoveAbsJ
+  backend.cell().controller().setFaults(garbled_moves);
+  const Joints shift_verified = backend.cell().controller().zeroShiftDeg();
+  EXPECT_EQ(manager.verify({}), id);
+  const SessionStatus failed = manager.waitIdle();
+  EXPECT_EQ(failed.state, SessionState::kDone) << failed.message;
+  EXPECT_EQ(failed.session_id, id);
+  EXPECT_NE(failed.message.find("the verification did not complete"), std::string::npos)
+      << failed.message;
+  const auto third = log.of<ApplyEvent>();
+  ASSERT_EQ(third.size(), 3u);
+  EXPECT_EQ(third[2].outcome, ApplyOutcome::kFailed) << third[2].message;
+  EXPECT_EQ(backend.cell().controller().zeroShiftDeg(), shift_verified);
 }
 
 // The joint (1-based) an awaiting_counter message asks the technician to update.

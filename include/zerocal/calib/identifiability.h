@@ -24,11 +24,14 @@ struct Identifiability {
 // jacobian: whitened residual Jacobian (2N x 11) at the parameters; poses and parameters give
 // the words of the reasons (joint-1 span, stand-off spread, ...). sigma_mm converts the unit
 // covariance into standard deviations; an offset whose standard deviation exceeds
-// required_accuracy_deg counts as not determined (not identifiable, with the figure in the reason).
+// required_accuracy_deg counts as not determined (not identifiable, with the figure in the reason,
+// called `bound_name`: the solve's is the required accuracy, a plan's prediction the largest
+// sigma at which an offset's value means anything).
 Identifiability analyseIdentifiability(const Eigen::MatrixXd& jacobian, const CellModel& cell,
                                        const std::vector<Pose>& poses,
                                        const CalibrationParameters& params, double sigma_mm,
-                                       double required_accuracy_deg);
+                                       double required_accuracy_deg,
+                                       const std::string& bound_name = "the required accuracy");
 
 // Why delta1 and delta6 can never be identified by this method.
 std::string delta1Reason();

@@ -67,7 +67,9 @@ class ApplyCoordinator {
   void closeVerifications(const std::string& applied, const std::string& how);
   // Why the board is blocked: each unrecovered apply and what to check.
   std::string unrecoveredMessage() const;
-  void endApply(const ApplyEvent& event, bool ok);
+  // `wrote`: whether the controller was written; a verification alone that failed leaves the
+  // session it verified as it was (done, the failure in the message), never faulted.
+  void endApply(const ApplyEvent& event, bool ok, bool wrote = true);
 
   CellConnection& connection_;
   SessionBoard& board_;

@@ -299,6 +299,13 @@ Section controllerSection(const SessionReport& r) {
       config["controller"].contains("kind") && config["controller"]["kind"].is_string())
     kind = config["controller"]["kind"].get<std::string>();
   Section s = kind == "irc5" ? abbSection(r) : otherControllerSection(r, kind);
+  // Once written by `zerocal apply`, the values are not "nothing written": entered again by hand
+  // they would be applied twice.
+  if (r.applied && r.applied->outcome != "refused" && r.applied->outcome != "pass" &&
+      r.applied->outcome != "fail")
+    s.heading = (kind == "irc5" ? std::string("ABB IRC5") : "Controller '" + kind + "'") +
+                ": the offsets as corrections (zerocal apply wrote them to the controller: see "
+                "'Applied to the controller'; do not enter them again)";
   if (!result.reference.empty())
     s.paragraphs.insert(
         s.paragraphs.begin(),

@@ -1207,6 +1207,9 @@ TEST(SessionManagerApply, AppliesVerifiesAndKeepsTheNewValues) {
   std::ifstream in(dir.path + "/" + id + "/summary.txt");
   const std::string summary((std::istreambuf_iterator<char>(in)), {});
   EXPECT_NE(summary.find("Applied to the controller"), std::string::npos) << summary;
+  // ... and no longer says that nothing is written: entered again, they would be applied twice.
+  EXPECT_EQ(summary.find("nothing is written to the controller"), std::string::npos) << summary;
+  EXPECT_NE(summary.find("do not enter them again"), std::string::npos) << summary;
   EXPECT_NE(summary.find("Verified"), std::string::npos);
   EXPECT_NE(summary.find("Taught positions"), std::string::npos);
   EXPECT_NE(summary.find("cal_offset_3 = wrap("), std::string::npos);

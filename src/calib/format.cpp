@@ -51,19 +51,7 @@ std::string toText(const SolveReport& r) {
     << " iterations (" << printf("%.2f", r.solve_time_ms) << " ms): " << r.message << "\n";
   if (r.poses_used != r.pose_count)
     o << r.poses_used << " of the " << r.pose_count << " poses used (see the suspect poses)\n";
-  o << printf("noise %.4f mm (%s)", r.noise_mm,
-              r.noise_estimated ? "estimated from the residuals"
-              : r.noise_scale > 1
-                  ? printf("given %.4f mm, scaled up by sqrt(chi2/dof) = %.2f: the poses miss "
-                           "by more than it",
-                           r.noise_mm / r.noise_scale, r.noise_scale)
-                        .c_str()
-                  : r.joint_repeatability_deg > 0
-                      ? printf("the reference of the per-pose model: %.4f deg joint "
-                               "repeatability, each pose weighed by its own covariance",
-                               r.joint_repeatability_deg)
-                            .c_str()
-                      : "given");
+  o << printf("noise %.4f mm (%s)", r.noise_mm, noiseText(r).c_str());
   if (r.chi2_per_dof)
     o << printf(", chi-square per degree of freedom %.2f (dof %d, p = %.2g)", *r.chi2_per_dof,
                 r.dof, r.chi2_p_value.value_or(NAN));

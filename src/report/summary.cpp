@@ -25,7 +25,7 @@ std::string summaryText(const SessionReport& r) {
   std::string fit =
       format("Solved from %d poses (%s model, %s cost); noise %s mm (%s); ", r.solve().pose_count,
              modelName(r.solve()).c_str(), costName(r.solve().cost).c_str(),
-             num("%.4f", r.solve().noise_mm).c_str(), noiseSourceName(r.solve()).c_str());
+             num("%.4f", r.solve().noise_mm).c_str(), noiseText(r.solve()).c_str());
   if (r.solve().chi2_per_dof)
     fit += format("chi-square per degree of freedom %.2f, dof %d; ", *r.solve().chi2_per_dof,
                   r.solve().dof);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "vector_json.h"
 #include "zerocal/error.h"
@@ -21,6 +22,26 @@ std::string noiseSourceName(const SolveReport& r) {
   return r.noise_estimated            ? "estimated from the residuals"
          : r.joint_repeatability_deg > 0 ? "per pose, from the joints' repeatability"
                                          : "given";
+}
+
+std::string noiseText(const SolveReport& r) {
+  char text[200];
+  if (r.noise_estimated) return "estimated from the residuals";
+  const char* given = r.joint_repeatability_deg > 0 ? "the per-pose model's reference" : "given";
+  if (r.noise_scale > 1) {
+    std::snprintf(text, sizeof text,
+                  "%s %.4f mm, scaled up by sqrt(chi2/dof) = %.2f: the poses miss by more than it",
+                  given, r.noise_mm / r.noise_scale, r.noise_scale);
+    return text;
+  }
+  if (r.joint_repeatability_deg > 0) {
+    std::snprintf(text, sizeof text,
+                  "the reference of the per-pose model: %.4f deg joint repeatability, each pose "
+                  "weighed by its own covariance",
+                  r.joint_repeatability_deg);
+    return text;
+  }
+  return "given";
 }
 
 nlohmann::json toJson(const Verdict& v) { return {{"usable", v.usable}, {"reasons", v.reasons}}; }

@@ -127,5 +127,9 @@ std::string costName(CostKind cost);
 // ("given", "estimated from the residuals"): result.json's "model" and "noise_source".
 std::string modelName(const SolveReport& report);
 std::string noiseSourceName(const SolveReport& report);
+// Where the sigma in force came from, for people: "estimated from the residuals", "given 0.0200
+// mm, scaled up by sqrt(chi2/dof) = 8.27: the poses miss by more than it", the per-pose model's
+// reference, or "given".
+std::string noiseText(const SolveReport& report);
 
 }  // namespace zerocal

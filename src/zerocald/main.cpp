@@ -15,6 +15,7 @@
 #include <iostream>
 
 #include "zerocal/calib/format.h"
+#include "zerocal/control/line_connection.h"
 #include "zerocal/control/server.h"
 #include "zerocal/control/token.h"
 #include "zerocal/daemon/config.h"
@@ -24,6 +25,7 @@
 #include "zerocal/record/sqlite_record.h"
 #include "zerocal/service/daemon_setup.h"
 #include "zerocal/store/session_store.h"
+#include "zerocal/web/web_server.h"
 
 namespace zerocal {
 namespace {
@@ -298,17 +300,33 @@ int main(int argc, char** argv) {
       throw ConfigError("zerocald", {std::string("control.token_file: ") + e.what()});
     }
     options.daemon_version = PROJECT_VERSION;
-    // What `start` leaves out comes from the session section.
-    control::ControlServer server(io, manager, std::move(options), manager.defaultRequest());
+    // What `start` leaves out comes from the session section. One hub serves the TCP port and
+    // the web terminal's WebSocket: one event sink, the same commands and authentication.
+    const auto hub =
+        control::ProtocolHub::create(io, manager, std::move(options), manager.defaultRequest());
+    control::ControlServer server(hub);
     try {
       server.start();
     } catch (const std::exception& e) {  // address in use, not an address of this machine
       throw ConfigError("zerocald", {"control port " + cfg.control.bind_address + ":" +
                                      std::to_string(cfg.control.port) + ": " + e.what()});
     }
+    std::optional<web::WebServer> web_server;
+    if (webEnabled(cfg)) {
+      try {
+        web_server.emplace(io, hub, cfg.web);
+        web_server->start();
+      } catch (const std::exception& e) {
+        throw ConfigError("zerocald", {"web terminal " + cfg.web.bind_address + ":" +
+                                       std::to_string(cfg.web.port) + ": " + e.what()});
+      }
+    }
     // Ready for systemd (Type=notify) only now that the port accepts connections.
-    const std::string serving = "serving " + cfg.control.bind_address + ":" +
-                                std::to_string(server.port()) + " (" + backend->name() + " cell)";
+    std::string serving = "serving " + cfg.control.bind_address + ":" +
+                          std::to_string(server.port()) + " (" + backend->name() + " cell)";
+    if (web_server)
+      serving += ", web terminal http://" + cfg.web.bind_address + ":" +
+                 std::to_string(web_server->port()) + "/";
     notifyReady(serving);
     std::optional<Watchdog> watchdog;
     if (const auto interval = watchdogInterval()) {
@@ -324,9 +342,12 @@ int main(int argc, char** argv) {
       if (watchdog) watchdog->stop();
       manager.abort();
       server.stop();
+      if (web_server) web_server->stop();
+      hub->stop();
       io.stop();
     });
     io.run();
+    hub->stop();  // the event sink cleared before the manager goes
     const service::SessionStatus last = manager.waitIdle();  // the robot stopped, journal closed
     log->info("stopped; the last session {} is {}", last.session_id, stateName(last.state));
     return kOk;

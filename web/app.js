@@ -96,7 +96,8 @@ function update(next) {
   const before = status;
   status = next;
   // A session that ends shows its outcome: the verdict when done, the cell (with why) otherwise.
-  if (before && before.active && !next.active && before.session === next.session) {
+  // An apply's outcome stays on the apply page, where it was asked for.
+  if (before && before.active && !next.active && chosen !== "apply") {
     if (next.state === "done") openResult();
     else chosen = "cell";
   }

@@ -10,6 +10,7 @@
 #include <set>
 
 #include "zerocal/control/line_connection.h"
+#include "zerocal/control/listener.h"
 #include "zerocal/control/protocol.h"
 
 namespace zerocal::control {
@@ -27,8 +28,7 @@ class ServerCore : public std::enable_shared_from_this<ServerCore> {
   ServerCore(std::shared_ptr<ProtocolHub> hub)
       : hub_(std::move(hub)),
         options_(hub_->options()),
-        acceptor_(hub_->io()),
-        accept_retry_(hub_->io()) {}
+        listener_(std::make_shared<Listener>(hub_->io(), hub_->logger(), "control")) {}
 
   void start();
   void stop();
@@ -36,14 +36,12 @@ class ServerCore : public std::enable_shared_from_this<ServerCore> {
 
   std::shared_ptr<ProtocolHub> hub_;
   const ServerOptions& options_;
-  tcp::acceptor acceptor_;
-  asio::steady_timer accept_retry_;
+  std::shared_ptr<Listener> listener_;
   std::set<std::shared_ptr<Connection>> connections_;
   bool stopped_ = false;
   std::uint16_t port_ = 0;
 
  private:
-  void accept();
   void admit(tcp::socket socket);
   void refuse(tcp::socket socket, const std::string& why);
   spdlog::logger& log() { return hub_->log(); }
@@ -123,38 +121,11 @@ class Connection : public LineConnection {
 };
 
 void ServerCore::start() {
-  boost::system::error_code ec;
-  const auto address = asio::ip::make_address(options_.bind_address, ec);
-  if (ec) throw Error("control.bind_address '" + options_.bind_address + "' is not an IP address");
-  const tcp::endpoint endpoint(address, options_.port);
-  acceptor_.open(endpoint.protocol(), ec);
-  if (!ec) acceptor_.set_option(tcp::acceptor::reuse_address(true), ec);
-  if (!ec) acceptor_.bind(endpoint, ec);
-  if (!ec) acceptor_.listen(asio::socket_base::max_listen_connections, ec);
-  if (ec)
-    throw Error("cannot listen on " + options_.bind_address + ":" + std::to_string(options_.port) +
-                ": " + ec.message());
-  port_ = acceptor_.local_endpoint().port();
+  port_ = listener_->listen(options_.bind_address, options_.port);
   log().info("control port listening on {}:{}", options_.bind_address, port_);
-  accept();
-}
-
-void ServerCore::accept() {
-  acceptor_.async_accept(
-      [self = shared_from_this()](boost::system::error_code ec, tcp::socket socket) {
-        if (self->stopped_) return;
-        if (ec) {
-          // Out of descriptors, typically: wait a little rather than spin, then go on accepting.
-          self->log().warn("accept: {}", ec.message());
-          self->accept_retry_.expires_after(std::chrono::milliseconds(100));
-          self->accept_retry_.async_wait([self](boost::system::error_code e) {
-            if (!e && !self->stopped_) self->accept();
-          });
-          return;
-        }
-        self->admit(std::move(socket));
-        self->accept();
-      });
+  listener_->accept([self = shared_from_this()](tcp::socket socket) {
+    if (!self->stopped_) self->admit(std::move(socket));
+  });
 }
 
 void ServerCore::admit(tcp::socket socket) {
@@ -210,9 +181,7 @@ void ServerCore::refuse(tcp::socket socket, const std::string& why) {
 void ServerCore::stop() {
   if (stopped_) return;
   stopped_ = true;
-  boost::system::error_code ec;
-  acceptor_.close(ec);
-  accept_retry_.cancel();
+  listener_->close();
   auto open = connections_;  // close() removes from the set
   for (const auto& c : open) c->close();
   connections_.clear();

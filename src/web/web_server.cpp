@@ -8,6 +8,7 @@
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
+#include <array>
 #include <deque>
 #include <filesystem>
 #include <fstream>
@@ -18,6 +19,7 @@
 #include <sstream>
 
 #include "zerocal/control/line_connection.h"
+#include "zerocal/control/listener.h"
 #include "zerocal/control/messages.h"
 #include "zerocal/control/token.h"
 #include "zerocal/error.h"
@@ -118,8 +120,10 @@ class WsConnection;
 class WebCore : public std::enable_shared_from_this<WebCore> {
  public:
   WebCore(asio::io_context& io, std::shared_ptr<control::ProtocolHub> hub, WebOptions options)
-      : io_(io), hub_(std::move(hub)), options_(std::move(options)), acceptor_(io),
-        accept_retry_(io) {}
+      : io_(io),
+        hub_(std::move(hub)),
+        options_(std::move(options)),
+        listener_(std::make_shared<control::Listener>(io, hub_->logger(), "web")) {}
 
   void start();
   void stop();
@@ -135,17 +139,13 @@ class WebCore : public std::enable_shared_from_this<WebCore> {
   std::shared_ptr<control::ProtocolHub> hub_;
   const WebOptions options_;
   std::string root_;  // canonical
-  tcp::acceptor acceptor_;
-  asio::steady_timer accept_retry_;
+  std::shared_ptr<control::Listener> listener_;
   std::set<std::shared_ptr<HttpConnection>> http_;
   std::set<std::shared_ptr<WsConnection>> ws_;
   std::map<std::string, Clock::time_point> logins_;
   std::deque<std::string> login_order_;  // oldest first, for max_logins
   bool stopped_ = false;
   std::uint16_t port_ = 0;
-
- private:
-  void accept();
 };
 
 // The control protocol over a WebSocket: one line per text message, without its '\n'.
@@ -205,7 +205,8 @@ class WsConnection : public control::LineConnection {
 
   void shutdown() override {
     beast::error_code ec;
-    if (write_pending_ || !ws_.is_open()) {
+    // A daemon that stops runs no more handlers: the socket goes now.
+    if (write_pending_ || !ws_.is_open() || core_->stopped_ || core_->hub_->stopped()) {
       beast::get_lowest_layer(ws_).socket().close(ec);
       return;
     }
@@ -290,9 +291,33 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
   // Answers and closes: what the client sends next cannot be trusted to be a request.
   void fail(http::status status, const std::string& why) {
     core_->log().info("{} (web): {} {}", peer_, static_cast<int>(status), why);
-    auto response = text(status, why + "\n", 11, false);
-    response.keep_alive(false);
-    send(std::move(response));
+    auto shared = std::make_shared<Response>(text(status, why + "\n", 11, false));
+    stream_.expires_after(core_->options_.request_timeout);
+    http::async_write(stream_, *shared,
+                      [self = shared_from_this(), shared](beast::error_code ec, std::size_t) {
+                        if (ec) return self->close();
+                        self->drain();
+                      });
+  }
+
+  // After an answer to a request that was not read to its end: the rest is read and dropped
+  // for a moment before closing, since closing with unread bytes resets the connection and the
+  // client could lose the answer.
+  void drain() {
+    if (closed_) return;
+    beast::error_code ec;
+    stream_.socket().shutdown(tcp::socket::shutdown_send, ec);
+    stream_.expires_after(std::chrono::seconds(1));  // the whole drain, not each read
+    drainMore(std::make_shared<std::array<char, 4096>>());
+  }
+
+  void drainMore(std::shared_ptr<std::array<char, 4096>> scratch) {
+    if (closed_) return;
+    stream_.async_read_some(asio::buffer(*scratch), [self = shared_from_this(), scratch](
+                                                        beast::error_code e, std::size_t) {
+      if (e) return self->close();
+      self->drainMore(scratch);
+    });
   }
 
   Response text(http::status status, std::string body, unsigned version, bool keep_alive,
@@ -397,10 +422,13 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
   void login(const Request& request) {
     if (!sameOrigin(request, false)) return forbidden(request, "a login from another site's page");
     std::string token;
-    {
-      const json body = json::parse(request.body(), nullptr, false);
+    try {
+      // The control port's reader: its nesting limit holds here too.
+      const json body = control::parseRequestLine(request.body());
       if (body.is_object() && body.contains("token") && body["token"].is_string())
         token = body["token"].get<std::string>();
+    } catch (const std::exception&) {
+      // Not JSON: no token, a failed login like any other.
     }
     const auto& options = core_->hub_->options();
     if (!control::tokensEqual(token, options.token)) {
@@ -506,54 +534,27 @@ std::optional<Clock::duration> WebCore::loginLeft(const std::string& cookie) {
 }
 
 void WebCore::start() {
-  boost::system::error_code ec;
-  const auto address = asio::ip::make_address(options_.bind_address, ec);
-  if (ec) throw Error("web.bind_address '" + options_.bind_address + "' is not an IP address");
-  const tcp::endpoint endpoint(address, options_.port);
-  acceptor_.open(endpoint.protocol(), ec);
-  if (!ec) acceptor_.set_option(tcp::acceptor::reuse_address(true), ec);
-  if (!ec) acceptor_.bind(endpoint, ec);
-  if (!ec) acceptor_.listen(asio::socket_base::max_listen_connections, ec);
-  if (ec)
-    throw Error("cannot listen on " + options_.bind_address + ":" + std::to_string(options_.port) +
-                ": " + ec.message());
-  port_ = acceptor_.local_endpoint().port();
+  port_ = listener_->listen(options_.bind_address, options_.port);
   log().info("web terminal listening on http://{}:{}/", options_.bind_address, port_);
-  accept();
-}
-
-void WebCore::accept() {
-  acceptor_.async_accept([self = shared_from_this()](boost::system::error_code ec,
-                                                     tcp::socket socket) {
+  listener_->accept([self = shared_from_this()](tcp::socket socket) {
     if (self->stopped_) return;
-    if (ec) {
-      self->log().warn("web accept: {}", ec.message());
-      self->accept_retry_.expires_after(std::chrono::milliseconds(100));
-      self->accept_retry_.async_wait([self](boost::system::error_code e) {
-        if (!e && !self->stopped_) self->accept();
-      });
-      return;
-    }
     if (self->http_.size() + self->ws_.size() >= self->options_.max_connections) {
       // No room: the TCP port (and the connections open here) are not starved by more.
       self->log().warn("web: refused a connection, {} are open", self->options_.max_connections);
       boost::system::error_code e;
       socket.close(e);
-    } else {
-      auto connection = std::make_shared<HttpConnection>(self, std::move(socket));
-      self->http_.insert(connection);
-      connection->start();
+      return;
     }
-    self->accept();
+    auto connection = std::make_shared<HttpConnection>(self, std::move(socket));
+    self->http_.insert(connection);
+    connection->start();
   });
 }
 
 void WebCore::stop() {
   if (stopped_) return;
   stopped_ = true;
-  boost::system::error_code ec;
-  acceptor_.close(ec);
-  accept_retry_.cancel();
+  listener_->close();
   auto http = http_;
   for (const auto& c : http) c->close();
   http_.clear();

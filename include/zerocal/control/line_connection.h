@@ -57,6 +57,7 @@ class ProtocolHub : public std::enable_shared_from_this<ProtocolHub> {
   const ServerOptions& options() const { return options_; }
   boost::asio::io_context& io() { return io_; }
   spdlog::logger& log() { return *log_; }
+  const std::shared_ptr<spdlog::logger>& logger() const { return log_; }
   // Connections open now, of every transport; io thread only.
   std::size_t connectionCount() const { return connections_.size(); }
 

@@ -9,8 +9,10 @@ test can drop every connection at once (a network that fails) and see the page r
 What it checks, in the order a technician works: a bad token is refused with the daemon's words;
 the right one logs in and shows the cell; a session started from the start page (its plan shown
 first) advances pose by pose; Abort (one touch) stops it and the state is `aborted`; a reference
-runs to its verdict; a restore against it runs to its verdict; apply is refused until confirmed,
-then runs; a dropped connection reconnects and shows the current state. At 1280x800 and 390 px
+runs to its verdict; a restore against it (joint 3's zero moved by 0.4 deg between the two, the
+daemon restarted) runs to its verdict; apply is refused until confirmed,
+then runs; after the daemon's restart (its logins gone) the page asks for the token again; a
+dropped connection reconnects and shows the current state. At 1280x800 and 390 px
 wide, nothing overflows the width and every button is at least 48 px high.
 
 Fails (never skips) when chromium, chromedriver or selenium is missing: scripts/install-deps.sh
@@ -105,23 +107,25 @@ def check(condition, what):
     print(f"ok: {what}")
 
 
-def start_daemon(zerocald, workdir):
+def start_daemon(zerocald, workdir, extra=()):
     token = os.path.join(workdir, "token")
     with open(token, "w") as f:
         f.write("browser-test-token-0123456789\n")
     os.chmod(token, 0o600)
     log_path = os.path.join(workdir, "zerocald.log")
-    log = open(log_path, "w")
+    log = open(log_path, "a")
+    start = log.tell()
     command = [zerocald, "--sim", "--seed", "1", "--config", "/dev/null",
                "--data-dir", os.path.join(workdir, "sessions"),
                "--set", f"control.token_file={token}", "--set", "control.port=0",
                "--set", "web.port=0",
                # ten times faster than a real cell: a session one can watch, in seconds
-               "--set", "backend.sim_pace=0.1"]
+               "--set", "backend.sim_pace=0.1", *extra]
     daemon = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT)
     deadline = time.time() + 30
     while time.time() < deadline:
         with open(log_path) as f:
+            f.seek(start)
             match = re.search(r"web terminal listening on http://127\.0\.0\.1:(\d+)/", f.read())
         if match:
             return daemon, int(match.group(1)), "browser-test-token-0123456789", log_path
@@ -131,6 +135,15 @@ def start_daemon(zerocald, workdir):
     with open(log_path) as f:
         print(f.read())
     raise Failure("zerocald did not name its web terminal's port")
+
+
+def stop_daemon(daemon):
+    daemon.terminate()
+    try:
+        daemon.wait(timeout=20)
+    except subprocess.TimeoutExpired:
+        daemon.kill()
+        daemon.wait()
 
 
 def browser():
@@ -153,13 +166,24 @@ def main():
     parser.add_argument("--screenshots", help="save a PNG of each page here")
     args = parser.parse_args()
     workdir = tempfile.mkdtemp(prefix="zerocal-browser-")
+    daemons = []
     daemon, port, token, log_path = start_daemon(args.zerocald, workdir)
+    daemons.append(daemon)
     relay = Relay(port)
+
+    def restart(extra):
+        """Stops the daemon and starts it again on the same data folder with `extra` settings."""
+        stop_daemon(daemons[-1])
+        new, new_port, _, _ = start_daemon(args.zerocald, workdir, extra)
+        daemons.append(new)
+        relay.target_port = new_port
+        relay.drop()
+
     base = f"http://127.0.0.1:{relay.port}/"
     driver = browser()
     started = time.time()
     try:
-        run(driver, base, token, relay, args.screenshots)
+        run(driver, base, token, relay, restart, args.screenshots)
         print(f"PASS in {time.time() - started:.1f} s")
         return 0
     except Exception as e:  # noqa: BLE001 -- any failure is the test's
@@ -176,16 +200,12 @@ def main():
         return 1
     finally:
         driver.quit()
-        daemon.terminate()
-        try:
-            daemon.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            daemon.kill()
+        stop_daemon(daemons[-1])
         relay.listener.close()
         shutil.rmtree(workdir, ignore_errors=True)
 
 
-def run(driver, base, token, relay, screenshots):
+def run(driver, base, token, relay, restart, screenshots):
     wait = WebDriverWait(driver, 30, poll_frequency=0.1)
 
     def element(id_):
@@ -282,10 +302,19 @@ def run(driver, base, token, relay, screenshots):
     layout_fits("1280x800 result")
     shot("result-reference")
 
-    # -- a restore against it, and its apply -------------------------------------------------------
     element("result-back").click()
-    until(lambda: "check" in text("cell-suggestion") or "reference 2" in text("cell-suggestion"),
-          "the suggestion names the reference now")
+    until(lambda: "check" in text("cell-suggestion"), "the suggestion is a check against it now")
+
+    # -- months later: joint 3's motor replaced, the daemon started again ---------------------------
+    # Its logins are gone with it: the page finds the WebSocket refused and asks for the token.
+    restart(["--set", "backend.sim_zero_change_joint=3", "--set", "backend.sim_zero_change_deg=0.4"])
+    until(lambda: visible_page() == "login", "after the daemon's restart the page asks to log in",
+          timeout=20)
+    element("token").send_keys(token)
+    element("login").click()
+    until(lambda: visible_page() == "cell" and text("link") == "connected", "logged in again")
+
+    # -- a restore against the reference, and its apply -------------------------------------------
     element("to-start").click()
     element("kinds").find_element(By.CSS_SELECTOR, "input[value=restore]").click()
     until(lambda: element("start-confirm").is_enabled(), "a restore's start", timeout=60)

@@ -203,7 +203,9 @@ int main(int argc, char** argv) {
   using namespace zerocal;
   CLI::App app{
       "zerocald: the zerocal cell daemon. Serves the control port (control.bind_address:port, "
-      "token in control.token_file; docs/protocol.md) and runs the calibration sessions that "
+      "token in control.token_file; docs/protocol.md) and, with web.enabled (by default with "
+      "--sim), the shop-floor terminal in a browser (web.bind_address:port, default "
+      "127.0.0.1:7451; docs/web.md), and runs the calibration sessions that "
       "`zerocal start` asks for on the configured cell, until SIGINT or SIGTERM. With --once, runs "
       "one calibration as configured and exits. docs/daemon.md explains it."};
   app.set_version_flag("--version", std::string(PROJECT_VERSION));

@@ -176,8 +176,7 @@ void LineConnection::read() {
 
 void LineConnection::lineTooLong() {
   if (closed_) return;
-  hub_->log_->warn("{}: request line over {} bytes; closing", peer_,
-                   hub_->options_.max_line_bytes);
+  hub_->log_->warn("{}: request line over {} bytes; closing", peer_, hub_->options_.max_line_bytes);
   sendAndClose(errorResponse(nullptr, code::kLineTooLong,
                              "a request line is limited to " +
                                  std::to_string(hub_->options_.max_line_bytes) +
@@ -304,7 +303,7 @@ bool LineConnection::dispatch(const json& id, const std::string& cmd, const json
     const auto session_id = session.resume(resume);
     if (resume.skip_pose > 0)
       hub_->log_->warn("{}: resumed session {}, skipping pose {}", peer_, session_id,
-                          resume.skip_pose);
+                       resume.skip_pose);
     else
       hub_->log_->info("{}: resumed session {}", peer_, session_id);
     r["session"] = session_id;
@@ -323,8 +322,7 @@ bool LineConnection::dispatch(const json& id, const std::string& cmd, const json
     r["session"] = session_id;
   } else if (cmd == "acknowledge") {
     const auto session_id = session.acknowledge(parseAcknowledgeRequest(request));
-    hub_->log_->warn("{}: acknowledged the interrupted apply of session {}", peer_,
-                        session_id);
+    hub_->log_->warn("{}: acknowledged the interrupted apply of session {}", peer_, session_id);
     r["session"] = session_id;
   } else if (cmd == "abort") {
     const bool aborted = session.abort();
@@ -358,8 +356,8 @@ bool LineConnection::dispatch(const json& id, const std::string& cmd, const json
     readPsd(id);
     return false;
   } else if (cmd == "plan") {
-    const auto plan = planFileInPlanDir(parseStartRequest(request, hub_->default_request_),
-                                        request, options.plan_dir);
+    const auto plan = planFileInPlanDir(parseStartRequest(request, hub_->default_request_), request,
+                                        options.plan_dir);
     return answerAside(id, [&session, plan] {
       return json{{"plan", toJson(session.preview(plan))}};
     });
@@ -371,12 +369,12 @@ bool LineConnection::dispatch(const json& id, const std::string& cmd, const json
   return true;
 }
 
-bool LineConnection::authFailure(const json& id, const char* error_code, const std::string& message) {
+bool LineConnection::authFailure(const json& id, const char* error_code,
+                                 const std::string& message) {
   ++auth_failures_;
   const bool last = auth_failures_ >= hub_->options_.max_auth_failures;
-  hub_->log_->warn("{}: authentication failed ({}, {} of {}){}", peer_, error_code,
-                      auth_failures_, hub_->options_.max_auth_failures,
-                      last ? "; closing" : "");
+  hub_->log_->warn("{}: authentication failed ({}, {} of {}){}", peer_, error_code, auth_failures_,
+                   hub_->options_.max_auth_failures, last ? "; closing" : "");
   auto response = errorResponse(id, error_code, last ? message + "; closing" : message);
   // The answer waits, so that guessing costs time; the connection reads nothing meanwhile.
   delay_.expires_after(hub_->options_.auth_failure_delay);
@@ -392,21 +390,21 @@ bool LineConnection::authFailure(const json& id, const char* error_code, const s
 void LineConnection::readPsd(const json& id) {
   auto executor = hub_->io_.get_executor();
   std::weak_ptr<LineConnection> weak = shared_from_this();
-  hub_->session_.readPsd([executor, weak, id](std::optional<service::LiveReading> reading,
-                                                 const std::string& error) {
-    asio::post(executor, [weak, id, reading = std::move(reading), error] {
-      auto self = weak.lock();
-      if (!self || self->closed_) return;
-      if (reading) {
-        json r = okResponse(id);
-        r["reading"] = toJson(*reading);
-        self->send(r);
-      } else {
-        self->send(errorResponse(id, code::kUnavailable, error));
-      }
-      self->read();
-    });
-  });
+  hub_->session_.readPsd(
+      [executor, weak, id](std::optional<service::LiveReading> reading, const std::string& error) {
+        asio::post(executor, [weak, id, reading = std::move(reading), error] {
+          auto self = weak.lock();
+          if (!self || self->closed_) return;
+          if (reading) {
+            json r = okResponse(id);
+            r["reading"] = toJson(*reading);
+            self->send(r);
+          } else {
+            self->send(errorResponse(id, code::kUnavailable, error));
+          }
+          self->read();
+        });
+      });
 }
 
 // Work that plans (a preview, a start) takes about a second: it runs on the planning thread so
@@ -452,7 +450,7 @@ void LineConnection::enqueue(const Line& line, bool answer) {
   std::size_t& queued = answer ? queued_answer_bytes_ : queued_event_bytes_;
   if ((!answer || queued > 0) && queued + line->size() > hub_->options_.max_queued_bytes) {
     hub_->log_->warn("{}: dropped, it does not read ({} bytes of {} queued)", peer_, queued,
-                        answer ? "answers" : "events");
+                     answer ? "answers" : "events");
     close();
     return;
   }
@@ -476,8 +474,7 @@ void LineConnection::checkTimeouts() {
   const auto& o = hub_->options_;
   const auto now = Clock::now();
   if (!authenticated_ && !closing_ && now - connected_at_ > o.auth_timeout) {
-    hub_->log_->info("{}: not authenticated within {} ms; closing", peer_,
-                        o.auth_timeout.count());
+    hub_->log_->info("{}: not authenticated within {} ms; closing", peer_, o.auth_timeout.count());
     sendAndClose(errorResponse(nullptr, code::kUnauthenticated,
                                "authenticate within " + std::to_string(o.auth_timeout.count()) +
                                    " ms of connecting; closing"));
@@ -485,7 +482,7 @@ void LineConnection::checkTimeouts() {
   }
   if (writing_ && now - write_started_ > o.write_timeout) {
     hub_->log_->warn("{}: dropped, a write was stuck for over {} ms", peer_,
-                        o.write_timeout.count());
+                     o.write_timeout.count());
     return close();
   }
   // Idle: no complete line for idle_timeout. A half-open peer, or one trickling a line byte by

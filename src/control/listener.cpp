@@ -33,21 +33,21 @@ void Listener::accept(Admit admit) {
 }
 
 void Listener::acceptNext() {
-  acceptor_.async_accept([self = shared_from_this()](boost::system::error_code ec,
-                                                     tcp::socket socket) {
-    if (self->closed_) return;
-    if (ec) {
-      // Out of descriptors, typically: wait a little rather than spin, then go on accepting.
-      self->log_->warn("{}: accept: {}", self->section_, ec.message());
-      self->retry_.expires_after(std::chrono::milliseconds(100));
-      self->retry_.async_wait([self](boost::system::error_code e) {
-        if (!e && !self->closed_) self->acceptNext();
+  acceptor_.async_accept(
+      [self = shared_from_this()](boost::system::error_code ec, tcp::socket socket) {
+        if (self->closed_) return;
+        if (ec) {
+          // Out of descriptors, typically: wait a little rather than spin, then go on accepting.
+          self->log_->warn("{}: accept: {}", self->section_, ec.message());
+          self->retry_.expires_after(std::chrono::milliseconds(100));
+          self->retry_.async_wait([self](boost::system::error_code e) {
+            if (!e && !self->closed_) self->acceptNext();
+          });
+          return;
+        }
+        self->admit_(std::move(socket));
+        if (!self->closed_) self->acceptNext();
       });
-      return;
-    }
-    self->admit_(std::move(socket));
-    if (!self->closed_) self->acceptNext();
-  });
 }
 
 void Listener::close() {

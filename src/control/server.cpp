@@ -101,10 +101,9 @@ class Connection : public LineConnection {
   }
 
   void writeLine(const Line& line) override {
-    asio::async_write(socket_, asio::buffer(*line),
-                      [self = self(), line](boost::system::error_code ec, std::size_t) {
-                        self->written(ec);
-                      });
+    asio::async_write(
+        socket_, asio::buffer(*line),
+        [self = self(), line](boost::system::error_code ec, std::size_t) { self->written(ec); });
   }
 
   void shutdown() override {
@@ -197,8 +196,8 @@ void ServerCore::remove(Connection* connection) {
 
 ControlServer::ControlServer(asio::io_context& io, service::SessionControl& session,
                              ServerOptions options, service::StartRequest default_request)
-    : ControlServer(ProtocolHub::create(io, session, std::move(options),
-                                        std::move(default_request))) {
+    : ControlServer(
+          ProtocolHub::create(io, session, std::move(options), std::move(default_request))) {
   owns_hub_ = true;
 }
 

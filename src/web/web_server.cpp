@@ -3,13 +3,12 @@
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
+#include <array>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/steady_timer.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
-#include <array>
-#include <deque>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -143,7 +142,6 @@ class WebCore : public std::enable_shared_from_this<WebCore> {
   std::set<std::shared_ptr<HttpConnection>> http_;
   std::set<std::shared_ptr<WsConnection>> ws_;
   std::map<std::string, Clock::time_point> logins_;
-  std::deque<std::string> login_order_;  // oldest first, for max_logins
   bool stopped_ = false;
   std::uint16_t port_ = 0;
 };
@@ -264,18 +262,17 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
     parser_->body_limit(core_->options_.max_body_bytes);
     buffer_.clear();
     stream_.expires_after(core_->options_.request_timeout);
-    http::async_read(stream_, buffer_, *parser_,
-                     [self = shared_from_this()](beast::error_code ec, std::size_t) {
-                       self->onRead(ec);
-                     });
+    http::async_read(
+        stream_, buffer_, *parser_,
+        [self = shared_from_this()](beast::error_code ec, std::size_t) { self->onRead(ec); });
   }
 
   void onRead(beast::error_code ec) {
     if (closed_) return;
     if (ec == http::error::header_limit)
-      return fail(http::status::request_header_fields_too_large, "the request's header is over " +
-                                                         std::to_string(core_->options_.max_header_bytes) +
-                                                         " bytes");
+      return fail(http::status::request_header_fields_too_large,
+                  "the request's header is over " +
+                      std::to_string(core_->options_.max_header_bytes) + " bytes");
     if (ec == http::error::body_limit)
       return fail(http::status::payload_too_large,
                   "the request's body is over " + std::to_string(core_->options_.max_body_bytes) +
@@ -313,11 +310,11 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
 
   void drainMore(std::shared_ptr<std::array<char, 4096>> scratch) {
     if (closed_) return;
-    stream_.async_read_some(asio::buffer(*scratch), [self = shared_from_this(), scratch](
-                                                        beast::error_code e, std::size_t) {
-      if (e) return self->close();
-      self->drainMore(scratch);
-    });
+    stream_.async_read_some(asio::buffer(*scratch),
+                            [self = shared_from_this(), scratch](beast::error_code e, std::size_t) {
+                              if (e) return self->close();
+                              self->drainMore(scratch);
+                            });
   }
 
   Response text(http::status status, std::string body, unsigned version, bool keep_alive,
@@ -383,11 +380,11 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
     // A symbolic link inside the folder must not lead out of it either.
     const fs::path real = fs::canonical(file, ec);
     const std::string real_text = real.string();
-    const bool inside = !ec && real_text.compare(0, core_->root_.size() + 1,
-                                                 core_->root_ + "/") == 0;
+    const bool inside =
+        !ec && real_text.compare(0, core_->root_.size() + 1, core_->root_ + "/") == 0;
     if (!inside || !fs::is_regular_file(real, ec) || fs::file_size(real, ec) > kMaxFileBytes)
-      return send(text(http::status::not_found, "no such page: " + name + "\n",
-                       request.version(), request.keep_alive()));
+      return send(text(http::status::not_found, "no such page: " + name + "\n", request.version(),
+                       request.keep_alive()));
     std::ifstream in(real, std::ios::binary);
     std::ostringstream body;
     body << in.rdbuf();
@@ -396,7 +393,7 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
     response.set(http::field::cache_control, "no-cache");
     // The pages load nothing from elsewhere and may not be framed by another site.
     response.set("Content-Security-Policy",
-                 "default-src 'self'; connect-src 'self' ws: ; frame-ancestors 'none'; "
+                 "default-src 'self'; frame-ancestors 'none'; "
                  "base-uri 'none'; form-action 'self'");
     response.set("Referrer-Policy", "no-referrer");
     if (request.method() == http::verb::head) {
@@ -415,7 +412,8 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
   void loginState(const Request& request) {
     const auto left = core_->loginLeft(cookieOf(request));
     json body{{"authenticated", left.has_value()}};
-    if (left) body["expires_in_s"] = std::chrono::duration_cast<std::chrono::seconds>(*left).count();
+    if (left)
+      body["expires_in_s"] = std::chrono::duration_cast<std::chrono::seconds>(*left).count();
     send(jsonResponse(request, left ? http::status::ok : http::status::unauthorized, body));
   }
 
@@ -444,8 +442,8 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
       // The answer waits, as on the TCP port, so that guessing costs time; nothing is read
       // meanwhile.
       delay_.expires_after(options.auth_failure_delay);
-      delay_.async_wait([self = shared_from_this(), response = std::move(response)](
-                            boost::system::error_code ec) mutable {
+      delay_.async_wait([self = shared_from_this(),
+                         response = std::move(response)](boost::system::error_code ec) mutable {
         if (ec || self->closed_) return;
         self->send(std::move(response));
       });
@@ -456,10 +454,11 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
     const auto lifetime_s =
         std::chrono::duration_cast<std::chrono::seconds>(core_->options_.session_lifetime).count();
     core_->log().info("{} (web): logged in", peer_);
-    auto response = jsonResponse(request, http::status::ok, {{"ok", true}, {"expires_in_s", lifetime_s}});
+    auto response =
+        jsonResponse(request, http::status::ok, {{"ok", true}, {"expires_in_s", lifetime_s}});
     response.set(http::field::set_cookie,
-                 std::string(kCookieName) + "=" + cookie + "; Path=/; HttpOnly; SameSite=Strict; Max-Age=" +
-                     std::to_string(lifetime_s));
+                 std::string(kCookieName) + "=" + cookie +
+                     "; Path=/; HttpOnly; SameSite=Strict; Max-Age=" + std::to_string(lifetime_s));
     send(std::move(response));
   }
 
@@ -467,8 +466,8 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
     if (!sameOrigin(request, false)) return forbidden(request, "a logout from another site's page");
     core_->logout(cookieOf(request));
     auto response = jsonResponse(request, http::status::ok, {{"ok", true}});
-    response.set(http::field::set_cookie, std::string(kCookieName) +
-                                              "=; Path=/; HttpOnly; SameSite=Strict; Max-Age=0");
+    response.set(http::field::set_cookie,
+                 std::string(kCookieName) + "=; Path=/; HttpOnly; SameSite=Strict; Max-Age=0");
     send(std::move(response));
   }
 
@@ -480,8 +479,8 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
 
   void upgrade(Request request, const std::string& path) {
     if (path != "/ws")
-      return send(text(http::status::not_found, "no WebSocket at " + path + "\n",
-                       request.version(), false));
+      return send(text(http::status::not_found, "no WebSocket at " + path + "\n", request.version(),
+                       false));
     if (!sameOrigin(request, true)) return forbidden(request, "a WebSocket from another origin");
     const std::string cookie = cookieOf(request);
     if (!core_->loginLeft(cookie)) {
@@ -511,13 +510,18 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
 };
 
 std::string WebCore::login() {
-  while (logins_.size() >= options_.max_logins && !login_order_.empty()) {
-    logins_.erase(login_order_.front());
-    login_order_.pop_front();
+  const auto now = Clock::now();
+  for (auto it = logins_.begin(); it != logins_.end();)
+    it = it->second <= now ? logins_.erase(it) : std::next(it);
+  // Every login lasts as long: the one that expires first is the oldest.
+  while (logins_.size() >= options_.max_logins) {
+    auto oldest = logins_.begin();
+    for (auto it = logins_.begin(); it != logins_.end(); ++it)
+      if (it->second < oldest->second) oldest = it;
+    logins_.erase(oldest);
   }
   std::string cookie = randomHex(32);
-  logins_[cookie] = Clock::now() + options_.session_lifetime;
-  login_order_.push_back(cookie);
+  logins_[cookie] = now + options_.session_lifetime;
   return cookie;
 }
 

@@ -51,10 +51,9 @@ tcp::socket connectTo(asio::io_context& io, std::uint16_t port) {
 class WebServerTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    root_ = fs::temp_directory_path() / ("zerocal-web-" + std::to_string(::getpid()) + "-" +
-                                         ::testing::UnitTest::GetInstance()
-                                             ->current_test_info()
-                                             ->name());
+    root_ = fs::temp_directory_path() /
+            ("zerocal-web-" + std::to_string(::getpid()) + "-" +
+             ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::create_directories(root_ / "sub");
     std::ofstream(root_ / "index.html") << "<!doctype html><title>zerocal</title>";
     std::ofstream(root_ / "app.js") << "export const x = 1;";
@@ -240,16 +239,15 @@ TEST_F(WebServerTest, ServesThePageFilesWithTheirTypesAndNothingFromElsewhere) {
 TEST_F(WebServerTest, UnknownPathsAre404AndOtherMethods405) {
   EXPECT_EQ(request(http::verb::get, "/nothing.html").result(), http::status::not_found);
   EXPECT_EQ(request(http::verb::get, "/sub").result(), http::status::not_found);  // a folder
-  EXPECT_EQ(request(http::verb::delete_, "/index.html").result(),
-            http::status::method_not_allowed);
+  EXPECT_EQ(request(http::verb::delete_, "/index.html").result(), http::status::method_not_allowed);
   EXPECT_EQ(request(http::verb::get, "/api/logout").result(), http::status::method_not_allowed);
   expectOthersServedFast();
 }
 
 TEST_F(WebServerTest, PathTraversalIsRefusedBeforeTheFileSystemIsAsked) {
-  for (const char* path : {"/../index.html", "/sub/../../etc/passwd", "/%2e%2e/etc/passwd",
-                           "/.hidden", "//etc/passwd", "/sub/./style.css", "/a\\b",
-                           "/index.html%00.js"}) {
+  for (const char* path :
+       {"/../index.html", "/sub/../../etc/passwd", "/%2e%2e/etc/passwd", "/.hidden", "//etc/passwd",
+        "/sub/./style.css", "/a\\b", "/index.html%00.js"}) {
     const Reply r = request(http::verb::get, path);
     EXPECT_EQ(r.result(), http::status::bad_request) << path;
     EXPECT_THAT(r.body(), ::testing::Not(HasSubstr("root:")));
@@ -294,6 +292,17 @@ TEST_F(WebServerTest, TheTokenIsExchangedForAnHttpOnlyStrictCookieThatExpires) {
   EXPECT_EQ(request(http::verb::post, "/api/logout", {}, cookie).result(), http::status::ok);
   EXPECT_EQ(request(http::verb::get, "/api/login", {}, cookie).result(),
             http::status::unauthorized);
+}
+
+TEST_F(WebServerTest, BeyondMaxLoginsTheOldestIsForgotten) {
+  stop();
+  options_.max_logins = 2;
+  start();
+  const std::string first = login(), second = login(), third = login();
+  EXPECT_EQ(request(http::verb::get, "/api/login", {}, first).result(),
+            http::status::unauthorized);
+  EXPECT_EQ(request(http::verb::get, "/api/login", {}, second).result(), http::status::ok);
+  EXPECT_EQ(request(http::verb::get, "/api/login", {}, third).result(), http::status::ok);
 }
 
 TEST_F(WebServerTest, ALoginFromAnotherSitesPageIsRefused) {
@@ -407,8 +416,8 @@ TEST_F(WebServerTest, OversizedHeadersAndBodiesAreRefusedByBeastsLimits) {
   {
     asio::io_context io;
     auto socket = connectTo(io, web_->port());
-    const std::string big = "GET / HTTP/1.1\r\nHost: x\r\nX-Big: " + std::string(20000, 'a') +
-                            "\r\n\r\n";
+    const std::string big =
+        "GET / HTTP/1.1\r\nHost: x\r\nX-Big: " + std::string(20000, 'a') + "\r\n\r\n";
     boost::system::error_code ec;
     asio::write(socket, asio::buffer(big), ec);
     beast::flat_buffer buffer;
@@ -416,8 +425,8 @@ TEST_F(WebServerTest, OversizedHeadersAndBodiesAreRefusedByBeastsLimits) {
     http::read(socket, buffer, reply);
     EXPECT_EQ(reply.result(), http::status::request_header_fields_too_large);
   }
-  const Reply body = request(http::verb::post, "/api/login",
-                             json{{"token", std::string(10000, 'k')}}.dump());
+  const Reply body =
+      request(http::verb::post, "/api/login", json{{"token", std::string(10000, 'k')}}.dump());
   EXPECT_EQ(body.result(), http::status::payload_too_large);
   expectOthersServedFast();
 }

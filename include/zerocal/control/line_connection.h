@@ -63,8 +63,8 @@ class ProtocolHub : public std::enable_shared_from_this<ProtocolHub> {
 
  private:
   friend class LineConnection;
-  ProtocolHub(boost::asio::io_context& io, service::SessionControl& session,
-              ServerOptions options, service::StartRequest default_request);
+  ProtocolHub(boost::asio::io_context& io, service::SessionControl& session, ServerOptions options,
+              service::StartRequest default_request);
   void broadcast(const nlohmann::json& event);
   void startStatusTimer();
 

@@ -34,8 +34,8 @@ struct WebOptions {
   std::size_t max_header_bytes = 8 * 1024;  // a request's header, request line included
   std::size_t max_body_bytes = 4 * 1024;    // a request's body (the login's JSON is ~100 bytes)
   std::chrono::milliseconds request_timeout{std::chrono::seconds(10)};  // to send one request
-  std::size_t max_connections = 128;        // HTTP connections and WebSockets at once
-  std::size_t max_logins = 256;             // logins held at once; the oldest is forgotten
+  std::size_t max_connections = 128;  // HTTP connections and WebSockets at once
+  std::size_t max_logins = 256;       // logins held at once; the oldest is forgotten
 };
 
 }  // namespace zerocal::web

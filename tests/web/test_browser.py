@@ -165,11 +165,11 @@ def main():
     parser.add_argument("--zerocald", required=True)
     parser.add_argument("--screenshots", help="save a PNG of each page here")
     args = parser.parse_args()
+    driver = browser()  # before the daemon: a missing browser fails with nothing left running
     workdir = tempfile.mkdtemp(prefix="zerocal-browser-")
     daemons = []
-    daemon, port, token, log_path = start_daemon(args.zerocald, workdir)
-    daemons.append(daemon)
-    relay = Relay(port)
+    relay = None
+    log_path = os.path.join(workdir, "zerocald.log")
 
     def restart(extra):
         """Stops the daemon and starts it again on the same data folder with `extra` settings."""
@@ -179,11 +179,12 @@ def main():
         relay.target_port = new_port
         relay.drop()
 
-    base = f"http://127.0.0.1:{relay.port}/"
-    driver = browser()
     started = time.time()
     try:
-        run(driver, base, token, relay, restart, args.screenshots)
+        daemon, port, token, log_path = start_daemon(args.zerocald, workdir)
+        daemons.append(daemon)
+        relay = Relay(port)
+        run(driver, f"http://127.0.0.1:{relay.port}/", token, relay, restart, args.screenshots)
         print(f"PASS in {time.time() - started:.1f} s")
         return 0
     except Exception as e:  # noqa: BLE001 -- any failure is the test's
@@ -194,14 +195,17 @@ def main():
                 print("console:", entry)
         except Exception:  # noqa: BLE001
             pass
-        with open(log_path) as f:
-            print("--- zerocald's log ---")
-            print(f.read()[-6000:])
+        if os.path.exists(log_path):
+            with open(log_path) as f:
+                print("--- zerocald's log ---")
+                print(f.read()[-6000:])
         return 1
     finally:
         driver.quit()
-        stop_daemon(daemons[-1])
-        relay.listener.close()
+        if daemons:
+            stop_daemon(daemons[-1])
+        if relay:
+            relay.listener.close()
         shutil.rmtree(workdir, ignore_errors=True)
 
 

@@ -38,6 +38,9 @@ install(FILES ${PROJECT_BINARY_DIR}/config/sysusers/zerocal.conf
         DESTINATION ${ZEROCAL_SYSUSERSDIR})
 install(FILES config/udev/60-zerocal-usb1408fs.rules DESTINATION ${ZEROCAL_UDEV_RULESDIR})
 
+# The web terminal's page files (docs/web.md), where web.root's default finds them.
+install(DIRECTORY web/ DESTINATION ${CMAKE_INSTALL_DATADIR}/zerocal/web)
+
 # The RAPID server module, for the controller (docs/irc5.md loads it from here).
 install(FILES drivers/irc5/rapid/ZerocalServer.mod DESTINATION ${CMAKE_INSTALL_DATADIR}/zerocal/rapid)
 

@@ -28,22 +28,25 @@ port=""
 trap '[ -z "${daemon}" ] || kill "${daemon}" 2>/dev/null || true' EXIT
 
 # zerocald on the seed's simulated cell, with any extra --set given; sim_pace 0.1: ten times
-# faster than a real cell (a minute of cell time in a few seconds); control.port 0: any free
-# port, read back from the log.
+# faster than a real cell (a minute of cell time in a few seconds); control.port and web.port 0:
+# any free port, read back from the log.
 start_daemon() {
   build/bin/zerocald --sim --seed "${ZEROCAL_SEED:-1}" --config /dev/null \
     --data-dir "${demo}/sessions" --set control.token_file="${ZEROCAL_TOKEN_FILE}" \
-    --set control.port=0 --set backend.sim_pace=0.1 "$@" > "${log}" 2>&1 &
+    --set control.port=0 --set web.port=0 --set backend.sim_pace=0.1 "$@" > "${log}" 2>&1 &
   daemon=$!
   port=""
+  web=""
   for _ in $(seq 100); do
     port=$(sed -n 's/.*control port listening on 127\.0\.0\.1:\([0-9]*\).*/\1/p' "${log}")
-    [ -n "${port}" ] && break
+    web=$(sed -n 's/.*web terminal listening on \(http:[^ ]*\).*/\1/p' "${log}")
+    [ -n "${port}" ] && [ -n "${web}" ] && break
     kill -0 "${daemon}" 2>/dev/null || { cat "${log}"; exit 1; }
     sleep 0.1
   done
   [ -n "${port}" ] || { echo "zerocald did not open its port"; cat "${log}"; exit 1; }
   echo "zerocald (pid ${daemon}) serves 127.0.0.1:${port}; its log: ${log}"
+  echo "the shop-floor terminal in a browser: ${web} (the token: ${ZEROCAL_TOKEN_FILE}; docs/web.md)"
 }
 stop_daemon() {
   kill -TERM "${daemon}"

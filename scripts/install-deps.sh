@@ -7,6 +7,7 @@ packages=(
   libspdlog-dev libfmt-dev libusb-1.0-0-dev libsqlite3-dev
   libgtest-dev libgmock-dev libbenchmark-dev umockdev libumockdev-dev
   zlib1g-dev chromium
+  chromium-driver python3-selenium  # the web terminal's browser test (tests/web/test_browser.py)
   libsystemd-dev systemd help2man dpkg-dev file
   clang libclang-rt-14-dev  # the fuzz targets: clang++ and its libFuzzer and sanitizer runtimes
 )

@@ -41,6 +41,7 @@ json toJson(const service::SessionStatus& s) {
   if (s.skippable_pose > 0) j["skippable_pose"] = s.skippable_pose;
   if (!s.apply.empty()) j["apply"] = s.apply;
   if (!s.suggestion.empty()) j["suggestion"] = s.suggestion;
+  if (!s.suggested_kind.empty()) j["suggested_kind"] = s.suggested_kind;
   if (s.placement_count > 1) {
     j["placement_count"] = s.placement_count;
     j["placement"] = s.placement;

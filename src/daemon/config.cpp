@@ -133,6 +133,16 @@ std::vector<Field> schema(DaemonConfig& c) {
   f.push_back(secondsField("control.auth_timeout_s", o.auth_timeout));
   f.push_back(pathField("control.plan_dir", o.plan_dir));
 
+  auto& w = c.web;
+  f.push_back(choiceField<std::optional<bool>>(
+      "web.enabled", w.enabled, {{"auto", std::nullopt}, {"false", false}, {"true", true}}));
+  f.push_back(textField("web.bind_address", w.bind_address));
+  f.push_back(integerField("web.port", w.port));
+  f.push_back(choiceField<bool>("web.trusted_network", w.trusted_network,
+                                {{"false", false}, {"true", true}}));
+  f.push_back(pathField("web.root", w.root));
+  f.push_back(secondsField("web.session_lifetime_s", w.session_lifetime));
+
   f.push_back(choiceField("logging.level", c.logging.level, kLevels));
   f.push_back(pathField("logging.directory", c.logging.directory));
   return f;
@@ -417,6 +427,27 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
   check.range("control.auth_timeout_s", seconds(o.auth_timeout), 0.5, 600.0);
   if (!o.token_file.empty()) check.fileExists("control.token_file", o.token_file);
 
+  const auto& w = c.web;
+  const auto web_address = boost::asio::ip::make_address(w.bind_address, ec);
+  if (ec)
+    check.fail("web.bind_address", "'" + w.bind_address + "' is not an IP address");
+  else if (!web_address.is_loopback() && !w.trusted_network)
+    check.fail("web.bind_address",
+               w.bind_address +
+                   " is reachable from other machines, and the web terminal has no TLS yet (a "
+                   "later step): the token and the login cookie would cross the network in "
+                   "clear. Keep 127.0.0.1 (reach it through an SSH tunnel, docs/web.md), or set "
+                   "web.trusted_network: true for a network only the cell's terminals are on");
+  if (webEnabled(c) && w.port != 0 && w.port == o.port && w.bind_address == o.bind_address)
+    check.fail("web.port", std::to_string(w.port) + " is control.port's as well");
+  // Under a minute a technician would be asked for the token during a session.
+  check.range("web.session_lifetime_s", seconds(w.session_lifetime), 60.0, 7 * 86400.0);
+  if (!w.root.empty()) {
+    std::error_code fec;
+    if (!fs::is_regular_file(fs::path(w.root) / "index.html", fec))
+      check.fail("web.root", "no index.html in " + w.root);
+  }
+
   // The diagnostic log and the measured data are kept apart (house style).
   if (!c.logging.directory.empty() && !n.data_dir.empty() &&
       fs::path(c.logging.directory).lexically_normal() == fs::path(n.data_dir).lexically_normal())
@@ -548,6 +579,10 @@ const DaqSettings& DaqConfig::board() const {
   if (const DaqSettings* found = boards.find(kind)) return *found;
   throw ConfigError("daq.kind", {"'" + kind + "' is not a board zerocal can read (" +
                                  kinds::daqKindNames() + ")"});
+}
+
+bool webEnabled(const DaemonConfig& config) {
+  return config.web.enabled.value_or(config.backend.kind == BackendKind::kSim);
 }
 
 std::string logLevelName(LogLevel level) {

@@ -128,10 +128,13 @@ SessionStatus SessionManager::status() const {
     const std::lock_guard<std::mutex> lock(suggestion_mutex_);
     const std::string key = s.session_id + "/" + stateName(s.state);
     if (key != suggestion_key_ || suggestion_.empty()) {
-      suggestion_ = suggestedKind(latestReference(store_));
+      const std::string latest = latestReference(store_);
+      suggestion_ = suggestedKind(latest);
+      suggested_kind_ = latest.empty() ? "reference" : "check";
       suggestion_key_ = key;
     }
     s.suggestion = suggestion_;
+    s.suggested_kind = suggested_kind_;
   }
   if (s.state == SessionState::kServoing)
     if (const std::optional<PsdReading> r = live_.load())

@@ -15,6 +15,7 @@
 #include <iostream>
 
 #include "zerocal/calib/format.h"
+#include "zerocal/control/line_connection.h"
 #include "zerocal/control/server.h"
 #include "zerocal/control/token.h"
 #include "zerocal/daemon/config.h"
@@ -24,6 +25,7 @@
 #include "zerocal/record/sqlite_record.h"
 #include "zerocal/service/daemon_setup.h"
 #include "zerocal/store/session_store.h"
+#include "zerocal/web/web_server.h"
 
 namespace zerocal {
 namespace {
@@ -201,7 +203,9 @@ int main(int argc, char** argv) {
   using namespace zerocal;
   CLI::App app{
       "zerocald: the zerocal cell daemon. Serves the control port (control.bind_address:port, "
-      "token in control.token_file; docs/protocol.md) and runs the calibration sessions that "
+      "token in control.token_file; docs/protocol.md) and, with web.enabled (by default with "
+      "--sim), the shop-floor terminal in a browser (web.bind_address:port, default "
+      "127.0.0.1:7451; docs/web.md), and runs the calibration sessions that "
       "`zerocal start` asks for on the configured cell, until SIGINT or SIGTERM. With --once, runs "
       "one calibration as configured and exits. docs/daemon.md explains it."};
   app.set_version_flag("--version", "zerocald " + std::string(PROJECT_VERSION));
@@ -305,17 +309,33 @@ int main(int argc, char** argv) {
                         {std::string("control.token_file: ") + e.what() + make_one});
     }
     options.daemon_version = PROJECT_VERSION;
-    // What `start` leaves out comes from the session section.
-    control::ControlServer server(io, manager, std::move(options), manager.defaultRequest());
+    // What `start` leaves out comes from the session section. One hub serves the TCP port and
+    // the web terminal's WebSocket: one event sink, the same commands and authentication.
+    const auto hub =
+        control::ProtocolHub::create(io, manager, std::move(options), manager.defaultRequest());
+    control::ControlServer server(hub);
     try {
       server.start();
     } catch (const std::exception& e) {  // address in use, not an address of this machine
       throw ConfigError("configuration", {"control port " + cfg.control.bind_address + ":" +
                                      std::to_string(cfg.control.port) + ": " + e.what()});
     }
+    std::optional<web::WebServer> web_server;
+    if (webEnabled(cfg)) {
+      try {
+        web_server.emplace(io, hub, cfg.web);
+        web_server->start();
+      } catch (const std::exception& e) {
+        throw ConfigError("zerocald", {"web terminal " + cfg.web.bind_address + ":" +
+                                       std::to_string(cfg.web.port) + ": " + e.what()});
+      }
+    }
     // Ready for systemd (Type=notify) only now that the port accepts connections.
-    const std::string serving = "serving " + cfg.control.bind_address + ":" +
-                                std::to_string(server.port()) + " (" + backend->name() + " cell)";
+    std::string serving = "serving " + cfg.control.bind_address + ":" +
+                          std::to_string(server.port()) + " (" + backend->name() + " cell)";
+    if (web_server)
+      serving += ", web terminal http://" + cfg.web.bind_address + ":" +
+                 std::to_string(web_server->port()) + "/";
     notifyReady(serving);
     std::optional<Watchdog> watchdog;
     if (const auto interval = watchdogInterval()) {
@@ -331,9 +351,12 @@ int main(int argc, char** argv) {
       if (watchdog) watchdog->stop();
       manager.abort();
       server.stop();
+      if (web_server) web_server->stop();
+      hub->stop();
       io.stop();
     });
     io.run();
+    hub->stop();  // the event sink cleared before the manager goes
     const service::SessionStatus last = manager.waitIdle();  // the robot stopped, journal closed
     log->info("stopped; the last session {} is {}", last.session_id, stateName(last.state));
     return kOk;

@@ -501,3 +501,44 @@ TEST_F(ConfigTest, TheKindsSectionIsCheckedByTheKind) {
 
 }  // namespace
 }  // namespace zerocal
+
+namespace zerocal {
+namespace {
+
+// The web terminal's section: on with the simulated cell unless said otherwise, loopback unless
+// the network is said to be trusted (there is no TLS yet), each bad value with its file:line.
+TEST_F(ConfigTest, TheWebSectionIsTheWebTerminalsOptionsCheckedLikeTheOthers) {
+  write("main.yaml", "backend:\n  kind: sim\n");
+  DaemonConfig sim = loadDaemonConfig(sources());
+  EXPECT_TRUE(webEnabled(sim));
+  EXPECT_EQ(sim.web.port, 7451);
+  EXPECT_EQ(sim.web.bind_address, "127.0.0.1");
+  EXPECT_FALSE(webEnabled(DaemonConfig{}));  // a real cell opts in
+  EXPECT_FALSE(webEnabled(loadDaemonConfig(sources({"web.enabled=false", "backend.kind=sim"}))));
+  const DaemonConfig on = loadDaemonConfig(
+      sources({"web.enabled=true", "web.port=0", "web.session_lifetime_s=3600"}));
+  EXPECT_TRUE(webEnabled(on));
+  EXPECT_EQ(on.web.port, 0);
+  EXPECT_EQ(on.web.session_lifetime, std::chrono::hours(1));
+
+  write("main.yaml",
+        "web:\n  enabled: yes\n  bind_address: 192.168.125.10\n  port: 70000\n"
+        "  session_lifetime_s: 5\n  root: /nonexistent\n");
+  auto p = problems(sources());
+  EXPECT_TRUE(reported(p, {"main.yaml:2", "web.enabled", "auto, false, true"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"main.yaml:3", "web.bind_address", "no TLS yet", "trusted_network"}))
+      << joined(p);
+  EXPECT_TRUE(reported(p, {"main.yaml:4", "web.port"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"main.yaml:5", "web.session_lifetime_s", "at least 60"})) << joined(p);
+  EXPECT_TRUE(reported(p, {"main.yaml:6", "web.root", "no index.html"})) << joined(p);
+
+  write("main.yaml", "web:\n  bind_address: 192.168.125.10\n  trusted_network: true\n");
+  EXPECT_EQ(loadDaemonConfig(sources()).web.bind_address, "192.168.125.10");
+  write("main.yaml", "web:\n  bind_address: cellpc\n");
+  EXPECT_TRUE(reported(problems(sources()), {"main.yaml:2", "web.bind_address", "not an IP"}));
+  write("main.yaml", "web:\n  enabled: true\n  port: 7450\n");
+  EXPECT_TRUE(reported(problems(sources()), {"main.yaml:3", "web.port", "control.port"}));
+}
+
+}  // namespace
+}  // namespace zerocal

@@ -31,6 +31,7 @@ has "${config}"
 has "${confdir}/zerocald.d"
 has "${confdir}/robots/irb1600-10-145.yaml"
 has "${prefix}/share/zerocal/rapid/ZerocalServer.mod"
+has "${prefix}/share/zerocal/web/index.html"  # the web terminal, where web.root finds it
 has "${prefix}/share/man/man8/zerocald.8"
 has "${prefix}/share/man/man1/zerocal.1"
 has "${prefix}/share/man/man1/zerocal-lab.1"

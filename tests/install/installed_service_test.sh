@@ -55,6 +55,7 @@ grep -q 'GROUP="zerocal"' "${root}${rule}" || fail "${rule} does not give the bo
 
 prefix=${binary%/bin/zerocald}
 for f in bin/zerocal bin/zerocal-lab share/zerocal/rapid/ZerocalServer.mod \
+  share/zerocal/web/index.html \
   share/bash-completion/completions/zerocal share/bash-completion/completions/zerocal-lab \
   share/bash-completion/completions/zerocald share/bash-completion/completions/zerocal-sim \
   share/man/man1/zerocal.1 share/man/man1/zerocal-lab.1 share/man/man8/zerocald.8 \

@@ -69,7 +69,8 @@ TEST(ZerocaldUnderSystemd, ReadyOnceThePortListensWatchdogFedStoppingOnSigterm) 
                                    "--config",   "/dev/null",
                                    "--data-dir", dir.path + "/sessions",
                                    "--set",      "control.token_file=" + dir.path + "/token",
-                                   "--set",      "control.port=0"};
+                                   "--set",      "control.port=0",
+                                   "--set",      "web.port=0"};
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);

@@ -68,6 +68,8 @@ class Daemon {
                                      "--set",
                                      "control.port=0",
                                      "--set",
+                                     "web.port=0",  // --sim serves the web terminal too
+                                     "--set",
                                      "backend.sim_pace=0.05",
                                      "--set",
                                      "session.plan=file",

@@ -24,6 +24,7 @@
 #include "zerocal/psd/psd_config.h"
 #include "zerocal/service/plan_kind.h"
 #include "zerocal/servo/servo.h"
+#include "zerocal/web/web_options.h"
 
 namespace zerocal {
 
@@ -138,6 +139,7 @@ struct DaemonConfig {
   servo::ServoOptions servo;  // the servo section is the servo's own options (servo.h)
   SessionConfig session;
   control::ServerOptions control;  // the control section is the server's own options
+  web::WebOptions web;             // the web section is the web terminal's own options
   LoggingConfig logging;
 };
 
@@ -186,5 +188,9 @@ std::vector<std::string> configKeys();
 DaqConfig loadDaqSection(const std::string& path);
 
 std::string logLevelName(LogLevel level);
+
+// Whether zerocald serves the web terminal: web.enabled, or with `auto` (the default) on the
+// simulated cell only.
+bool webEnabled(const DaemonConfig& config);
 
 }  // namespace zerocal

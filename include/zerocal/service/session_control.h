@@ -141,6 +141,8 @@ struct SessionStatus {
   // What to run next, in a sentence: with no usable reference in the data folder, a reference
   // (or an absolute calibration from three placements); with one, a check against it.
   std::string suggestion;
+  // The same as the kind of session a terminal offers first: "reference" or "check".
+  std::string suggested_kind;
 };
 
 // An online apply of a finished session's offsets to the controller (docs/apply.md).

@@ -98,7 +98,7 @@ class SessionManager final : public SessionControl {
   ApplyCoordinator apply_;
   // The status' suggestion, kept until a session begins or ends (status()).
   mutable std::mutex suggestion_mutex_;
-  mutable std::string suggestion_key_, suggestion_;
+  mutable std::string suggestion_key_, suggestion_, suggested_kind_;
   SessionWorker worker_;  // last member: its thread starts after the others exist
 };
 

@@ -189,12 +189,6 @@ SolveReport solveMultiPlacement(const CellModel& cell, const std::vector<Pose>& 
       layout);
   std::vector<MultiFit> fits{
       fit(cell, distinct, layout, base, options, readings, start, start_targets)};
-  // As with one placement: each pose weighed at the estimate, where its line meets the detector.
-  if (cell.noise.perPose() && fits[0].converged) {
-    const int first_iterations = fits[0].iterations;
-    fits[0] = fit(cell, distinct, layout, base, options, readings, fits[0].est, fits[0].targets);
-    fits[0].iterations += first_iterations;
-  }
   int iterations = fits[0].iterations;
 
   // Gross errors: the single-placement solve's deletion diagnostics, on the identified unknowns.

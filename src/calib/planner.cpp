@@ -174,9 +174,10 @@ Prediction predictSeveralPlacements(const CellModel& cell, const std::vector<Pos
 Prediction predictUncertainty(const CellModel& cell, const std::vector<Pose>& poses,
                               const CalibrationParameters& at, double sigma_mm,
                               const ModelTolerances& tolerances) {
-  if (cell.noise.perPose()) sigma_mm = cell.noise.referenceMm();
+  // As the solve: several placements with one sigma for every pose.
   if (placementCount(poses) > 1)
-    return predictSeveralPlacements(cell, poses, at, sigma_mm, tolerances);
+    return predictSeveralPlacements(atDetector(cell), poses, at, sigma_mm, tolerances);
+  if (cell.noise.perPose()) sigma_mm = cell.noise.referenceMm();
   const Eigen::MatrixXd jac = pointToLineJacobian(cell, poses, at, sigma_mm, false);
   // A plan predicts; whether its accuracy is enough is the solve's verdict. Here an offset counts
   // as determined up to the half degree beyond which a value means nothing.
@@ -519,6 +520,9 @@ std::vector<Eigen::Vector3d> defaultPlacements(const Eigen::Vector3d& first, int
 }
 
 Plan planPoses(const CellModel& cell, const Eigen::Vector3d& target, const PlanOptions& given) {
+  // Several placements are planned, predicted and solved with one sigma for every pose.
+  if (!given.more_placements.empty() && cell.noise.perPose())
+    return planPoses(atDetector(cell), target, given);
   // With the noise per pose, each candidate is weighed by its own covariance, in the model's
   // reference sigma.
   PlanOptions o = given;

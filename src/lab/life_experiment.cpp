@@ -164,8 +164,8 @@ void addLifeExperiment(CLI::App& experiment, LifeExperimentArgs& args) {
       "a robot's life on the simulated cell, one per seeded world, as zerocald runs it: a "
       "reference (warm), a check with nothing changed, a check with one zero moved by 0.02 deg, "
       "a restore with one zero moved by 0.05..1 deg (cold) and its online apply; exit 0 when "
-      "the figures of issue 29 hold (restore RMS <= 0.003 deg, each within 3 sigma, 95% "
-      "coverage 93..97%, usable >= 95%, <= 90 s; checks PASS and named >= 95%, <= 30 s; after "
+      "the figures a robot's record must meet hold (restore RMS <= 0.003 deg, each within 3 sigma, "
+      "95% coverage 93..97%, usable >= 95%, <= 90 s; checks PASS and named >= 95%, <= 30 s; after "
       "the apply the true zeros within 0.003 deg RMS of the reference's), else 7");
   cmd->add_option("--worlds", args.worlds, "number of seeded worlds")
       ->default_val(args.worlds)

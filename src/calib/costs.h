@@ -103,7 +103,9 @@ class DisturbedMiss {
  public:
   DisturbedMiss(const CellModel& cell, const Pose& pose, const CalibrationParameters& at,
                 bool readings)
-      : cell_(cell), at_(at), offset_(hitPointOffset(cell, pose, readings)),
+      : cell_(cell),
+        at_(at),
+        offset_(hitPointOffset(cell, pose, readings)),
         psd_(cell.psdRotation(pose.placement)) {
     jointsRad(cell.robot, pose.q_deg, q_rad_);
   }
@@ -112,7 +114,8 @@ class DisturbedMiss {
   bool operator()(const T* dq, const T* duv, T* residual) const {
     T joints[kJointCount];
     for (int j = 0; j < kJointCount; ++j)
-      joints[j] = T(q_rad_[j]) + dq[j] + (j >= 1 && j <= kOffsetCount ? T(at_.delta_rad[j - 1]) : T(0));
+      joints[j] =
+          T(q_rad_[j]) + dq[j] + (j >= 1 && j <= kOffsetCount ? T(at_.delta_rad[j - 1]) : T(0));
     const Frame<T> flange = flangePose(cell_.robot, joints);
     T kappa[kLaserParamCount], target[kTargetCount];
     for (int k = 0; k < kLaserParamCount; ++k) kappa[k] = T(at_.laser[k]);

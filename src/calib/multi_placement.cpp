@@ -57,12 +57,11 @@ MultiFit fit(const CellModel& cell, const std::vector<Pose>& poses, const Placem
   for (const Pose& pose : poses) {
     CalibrationParameters at = start;
     at.target_mm = targets[layout.slot(pose.placement)];
-    problem.AddResidualBlock(LinkPointToLineCost::create(
-                                 cell, pose.q_deg, hitPointOffset(cell, pose, readings), sigma_in,
-                                 missWeight(cell, pose, at, readings)),
-                             nullptr, f.est.delta_rad.data(), f.est.laser.data(), f.est.link.data(),
-                             f.est.compliance.data(),
-                             f.targets[layout.slot(pose.placement)].data());
+    problem.AddResidualBlock(
+        LinkPointToLineCost::create(cell, pose.q_deg, hitPointOffset(cell, pose, readings),
+                                    sigma_in, missWeight(cell, pose, at, readings)),
+        nullptr, f.est.delta_rad.data(), f.est.laser.data(), f.est.link.data(),
+        f.est.compliance.data(), f.targets[layout.slot(pose.placement)].data());
   }
   holdUnidentified(problem, f.est.delta_rad.data(), 0, kOffsetCount, base);
   holdUnidentified(problem, f.est.laser.data(), kOffsetCount, kLaserParamCount, base);

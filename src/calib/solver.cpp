@@ -552,8 +552,8 @@ void applyNoise(SolveReport& report, const SolveOptions& options, double rss_mm2
       // per-pose model is the arm's own repeatability, not a guess of one sigma: a chi-square
       // above 1 is chance too (scaling by it would inflate every sigma by about 10% on 24
       // degrees of freedom), and only a misfit it cannot explain (p < 1%) scales it.
-      const bool model_rejected = report.joint_repeatability_deg == 0 ||
-                                  *report.chi2_p_value < kNoiseModelRejectedP;
+      const bool model_rejected =
+          report.joint_repeatability_deg == 0 || *report.chi2_p_value < kNoiseModelRejectedP;
       report.noise_scale = model_rejected ? std::max(1.0, std::sqrt(*report.chi2_per_dof)) : 1.0;
       report.noise_mm *= report.noise_scale;
     }
@@ -572,7 +572,7 @@ double intervalQuantile(const SolveReport& report) {
 }
 
 SolveReport startReport(const CellModel& cell, const std::vector<Pose>& poses,
-                         const SolveOptions& options) {
+                        const SolveOptions& options) {
   SolveReport report;
   report.cost = options.cost;
   report.used_readings = options.use_readings;

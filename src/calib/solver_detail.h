@@ -54,7 +54,7 @@ double intervalQuantile(const SolveReport& report);
 // readings are used (every pose has one and the options want them), the pose count, the
 // required accuracy.
 SolveReport startReport(const CellModel& cell, const std::vector<Pose>& poses,
-                         const SolveOptions& options);
+                        const SolveOptions& options);
 
 std::string fixedText(double v, int precision);
 // "pose 3 (line 5)".

@@ -222,8 +222,8 @@ void printResult(const ResultFile& r, const json& applied, std::ostream& out) {
   const bool verification = r.kind == SessionKind::kVerification;
   out << "session " << (r.session.empty() ? "-" : r.session) << ": " << sessionKindName(r.kind)
       << (verification && against ? " of an apply, the change since session " + r.reference
-          : against                ? " against reference " + r.reference
-                                   : std::string())
+          : against               ? " against reference " + r.reference
+                                  : std::string())
       << (simulated ? " (SIMULATED cell: the truth is known)"
           : r.truth ? " (SIMULATED cell: the true change is the reference's truth less this one's)"
                     : "")
@@ -239,7 +239,8 @@ void printResult(const ResultFile& r, const json& applied, std::ostream& out) {
            "restores; it claims nothing of the absolute zeros and writes nothing\n";
   if (verification)
     out << "what it measured: the change of each zero since the poses the apply came from; the "
-           "apply's verdict, and what remains of each offset, are with the session applied (`zerocal "
+           "apply's verdict, and what remains of each offset, are with the session applied "
+           "(`zerocal "
            "result "
         << r.reference << "`)\n";
   out << (verification ? "measurement: " : "verdict: ")
@@ -527,8 +528,7 @@ int followApply(control::ControlClient& client, const std::string& cmd, const js
         if (!args.json) out << apply.substr(prefix.size()) << "\n";
         const std::size_t colon = apply.find(':');
         const std::string outcome = apply.substr(prefix.size(), colon - prefix.size());
-        return exitForApply(outcome,
-                            colon == std::string::npos ? "" : apply.substr(colon + 2));
+        return exitForApply(outcome, colon == std::string::npos ? "" : apply.substr(colon + 2));
       }
     }
   }
@@ -767,8 +767,7 @@ int run(const ClientArgs& args, std::ostream& out, std::ostream& err, bool tty) 
   }
   if (cmd == "result") {
     const json answer = client.call(
-        "result", args.session.empty() ? json::object() : json{{"session", args.session}},
-        timeout);
+        "result", args.session.empty() ? json::object() : json{{"session", args.session}}, timeout);
     const ResultFile result = resultOf(answer["result"]);
     if (args.json)
       out << answer["result"].dump(2) << "\n";

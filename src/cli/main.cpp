@@ -116,8 +116,8 @@ int main(int argc, char** argv) {
   if (const int rc = answerHelp(app, words, std::cout, std::cerr); rc >= 0) return rc;
   // The commands that move the robot or write to its controller: never offered for a typo that
   // a read-only command is as near to.
-  const std::set<std::string> acting = {"start", "resume", "continue", "apply", "verify",
-                                        "acknowledge"};
+  const std::set<std::string> acting = {"start", "resume", "continue",
+                                        "apply", "verify", "acknowledge"};
   if (argc > 1 && refuseUnknownCommand(app, argv[1], std::cerr, acting)) return kClientBadRequest;
   try {
     app.parse(argc, argv);

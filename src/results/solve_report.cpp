@@ -19,7 +19,7 @@ std::string modelName(const SolveReport& r) {
 }
 
 std::string noiseSourceName(const SolveReport& r) {
-  return r.noise_estimated            ? "estimated from the residuals"
+  return r.noise_estimated               ? "estimated from the residuals"
          : r.joint_repeatability_deg > 0 ? "per pose, from the joints' repeatability"
                                          : "given";
 }

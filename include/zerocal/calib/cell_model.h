@@ -60,8 +60,7 @@ Eigen::Matrix2d missWeight(const CellModel& cell, const Pose& pose, const Calibr
 CellModel atDetector(CellModel cell);
 // Sigma_i of the pose at `at` (mm^2); noise_mm^2 I when the noise is not per pose.
 Eigen::Matrix2d missCovariance(const CellModel& cell, const Pose& pose,
-                               const CalibrationParameters& at, bool use_readings,
-                               double noise_mm);
+                               const CalibrationParameters& at, bool use_readings, double noise_mm);
 
 // The robot with the link errors added to its DH rows (and kept as its identified errors).
 Robot withLinkErrors(const Robot& robot, const Eigen::Matrix<double, kLinkParamCount, 1>& link);

@@ -95,7 +95,7 @@ struct SolveReport {
   int rank = 0;  // with several placements: the number of identified unknowns (base parameters)
   double condition_number = 0;
   int dof = 0;
-  double noise_mm = 0;                 // the sigma behind the reported uncertainties
+  double noise_mm = 0;  // the sigma behind the reported uncertainties
   // With a per-pose noise model (zerocal/calib/cell_model.h MissNoise): the joints'
   // repeatability (deg) behind it, and noise_mm is the model's reference sigma, in which each
   // pose's weighed misses are; 0: noise_mm is every pose's.

@@ -27,8 +27,7 @@ class ApplyCoordinator {
   // zeros since the poses the apply came from: SessionManager::verificationRun), setting `id` to
   // the verification session's id as soon as it exists, and returns its result. Throws Error
   // when it does not finish with delta2..delta5.
-  using VerificationRun =
-      std::function<ResultFile(const std::string& applied, std::string& id)>;
+  using VerificationRun = std::function<ResultFile(const std::string& applied, std::string& id)>;
 
   // Every part outlives the coordinator.
   ApplyCoordinator(CellConnection& connection, SessionBoard& board, SessionWorker& worker,

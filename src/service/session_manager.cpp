@@ -54,9 +54,7 @@ std::vector<record::HistoryEntry> SessionControl::history(const record::RobotId&
 
 namespace {
 
-double servoZoneUm(const servo::ServoOptions& servo) {
-  return servo.stop == servo::ServoStop::kZone ? servo.hit_zone_mm * 1000 : servo.tolerance_um;
-}
+double servoZoneUm(const servo::ServoOptions& servo) { return servo.recordedWithinMm() * 1000; }
 
 // The cell as the solves see it: with the configuration's per-pose noise model.
 CellKnowledge withNoiseModel(CellKnowledge knowledge, const SessionConfig& session) {

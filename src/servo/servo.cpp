@@ -79,6 +79,10 @@ std::string ServoOptions::validate() const {
   return {};
 }
 
+double ServoOptions::recordedWithinMm() const {
+  return stop == ServoStop::kZone ? kRecordedWithinZones * hit_zone_mm : 1e-3 * tolerance_um;
+}
+
 const char* statusName(ServoStatus status) noexcept {
   switch (status) {
     case ServoStatus::kConverged:
@@ -439,16 +443,16 @@ void PsdServo::fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& res
   const Eigen::Vector2d target = toVector(options_.target);
   bool settling = false;
   Eigen::Vector2d settle_uv = Eigen::Vector2d::Zero();
-  // Where the arm's repeatability at the detector exceeds the zone (a long beam), each move lands
-  // the spot elsewhere within that scatter and chasing the zone only draws the noise again: the
-  // zone doubles after every kMovesPerZone moves that did not stop, up to kWidestZone times.
-  // After 8 moves, the scatter of most poses (0.03..0.07 mm) took a 16-pose plan over 120 s of
-  // cell time; a zone of 0.1 mm from the start put a several-placement estimate at 3.01 sigma
-  // (the PSD's orientation error times the reading), where 0.05 mm widened after 3 gives 2.06.
-  constexpr int kMovesPerZone = 3;
-  constexpr double kWidestZone = 4.0;
-  double zone_mm = options_.hit_zone_mm;
-  int moves_in_zone = 0;
+  // kZone stops at the reading after a move aimed to land within hit_zone_mm, not at the first
+  // reading that happens to fall inside it. The recorded miss is that reading's repeatability
+  // draw; stopping on the draw itself keeps only the draws that fell towards the zone, and the
+  // recorded misses came out at 0.65 of the joints' variance (chi2/dof 0.65 over 8 ideal
+  // worlds, 1.03 with a zone of 1 mm that never truncates), so every per-pose sigma was ~20%
+  // too large. The aim depends only on the reading before the move, never on the draw recorded.
+  // A reading beyond kRecordedWithinZones zones despite the aim (a Jacobian far off, a gross error) is
+  // steered again: the PSD's orientation error times the reading is what a reading costs, 10 um
+  // at 0.2 mm and 3 deg, and that tail is over 4 sigma of any pose's scatter.
+  bool aimed = false;  // the last move was aimed to land within the zone
 
   for (;;) {
     const PsdReading& r = result.reading;
@@ -461,7 +465,7 @@ void PsdServo::fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& res
     }
     if (r.in_valid_zone) {
       if (options_.stop == ServoStop::kCentre && e.norm() <= 1e-3 * options_.tolerance_um) break;
-      if (options_.stop == ServoStop::kZone && e.norm() <= zone_mm) {
+      if (options_.stop == ServoStop::kZone && aimed && e.norm() <= options_.recordedWithinMm()) {
         if (settling && (uv - settle_uv).norm() <= options_.settle_mm) break;
         // Read again without moving: a reading is only recorded once it repeats.
         settling = true;
@@ -486,15 +490,14 @@ void PsdServo::fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& res
     // The law's correction, held to the step limit whatever law computed it.
     JointVector dq = law_->correction(e, r.in_valid_zone);
     const double largest = maxAbs(dq);
-    if (largest > options_.max_step_deg) dq *= options_.max_step_deg / largest;
+    const double scale = largest > options_.max_step_deg ? options_.max_step_deg / largest : 1.0;
+    dq *= scale;
+    // The law takes `gain` of the step to the target: it aims at (1 - gain * scale) e.
+    aimed = r.in_valid_zone && (1 - options_.gain * scale) * e.norm() <= options_.hit_zone_mm;
     const Joints next = toJoints(toVector(q_) + dq);
     const JointVector sent = toVector(next) - toVector(q_);
     if (move(robot, next, result) != Step::kOk) return;
     law_->moved(sent);
-    if (++moves_in_zone == kMovesPerZone && zone_mm < kWidestZone * options_.hit_zone_mm) {
-      zone_mm *= 2;
-      moves_in_zone = 0;
-    }
     if (settledRead(psd, result) != Step::kOk) return;
     ++result.iterations;
   }

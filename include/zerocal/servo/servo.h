@@ -116,7 +116,8 @@ struct ServoOptions {
   double damping_mm = 1e-3;  // Tikhonov term of the pseudo-inverse (mm/deg)^2 scale
 
   PsdSpot target;  // where the fine servo brings the spot, PSD frame (mm)
-  // kZone; widened where the arm's scatter at the detector exceeds it (docs/servo.md).
+  // kZone: the servo stops at the reading after a move aimed to land this close to the target
+  // (docs/servo.md), once it lies within recordedWithinMm().
   double hit_zone_mm = 0.05;
   // kZone: two readings at the same pose agreeing within this are settled.
   double settle_mm = 0.005;
@@ -130,7 +131,11 @@ struct ServoOptions {
 
   // Empty when usable, else the first problem.
   std::string validate() const;
+  // How far from the target a recorded reading may lie: tolerance_um (kCentre), or
+  // kRecordedWithinZones zones (kZone: the arm's scatter lands an aimed move beyond the zone).
+  double recordedWithinMm() const;
 };
+inline constexpr double kRecordedWithinZones = 4.0;
 
 enum class ServoStatus {
   kConverged,

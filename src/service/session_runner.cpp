@@ -225,6 +225,7 @@ void SessionRunner::runMeasurement(const RunRequest& request) {
     run_settings.reopen_sensor = [&cell] { cell.reopenPsd(); };
     CalibrationRun run(knowledge_.cell, run_plan.target, run_plan.poses, run_settings, journal);
     run.found_before = request.found_before;
+    if (reference) run.earlier = reference->fit.poses;
     if (request.place_next) run.placeNext(*request.place_next);
     // The cell's PSD where the journal has it: the simulated cell moves its detector there (back
     // to placement 1 for a session of one); on a real cell the technician has, and nothing

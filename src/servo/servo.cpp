@@ -438,7 +438,8 @@ bool PsdServo::acquire(ControllerLink& robot, PsdReader& psd, const Joints& plan
   return false;
 }
 
-void PsdServo::fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& result) noexcept {
+void PsdServo::fineServo(ControllerLink& robot, PsdReader& psd, bool aimed,
+                         ServoResult& result) noexcept {
   law_->start(imageJacobian(cell_, psd_centre_, q_));
   const Eigen::Vector2d target = toVector(options_.target);
   bool settling = false;
@@ -449,10 +450,10 @@ void PsdServo::fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& res
   // recorded misses came out at 0.65 of the joints' variance (chi2/dof 0.65 over 8 ideal
   // worlds, 1.03 with a zone of 1 mm that never truncates), so every per-pose sigma was ~20%
   // too large. The aim depends only on the reading before the move, never on the draw recorded.
-  // A reading beyond kRecordedWithinZones zones despite the aim (a Jacobian far off, a gross error) is
-  // steered again: the PSD's orientation error times the reading is what a reading costs, 10 um
-  // at 0.2 mm and 3 deg, and that tail is over 4 sigma of any pose's scatter.
-  bool aimed = false;  // the last move was aimed to land within the zone
+  // A reading beyond kRecordedWithinZones zones despite the aim (a Jacobian far off, a gross error)
+  // is steered again: the PSD's orientation error times the reading is what a reading costs, 10 um
+  // at 0.2 mm and 3 deg, and that tail is over 4 sigma of any pose's scatter. `aimed` says
+  // whether the last move was aimed to land within the zone.
 
   for (;;) {
     const PsdReading& r = result.reading;
@@ -506,28 +507,28 @@ void PsdServo::fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& res
 }
 
 ServoResult PsdServo::run(ControllerLink& robot, PsdReader& psd, CellClock& clock,
-                          const Joints& planned_deg, const PsdSpot& expected) noexcept {
+                          const Joints& planned_deg, const PsdSpot& expected, bool aimed) noexcept {
   ServoResult result;
   clock_ = &clock;
-  runCycle(robot, psd, planned_deg, expected, result);
+  runCycle(robot, psd, planned_deg, expected, aimed, result);
   clock_ = nullptr;
   orderPath(result);
   return result;
 }
 
 ServoResult PsdServo::run(ControllerLink& robot, PsdReader& psd, const Joints& planned_deg,
-                          const PsdSpot& expected) noexcept {
+                          const PsdSpot& expected, bool aimed) noexcept {
   ServoResult result;
   ring_count_ = ring_next_ = 0;
   if (options_.settle_s > 0)
     return latch(result, ServoStatus::kBadStart, "settle_s needs the clock overload of run()");
-  runCycle(robot, psd, planned_deg, expected, result);
+  runCycle(robot, psd, planned_deg, expected, aimed, result);
   orderPath(result);
   return result;
 }
 
 void PsdServo::runCycle(ControllerLink& robot, PsdReader& psd, const Joints& planned_deg,
-                        const PsdSpot& expected, ServoResult& result) noexcept {
+                        const PsdSpot& expected, bool aimed, ServoResult& result) noexcept {
   ring_count_ = ring_next_ = 0;
   path_tail_next_ = 0;
   faulted_ = false;
@@ -547,12 +548,16 @@ void PsdServo::runCycle(ControllerLink& robot, PsdReader& psd, const Joints& pla
   result.start_s = clock_ != nullptr ? t0 : result.reading.time_s;
   result.settle_acquisition_s = result.settle_s;
   if (result.path_count > 0) result.path[0].t_s = result.reading.time_s - result.start_s;
-  if (!result.reading.spot_present && !acquire(robot, psd, planned_deg, expected, result)) {
-    result.acquired_s = result.end_s;
-    return;
+  // A search moved the arm since the aimed move: its end is not where the aim put the spot.
+  if (!result.reading.spot_present) {
+    aimed = false;
+    if (!acquire(robot, psd, planned_deg, expected, result)) {
+      result.acquired_s = result.end_s;
+      return;
+    }
   }
   result.acquired_s = result.reading.time_s;
-  fineServo(robot, psd, result);
+  fineServo(robot, psd, aimed, result);
 }
 
 }  // namespace zerocal::servo

@@ -59,10 +59,48 @@ Eigen::Vector2d SpotPredictor::spot(const PredictorState& x, const Joints& q) co
 void SpotPredictor::addPose(const Joints& q_deg, const PsdSpot& spot) {
   poses_.emplace_back(q_deg, Eigen::Vector2d(spot.u_mm, spot.v_mm));
   refit();
+  if (!earlier_.empty()) refitChange();
+}
+
+void SpotPredictor::expectReadingsOf(const std::vector<Pose>& earlier) {
+  earlier_.clear();
+  for (const Pose& p : earlier)
+    if (p.spot) earlier_.push_back({p.q_deg, Eigen::Vector2d(p.spot->u_mm, p.spot->v_mm)});
+  change_.setZero();
+  if (!poses_.empty() && !earlier_.empty()) refitChange();
+}
+
+const SpotPredictor::Earlier* SpotPredictor::nearestEarlier(const Joints& q) const {
+  // A pose aimed at the detector's centre ends this far from its planned joints at most
+  // (CalibrationRun's aim); earlier poses lie tens of degrees apart.
+  constexpr double kMostAimDeg = 6.0;
+  const Earlier* best = nullptr;
+  double best_deg = kMostAimDeg;
+  for (const Earlier& e : earlier_) {
+    double d = 0;
+    for (int i = 0; i < kJointCount; ++i) d = std::max(d, std::abs(q[i] - e.q_deg[i]));
+    if (d <= best_deg) best_deg = d, best = &e;
+  }
+  return best;
+}
+
+Eigen::Vector2d SpotPredictor::changeAt(const Earlier& e, const Joints& q,
+                                        const PredictorState& change) const {
+  return spot(change, q) - spot(PredictorState::Zero(), e.q_deg);
+}
+
+Eigen::Vector2d SpotPredictor::predicted(const Joints& q) const {
+  if (const Earlier* e = nearestEarlier(q)) return e->spot + changeAt(*e, q, change_);
+  return spot(x_, q);
+}
+
+bool SpotPredictor::predictsFromReading(const Joints& q_deg) const {
+  const Earlier* e = nearestEarlier(q_deg);
+  return e != nullptr && changeAt(*e, e->q_deg, change_).norm() <= kNearReadingMm;
 }
 
 PsdSpot SpotPredictor::predict(const Joints& q_deg) const {
-  const Eigen::Vector2d uv = spot(x_, q_deg);
+  const Eigen::Vector2d uv = predicted(q_deg);
   return {uv.x(), uv.y()};
 }
 
@@ -76,7 +114,7 @@ Joints SpotPredictor::aimedJoints(const Joints& planned, double damping_mm) cons
   // Newton steps on the predicted spot: the image Jacobian of the nominal model is within a few
   // percent of the true one, so three steps leave micrometres.
   for (int step = 0; step < 3; ++step) {
-    const Eigen::Vector2d uv = spot(x_, q);
+    const Eigen::Vector2d uv = predicted(q);
     const Eigen::Matrix<double, kJointCount, 2> pinv =
         dampedPseudoInverse(imageJacobian(cell_, centre_ + x_.tail<3>(), q), damping_mm);
     const Eigen::Matrix<double, kJointCount, 1> dq = -pinv * uv;
@@ -119,6 +157,44 @@ void SpotPredictor::refit() {
     if (step.cwiseQuotient(s).norm() < 1e-6) break;
   }
   x_ = x;
+}
+
+void SpotPredictor::refitChange() {
+  // delta1..delta6 since the earlier session, the rest of the state the nominal cell's: the
+  // change moves each earlier reading as it moves the nominal spot. Held towards no change with
+  // a spread of a degree (a motor or encoder replaced, a lost revolution counter resynchronised
+  // by marks), the readings weighed as the arm's scatter in both sessions.
+  constexpr double kChangeSpreadRad = 1.0 * kDegToRad;
+  constexpr double kReadingMm = 0.05;
+  std::vector<std::pair<const Earlier*, std::size_t>> matched;
+  for (std::size_t i = 0; i < poses_.size(); ++i)
+    if (const Earlier* e = nearestEarlier(poses_[i].first)) matched.emplace_back(e, i);
+  PredictorState x = change_;
+  const int m = 2 * static_cast<int>(matched.size());
+  for (int iteration = 0; iteration < 10; ++iteration) {
+    Eigen::MatrixXd j = Eigen::MatrixXd::Zero(m + kJointCount, kJointCount);
+    Eigen::VectorXd r(m + kJointCount);
+    for (int k = 0; k < static_cast<int>(matched.size()); ++k) {
+      const Earlier& e = *matched[static_cast<std::size_t>(k)].first;
+      const auto& [q, reading] = poses_[matched[static_cast<std::size_t>(k)].second];
+      const Eigen::Vector2d f = e.spot + changeAt(e, q, x);
+      r.segment<2>(2 * k) = (f - reading) / kReadingMm;
+      for (int c = 0; c < kJointCount; ++c) {
+        PredictorState xp = x;
+        const double h = 1e-6;
+        xp[c] += h;
+        j.block<2, 1>(2 * k, c) = (e.spot + changeAt(e, q, xp) - f) / (h * kReadingMm);
+      }
+    }
+    j.bottomRows(kJointCount) =
+        Eigen::MatrixXd::Identity(kJointCount, kJointCount) / kChangeSpreadRad;
+    r.tail(kJointCount) = x.head<kJointCount>() / kChangeSpreadRad;
+    const Eigen::Matrix<double, kJointCount, 1> step =
+        -(j.transpose() * j).ldlt().solve(j.transpose() * r);
+    x.head<kJointCount>() += step;
+    if (step.norm() < 1e-9) break;
+  }
+  change_ = x;
 }
 
 }  // namespace zerocal::servo

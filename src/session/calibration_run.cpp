@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <exception>
 #include <iomanip>
 #include <sstream>
@@ -210,6 +211,7 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
   servo::PsdServo servo(model, centre, servo_options);
   servo::SpotPredictor predictor(model, centre);
   if (found_before) predictor.startFrom(*found_before);
+  if (!earlier.empty()) predictor.expectReadingsOf(earlier);
   // Resumed poses teach the predictor where the spot falls, as if they had just been servoed.
   for (const PoseRecord& r : out.records)
     if (r.measured() && r.placement == placement) predictor.addPose(r.joints_deg, r.reading.spot);
@@ -269,7 +271,14 @@ RunOutcome CalibrationRun::run(ControllerLink& robot, PsdReader& psd, CellClock&
       if (failure == Failure::kNone) {
         moved = clock.nowS();
         phase(i, RunPhase::kServoing);
-        r = servo.run(robot, psd, clock, target, predictor.searchCentre(target));
+        // A move aimed into the servo's zone by an earlier reading needs no servo move once
+        // the spot lands as predicted (servo::PsdServo::run).
+        const PsdSpot expected = predictor.searchCentre(target);
+        const bool aimed_move =
+            predictor.predictsFromReading(target) &&
+            std::hypot(expected.u_mm - servo_options.target.u_mm,
+                       expected.v_mm - servo_options.target.v_mm) <= servo_options.hit_zone_mm;
+        r = servo.run(robot, psd, clock, target, expected, aimed_move);
         if (!r.ok()) {
           if (r.status != servo::ServoStatus::kAborted) journalFault(servo.fault(), i, again);
           why = std::string("servo ") + servo::statusName(r.status) + ": " + servo.fault().message;

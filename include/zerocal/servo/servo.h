@@ -213,11 +213,15 @@ class PsdServo {
   // where the spot is expected at the planned pose (PSD frame, e.g. from SpotPredictor); the
   // search is centred on it when the spot is not seen at once. Never throws. On anything but
   // kConverged the fault is latched (fault()) until the next run(). `clock` waits settle_s; the
-  // overload without one returns kBadStart when settle_s is not 0.
+  // overload without one returns kBadStart when settle_s is not 0. `aimed`: the planned move was
+  // aimed to land the spot within hit_zone_mm by a prediction as good as the arm's scatter
+  // (SpotPredictor::predictsFromReading); kZone then counts it as the aimed move it stops after,
+  // and a pose the spot lands on as predicted is recorded without a servo move.
   ServoResult run(ControllerLink& robot, PsdReader& psd, CellClock& clock,
-                  const Joints& planned_deg, const PsdSpot& expected = {}) noexcept;
+                  const Joints& planned_deg, const PsdSpot& expected = {},
+                  bool aimed = false) noexcept;
   ServoResult run(ControllerLink& robot, PsdReader& psd, const Joints& planned_deg,
-                  const PsdSpot& expected = {}) noexcept;
+                  const PsdSpot& expected = {}, bool aimed = false) noexcept;
 
   bool faulted() const noexcept { return faulted_; }
   const ServoFault& fault() const noexcept { return fault_; }
@@ -232,7 +236,7 @@ class PsdServo {
   Step settledRead(PsdReader& psd, ServoResult& result) noexcept;
   bool aborted(ServoResult& result) noexcept;
   void runCycle(ControllerLink& robot, PsdReader& psd, const Joints& planned,
-                const PsdSpot& expected, ServoResult& result) noexcept;
+                const PsdSpot& expected, bool aimed, ServoResult& result) noexcept;
   void keepPathPoint(const PsdReading& reading, ServoResult& result) noexcept;
   void orderPath(ServoResult& result) const noexcept;
   bool acquire(ControllerLink& robot, PsdReader& psd, const Joints& planned,
@@ -258,7 +262,8 @@ class PsdServo {
   Step readBack(ControllerLink& robot, ServoResult& result) noexcept;
   // Walks back to the planned pose and latches kSpotNotFound.
   void notFound(ControllerLink& robot, const Joints& planned, ServoResult& result) noexcept;
-  void fineServo(ControllerLink& robot, PsdReader& psd, ServoResult& result) noexcept;
+  // `aimed`: the move that ended where the fine servo starts was aimed into the zone.
+  void fineServo(ControllerLink& robot, PsdReader& psd, bool aimed, ServoResult& result) noexcept;
   ServoResult& latch(ServoResult& result, ServoStatus status, const char* message) noexcept;
   // latch() from inside a catch handler, keeping the LinkError's kind of the exception in flight.
   void latchLinkError(ServoResult& result, ServoStatus status, const char* message) noexcept;

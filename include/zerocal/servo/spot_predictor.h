@@ -34,6 +34,17 @@ class SpotPredictor {
   // their full spread: a wrong transmission doubles an offset instead of removing it. From here
   // on predictions are made from the first pose.
   void startFrom(const CalibrationParameters& found);
+  // A session that re-measures an earlier one's poses (a check, a restore or a verification
+  // against its reference; each with its joints and reading): at joints near one of them the
+  // spot is expected where that session read it, moved by what this session's poses show the
+  // zeros to have changed by since (fitted from the first pose on, held towards no change). A
+  // reading there is as good a prediction as the arm's scatter, where the cell's model misses
+  // by its link errors (0.1..0.3 mm). Predictions are made from the first pose.
+  void expectReadingsOf(const std::vector<Pose>& earlier);
+  // The spot at q is predicted from an earlier reading moved by at most kNearReadingMm: as good
+  // as the arm's scatter (the model's error in so small a move is a few micrometres).
+  bool predictsFromReading(const Joints& q_deg) const;
+  static constexpr double kNearReadingMm = 0.5;
   // A servoed pose: controller joints and the reading there (PSD frame, mm).
   void addPose(const Joints& q_deg, const PsdSpot& spot);
   // Where the spot is expected on the PSD (PSD frame, mm) at controller joints q.
@@ -51,11 +62,26 @@ class SpotPredictor {
   Joints aimedJoints(const Joints& planned, double damping_mm) const;
   static constexpr int kConfidentPoses = 2;
   int poseCount() const { return static_cast<int>(poses_.size()); }
-  bool confident() const { return started_from_calibration_ || poseCount() >= kConfidentPoses; }
+  bool confident() const {
+    return started_from_calibration_ || !earlier_.empty() || poseCount() >= kConfidentPoses;
+  }
 
  private:
+  // An earlier session's pose: its joints, its reading (PSD frame, mm).
+  struct Earlier {
+    Joints q_deg;
+    Eigen::Vector2d spot;
+  };
   void refit();
+  void refitChange();
   Eigen::Vector2d spot(const PredictorState& x, const Joints& q) const;
+  // The prediction at q: from the fitted model, or from the nearest earlier reading.
+  Eigen::Vector2d predicted(const Joints& q) const;
+  // The earlier pose whose joints are nearest q's, within kMostAimDeg; null when none is.
+  const Earlier* nearestEarlier(const Joints& q) const;
+  // The spot at q of the nominal cell with the zeros changed by change_ (rad), less the earlier
+  // reading's nominal spot: what the earlier reading is moved by.
+  Eigen::Vector2d changeAt(const Earlier& e, const Joints& q, const PredictorState& change) const;
 
   CellModel cell_;
   Eigen::Vector3d centre_;
@@ -65,6 +91,8 @@ class SpotPredictor {
   PredictorState prior_ = PredictorState::Zero();
   PredictorState spread_;
   bool started_from_calibration_ = false;
+  std::vector<Earlier> earlier_;
+  PredictorState change_ = PredictorState::Zero();  // delta1..delta6 since the earlier session
 };
 
 }  // namespace zerocal::servo

@@ -87,6 +87,10 @@ class CalibrationRun {
   // controller: where the spot lands is then predicted from the first pose
   // (servo::SpotPredictor::startFrom). Unset for a calibration.
   std::optional<CalibrationParameters> found_before;
+  // The poses of the session this one re-measures (a check's, restore's or verification's
+  // reference; joints and readings): the plan's poses are their joints, and the spot is expected
+  // where that session read it (servo::SpotPredictor::expectReadingsOf). Empty for a calibration.
+  std::vector<Pose> earlier;
 
   // Called after each journalled pose (index, record); for progress display.
   std::function<void(const PoseRecord&)> on_pose;

@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/steady_timer.hpp>
@@ -16,6 +17,7 @@
 #include <random>
 #include <set>
 #include <sstream>
+#include <string_view>
 
 #include "zerocal/control/line_connection.h"
 #include "zerocal/control/listener.h"
@@ -40,6 +42,19 @@ namespace {
 
 constexpr const char* kCookieName = "zerocal_login";
 constexpr std::uintmax_t kMaxFileBytes = 4 << 20;
+// A session's reports: /sessions/ID/report.html and /sessions/ID/summary.txt, nothing else.
+constexpr std::string_view kSessionsPath = "/sessions/";
+constexpr std::array<std::string_view, 2> kReportFiles{"report.html", "summary.txt"};
+// report.html carries its plots inline: larger than a page file, but bounded all the same.
+constexpr std::uintmax_t kMaxReportBytes = 16 << 20;
+// The pages load nothing from elsewhere and may not be framed by another site.
+constexpr const char* kPagePolicy =
+    "default-src 'self'; frame-ancestors 'none'; base-uri 'none'; form-action 'self'";
+// A report is self-contained (inline CSS and SVG, no script): it may use its own styles and
+// nothing else, and runs sandboxed, as a document from elsewhere would.
+constexpr const char* kReportPolicy =
+    "default-src 'none'; style-src 'unsafe-inline'; img-src data:; frame-ancestors 'none'; "
+    "sandbox";
 
 std::string contentType(const fs::path& file) {
   const std::string ext = file.extension().string();
@@ -71,6 +86,19 @@ bool plainPath(const std::string& path) {
     if (!ok) return false;
   }
   return true;
+}
+
+// A session id as the session store makes them (20261122T073447Z; -002 and on for a second
+// session within the same second), checked character by character: nothing else names a folder.
+bool sessionIdLike(std::string_view id) {
+  if (id.size() != 16 && id.size() != 20) return false;
+  const auto digits = [&](std::size_t from, std::size_t to) {
+    for (std::size_t i = from; i < to; ++i)
+      if (id[i] < '0' || id[i] > '9') return false;
+    return true;
+  };
+  if (!digits(0, 8) || id[8] != 'T' || !digits(9, 15) || id[15] != 'Z') return false;
+  return id.size() == 16 || (id[16] == '-' && digits(17, 20));
 }
 
 std::string randomHex(std::size_t bytes) {
@@ -365,7 +393,56 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
     if (method != http::verb::get && method != http::verb::head)
       return send(text(http::status::method_not_allowed, "GET or HEAD\n", request.version(),
                        request.keep_alive()));
+    if (path.compare(0, kSessionsPath.size(), kSessionsPath) == 0)
+      return serveReport(request, path);
     serveFile(request, path);
+  }
+
+  // /sessions/ID/report.html or /sessions/ID/summary.txt of the configured sessions folder, to a
+  // logged-in browser only. The id is checked character by character and the file name is one
+  // of the two, so no path reaches the file system that the daemon did not make; a link in the
+  // folder that leads out of it is refused as well.
+  void serveReport(const Request& request, const std::string& path) {
+    if (!core_->loginLeft(cookieOf(request))) {
+      core_->log().warn("{} (web): refused a report without a valid login", peer_);
+      return send(text(http::status::unauthorized, "log in first (POST /api/login)\n",
+                       request.version(), request.keep_alive()));
+    }
+    const std::string rest = path.substr(kSessionsPath.size());
+    const auto slash = rest.find('/');
+    const std::string id = rest.substr(0, slash);
+    const std::string name = slash == std::string::npos ? "" : rest.substr(slash + 1);
+    if (!sessionIdLike(id) || name.find('/') != std::string::npos || !plainPath("/" + name)) {
+      core_->log().warn("{} (web): refused the path '{}'", peer_, target(request));
+      return send(text(http::status::bad_request,
+                       "not a session's report (/sessions/20261122T073447Z/report.html): " +
+                           target(request) + "\n",
+                       request.version(), request.keep_alive()));
+    }
+    if (std::find(kReportFiles.begin(), kReportFiles.end(), name) == kReportFiles.end())
+      return send(text(http::status::not_found,
+                       "a session has report.html and summary.txt here, nothing else\n",
+                       request.version(), request.keep_alive()));
+    std::error_code ec;
+    const fs::path folder = core_->options_.sessions_dir.empty()
+                                ? fs::path()
+                                : fs::canonical(core_->options_.sessions_dir, ec);
+    const auto real = folder.empty() ? std::nullopt : fileInside(folder, folder / id / name);
+    if (!real || fs::file_size(*real, ec) > kMaxReportBytes)
+      return send(text(http::status::not_found, "session " + id + " has no " + name + "\n",
+                       request.version(), request.keep_alive()));
+    sendFile(request, *real, kReportPolicy);
+  }
+
+  // `file` resolved, when it is a regular file inside `folder` (canonical) after every link.
+  static std::optional<fs::path> fileInside(const fs::path& folder, const fs::path& file) {
+    std::error_code ec;
+    const fs::path real = fs::canonical(file, ec);
+    if (ec) return std::nullopt;
+    const std::string prefix = folder.string() + "/";
+    if (real.string().compare(0, prefix.size(), prefix) != 0) return std::nullopt;
+    if (!fs::is_regular_file(real, ec)) return std::nullopt;
+    return real;
   }
 
   void serveFile(const Request& request, const std::string& path) {
@@ -376,25 +453,22 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
                        request.version(), request.keep_alive()));
     }
     std::error_code ec;
-    const fs::path file = fs::path(core_->root_) / name.substr(1);
     // A symbolic link inside the folder must not lead out of it either.
-    const fs::path real = fs::canonical(file, ec);
-    const std::string real_text = real.string();
-    const bool inside =
-        !ec && real_text.compare(0, core_->root_.size() + 1, core_->root_ + "/") == 0;
-    if (!inside || !fs::is_regular_file(real, ec) || fs::file_size(real, ec) > kMaxFileBytes)
+    const auto real = fileInside(core_->root_, fs::path(core_->root_) / name.substr(1));
+    if (!real || fs::file_size(*real, ec) > kMaxFileBytes)
       return send(text(http::status::not_found, "no such page: " + name + "\n", request.version(),
                        request.keep_alive()));
+    sendFile(request, *real, kPagePolicy);
+  }
+
+  void sendFile(const Request& request, const fs::path& real, const char* policy) {
     std::ifstream in(real, std::ios::binary);
     std::ostringstream body;
     body << in.rdbuf();
     auto response = text(http::status::ok, body.str(), request.version(), request.keep_alive(),
                          contentType(real).c_str());
     response.set(http::field::cache_control, "no-cache");
-    // The pages load nothing from elsewhere and may not be framed by another site.
-    response.set("Content-Security-Policy",
-                 "default-src 'self'; frame-ancestors 'none'; "
-                 "base-uri 'none'; form-action 'self'");
+    response.set("Content-Security-Policy", policy);
     response.set("Referrer-Policy", "no-referrer");
     if (request.method() == http::verb::head) {
       response.body().clear();

@@ -64,6 +64,17 @@ class WebServerTest : public ::testing::Test {
     fs::create_symlink(root_.parent_path() / ("zerocal-web-outside-" + std::to_string(::getpid())),
                        root_ / "escape.txt");
     options_.root = root_.string();
+    // A sessions folder beside it: one session with its reports, one whose report is a link to
+    // the file outside, and a result.json, which is not served.
+    sessions_ = root_.string() + "-sessions";
+    fs::create_directories(sessions_ / kSession);
+    std::ofstream(sessions_ / kSession / "report.html") << "<!doctype html><p>report of it</p>";
+    std::ofstream(sessions_ / kSession / "summary.txt") << "summary of it";
+    std::ofstream(sessions_ / kSession / "result.json") << "{}";
+    fs::create_directories(sessions_ / kLinkedSession);
+    fs::create_symlink(root_.parent_path() / ("zerocal-web-outside-" + std::to_string(::getpid())),
+                       sessions_ / kLinkedSession / "report.html");
+    options_.sessions_dir = sessions_.string();
     options_.port = 0;
     start();
   }
@@ -107,6 +118,7 @@ class WebServerTest : public ::testing::Test {
     stop();
     std::error_code ec;
     fs::remove_all(root_, ec);
+    fs::remove_all(sessions_, ec);
     fs::remove(root_.parent_path() / ("zerocal-web-outside-" + std::to_string(::getpid())), ec);
   }
 
@@ -215,7 +227,10 @@ class WebServerTest : public ::testing::Test {
     return n.get_future().get();
   }
 
+  static constexpr const char* kSession = "20261122T073447Z";
+  static constexpr const char* kLinkedSession = "20261122T073447Z-002";
   fs::path root_;
+  fs::path sessions_;
   WebOptions options_;
   asio::io_context io_;
   control::testing::FakeSession session_;
@@ -259,6 +274,68 @@ TEST_F(WebServerTest, PathTraversalIsRefusedBeforeTheFileSystemIsAsked) {
   expectOthersServedFast();
 }
 
+TEST_F(WebServerTest, ASessionsReportsAreServedToALoggedInBrowserOnly) {
+  const std::string report = std::string("/sessions/") + kSession + "/report.html";
+  const std::string summary = std::string("/sessions/") + kSession + "/summary.txt";
+  // Without a login (or with a login forgotten) nothing of a session is told.
+  for (const std::string& cookie : {std::string(), std::string("zerocal_login=0123")}) {
+    const Reply r = request(http::verb::get, report, {}, cookie);
+    EXPECT_EQ(r.result(), http::status::unauthorized) << cookie;
+    EXPECT_THAT(r.body(), ::testing::Not(HasSubstr("report of it")));
+  }
+  const std::string cookie = login();
+  const Reply html = request(http::verb::get, report, {}, cookie);
+  ASSERT_EQ(html.result(), http::status::ok);
+  EXPECT_EQ(html.body(), "<!doctype html><p>report of it</p>");
+  EXPECT_EQ(html[http::field::content_type], "text/html; charset=utf-8");
+  // Its own inline styles and nothing else: no script runs in it.
+  const std::string policy(html["Content-Security-Policy"]);
+  EXPECT_THAT(policy, HasSubstr("default-src 'none'"));
+  EXPECT_THAT(policy, HasSubstr("sandbox"));
+  EXPECT_THAT(policy, ::testing::Not(HasSubstr("script-src")));
+  const Reply text = request(http::verb::get, summary + "?v=1", {}, cookie);
+  EXPECT_EQ(text.result(), http::status::ok);
+  EXPECT_EQ(text.body(), "summary of it");
+  EXPECT_EQ(text[http::field::content_type], "text/plain; charset=utf-8");
+  // The other files of the folder, and sessions that are not there, are not found.
+  for (const std::string& path : {std::string("/sessions/") + kSession + "/result.json",
+                                  std::string("/sessions/") + kSession + "/report.htm",
+                                  std::string("/sessions/20261122T000000Z/report.html")}) {
+    EXPECT_EQ(request(http::verb::get, path, {}, cookie).result(), http::status::not_found) << path;
+  }
+  expectOthersServedFast();
+}
+
+TEST_F(WebServerTest, AReportPathLeadingOutOfTheSessionsFolderIsRefused) {
+  const std::string cookie = login();
+  for (const char* path :
+       {"/sessions/../index.html", "/sessions/..%2findex.html", "/sessions/%2e%2e/x/report.html",
+        "/sessions/20261122T073447Z/../../etc/passwd", "/sessions/20261122T073447Z/./report.html",
+        "/sessions/20261122T073447Z/.hidden", "/sessions//report.html",
+        "/sessions/20261122t073447z/report.html", "/sessions/2026112xT073447Z/report.html",
+        "/sessions/20261122T073447Z-02/report.html", "/sessions/20261122T073447Z%00/report.html",
+        "/sessions/20261122T073447Z\\..\\report.html", "/sessions/etc/passwd",
+        "/sessions/20261122T073447Z/report.html/x", "/sessions/20261122T073447Z"}) {
+    const Reply r = request(http::verb::get, path, {}, cookie);
+    EXPECT_EQ(r.result(), http::status::bad_request) << path;
+    EXPECT_THAT(r.body(), ::testing::Not(HasSubstr("root:")));
+  }
+  // A report that is a link to a file outside the sessions folder is not served.
+  const Reply linked = request(
+      http::verb::get, std::string("/sessions/") + kLinkedSession + "/report.html", {}, cookie);
+  EXPECT_EQ(linked.result(), http::status::not_found);
+  EXPECT_THAT(linked.body(), ::testing::Not(HasSubstr("outside")));
+  // Nor anything when the daemon names no sessions folder.
+  stop();
+  options_.sessions_dir.clear();
+  start();
+  EXPECT_EQ(
+      request(http::verb::get, std::string("/sessions/") + kSession + "/report.html", {}, login())
+          .result(),
+      http::status::not_found);
+  expectOthersServedFast();
+}
+
 TEST_F(WebServerTest, AWrongTokenIsRefusedAfterTheAuthFailureDelay) {
   const auto t0 = std::chrono::steady_clock::now();
   const Reply r = request(http::verb::post, "/api/login", json{{"token", "guess"}}.dump());
@@ -299,8 +376,7 @@ TEST_F(WebServerTest, BeyondMaxLoginsTheOldestIsForgotten) {
   options_.max_logins = 2;
   start();
   const std::string first = login(), second = login(), third = login();
-  EXPECT_EQ(request(http::verb::get, "/api/login", {}, first).result(),
-            http::status::unauthorized);
+  EXPECT_EQ(request(http::verb::get, "/api/login", {}, first).result(), http::status::unauthorized);
   EXPECT_EQ(request(http::verb::get, "/api/login", {}, second).result(), http::status::ok);
   EXPECT_EQ(request(http::verb::get, "/api/login", {}, third).result(), http::status::ok);
 }

@@ -29,6 +29,10 @@ struct WebOptions {
   // A login (the cookie the token was exchanged for) is good this long, then the browser asks for
   // the token again; open WebSockets of that login are closed when it expires.
   std::chrono::milliseconds session_lifetime{std::chrono::hours(8)};
+  // The daemon's session folders (session.data_dir; zerocald sets it, it is no key of the web
+  // section): a logged-in browser reads each session's report.html and summary.txt under
+  // /sessions/ID/. Empty: no reports are served.
+  std::string sessions_dir;
 
   // Not configuration keys: limits of the HTTP side (Beast's parser limits and deadlines).
   std::size_t max_header_bytes = 8 * 1024;  // a request's header, request line included

@@ -4,6 +4,7 @@
 import { drawTrend } from "./trend.js";
 
 export const OFFSETS = ["delta2_deg", "delta3_deg", "delta4_deg", "delta5_deg"];
+const LABELS = ["when", "session", "kind", "verdict", "delta2", "delta3", "delta4", "delta5", "events"];
 
 function when(session) {
   return session.finished_unix_s ?? session.started_unix_s ?? null;
@@ -75,7 +76,7 @@ export class HistoryPage {
         t: when(s), value: s.offsets?.[name]?.value ?? null, sigma: s.offsets?.[name]?.sigma ?? null,
         kind: s.kind, session: s.session,
       }));
-      drawTrend(svg, points, events, name.replace("_deg", ""));
+      drawTrend(svg, points, events);
     }
   }
 
@@ -85,7 +86,7 @@ export class HistoryPage {
     const t = when(s);
     const cells = [
       [t === null ? "–" : new Date(t * 1000).toISOString().slice(0, 16).replace("T", " "), "when"],
-      [s.session, "id"], [s.kind + (s.verifies ? ` of ${s.verifies}` : ""), "kind"],
+      [s.session, "id"], [s.kind, "kind"],
       [verdictText(s), "verdict-cell " + (s.usable ? "usable" : s.usable === false ? "not-usable" : "")],
       ...OFFSETS.map((name) => [offsetText(s.offsets?.[name]), "offset " + (s.offsets?.[name] ? "" : "withheld")]),
       [(s.events || []).map(eventText).join("; ") || "–", "events"],
@@ -94,8 +95,10 @@ export class HistoryPage {
       const td = document.createElement("td");
       td.textContent = text;
       td.className = cls;
+      td.dataset.label = LABELS[tr.cells.length];  // the header's, for the phone's cards
       tr.append(td);
     }
+    tr.cells[2].title = s.verifies ? `the verification of ${s.verifies}'s apply` : "";
     return tr;
   }
 }

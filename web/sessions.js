@@ -3,6 +3,7 @@
 // `result` command) and links to the report and summary the daemon serves under /sessions/ID/.
 
 export const PAGE_SIZE = 20;
+const LABELS = ["session", "kind", "verdict", "poses"];
 
 // What one session's row says, from its `sessions` entry and, when finished, its `result`.
 export function describe(entry, result) {
@@ -70,6 +71,7 @@ export class SessionsPage {
       const td = document.createElement("td");
       td.textContent = text;
       td.className = cls;
+      td.dataset.label = LABELS[tr.cells.length];  // the header's, for the phone's cards
       tr.append(td);
     }
     const links = document.createElement("td");

@@ -4,8 +4,10 @@
 // applies and rollbacks as vertical lines at their time.
 
 const SVG = "http://www.w3.org/2000/svg";
-const WIDTH = 600, HEIGHT = 220;
-const LEFT = 70, RIGHT = 16, TOP = 14, BOTTOM = 34;
+// In the SVG's own units; it is drawn about this wide on a tablet's column and on a phone, so
+// that its text stays readable on both.
+const WIDTH = 360, HEIGHT = 190;
+const LEFT = 50, RIGHT = 10, TOP = 10, BOTTOM = 30;
 export const BAR_SIGMAS = 3;
 
 function node(name, attributes, text) {
@@ -27,12 +29,12 @@ export function ticks(lo, hi, count = 4) {
 }
 
 function dateLabel(t) {
-  return new Date(t * 1000).toISOString().slice(0, 16).replace("T", " ");
+  return new Date(t * 1000).toISOString().slice(0, 16).replace("T", " ");  // UTC, to the minute
 }
 
 // points: [{t (s since the epoch), value (deg) or null when withheld, sigma, kind, session}];
 // events: [{t, kind, outcome}]. Replaces the SVG's content.
-export function drawTrend(svg, points, events = [], name = "") {
+export function drawTrend(svg, points, events = []) {
   svg.replaceChildren();
   svg.setAttribute("viewBox", `0 0 ${WIDTH} ${HEIGHT}`);
   const valued = points.filter((p) => typeof p.value === "number");
@@ -50,14 +52,18 @@ export function drawTrend(svg, points, events = [], name = "") {
   const bottom = HEIGHT - BOTTOM;
 
   svg.append(node("rect", { class: "frame", x: LEFT, y: TOP, width: WIDTH - LEFT - RIGHT, height: bottom - TOP }));
-  for (const v of ticks(lo, hi)) {
+  const marks = ticks(lo, hi);
+  // As many decimals as the step needs: 0.5, or 0.0005.
+  const step = marks.length > 1 ? marks[1] - marks[0] : Math.abs(hi - lo) || 1;
+  const decimals = Math.min(6, Math.max(0, -Math.floor(Math.log10(step) + 1e-9)));
+  for (const v of marks) {
     svg.append(node("line", { class: "grid", x1: LEFT, x2: WIDTH - RIGHT, y1: y(v), y2: y(v) }));
-    svg.append(node("text", { class: "tick", x: LEFT - 6, y: y(v) + 4, "text-anchor": "end" }, v.toFixed(4)));
+    const label = (Math.abs(v) < step * 1e-6 ? 0 : v).toFixed(decimals);
+    svg.append(node("text", { class: "tick", x: LEFT - 4, y: y(v) + 4, "text-anchor": "end" }, label));
   }
   if (lo < 0 && hi > 0) svg.append(node("line", { class: "zero", x1: LEFT, x2: WIDTH - RIGHT, y1: y(0), y2: y(0) }));
-  svg.append(node("text", { class: "tick", x: LEFT, y: HEIGHT - 8 }, dateLabel(t0)));
-  svg.append(node("text", { class: "tick", x: WIDTH - RIGHT, y: HEIGHT - 8, "text-anchor": "end" }, dateLabel(t1)));
-  svg.append(node("text", { class: "axis", x: 14, y: TOP + (bottom - TOP) / 2, transform: `rotate(-90 14 ${TOP + (bottom - TOP) / 2})`, "text-anchor": "middle" }, `${name} (deg)`));
+  svg.append(node("text", { class: "tick", x: LEFT, y: HEIGHT - 10 }, dateLabel(t0)));
+  svg.append(node("text", { class: "tick", x: WIDTH - RIGHT, y: HEIGHT - 10, "text-anchor": "end" }, dateLabel(t1)));
 
   for (const e of events) {
     if (typeof e.t !== "number") continue;
@@ -68,14 +74,14 @@ export function drawTrend(svg, points, events = [], name = "") {
   for (const p of points) {
     if (typeof p.t !== "number") continue;
     if (typeof p.value !== "number") {
-      const mark = node("circle", { class: "withheld", cx: x(p.t), cy: bottom, r: 5, "data-session": p.session });
+      const mark = node("circle", { class: "withheld", cx: x(p.t), cy: bottom, r: 4, "data-session": p.session });
       mark.append(node("title", {}, `${p.session} ${p.kind}: withheld`));
       svg.append(mark);
       continue;
     }
     const g = node("g", { class: `sample ${p.kind}` });
     g.append(node("line", { class: "bar", x1: x(p.t), x2: x(p.t), y1: y(p.value - bar(p)), y2: y(p.value + bar(p)) }));
-    const point = node("circle", { class: "point", cx: x(p.t), cy: y(p.value), r: 5, "data-session": p.session });
+    const point = node("circle", { class: "point", cx: x(p.t), cy: y(p.value), r: 4, "data-session": p.session });
     point.append(node("title", {}, `${p.session} ${p.kind}: ${p.value.toFixed(4)} ± ${bar(p).toFixed(4)} deg (3 sigma)`));
     g.append(point);
     svg.append(g);

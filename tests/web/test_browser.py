@@ -236,10 +236,13 @@ def run(driver, base, token, relay, restart, screenshots):
             return
         os.makedirs(screenshots, exist_ok=True)
         for size, (width, height) in (("tablet", (1280, 800)), ("phone", (390, 844))):
-            driver.set_window_size(width, height)
+            # The viewport itself at that size (a window's size includes its frame).
+            driver.execute_cdp_cmd("Emulation.setDeviceMetricsOverride", {
+                "width": width, "height": height, "deviceScaleFactor": 1,
+                "mobile": size == "phone"})
             time.sleep(0.2)  # the layout settles
             driver.save_screenshot(os.path.join(screenshots, f"{name}-{size}.png"))
-        driver.set_window_size(1280, 800)
+        driver.execute_cdp_cmd("Emulation.clearDeviceMetricsOverride", {})
 
     def layout_fits(size):
         overflow = driver.execute_script(

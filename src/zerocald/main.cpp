@@ -336,8 +336,9 @@ int main(int argc, char** argv) {
     std::string serving = "serving " + cfg.control.bind_address + ":" +
                           std::to_string(server.port()) + " (" + backend->name() + " cell)";
     if (web_server)
-      serving += ", web terminal http://" + cfg.web.bind_address + ":" +
-                 std::to_string(web_server->port()) + "/";
+      serving += std::string(", web terminal ") +
+                 (cfg.web.tls_certificate.empty() ? "http://" : "https://") + cfg.web.bind_address +
+                 ":" + std::to_string(web_server->port()) + "/";
     notifyReady(serving);
     std::optional<Watchdog> watchdog;
     if (const auto interval = watchdogInterval()) {

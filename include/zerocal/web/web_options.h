@@ -19,9 +19,13 @@ struct WebOptions {
   std::optional<bool> enabled;
   std::string bind_address = "127.0.0.1";
   std::uint16_t port = kDefaultWebPort;  // 0: any free port (tests; port() tells which)
-  // There is no TLS yet: an address other than loopback is refused unless the configuration says
-  // that the network between the browsers and the cell PC is trusted.
+  // Without TLS an address other than loopback is refused unless the configuration says that
+  // the network between the browsers and the cell PC is trusted.
   bool trusted_network = false;
+  // TLS: the certificate (PEM, its chain after it) and its private key (PEM, unencrypted). Both
+  // set: the terminal is served over HTTPS and WSS only, on any address; neither: plain HTTP.
+  std::string tls_certificate;
+  std::string tls_key;
   // The page files (index.html, ...). Empty: <the program's folder>/../share/zerocal/web, where
   // both the build tree (build/share/zerocal/web) and the package (/usr/share/zerocal/web) have
   // them (defaultWebRoot()).

@@ -5,6 +5,7 @@ packages=(
   build-essential cmake ninja-build pkg-config git
   libeigen3-dev libceres-dev libboost-dev libyaml-cpp-dev nlohmann-json3-dev libcli11-dev
   libspdlog-dev libfmt-dev libusb-1.0-0-dev libsqlite3-dev
+  libssl-dev openssl  # the web terminal's TLS, and the test's self-signed certificate
   libgtest-dev libgmock-dev libbenchmark-dev umockdev libumockdev-dev
   zlib1g-dev chromium
   chromium-driver python3-selenium  # the web terminal's browser test (tests/web/test_browser.py)

@@ -3,6 +3,8 @@
 // shown as the daemon words it (error.message), never rephrased.
 import { Connection, logIn, loggedIn, logOut } from "./connection.js";
 import { drawSpot } from "./detector.js";
+import { SessionsPage } from "./sessions.js";
+import { HistoryPage } from "./history.js";
 
 const $ = (id) => document.getElementById(id);
 const OFFSETS = ["delta2_deg", "delta3_deg", "delta4_deg", "delta5_deg"];
@@ -238,6 +240,21 @@ async function openResult() {
   render();
 }
 
+// A call whose failure to reach the daemon is answered like a refusal, in the same shape.
+function ask(cmd, members) {
+  return connection.call(cmd, members).catch((e) => ({ ok: false, error: { code: "link", message: e.message } }));
+}
+
+const sessionsPage = new SessionsPage({
+  call: ask, table: $("sessions-table"), summary: $("sessions-summary"), error: $("sessions-error"),
+  newer: $("sessions-newer"), older: $("sessions-older"),
+});
+
+const historyPage = new HistoryPage({
+  call: ask, robotSelect: $("history-robot"), robotLine: $("history-robot-line"),
+  table: $("history-table"), plots: $("history-plots"), error: $("history-error"),
+});
+
 async function call(cmd, members, errorId) {
   $(errorId).textContent = "";
   const r = await connection.call(cmd, members).catch((e) => ({ ok: false, error: { code: "link", message: e.message } }));
@@ -284,6 +301,18 @@ $("start-confirm").addEventListener("click", async () => {
   if (r.ok) { chosen = "cell"; refreshStatus(); }
 });
 $("to-result").addEventListener("click", openResult);
+$("to-sessions").addEventListener("click", () => {
+  chosen = "sessions";
+  render();
+  sessionsPage.open();
+});
+$("sessions-back").addEventListener("click", () => { chosen = "cell"; render(); });
+$("to-history").addEventListener("click", () => {
+  chosen = "history";
+  render();
+  historyPage.open();
+});
+$("history-back").addEventListener("click", () => { chosen = "cell"; render(); });
 $("result-back").addEventListener("click", () => { chosen = "cell"; render(); });
 $("to-apply").addEventListener("click", () => {
   chosen = "apply";
@@ -314,4 +343,6 @@ $("logout").addEventListener("click", async () => {
     show("login");
     if (state === "unreachable") $("login-error").textContent = "the cell does not answer";
   }
+  // The first page can be used from here on (docs/web.md, "Load and latency" measures it).
+  performance.mark("zerocal-usable");
 })();

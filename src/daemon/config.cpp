@@ -141,6 +141,8 @@ std::vector<Field> schema(DaemonConfig& c) {
   f.push_back(choiceField<bool>("web.trusted_network", w.trusted_network,
                                 {{"false", false}, {"true", true}}));
   f.push_back(pathField("web.root", w.root));
+  f.push_back(pathField("web.tls_certificate", w.tls_certificate));
+  f.push_back(pathField("web.tls_key", w.tls_key));
   f.push_back(secondsField("web.session_lifetime_s", w.session_lifetime));
 
   f.push_back(choiceField("logging.level", c.logging.level, kLevels));
@@ -431,13 +433,19 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
   const auto web_address = boost::asio::ip::make_address(w.bind_address, ec);
   if (ec)
     check.fail("web.bind_address", "'" + w.bind_address + "' is not an IP address");
-  else if (!web_address.is_loopback() && !w.trusted_network)
+  else if (!web_address.is_loopback() && w.tls_certificate.empty() && !w.trusted_network)
     check.fail("web.bind_address",
                w.bind_address +
-                   " is reachable from other machines, and the web terminal has no TLS yet (a "
-                   "later step): the token and the login cookie would cross the network in "
-                   "clear. Keep 127.0.0.1 (reach it through an SSH tunnel, docs/web.md), or set "
-                   "web.trusted_network: true for a network only the cell's terminals are on");
+                   " is reachable from other machines, and the web terminal has no TLS: the "
+                   "token and the login cookie would cross the network in clear. Set "
+                   "web.tls_certificate and web.tls_key, keep 127.0.0.1 (reach it through an "
+                   "SSH tunnel, docs/web.md), or set web.trusted_network: true for a network "
+                   "only the cell's terminals are on");
+  if (w.tls_certificate.empty() != w.tls_key.empty())
+    check.fail(w.tls_key.empty() ? "web.tls_key" : "web.tls_certificate",
+               "web.tls_certificate and web.tls_key go together: TLS needs both");
+  if (!w.tls_certificate.empty()) check.fileExists("web.tls_certificate", w.tls_certificate);
+  if (!w.tls_key.empty()) check.fileExists("web.tls_key", w.tls_key);
   if (webEnabled(c) && w.port != 0 && w.port == o.port && w.bind_address == o.bind_address)
     check.fail("web.port", std::to_string(w.port) + " is control.port's as well");
   // Under a minute a technician would be asked for the token during a session.

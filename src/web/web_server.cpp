@@ -3,11 +3,14 @@
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/ssl.hpp>
 #include <boost/asio/steady_timer.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
+#include <boost/beast/ssl.hpp>
 #include <boost/beast/websocket.hpp>
 #include <filesystem>
 #include <fstream>
@@ -16,6 +19,7 @@
 #include <random>
 #include <set>
 #include <sstream>
+#include <string_view>
 
 #include "zerocal/control/line_connection.h"
 #include "zerocal/control/listener.h"
@@ -35,11 +39,26 @@ using nlohmann::json;
 using Clock = std::chrono::steady_clock;
 using Request = http::request<http::string_body>;
 using Response = http::response<http::string_body>;
+using PlainStream = beast::tcp_stream;
+using TlsStream = beast::ssl_stream<beast::tcp_stream>;
 
 namespace {
 
 constexpr const char* kCookieName = "zerocal_login";
 constexpr std::uintmax_t kMaxFileBytes = 4 << 20;
+// A session's reports: /sessions/ID/report.html and /sessions/ID/summary.txt, nothing else.
+constexpr std::string_view kSessionsPath = "/sessions/";
+constexpr std::array<std::string_view, 2> kReportFiles{"report.html", "summary.txt"};
+// report.html carries its plots inline: larger than a page file, but bounded all the same.
+constexpr std::uintmax_t kMaxReportBytes = 16 << 20;
+// The pages load nothing from elsewhere and may not be framed by another site.
+constexpr const char* kPagePolicy =
+    "default-src 'self'; frame-ancestors 'none'; base-uri 'none'; form-action 'self'";
+// A report is self-contained (inline CSS and SVG, no script): it may use its own styles and
+// nothing else, and runs sandboxed, as a document from elsewhere would.
+constexpr const char* kReportPolicy =
+    "default-src 'none'; style-src 'unsafe-inline'; img-src data:; frame-ancestors 'none'; "
+    "sandbox";
 
 std::string contentType(const fs::path& file) {
   const std::string ext = file.extension().string();
@@ -73,6 +92,19 @@ bool plainPath(const std::string& path) {
   return true;
 }
 
+// A session id as the session store makes them (20261122T073447Z; -002 and on for a second
+// session within the same second), checked character by character: nothing else names a folder.
+bool sessionIdLike(std::string_view id) {
+  if (id.size() != 16 && id.size() != 20) return false;
+  const auto digits = [&](std::size_t from, std::size_t to) {
+    for (std::size_t i = from; i < to; ++i)
+      if (id[i] < '0' || id[i] > '9') return false;
+    return true;
+  };
+  if (!digits(0, 8) || id[8] != 'T' || !digits(9, 15) || id[15] != 'Z') return false;
+  return id.size() == 16 || (id[16] == '-' && digits(17, 20));
+}
+
 std::string randomHex(std::size_t bytes) {
   std::random_device device;  // getrandom(2) on Linux: unpredictable
   static const char* kDigits = "0123456789abcdef";
@@ -103,18 +135,22 @@ std::string cookieOf(const Request& request) {
 
 // A page's script or a WebSocket opened by another site's page carries that site's Origin; the
 // browser never lets a page forge it. Only the terminal's own pages may use a login.
-bool sameOrigin(const Request& request, bool required) {
+bool sameOrigin(const Request& request, bool required, bool tls) {
   const auto origin = request.find(http::field::origin);
   if (origin == request.end()) return !required;
   const auto host = request.find(http::field::host);
   if (host == request.end()) return false;
-  return origin->value() == "http://" + std::string(host->value());
+  return origin->value() == (tls ? "https://" : "http://") + std::string(host->value());
 }
 
 }  // namespace
 
-class HttpConnection;
-class WsConnection;
+// An HTTP connection, plain or TLS, as the core closes it.
+class HttpLink {
+ public:
+  virtual ~HttpLink() = default;
+  virtual void close() = 0;
+};
 
 class WebCore : public std::enable_shared_from_this<WebCore> {
  public:
@@ -139,18 +175,22 @@ class WebCore : public std::enable_shared_from_this<WebCore> {
   const WebOptions options_;
   std::string root_;  // canonical
   std::shared_ptr<control::Listener> listener_;
-  std::set<std::shared_ptr<HttpConnection>> http_;
-  std::set<std::shared_ptr<WsConnection>> ws_;
+  std::set<std::shared_ptr<HttpLink>> http_;
+  std::set<std::shared_ptr<control::LineConnection>> ws_;
+  // Present when web.tls_certificate and web.tls_key are set: every connection is TLS.
+  std::optional<asio::ssl::context> tls_;
   std::map<std::string, Clock::time_point> logins_;
   bool stopped_ = false;
   std::uint16_t port_ = 0;
 };
 
-// The control protocol over a WebSocket: one line per text message, without its '\n'.
+// The control protocol over a WebSocket: one line per text message, without its '\n'. Stream:
+// PlainStream or TlsStream.
+template <class Stream>
 class WsConnection : public control::LineConnection {
  public:
-  WsConnection(std::shared_ptr<WebCore> core, beast::tcp_stream stream, std::string peer,
-               std::string address, std::string cookie)
+  WsConnection(std::shared_ptr<WebCore> core, Stream stream, std::string peer, std::string address,
+               std::string cookie)
       : LineConnection(core->hub_, std::move(peer), std::move(address)),
         core_(std::move(core)),
         ws_(std::move(stream)),
@@ -224,7 +264,7 @@ class WsConnection : public control::LineConnection {
   }
 
   std::shared_ptr<WebCore> core_;
-  websocket::stream<beast::tcp_stream> ws_;
+  websocket::stream<Stream> ws_;
   beast::flat_buffer buffer_;
   std::string cookie_;
   bool write_pending_ = false;
@@ -232,39 +272,61 @@ class WsConnection : public control::LineConnection {
 
 // One HTTP connection: requests one at a time (keep-alive), each within Beast's header and body
 // limits and the request deadline; an upgrade to /ws hands the connection to a WsConnection.
-class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
+// Stream: PlainStream, or TlsStream, whose handshake comes first, within the request deadline.
+template <class Stream>
+class HttpConnection : public HttpLink,
+                       public std::enable_shared_from_this<HttpConnection<Stream>> {
+  static constexpr bool kTls = std::is_same_v<Stream, TlsStream>;
+
  public:
-  HttpConnection(std::shared_ptr<WebCore> core, tcp::socket socket)
-      : core_(std::move(core)), stream_(std::move(socket)), delay_(core_->io_) {
+  HttpConnection(std::shared_ptr<WebCore> core, Stream stream)
+      : core_(std::move(core)), stream_(std::move(stream)), delay_(core_->io_) {
     beast::error_code ec;
-    const auto endpoint = stream_.socket().remote_endpoint(ec);
+    const auto endpoint = tcpLayer().socket().remote_endpoint(ec);
     address_ = ec ? std::string("?") : endpoint.address().to_string();
     peer_ = ec ? address_ : address_ + ":" + std::to_string(endpoint.port());
   }
 
-  void start() { read(); }
+  void start() {
+    if constexpr (kTls) {
+      tcpLayer().expires_after(core_->options_.request_timeout);
+      stream_.async_handshake(
+          asio::ssl::stream_base::server, [self = this->shared_from_this()](beast::error_code ec) {
+            if (self->closed_) return;
+            if (ec) {
+              self->core_->log().info("{} (web): no TLS handshake: {}", self->peer_, ec.message());
+              return self->close();
+            }
+            self->read();
+          });
+    } else {
+      read();
+    }
+  }
 
-  void close() {
+  void close() override {
     if (closed_) return;
     closed_ = true;
     delay_.cancel();
     beast::error_code ec;
-    stream_.socket().shutdown(tcp::socket::shutdown_both, ec);
-    stream_.close();
-    core_->http_.erase(shared_from_this());
+    tcpLayer().socket().shutdown(tcp::socket::shutdown_both, ec);
+    tcpLayer().close();
+    core_->http_.erase(this->shared_from_this());
   }
 
  private:
+  beast::tcp_stream& tcpLayer() { return beast::get_lowest_layer(stream_); }
+
   void read() {
     if (closed_) return;
     parser_.emplace();
     parser_->header_limit(static_cast<std::uint32_t>(core_->options_.max_header_bytes));
     parser_->body_limit(core_->options_.max_body_bytes);
     buffer_.clear();
-    stream_.expires_after(core_->options_.request_timeout);
+    tcpLayer().expires_after(core_->options_.request_timeout);
     http::async_read(
         stream_, buffer_, *parser_,
-        [self = shared_from_this()](beast::error_code ec, std::size_t) { self->onRead(ec); });
+        [self = this->shared_from_this()](beast::error_code ec, std::size_t) { self->onRead(ec); });
   }
 
   void onRead(beast::error_code ec) {
@@ -289,9 +351,9 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
   void fail(http::status status, const std::string& why) {
     core_->log().info("{} (web): {} {}", peer_, static_cast<int>(status), why);
     auto shared = std::make_shared<Response>(text(status, why + "\n", 11, false));
-    stream_.expires_after(core_->options_.request_timeout);
+    tcpLayer().expires_after(core_->options_.request_timeout);
     http::async_write(stream_, *shared,
-                      [self = shared_from_this(), shared](beast::error_code ec, std::size_t) {
+                      [self = this->shared_from_this(), shared](beast::error_code ec, std::size_t) {
                         if (ec) return self->close();
                         self->drain();
                       });
@@ -303,18 +365,18 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
   void drain() {
     if (closed_) return;
     beast::error_code ec;
-    stream_.socket().shutdown(tcp::socket::shutdown_send, ec);
-    stream_.expires_after(std::chrono::seconds(1));  // the whole drain, not each read
+    tcpLayer().socket().shutdown(tcp::socket::shutdown_send, ec);
+    tcpLayer().expires_after(std::chrono::seconds(1));  // the whole drain, not each read
     drainMore(std::make_shared<std::array<char, 4096>>());
   }
 
   void drainMore(std::shared_ptr<std::array<char, 4096>> scratch) {
     if (closed_) return;
-    stream_.async_read_some(asio::buffer(*scratch),
-                            [self = shared_from_this(), scratch](beast::error_code e, std::size_t) {
-                              if (e) return self->close();
-                              self->drainMore(scratch);
-                            });
+    stream_.async_read_some(asio::buffer(*scratch), [self = this->shared_from_this(), scratch](
+                                                        beast::error_code e, std::size_t) {
+      if (e) return self->close();
+      self->drainMore(scratch);
+    });
   }
 
   Response text(http::status status, std::string body, unsigned version, bool keep_alive,
@@ -337,9 +399,9 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
 
   void send(Response response) {
     auto shared = std::make_shared<Response>(std::move(response));
-    stream_.expires_after(core_->options_.request_timeout);
+    tcpLayer().expires_after(core_->options_.request_timeout);
     http::async_write(stream_, *shared,
-                      [self = shared_from_this(), shared](beast::error_code ec, std::size_t) {
+                      [self = this->shared_from_this(), shared](beast::error_code ec, std::size_t) {
                         if (ec || shared->need_eof()) return self->close();
                         self->read();
                       });
@@ -365,7 +427,56 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
     if (method != http::verb::get && method != http::verb::head)
       return send(text(http::status::method_not_allowed, "GET or HEAD\n", request.version(),
                        request.keep_alive()));
+    if (path.compare(0, kSessionsPath.size(), kSessionsPath) == 0)
+      return serveReport(request, path);
     serveFile(request, path);
+  }
+
+  // /sessions/ID/report.html or /sessions/ID/summary.txt of the configured sessions folder, to a
+  // logged-in browser only. The id is checked character by character and the file name is one
+  // of the two, so no path reaches the file system that the daemon did not make; a link in the
+  // folder that leads out of it is refused as well.
+  void serveReport(const Request& request, const std::string& path) {
+    if (!core_->loginLeft(cookieOf(request))) {
+      core_->log().warn("{} (web): refused a report without a valid login", peer_);
+      return send(text(http::status::unauthorized, "log in first (POST /api/login)\n",
+                       request.version(), request.keep_alive()));
+    }
+    const std::string rest = path.substr(kSessionsPath.size());
+    const auto slash = rest.find('/');
+    const std::string id = rest.substr(0, slash);
+    const std::string name = slash == std::string::npos ? "" : rest.substr(slash + 1);
+    if (!sessionIdLike(id) || name.find('/') != std::string::npos || !plainPath("/" + name)) {
+      core_->log().warn("{} (web): refused the path '{}'", peer_, target(request));
+      return send(text(http::status::bad_request,
+                       "not a session's report (/sessions/20261122T073447Z/report.html): " +
+                           target(request) + "\n",
+                       request.version(), request.keep_alive()));
+    }
+    if (std::find(kReportFiles.begin(), kReportFiles.end(), name) == kReportFiles.end())
+      return send(text(http::status::not_found,
+                       "a session has report.html and summary.txt here, nothing else\n",
+                       request.version(), request.keep_alive()));
+    std::error_code ec;
+    const fs::path folder = core_->options_.sessions_dir.empty()
+                                ? fs::path()
+                                : fs::canonical(core_->options_.sessions_dir, ec);
+    const auto real = folder.empty() ? std::nullopt : fileInside(folder, folder / id / name);
+    if (!real || fs::file_size(*real, ec) > kMaxReportBytes)
+      return send(text(http::status::not_found, "session " + id + " has no " + name + "\n",
+                       request.version(), request.keep_alive()));
+    sendFile(request, *real, kReportPolicy);
+  }
+
+  // `file` resolved, when it is a regular file inside `folder` (canonical) after every link.
+  static std::optional<fs::path> fileInside(const fs::path& folder, const fs::path& file) {
+    std::error_code ec;
+    const fs::path real = fs::canonical(file, ec);
+    if (ec) return std::nullopt;
+    const std::string prefix = folder.string() + "/";
+    if (real.string().compare(0, prefix.size(), prefix) != 0) return std::nullopt;
+    if (!fs::is_regular_file(real, ec)) return std::nullopt;
+    return real;
   }
 
   void serveFile(const Request& request, const std::string& path) {
@@ -376,25 +487,22 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
                        request.version(), request.keep_alive()));
     }
     std::error_code ec;
-    const fs::path file = fs::path(core_->root_) / name.substr(1);
     // A symbolic link inside the folder must not lead out of it either.
-    const fs::path real = fs::canonical(file, ec);
-    const std::string real_text = real.string();
-    const bool inside =
-        !ec && real_text.compare(0, core_->root_.size() + 1, core_->root_ + "/") == 0;
-    if (!inside || !fs::is_regular_file(real, ec) || fs::file_size(real, ec) > kMaxFileBytes)
+    const auto real = fileInside(core_->root_, fs::path(core_->root_) / name.substr(1));
+    if (!real || fs::file_size(*real, ec) > kMaxFileBytes)
       return send(text(http::status::not_found, "no such page: " + name + "\n", request.version(),
                        request.keep_alive()));
+    sendFile(request, *real, kPagePolicy);
+  }
+
+  void sendFile(const Request& request, const fs::path& real, const char* policy) {
     std::ifstream in(real, std::ios::binary);
     std::ostringstream body;
     body << in.rdbuf();
     auto response = text(http::status::ok, body.str(), request.version(), request.keep_alive(),
                          contentType(real).c_str());
     response.set(http::field::cache_control, "no-cache");
-    // The pages load nothing from elsewhere and may not be framed by another site.
-    response.set("Content-Security-Policy",
-                 "default-src 'self'; frame-ancestors 'none'; "
-                 "base-uri 'none'; form-action 'self'");
+    response.set("Content-Security-Policy", policy);
     response.set("Referrer-Policy", "no-referrer");
     if (request.method() == http::verb::head) {
       response.body().clear();
@@ -418,7 +526,8 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
   }
 
   void login(const Request& request) {
-    if (!sameOrigin(request, false)) return forbidden(request, "a login from another site's page");
+    if (!sameOrigin(request, false, kTls))
+      return forbidden(request, "a login from another site's page");
     std::string token;
     try {
       // The control port's reader: its nesting limit holds here too.
@@ -442,7 +551,7 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
       // The answer waits, as on the TCP port, so that guessing costs time; nothing is read
       // meanwhile.
       delay_.expires_after(options.auth_failure_delay);
-      delay_.async_wait([self = shared_from_this(),
+      delay_.async_wait([self = this->shared_from_this(),
                          response = std::move(response)](boost::system::error_code ec) mutable {
         if (ec || self->closed_) return;
         self->send(std::move(response));
@@ -458,12 +567,14 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
         jsonResponse(request, http::status::ok, {{"ok", true}, {"expires_in_s", lifetime_s}});
     response.set(http::field::set_cookie,
                  std::string(kCookieName) + "=" + cookie +
-                     "; Path=/; HttpOnly; SameSite=Strict; Max-Age=" + std::to_string(lifetime_s));
+                     "; Path=/; HttpOnly; SameSite=Strict; Max-Age=" + std::to_string(lifetime_s) +
+                     (kTls ? "; Secure" : ""));
     send(std::move(response));
   }
 
   void logout(const Request& request) {
-    if (!sameOrigin(request, false)) return forbidden(request, "a logout from another site's page");
+    if (!sameOrigin(request, false, kTls))
+      return forbidden(request, "a logout from another site's page");
     core_->logout(cookieOf(request));
     auto response = jsonResponse(request, http::status::ok, {{"ok", true}});
     response.set(http::field::set_cookie,
@@ -481,7 +592,8 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
     if (path != "/ws")
       return send(text(http::status::not_found, "no WebSocket at " + path + "\n", request.version(),
                        false));
-    if (!sameOrigin(request, true)) return forbidden(request, "a WebSocket from another origin");
+    if (!sameOrigin(request, true, kTls))
+      return forbidden(request, "a WebSocket from another origin");
     const std::string cookie = cookieOf(request);
     if (!core_->loginLeft(cookie)) {
       core_->log().warn("{} (web): refused a WebSocket without a valid login", peer_);
@@ -491,15 +603,15 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
     if (core_->hub_->stopped()) return close();
     closed_ = true;  // the socket is the WebSocket's now
     delay_.cancel();
-    auto self = shared_from_this();
+    auto self = this->shared_from_this();
     core_->http_.erase(self);
-    auto ws = std::make_shared<WsConnection>(core_, std::move(stream_), peer_ + " (web)", address_,
-                                             cookie);
+    auto ws = std::make_shared<WsConnection<Stream>>(core_, std::move(stream_), peer_ + " (web)",
+                                                     address_, cookie);
     ws->accept(request);
   }
 
   std::shared_ptr<WebCore> core_;
-  beast::tcp_stream stream_;
+  Stream stream_;
   beast::flat_buffer buffer_;
   std::optional<http::request_parser<http::string_body>> parser_;
   asio::steady_timer delay_;
@@ -539,7 +651,8 @@ std::optional<Clock::duration> WebCore::loginLeft(const std::string& cookie) {
 
 void WebCore::start() {
   port_ = listener_->listen(options_.bind_address, options_.port);
-  log().info("web terminal listening on http://{}:{}/", options_.bind_address, port_);
+  log().info("web terminal listening on {}://{}:{}/", tls_ ? "https" : "http",
+             options_.bind_address, port_);
   listener_->accept([self = shared_from_this()](tcp::socket socket) {
     if (self->stopped_) return;
     if (self->http_.size() + self->ws_.size() >= self->options_.max_connections) {
@@ -549,9 +662,17 @@ void WebCore::start() {
       socket.close(e);
       return;
     }
-    auto connection = std::make_shared<HttpConnection>(self, std::move(socket));
-    self->http_.insert(connection);
-    connection->start();
+    if (self->tls_) {
+      auto connection = std::make_shared<HttpConnection<TlsStream>>(
+          self, TlsStream(PlainStream(std::move(socket)), *self->tls_));
+      self->http_.insert(connection);
+      connection->start();
+    } else {
+      auto connection =
+          std::make_shared<HttpConnection<PlainStream>>(self, PlainStream(std::move(socket)));
+      self->http_.insert(connection);
+      connection->start();
+    }
   });
 }
 
@@ -579,10 +700,31 @@ WebServer::WebServer(asio::io_context& io, std::shared_ptr<control::ProtocolHub>
   boost::system::error_code ec;
   const auto address = asio::ip::make_address(options.bind_address, ec);
   if (ec) throw Error("web.bind_address '" + options.bind_address + "' is not an IP address");
-  if (!address.is_loopback() && !options.trusted_network)
+  const bool tls = !options.tls_certificate.empty() || !options.tls_key.empty();
+  if (!address.is_loopback() && !tls && !options.trusted_network)
     throw Error("web.bind_address " + options.bind_address +
-                " is reachable from other machines and the web terminal has no TLS yet: set "
-                "web.trusted_network: true for a trusted network, or keep 127.0.0.1");
+                " is reachable from other machines and the web terminal has no TLS: set "
+                "web.tls_certificate and web.tls_key, or web.trusted_network: true for a trusted "
+                "network, or keep 127.0.0.1");
+  std::optional<asio::ssl::context> context;
+  if (tls) {
+    if (options.tls_certificate.empty() || options.tls_key.empty())
+      throw Error("web.tls_certificate and web.tls_key go together: TLS needs both");
+    context.emplace(asio::ssl::context::tls_server);
+    context->set_options(asio::ssl::context::default_workarounds | asio::ssl::context::no_sslv2 |
+                         asio::ssl::context::no_sslv3 | asio::ssl::context::no_tlsv1 |
+                         asio::ssl::context::no_tlsv1_1 | asio::ssl::context::single_dh_use);
+    try {
+      context->use_certificate_chain_file(options.tls_certificate);
+    } catch (const boost::system::system_error& e) {
+      throw Error("web.tls_certificate " + options.tls_certificate + ": " + e.what());
+    }
+    try {
+      context->use_private_key_file(options.tls_key, asio::ssl::context::pem);
+    } catch (const boost::system::system_error& e) {
+      throw Error("web.tls_key " + options.tls_key + ": " + e.what());
+    }
+  }
   const std::string root = options.root.empty() ? defaultWebRoot() : options.root;
   std::error_code fec;
   const fs::path canonical = fs::canonical(root, fec);
@@ -590,6 +732,7 @@ WebServer::WebServer(asio::io_context& io, std::shared_ptr<control::ProtocolHub>
     throw Error("web.root: no index.html in " + root);
   impl_ = std::make_shared<WebCore>(io, std::move(hub), std::move(options));
   impl_->root_ = canonical.string();
+  impl_->tls_ = std::move(context);
 }
 
 WebServer::~WebServer() { stop(); }

@@ -264,8 +264,8 @@ int main(int argc, char** argv) {
       // cell's needs a technician at the control port.
       if (cfg.backend.kind != BackendKind::kSim)
         throw ConfigError("configuration", {"session.placements: --once has nobody to move the PSD "
-                                       "between placements; serve the control port (without "
-                                       "--once) and `zerocal continue` at each placement"});
+                                            "between placements; serve the control port (without "
+                                            "--once) and `zerocal continue` at each placement"});
       settings.unattended_placements = true;
     }
     // What a write cut short (a full disk, a kill) left behind is no session's file.
@@ -318,12 +318,14 @@ int main(int argc, char** argv) {
       server.start();
     } catch (const std::exception& e) {  // address in use, not an address of this machine
       throw ConfigError("configuration", {"control port " + cfg.control.bind_address + ":" +
-                                     std::to_string(cfg.control.port) + ": " + e.what()});
+                                          std::to_string(cfg.control.port) + ": " + e.what()});
     }
     std::optional<web::WebServer> web_server;
     if (webEnabled(cfg)) {
       try {
-        web_server.emplace(io, hub, cfg.web);
+        web::WebOptions web_options = cfg.web;
+        web_options.sessions_dir = cfg.session.data_dir;  // the reports the terminal serves
+        web_server.emplace(io, hub, std::move(web_options));
         web_server->start();
       } catch (const std::exception& e) {
         throw ConfigError("zerocald", {"web terminal " + cfg.web.bind_address + ":" +
@@ -334,8 +336,9 @@ int main(int argc, char** argv) {
     std::string serving = "serving " + cfg.control.bind_address + ":" +
                           std::to_string(server.port()) + " (" + backend->name() + " cell)";
     if (web_server)
-      serving += ", web terminal http://" + cfg.web.bind_address + ":" +
-                 std::to_string(web_server->port()) + "/";
+      serving += std::string(", web terminal ") +
+                 (cfg.web.tls_certificate.empty() ? "http://" : "https://") + cfg.web.bind_address +
+                 ":" + std::to_string(web_server->port()) + "/";
     notifyReady(serving);
     std::optional<Watchdog> watchdog;
     if (const auto interval = watchdogInterval()) {

@@ -506,7 +506,7 @@ namespace zerocal {
 namespace {
 
 // The web terminal's section: on with the simulated cell unless said otherwise, loopback unless
-// the network is said to be trusted (there is no TLS yet), each bad value with its file:line.
+// the network is said to be trusted or TLS is configured, each bad value with its file:line.
 TEST_F(ConfigTest, TheWebSectionIsTheWebTerminalsOptionsCheckedLikeTheOthers) {
   write("main.yaml", "backend:\n  kind: sim\n");
   DaemonConfig sim = loadDaemonConfig(sources());
@@ -515,8 +515,8 @@ TEST_F(ConfigTest, TheWebSectionIsTheWebTerminalsOptionsCheckedLikeTheOthers) {
   EXPECT_EQ(sim.web.bind_address, "127.0.0.1");
   EXPECT_FALSE(webEnabled(DaemonConfig{}));  // a real cell opts in
   EXPECT_FALSE(webEnabled(loadDaemonConfig(sources({"web.enabled=false", "backend.kind=sim"}))));
-  const DaemonConfig on = loadDaemonConfig(
-      sources({"web.enabled=true", "web.port=0", "web.session_lifetime_s=3600"}));
+  const DaemonConfig on =
+      loadDaemonConfig(sources({"web.enabled=true", "web.port=0", "web.session_lifetime_s=3600"}));
   EXPECT_TRUE(webEnabled(on));
   EXPECT_EQ(on.web.port, 0);
   EXPECT_EQ(on.web.session_lifetime, std::chrono::hours(1));
@@ -526,7 +526,8 @@ TEST_F(ConfigTest, TheWebSectionIsTheWebTerminalsOptionsCheckedLikeTheOthers) {
         "  session_lifetime_s: 5\n  root: /nonexistent\n");
   auto p = problems(sources());
   EXPECT_TRUE(reported(p, {"main.yaml:2", "web.enabled", "auto, false, true"})) << joined(p);
-  EXPECT_TRUE(reported(p, {"main.yaml:3", "web.bind_address", "no TLS yet", "trusted_network"}))
+  EXPECT_TRUE(reported(
+      p, {"main.yaml:3", "web.bind_address", "no TLS", "web.tls_certificate", "trusted_network"}))
       << joined(p);
   EXPECT_TRUE(reported(p, {"main.yaml:4", "web.port"})) << joined(p);
   EXPECT_TRUE(reported(p, {"main.yaml:5", "web.session_lifetime_s", "at least 60"})) << joined(p);
@@ -534,6 +535,17 @@ TEST_F(ConfigTest, TheWebSectionIsTheWebTerminalsOptionsCheckedLikeTheOthers) {
 
   write("main.yaml", "web:\n  bind_address: 192.168.125.10\n  trusted_network: true\n");
   EXPECT_EQ(loadDaemonConfig(sources()).web.bind_address, "192.168.125.10");
+  // TLS serves any address; its certificate and key go together and must be there.
+  write("cert.pem", "certificate");
+  write("key.pem", "key");
+  write("main.yaml",
+        "web:\n  bind_address: 192.168.125.10\n  tls_certificate: " + (dir_ / "cert.pem").string() +
+            "\n  tls_key: " + (dir_ / "key.pem").string() + "\n");
+  EXPECT_EQ(loadDaemonConfig(sources()).web.tls_key, (dir_ / "key.pem").string());
+  write("main.yaml", "web:\n  tls_certificate: " + (dir_ / "cert.pem").string() + "\n");
+  EXPECT_TRUE(reported(problems(sources()), {"web.tls_key", "go together"}));
+  write("main.yaml", "web:\n  tls_certificate: /nonexistent.pem\n  tls_key: /nonexistent.key\n");
+  EXPECT_TRUE(reported(problems(sources()), {"main.yaml:2", "web.tls_certificate"}));
   write("main.yaml", "web:\n  bind_address: cellpc\n");
   EXPECT_TRUE(reported(problems(sources()), {"main.yaml:2", "web.bind_address", "not an IP"}));
   write("main.yaml", "web:\n  enabled: true\n  port: 7450\n");

@@ -163,7 +163,9 @@ def browser():
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--zerocald", required=True)
-    parser.add_argument("--screenshots", help="save a PNG of each page here")
+    parser.add_argument("--screenshots", default=os.environ.get("ZEROCAL_SCREENSHOTS"),
+                        help="save a PNG of each page here, at 1280x800 and 390x844"
+                             " (or the environment's ZEROCAL_SCREENSHOTS)")
     args = parser.parse_args()
     driver = browser()  # before the daemon: a missing browser fails with nothing left running
     workdir = tempfile.mkdtemp(prefix="zerocal-browser-")
@@ -229,9 +231,18 @@ def run(driver, base, token, relay, restart, screenshots):
         print(f"ok: {what}")
 
     def shot(name):
-        if screenshots:
-            os.makedirs(screenshots, exist_ok=True)
-            driver.save_screenshot(os.path.join(screenshots, f"{name}.png"))
+        """The page as it is now, at the tablet's size and the phone's (docs/web/*.png)."""
+        if not screenshots:
+            return
+        os.makedirs(screenshots, exist_ok=True)
+        for size, (width, height) in (("tablet", (1280, 800)), ("phone", (390, 844))):
+            # The viewport itself at that size (a window's size includes its frame).
+            driver.execute_cdp_cmd("Emulation.setDeviceMetricsOverride", {
+                "width": width, "height": height, "deviceScaleFactor": 1,
+                "mobile": size == "phone"})
+            time.sleep(0.2)  # the layout settles
+            driver.save_screenshot(os.path.join(screenshots, f"{name}-{size}.png"))
+        driver.execute_cdp_cmd("Emulation.clearDeviceMetricsOverride", {})
 
     def layout_fits(size):
         overflow = driver.execute_script(
@@ -245,6 +256,14 @@ def run(driver, base, token, relay, restart, screenshots):
     # -- log in -------------------------------------------------------------------------------
     driver.get(base)
     until(lambda: visible_page() == "login", "the login page is shown first")
+    # A measurement, not a requirement checked here (docs/web.md, "Load and latency"): from the
+    # navigation's start to the login field shown and usable, the first load, nothing cached.
+    usable_ms, interactive_ms = driver.execute_script(
+        "return [performance.getEntriesByName('zerocal-usable')[0].startTime,"
+        " performance.getEntriesByType('navigation')[0].domInteractive]")
+    check(element("token").is_enabled() and usable_ms > 0, "the login field is usable")
+    print(f"measured: first page usable {usable_ms:.0f} ms after the navigation started"
+          f" (DOM interactive at {interactive_ms:.0f} ms)")
     layout_fits("1280x800 login")
     shot("login")
     element("token").send_keys("not-the-token")
@@ -301,6 +320,7 @@ def run(driver, base, token, relay, restart, screenshots):
     until(lambda: visible_page() == "result" and text("verdict") in ("USABLE", "NOT USABLE"),
           "a whole reference runs to its verdict", timeout=120)
     check(text("verdict") == "USABLE", "the reference is usable")
+    reference_id = text("result-kind").split()[1].rstrip(":")
     check(len(element("result-table").find_elements(By.CSS_SELECTOR, "tbody tr")) == 4,
           "its four offsets are listed")
     layout_fits("1280x800 result")
@@ -326,6 +346,7 @@ def run(driver, base, token, relay, restart, screenshots):
     until(lambda: visible_page() == "result" and text("verdict") in ("USABLE", "NOT USABLE")
           and "restore" in text("result-kind"), "the restore runs to its verdict", timeout=120)
     check(text("verdict") == "USABLE", "the restore is usable")
+    restore_id = text("result-kind").split()[1].rstrip(":")
     element("to-apply").click()
     until(lambda: visible_page() == "apply", "the apply page")
     check(not element("apply-confirm-box").is_selected(), "the confirmation is not ticked")
@@ -348,6 +369,8 @@ def run(driver, base, token, relay, restart, screenshots):
     until(lambda: visible_page() == "result", "Cancel leaves the apply page")
     element("result-back").click()
     until(lambda: visible_page() == "cell" and text("cell-state") != "", "the cell page")
+    sessions_and_history(driver, element, text, visible_page, until, shot, layout_fits,
+                         reference_id, restore_id)
     state = text("cell-state")
     relay.drop()
     until(lambda: text("link") != "connected", "the page shows the connection lost", timeout=10)
@@ -359,7 +382,81 @@ def run(driver, base, token, relay, restart, screenshots):
     driver.set_window_size(390, 844)
     time.sleep(0.3)
     layout_fits("390 px cell")
-    shot("cell-phone")
+
+
+def sessions_and_history(driver, element, text, visible_page, until, shot, layout_fits,
+                         reference_id, restore_id):
+    """The Sessions page with its reports, and the History page with its trend plots, after a
+    reference, an aborted session, a restore and its apply."""
+    def rows(table):
+        return {r.get_attribute("data-session"): r
+                for r in element(table).find_elements(By.CSS_SELECTOR, "tbody tr")}
+
+    def fits_both(page):
+        layout_fits(f"1280x800 {page}")
+        driver.set_window_size(390, 844)
+        time.sleep(0.2)
+        layout_fits(f"390 px {page}")
+        driver.set_window_size(1280, 800)
+
+    def cell(row, cls):
+        return row.find_element(By.CSS_SELECTOR, "td." + cls.replace(" ", ".")).text
+
+    element("to-sessions").click()
+    until(lambda: visible_page() == "sessions" and reference_id in rows("sessions-table")
+          and restore_id in rows("sessions-table"), "the Sessions page lists the sessions")
+    listed = rows("sessions-table")
+    check(cell(listed[reference_id], "kind") == "reference"
+          and cell(listed[reference_id], "verdict-cell") == "USABLE",
+          "the reference is listed: kind reference, USABLE")
+    check(cell(listed[restore_id], "kind") == "restore"
+          and cell(listed[restore_id], "verdict-cell") == "USABLE",
+          "the restore is listed: kind restore, USABLE")
+    check(any(cell(r, "verdict-cell") == "not finished" for r in listed.values()),
+          "the aborted session is listed as not finished")
+    ids = list(listed)
+    check(ids == sorted(ids, reverse=True), "newest first")
+    check("of %d" % len(listed) in text("sessions-summary"), "the count of sessions is shown")
+    link = listed[restore_id].find_element(By.LINK_TEXT, "report").get_attribute("href")
+    check(link.endswith(f"/sessions/{restore_id}/report.html"), "a link to the session's report")
+    # The report as the logged-in browser gets it (the login cookie goes with it).
+    fetched = driver.execute_async_script(
+        "const done = arguments[arguments.length - 1];"
+        "fetch(arguments[0], {credentials: 'same-origin'})"
+        ".then(async r => done([r.status, await r.text()])).catch(e => done([0, String(e)]));", link)
+    check(fetched[0] == 200 and restore_id in fetched[1] and "<html" in fetched[1].lower(),
+          f"the report is served to the logged-in browser ({fetched[0]})")
+    fits_both("sessions")
+    shot("sessions")
+    element("sessions-back").click()
+
+    element("to-history").click()
+    until(lambda: visible_page() == "history" and restore_id in rows("history-table"),
+          "the History page shows the sessions recorded")
+    recorded = rows("history-table")
+    check(reference_id in recorded and cell(recorded[reference_id], "kind") == "reference",
+          "the reference is in the robot's history")
+    check(cell(recorded[restore_id], "kind") == "restore"
+          and "±" in cell(recorded[restore_id], "offset"),
+          "the restore is in it with its offsets and sigma")
+    check(any(re.search(r"apply (verified|rolled_back)", cell(r, "events"))
+              for r in recorded.values()), "the apply is among the controller events")
+    for k, name in enumerate(("delta2_deg", "delta3_deg", "delta4_deg", "delta5_deg")):
+        svg = element("history-plots").find_element(By.CSS_SELECTOR, f"svg[data-offset={name}]")
+        drawn = sorted(p.get_attribute("data-session")
+                       for p in svg.find_elements(By.CSS_SELECTOR, "circle.point"))
+        valued = sorted(sid for sid, r in recorded.items()
+                        if r.find_elements(By.CSS_SELECTOR, "td.offset")[k].text != "withheld")
+        withheld = len(svg.find_elements(By.CSS_SELECTOR, "circle.withheld"))
+        check(drawn == valued and len(drawn) >= 2 and withheld == len(recorded) - len(valued),
+              f"the {name} plot has a point per session with a value ({len(drawn)}),"
+              f" {withheld} withheld")
+        bars = svg.find_elements(By.CSS_SELECTOR, "line.bar")
+        check(len(bars) == len(drawn), f"each {name} point has its error bar")
+    fits_both("history")
+    shot("history")
+    element("history-back").click()
+    until(lambda: visible_page() == "cell", "back on the cell page")
 
 
 if __name__ == "__main__":

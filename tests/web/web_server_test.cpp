@@ -9,8 +9,10 @@
 #include <boost/asio/executor_work_guard.hpp>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/post.hpp>
+#include <boost/asio/ssl.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
+#include <boost/beast/ssl.hpp>
 #include <boost/beast/websocket.hpp>
 #include <filesystem>
 #include <fstream>
@@ -64,6 +66,17 @@ class WebServerTest : public ::testing::Test {
     fs::create_symlink(root_.parent_path() / ("zerocal-web-outside-" + std::to_string(::getpid())),
                        root_ / "escape.txt");
     options_.root = root_.string();
+    // A sessions folder beside it: one session with its reports, one whose report is a link to
+    // the file outside, and a result.json, which is not served.
+    sessions_ = root_.string() + "-sessions";
+    fs::create_directories(sessions_ / kSession);
+    std::ofstream(sessions_ / kSession / "report.html") << "<!doctype html><p>report of it</p>";
+    std::ofstream(sessions_ / kSession / "summary.txt") << "summary of it";
+    std::ofstream(sessions_ / kSession / "result.json") << "{}";
+    fs::create_directories(sessions_ / kLinkedSession);
+    fs::create_symlink(root_.parent_path() / ("zerocal-web-outside-" + std::to_string(::getpid())),
+                       sessions_ / kLinkedSession / "report.html");
+    options_.sessions_dir = sessions_.string();
     options_.port = 0;
     start();
   }
@@ -107,6 +120,7 @@ class WebServerTest : public ::testing::Test {
     stop();
     std::error_code ec;
     fs::remove_all(root_, ec);
+    fs::remove_all(sessions_, ec);
     fs::remove(root_.parent_path() / ("zerocal-web-outside-" + std::to_string(::getpid())), ec);
   }
 
@@ -215,7 +229,10 @@ class WebServerTest : public ::testing::Test {
     return n.get_future().get();
   }
 
+  static constexpr const char* kSession = "20261122T073447Z";
+  static constexpr const char* kLinkedSession = "20261122T073447Z-002";
   fs::path root_;
+  fs::path sessions_;
   WebOptions options_;
   asio::io_context io_;
   control::testing::FakeSession session_;
@@ -259,6 +276,68 @@ TEST_F(WebServerTest, PathTraversalIsRefusedBeforeTheFileSystemIsAsked) {
   expectOthersServedFast();
 }
 
+TEST_F(WebServerTest, ASessionsReportsAreServedToALoggedInBrowserOnly) {
+  const std::string report = std::string("/sessions/") + kSession + "/report.html";
+  const std::string summary = std::string("/sessions/") + kSession + "/summary.txt";
+  // Without a login (or with a login forgotten) nothing of a session is told.
+  for (const std::string& cookie : {std::string(), std::string("zerocal_login=0123")}) {
+    const Reply r = request(http::verb::get, report, {}, cookie);
+    EXPECT_EQ(r.result(), http::status::unauthorized) << cookie;
+    EXPECT_THAT(r.body(), ::testing::Not(HasSubstr("report of it")));
+  }
+  const std::string cookie = login();
+  const Reply html = request(http::verb::get, report, {}, cookie);
+  ASSERT_EQ(html.result(), http::status::ok);
+  EXPECT_EQ(html.body(), "<!doctype html><p>report of it</p>");
+  EXPECT_EQ(html[http::field::content_type], "text/html; charset=utf-8");
+  // Its own inline styles and nothing else: no script runs in it.
+  const std::string policy(html["Content-Security-Policy"]);
+  EXPECT_THAT(policy, HasSubstr("default-src 'none'"));
+  EXPECT_THAT(policy, HasSubstr("sandbox"));
+  EXPECT_THAT(policy, ::testing::Not(HasSubstr("script-src")));
+  const Reply text = request(http::verb::get, summary + "?v=1", {}, cookie);
+  EXPECT_EQ(text.result(), http::status::ok);
+  EXPECT_EQ(text.body(), "summary of it");
+  EXPECT_EQ(text[http::field::content_type], "text/plain; charset=utf-8");
+  // The other files of the folder, and sessions that are not there, are not found.
+  for (const std::string& path : {std::string("/sessions/") + kSession + "/result.json",
+                                  std::string("/sessions/") + kSession + "/report.htm",
+                                  std::string("/sessions/20261122T000000Z/report.html")}) {
+    EXPECT_EQ(request(http::verb::get, path, {}, cookie).result(), http::status::not_found) << path;
+  }
+  expectOthersServedFast();
+}
+
+TEST_F(WebServerTest, AReportPathLeadingOutOfTheSessionsFolderIsRefused) {
+  const std::string cookie = login();
+  for (const char* path :
+       {"/sessions/../index.html", "/sessions/..%2findex.html", "/sessions/%2e%2e/x/report.html",
+        "/sessions/20261122T073447Z/../../etc/passwd", "/sessions/20261122T073447Z/./report.html",
+        "/sessions/20261122T073447Z/.hidden", "/sessions//report.html",
+        "/sessions/20261122t073447z/report.html", "/sessions/2026112xT073447Z/report.html",
+        "/sessions/20261122T073447Z-02/report.html", "/sessions/20261122T073447Z%00/report.html",
+        "/sessions/20261122T073447Z\\..\\report.html", "/sessions/etc/passwd",
+        "/sessions/20261122T073447Z/report.html/x", "/sessions/20261122T073447Z"}) {
+    const Reply r = request(http::verb::get, path, {}, cookie);
+    EXPECT_EQ(r.result(), http::status::bad_request) << path;
+    EXPECT_THAT(r.body(), ::testing::Not(HasSubstr("root:")));
+  }
+  // A report that is a link to a file outside the sessions folder is not served.
+  const Reply linked = request(
+      http::verb::get, std::string("/sessions/") + kLinkedSession + "/report.html", {}, cookie);
+  EXPECT_EQ(linked.result(), http::status::not_found);
+  EXPECT_THAT(linked.body(), ::testing::Not(HasSubstr("outside")));
+  // Nor anything when the daemon names no sessions folder.
+  stop();
+  options_.sessions_dir.clear();
+  start();
+  EXPECT_EQ(
+      request(http::verb::get, std::string("/sessions/") + kSession + "/report.html", {}, login())
+          .result(),
+      http::status::not_found);
+  expectOthersServedFast();
+}
+
 TEST_F(WebServerTest, AWrongTokenIsRefusedAfterTheAuthFailureDelay) {
   const auto t0 = std::chrono::steady_clock::now();
   const Reply r = request(http::verb::post, "/api/login", json{{"token", "guess"}}.dump());
@@ -299,8 +378,7 @@ TEST_F(WebServerTest, BeyondMaxLoginsTheOldestIsForgotten) {
   options_.max_logins = 2;
   start();
   const std::string first = login(), second = login(), third = login();
-  EXPECT_EQ(request(http::verb::get, "/api/login", {}, first).result(),
-            http::status::unauthorized);
+  EXPECT_EQ(request(http::verb::get, "/api/login", {}, first).result(), http::status::unauthorized);
   EXPECT_EQ(request(http::verb::get, "/api/login", {}, second).result(), http::status::ok);
   EXPECT_EQ(request(http::verb::get, "/api/login", {}, third).result(), http::status::ok);
 }
@@ -477,12 +555,132 @@ TEST(WebServerSetup, RefusesAnAddressOtherThanLoopbackUnlessTheNetworkIsTrusted)
   options.bind_address = "0.0.0.0";
   options.root = ZEROCAL_SOURCE_DIR "/web";
   EXPECT_THAT([&] { WebServer(io, hub, options); },
-              ::testing::ThrowsMessage<Error>(HasSubstr("no TLS yet")));
+              ::testing::ThrowsMessage<Error>(HasSubstr("no TLS")));
   options.trusted_network = true;
   EXPECT_NO_THROW(WebServer(io, hub, options));
   options.root = "/nonexistent";
   EXPECT_THAT([&] { WebServer(io, hub, options); },
               ::testing::ThrowsMessage<Error>(HasSubstr("no index.html")));
+  hub->stop();
+}
+
+// A self-signed certificate for 127.0.0.1 and its key, made with the openssl command.
+struct SelfSigned {
+  SelfSigned() {
+    dir = fs::temp_directory_path() / ("zerocal-web-tls-" + std::to_string(::getpid()));
+    fs::create_directories(dir);
+    const std::string command =
+        "openssl req -x509 -newkey ec -pkeyopt ec_paramgen_curve:prime256v1 -nodes -days 2 "
+        "-subj /CN=127.0.0.1 -addext subjectAltName=IP:127.0.0.1 -keyout " +
+        key() + " -out " + certificate() + " 2>/dev/null";
+    made = std::system(command.c_str()) == 0 && fs::exists(key()) && fs::exists(certificate());
+  }
+  ~SelfSigned() {
+    std::error_code ec;
+    fs::remove_all(dir, ec);
+  }
+  std::string certificate() const { return (dir / "cert.pem").string(); }
+  std::string key() const { return (dir / "key.pem").string(); }
+  fs::path dir;
+  bool made = false;
+};
+
+TEST_F(WebServerTest, WithACertificateEverythingIsServedOverTlsOnly) {
+  const SelfSigned tls;
+  ASSERT_TRUE(tls.made) << "the openssl command (Debian's openssl) made no certificate";
+  stop();
+  options_.tls_certificate = tls.certificate();
+  options_.tls_key = tls.key();
+  start();
+  // The client trusts that certificate alone, and checks it.
+  asio::io_context io;
+  asio::ssl::context client(asio::ssl::context::tls_client);
+  client.load_verify_file(tls.certificate());
+  client.set_verify_mode(asio::ssl::verify_peer);
+  const auto https = [&](http::verb verb, const std::string& target, const std::string& body,
+                         const std::string& cookie) {
+    beast::ssl_stream<tcp::socket> stream(connectTo(io, web_->port()), client);
+    stream.handshake(asio::ssl::stream_base::client);
+    http::request<http::string_body> req{verb, target, 11};
+    req.set(http::field::host, host());
+    req.set(http::field::origin, "https://" + host());
+    if (!cookie.empty()) req.set(http::field::cookie, cookie);
+    req.body() = body;
+    req.prepare_payload();
+    http::write(stream, req);
+    beast::flat_buffer buffer;
+    Reply reply;
+    http::read(stream, buffer, reply);
+    return reply;
+  };
+  const Reply index = https(http::verb::get, "/", {}, {});
+  EXPECT_EQ(index.result(), http::status::ok);
+  EXPECT_THAT(index.body(), HasSubstr("<title>zerocal</title>"));
+  // The login cookie is Secure: a browser never sends it over plain HTTP.
+  const Reply login = https(http::verb::post, "/api/login", json{{"token", kToken}}.dump(), {});
+  ASSERT_EQ(login.result(), http::status::ok);
+  const std::string set(login[http::field::set_cookie]);
+  EXPECT_THAT(set, HasSubstr("; Secure"));
+  const std::string cookie = set.substr(0, set.find(';'));
+  EXPECT_EQ(
+      https(http::verb::get, std::string("/sessions/") + kSession + "/summary.txt", {}, cookie)
+          .body(),
+      "summary of it");
+
+  // The WebSocket over TLS (wss), from the terminal's https page only.
+  const auto wss = [&](const std::string& origin) {
+    auto ws = std::make_unique<websocket::stream<beast::ssl_stream<tcp::socket>>>(
+        connectTo(io, web_->port()), client);
+    ws->next_layer().handshake(asio::ssl::stream_base::client);
+    ws->set_option(websocket::stream_base::decorator([&](websocket::request_type& r) {
+      r.set(http::field::cookie, cookie);
+      r.set(http::field::origin, origin);
+    }));
+    ws->handshake(host(), "/ws");
+    return ws;
+  };
+  auto ws = wss("https://" + host());
+  ws->write(asio::buffer(json{{"cmd", "status"}, {"id", 1}}.dump()));
+  beast::flat_buffer buffer;
+  ws->read(buffer);
+  EXPECT_TRUE(json::parse(beast::buffers_to_string(buffer.data()))["status"].is_object());
+  EXPECT_THROW(wss("http://" + host()), boost::system::system_error);  // another origin
+
+  // Plain HTTP to the TLS port gets no page: the handshake fails and the connection closes.
+  EXPECT_THROW(request(http::verb::get, "/"), boost::system::system_error);
+  // Nor does a client that does not trust the certificate.
+  asio::ssl::context other(asio::ssl::context::tls_client);
+  other.set_verify_mode(asio::ssl::verify_peer);
+  beast::ssl_stream<tcp::socket> untrusting(connectTo(io, web_->port()), other);
+  EXPECT_THROW(untrusting.handshake(asio::ssl::stream_base::client), boost::system::system_error);
+  // The TCP port and the TLS terminal still serve.
+  EXPECT_EQ(https(http::verb::get, "/app.js", {}, {}).result(), http::status::ok);
+}
+
+TEST(WebServerSetup, TlsServesAnyAddressAndNeedsItsCertificateAndKey) {
+  const SelfSigned tls;
+  ASSERT_TRUE(tls.made) << "the openssl command (Debian's openssl) made no certificate";
+  asio::io_context io;
+  control::testing::FakeSession session;
+  control::ServerOptions control;
+  control.token = kToken;
+  auto hub = control::ProtocolHub::create(io, session, control);
+  WebOptions options;
+  options.bind_address = "0.0.0.0";
+  options.root = ZEROCAL_SOURCE_DIR "/web";
+  options.tls_certificate = tls.certificate();
+  options.tls_key = tls.key();
+  EXPECT_NO_THROW(WebServer(io, hub, options));  // no trusted_network needed
+  options.tls_key.clear();
+  EXPECT_THAT([&] { WebServer(io, hub, options); },
+              ::testing::ThrowsMessage<Error>(HasSubstr("go together")));
+  options.tls_key = tls.certificate();  // not a key
+  EXPECT_THAT([&] { WebServer(io, hub, options); },
+              ::testing::ThrowsMessage<Error>(HasSubstr("web.tls_key")));
+  options.tls_key = tls.key();
+  options.tls_certificate = (tls.dir / "missing.pem").string();
+  EXPECT_THAT([&] { WebServer(io, hub, options); },
+              ::testing::ThrowsMessage<Error>(HasSubstr("web.tls_certificate")));
   hub->stop();
 }
 

@@ -19,9 +19,13 @@ struct WebOptions {
   std::optional<bool> enabled;
   std::string bind_address = "127.0.0.1";
   std::uint16_t port = kDefaultWebPort;  // 0: any free port (tests; port() tells which)
-  // There is no TLS yet: an address other than loopback is refused unless the configuration says
-  // that the network between the browsers and the cell PC is trusted.
+  // Without TLS an address other than loopback is refused unless the configuration says that
+  // the network between the browsers and the cell PC is trusted.
   bool trusted_network = false;
+  // TLS: the certificate (PEM, its chain after it) and its private key (PEM, unencrypted). Both
+  // set: the terminal is served over HTTPS and WSS only, on any address; neither: plain HTTP.
+  std::string tls_certificate;
+  std::string tls_key;
   // The page files (index.html, ...). Empty: <the program's folder>/../share/zerocal/web, where
   // both the build tree (build/share/zerocal/web) and the package (/usr/share/zerocal/web) have
   // them (defaultWebRoot()).
@@ -29,6 +33,10 @@ struct WebOptions {
   // A login (the cookie the token was exchanged for) is good this long, then the browser asks for
   // the token again; open WebSockets of that login are closed when it expires.
   std::chrono::milliseconds session_lifetime{std::chrono::hours(8)};
+  // The daemon's session folders (session.data_dir; zerocald sets it, it is no key of the web
+  // section): a logged-in browser reads each session's report.html and summary.txt under
+  // /sessions/ID/. Empty: no reports are served.
+  std::string sessions_dir;
 
   // Not configuration keys: limits of the HTTP side (Beast's parser limits and deadlines).
   std::size_t max_header_bytes = 8 * 1024;  // a request's header, request line included

@@ -1,8 +1,10 @@
 // The shop-floor terminal in a browser (docs/web.md): HTTP and a WebSocket (Boost.Beast) on the
-// daemon's io_context, beside the TCP control port. The HTTP side serves the page files from
-// web.root and exchanges the token, POSTed once, for a login cookie (HttpOnly, SameSite=Strict,
-// expiring); the WebSocket at /ws carries the control protocol's lines, one per text message,
-// through the same ProtocolHub as the TCP port: the same commands, events, refusals and limits.
+// daemon's io_context, beside the TCP control port, over TLS when a certificate and key are
+// given. The HTTP side serves the page files from web.root and, to a logged-in browser, each
+// session's report.html and summary.txt under /sessions/ID/; it exchanges the token, POSTed
+// once, for a login cookie (HttpOnly, SameSite=Strict, expiring; Secure with TLS). The WebSocket
+// at /ws carries the control protocol's lines, one per text message, through the same
+// ProtocolHub as the TCP port: the same commands, events, refusals and limits.
 //
 // Lifetime: construct after the io_context and the hub, destroy before either.
 #pragma once
@@ -28,7 +30,8 @@ std::string defaultWebRoot();
 class WebServer {
  public:
   // Throws Error when the page folder (options.root, or defaultWebRoot() when empty) holds no
-  // index.html, or the address is not loopback and the network is not said to be trusted.
+  // index.html, the address is not loopback without TLS and the network is not said to be
+  // trusted, or only one of the certificate and key is given, or either cannot be read.
   WebServer(boost::asio::io_context& io, std::shared_ptr<control::ProtocolHub> hub,
             WebOptions options);
   ~WebServer();

@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 
 #include "stored_plan_request.h"
@@ -135,7 +136,11 @@ TEST(ReferenceSessions, AReferenceACheckAMotorReplacedARestoreAppliedAndVerified
   EXPECT_EQ(manager.apply({restore, true}), restore);
   const SessionStatus end = manager.waitIdle();
   EXPECT_EQ(end.apply.rfind("session " + restore + " verified", 0), 0u) << end.apply;
-  EXPECT_NEAR(backend.cell().controller().zeroShiftDeg()[2], 0.0, 0.004);
+  // Within three of the restore's sigmas of the reference's zero: what the restore claims.
+  const double restored_sigma = found.report.parameters[1].sigma;
+  std::printf("joint 3's zero after the apply: %+.4f deg from the reference's, sigma %.4f\n",
+              backend.cell().controller().zeroShiftDeg()[2], restored_sigma);
+  EXPECT_NEAR(backend.cell().controller().zeroShiftDeg()[2], 0.0, 3 * restored_sigma);
   const std::vector<SessionInfo> sessions = manager.sessions();
   ASSERT_FALSE(sessions.empty());
   const SessionInfo& verification = sessions.back();

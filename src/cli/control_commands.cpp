@@ -270,6 +270,12 @@ void printResult(const ResultFile& r, const json& applied, std::ostream& out) {
         out << offset << "  not identifiable: " << (p.reason.empty() ? "-" : p.reason) << "\n";
         continue;
       }
+      // A verdict that refused the result offers no value, as summary.txt and report.html say:
+      // a number on the terminal is a number someone enters (`--json` keeps the solve's).
+      if (r.verdict_recorded && !usable) {
+        out << offset << "  withheld: the result is not usable\n";
+        continue;
+      }
       std::snprintf(line, sizeof line, "%-7s %+12.5f %11.5f   [%+.5f, %+.5f]", offset.c_str(),
                     p.value, p.sigma, p.ci95_low, p.ci95_high);
       out << line;

@@ -329,6 +329,9 @@ TEST_F(ClientCommandsTest, ResultOpensWithTheVerdictThenTheOffsetsAndWhatToDo) {
   EXPECT_EQ(run(args("result")), cli::kClientNotUsable);
   EXPECT_THAT(out_.str(),
               HasSubstr("verdict: NOT USABLE\n  - chi-square per dof 7.1: the poses miss\n"));
+  // Refused: every offset withheld, as in summary.txt and report.html.
+  EXPECT_THAT(out_.str(), HasSubstr("delta2  withheld: the result is not usable\n"));
+  EXPECT_THAT(out_.str(), Not(HasSubstr("+0.41203")));
   EXPECT_THAT(out_.str(), Not(HasSubstr("robot:")));  // not recorded: nothing made up
   // The robot as its controller named itself, right after the verdict.
   session_.result_value.cell = ResultFile::Cell{{"1600-504321", "6.15", "IRB 1600-10/1.45"}, ""};

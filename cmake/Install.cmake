@@ -36,7 +36,13 @@ configure_file(config/sysusers/zerocal.conf ${PROJECT_BINARY_DIR}/config/sysuser
 install(FILES ${PROJECT_BINARY_DIR}/config/zerocald.service DESTINATION ${ZEROCAL_SYSTEMD_UNITDIR})
 install(FILES ${PROJECT_BINARY_DIR}/config/sysusers/zerocal.conf
         DESTINATION ${ZEROCAL_SYSUSERSDIR})
-install(FILES config/udev/60-zerocal-usb1408fs.rules DESTINATION ${ZEROCAL_UDEV_RULESDIR})
+
+# The udev rule, the man pages and the shell completions: the Debian package installs these with
+# debhelper's tools (dh_installudev, dh_installman, dh_bash-completion; debian/), and turns this off.
+option(ZEROCAL_INSTALL_EXTRAS "Install the udev rule, the man pages and the shell completions" ON)
+if(ZEROCAL_INSTALL_EXTRAS)
+  install(FILES config/udev/60-zerocal-usb1408fs.rules DESTINATION ${ZEROCAL_UDEV_RULESDIR})
+endif()
 
 # The web terminal's page files (docs/web.md), where web.root's default finds them.
 install(DIRECTORY web/ DESTINATION ${CMAKE_INSTALL_DATADIR}/zerocal/web)
@@ -46,10 +52,12 @@ install(FILES drivers/irc5/rapid/ZerocalServer.mod DESTINATION ${CMAKE_INSTALL_D
 
 # Bash completion of the commands and options (asked of the program's --help as one types); one
 # file per program, since bash-completion loads a completion by the name of the command.
-foreach(program zerocal zerocal-lab zerocald zerocal-sim)
-  install(FILES config/bash-completion/zerocal
-          DESTINATION ${CMAKE_INSTALL_DATADIR}/bash-completion/completions RENAME ${program})
-endforeach()
+if(ZEROCAL_INSTALL_EXTRAS)
+  foreach(program zerocal zerocal-lab zerocald zerocal-sim)
+    install(FILES config/bash-completion/zerocal
+            DESTINATION ${CMAKE_INSTALL_DATADIR}/bash-completion/completions RENAME ${program})
+  endforeach()
+endif()
 
 # Man pages from each program's --help (help2man, scripts/install-deps.sh).
 option(ZEROCAL_MAN_PAGES "Make and install man pages with help2man" ON)
@@ -66,7 +74,9 @@ if(ZEROCAL_MAN_PAGES)
       DEPENDS ${program}
       COMMENT "man page ${program}(${section})"
       VERBATIM)
-    install(FILES ${out} DESTINATION ${CMAKE_INSTALL_MANDIR}/man${section})
+    if(ZEROCAL_INSTALL_EXTRAS)
+      install(FILES ${out} DESTINATION ${CMAKE_INSTALL_MANDIR}/man${section})
+    endif()
     set(_zerocal_man_pages ${_zerocal_man_pages} ${out} PARENT_SCOPE)
   endfunction()
   zerocal_man_page(zerocal 1 "the technician's client of zerocald, the calibration daemon")

@@ -9,6 +9,7 @@ packages=(
   zlib1g-dev chromium
   chromium-driver python3-selenium  # the web terminal's browser test (tests/web/test_browser.py)
   libsystemd-dev systemd help2man dpkg-dev file
+  debhelper bash-completion lintian devscripts  # the Debian package, its lintian and hardening-check
   clang libclang-rt-14-dev  # the fuzz targets: clang++ and its libFuzzer and sanitizer runtimes
 )
 sudo=""

@@ -59,29 +59,9 @@ if(ZEROCAL_INSTALL_EXTRAS)
   endforeach()
 endif()
 
-# Man pages from each program's --help (help2man, scripts/install-deps.sh).
-option(ZEROCAL_MAN_PAGES "Make and install man pages with help2man" ON)
-if(ZEROCAL_MAN_PAGES)
-  find_program(ZEROCAL_HELP2MAN help2man REQUIRED)
-  set(_zerocal_man_pages "")
-  function(zerocal_man_page program section name)
-    set(out ${PROJECT_BINARY_DIR}/man/${program}.${section})
-    add_custom_command(
-      OUTPUT ${out}
-      COMMAND ${CMAKE_COMMAND} -E make_directory ${PROJECT_BINARY_DIR}/man
-      COMMAND ${ZEROCAL_HELP2MAN} --no-info --no-discard-stderr --section ${section} --name ${name}
-              --output ${out} $<TARGET_FILE:${program}>
-      DEPENDS ${program}
-      COMMENT "man page ${program}(${section})"
-      VERBATIM)
-    if(ZEROCAL_INSTALL_EXTRAS)
-      install(FILES ${out} DESTINATION ${CMAKE_INSTALL_MANDIR}/man${section})
-    endif()
-    set(_zerocal_man_pages ${_zerocal_man_pages} ${out} PARENT_SCOPE)
-  endfunction()
-  zerocal_man_page(zerocal 1 "the technician's client of zerocald, the calibration daemon")
-  zerocal_man_page(zerocal-lab 1 "calibrate robot joint offsets offline: engine, PSD, report, experiments")
-  zerocal_man_page(zerocald 8 "the zerocal cell daemon")
-  zerocal_man_page(zerocal-sim 1 "simulated ABB IRC5 controller for zerocal")
-  add_custom_target(man ALL DEPENDS ${_zerocal_man_pages})
+# The man pages, written as roff in man/ (tests/install/man_pages_test.sh keeps them to --help).
+if(ZEROCAL_INSTALL_EXTRAS)
+  install(FILES man/zerocal.1 man/zerocal-lab.1 man/zerocal-sim.1
+          DESTINATION ${CMAKE_INSTALL_MANDIR}/man1)
+  install(FILES man/zerocald.8 DESTINATION ${CMAKE_INSTALL_MANDIR}/man8)
 endif()

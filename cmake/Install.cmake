@@ -50,13 +50,17 @@ install(DIRECTORY web/ DESTINATION ${CMAKE_INSTALL_DATADIR}/zerocal/web)
 # The RAPID server module, for the controller (docs/irc5.md loads it from here).
 install(FILES drivers/irc5/rapid/ZerocalServer.mod DESTINATION ${CMAKE_INSTALL_DATADIR}/zerocal/rapid)
 
-# Bash completion of the commands and options (asked of the program's --help as one types); one
-# file per program, since bash-completion loads a completion by the name of the command.
+# Completion of the commands, options and session ids for bash, zsh and fish (asked of the
+# program's --help and of the daemon as one types). bash and fish load a completion by the name of
+# the command: one file per program; zsh's names the four programs in its #compdef line.
 if(ZEROCAL_INSTALL_EXTRAS)
   foreach(program zerocal zerocal-lab zerocald zerocal-sim)
     install(FILES config/bash-completion/zerocal
             DESTINATION ${CMAKE_INSTALL_DATADIR}/bash-completion/completions RENAME ${program})
+    install(FILES config/fish/zerocal.fish DESTINATION ${CMAKE_INSTALL_DATADIR}/fish/vendor_completions.d
+            RENAME ${program}.fish)
   endforeach()
+  install(FILES config/zsh/_zerocal DESTINATION ${CMAKE_INSTALL_DATADIR}/zsh/vendor-completions)
 endif()
 
 # The man pages, written as roff in man/ (tests/install/man_pages_test.sh keeps them to --help).

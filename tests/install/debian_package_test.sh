@@ -3,8 +3,8 @@
 # (dpkg-source -b) and the binary one (dpkg-buildpackage -b, with Debian's hardening flags and
 # nocheck: the project's tests are this suite) from a copy of the source tree. Then lintian on both,
 # with no error and no warning; what the package holds (the unit's zerocald, the configuration as
-# conffiles, the udev rule, sysusers file, RAPID module, compressed man pages, the docs, the bash
-# completion), what it depends on (no particular BLAS), the binaries hardened
+# conffiles, the udev rule, sysusers file, RAPID module, compressed man pages, the docs, the bash,
+# zsh and fish completions), what it depends on (no particular BLAS), the binaries hardened
 # (hardening-check: PIE, stack protector, FORTIFY, RELRO, BIND_NOW); and, when run as root, a
 # real install into a scratch dpkg root (dpkg --root, maintainer scripts run with DPKG_ROOT
 # there): the user and group made, the token made root:zerocal 0640, a technician's edit of a
@@ -73,7 +73,9 @@ for page in man1/zerocal.1 man1/zerocal-lab.1 man1/zerocal-sim.1 man8/zerocald.8
 done
 for program in zerocal zerocal-lab zerocald zerocal-sim; do
   has "/usr/share/bash-completion/completions/${program}"
+  has "/usr/share/fish/vendor_completions.d/${program}.fish"
 done
+has /usr/share/zsh/vendor-completions/_zerocal
 has /usr/share/doc/zerocal/copyright
 has /usr/share/doc/zerocal/changelog.gz
 for doc in README.md daemon.md cli.md protocol.md configuration.md; do

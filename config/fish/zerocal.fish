@@ -15,7 +15,7 @@ function __zerocal_help_words
       n = split($1, names, ",")
       for (i = 1; i <= n; ++i) if (names[i] ~ /^--[a-z]/) {
         print "option " names[i]
-        if ($2 ~ /^[A-Z]+/) print "value " names[i]
+        if ($2 ~ /^(TEXT|INT|UINT|FLOAT|BOOLEAN)([:=]|$)/) print "value " names[i]
         if (match($2, /\{[^}]*\}/)) {
           m = split(substr($2, RSTART + 1, RLENGTH - 2), values, ",")
           for (j = 1; j <= m; ++j) print "choice " names[i] " " values[j]

@@ -64,6 +64,9 @@ expect "zerocal start --kind " calibrate reference check restore
 expect "zerocald --kind r" reference restore
 [ -z "$(complete_words zerocal start --pattern x)" ] || fail "--pattern x has completions"
 [ -z "$(complete_words zerocal start --poses "")" ] || fail "--poses N has completions"
+[ -z "$(complete_words zerocal start --host "")" ] || fail "--host ADDRESS has completions"
+expect "zerocal start --watch --" --kind --json  # --watch and --json are flags: options follow
+expect "zerocal result --json --" --host
 expect "zerocal apply --" --confirm --json --host --port --token-file --timeout --help
 reject "zerocal apply --" --moc --out --robot --unconfirmed-transmission  # zerocal-lab apply's
 expect "zerocal-lab apply --" --moc --out

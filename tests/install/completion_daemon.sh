@@ -10,6 +10,7 @@ start_completion_daemon() {
     { cat "${dir}/once.log"; echo "FAIL: zerocald --sim --once made no session" >&2; exit 1; }
   ZEROCAL_TEST_SESSION=$(sed -n 's/.*calibration \([0-9]\{8\}T[0-9]\{6\}Z\)$/\1/p' "${dir}/once.log")
   [ -n "${ZEROCAL_TEST_SESSION}" ] || { echo "FAIL: no session id in the --once log" >&2; exit 1; }
+  : >"${dir}/daemon.log"  # there before the background job opens it: the loop below reads it
   "${bin}/zerocald" --sim --config /dev/null --data-dir "${dir}/data" --set control.port=0 \
     --set control.token_file="${dir}/token" --set web.enabled=false >"${dir}/daemon.log" 2>&1 &
   zerocal_test_daemon_pid=$!
@@ -26,5 +27,8 @@ start_completion_daemon() {
 }
 
 stop_completion_daemon() {
-  [ -z "${zerocal_test_daemon_pid:-}" ] || { kill "${zerocal_test_daemon_pid}" 2>/dev/null; wait "${zerocal_test_daemon_pid}" 2>/dev/null || true; }
+  [ -n "${zerocal_test_daemon_pid:-}" ] || return 0
+  kill "${zerocal_test_daemon_pid}" 2>/dev/null || true
+  wait "${zerocal_test_daemon_pid}" 2>/dev/null || true
+  zerocal_test_daemon_pid=
 }

@@ -57,8 +57,8 @@ if(ZEROCAL_INSTALL_EXTRAS)
   foreach(program zerocal zerocal-lab zerocald zerocal-sim)
     install(FILES config/bash-completion/zerocal
             DESTINATION ${CMAKE_INSTALL_DATADIR}/bash-completion/completions RENAME ${program})
-    install(FILES config/fish/zerocal.fish DESTINATION ${CMAKE_INSTALL_DATADIR}/fish/vendor_completions.d
-            RENAME ${program}.fish)
+    install(FILES config/fish/zerocal.fish
+            DESTINATION ${CMAKE_INSTALL_DATADIR}/fish/vendor_completions.d RENAME ${program}.fish)
   endforeach()
   install(FILES config/zsh/_zerocal DESTINATION ${CMAKE_INSTALL_DATADIR}/zsh/vendor-completions)
 endif()

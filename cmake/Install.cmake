@@ -36,7 +36,13 @@ configure_file(config/sysusers/zerocal.conf ${PROJECT_BINARY_DIR}/config/sysuser
 install(FILES ${PROJECT_BINARY_DIR}/config/zerocald.service DESTINATION ${ZEROCAL_SYSTEMD_UNITDIR})
 install(FILES ${PROJECT_BINARY_DIR}/config/sysusers/zerocal.conf
         DESTINATION ${ZEROCAL_SYSUSERSDIR})
-install(FILES config/udev/60-zerocal-usb1408fs.rules DESTINATION ${ZEROCAL_UDEV_RULESDIR})
+
+# The udev rule, the man pages and the shell completions: the Debian package installs these with
+# debhelper's tools (dh_installudev, dh_installman, dh_bash-completion; debian/), and turns this off.
+option(ZEROCAL_INSTALL_EXTRAS "Install the udev rule, the man pages and the shell completions" ON)
+if(ZEROCAL_INSTALL_EXTRAS)
+  install(FILES config/udev/60-zerocal-usb1408fs.rules DESTINATION ${ZEROCAL_UDEV_RULESDIR})
+endif()
 
 # The web terminal's page files (docs/web.md), where web.root's default finds them.
 install(DIRECTORY web/ DESTINATION ${CMAKE_INSTALL_DATADIR}/zerocal/web)
@@ -44,34 +50,22 @@ install(DIRECTORY web/ DESTINATION ${CMAKE_INSTALL_DATADIR}/zerocal/web)
 # The RAPID server module, for the controller (docs/irc5.md loads it from here).
 install(FILES drivers/irc5/rapid/ZerocalServer.mod DESTINATION ${CMAKE_INSTALL_DATADIR}/zerocal/rapid)
 
-# Bash completion of the commands and options (asked of the program's --help as one types); one
-# file per program, since bash-completion loads a completion by the name of the command.
-foreach(program zerocal zerocal-lab zerocald zerocal-sim)
-  install(FILES config/bash-completion/zerocal
-          DESTINATION ${CMAKE_INSTALL_DATADIR}/bash-completion/completions RENAME ${program})
-endforeach()
+# Completion of the commands, options and session ids for bash, zsh and fish (asked of the
+# program's --help and of the daemon as one types). bash and fish load a completion by the name of
+# the command: one file per program; zsh's names the four programs in its #compdef line.
+if(ZEROCAL_INSTALL_EXTRAS)
+  foreach(program zerocal zerocal-lab zerocald zerocal-sim)
+    install(FILES config/bash-completion/zerocal
+            DESTINATION ${CMAKE_INSTALL_DATADIR}/bash-completion/completions RENAME ${program})
+    install(FILES config/fish/zerocal.fish
+            DESTINATION ${CMAKE_INSTALL_DATADIR}/fish/vendor_completions.d RENAME ${program}.fish)
+  endforeach()
+  install(FILES config/zsh/_zerocal DESTINATION ${CMAKE_INSTALL_DATADIR}/zsh/vendor-completions)
+endif()
 
-# Man pages from each program's --help (help2man, scripts/install-deps.sh).
-option(ZEROCAL_MAN_PAGES "Make and install man pages with help2man" ON)
-if(ZEROCAL_MAN_PAGES)
-  find_program(ZEROCAL_HELP2MAN help2man REQUIRED)
-  set(_zerocal_man_pages "")
-  function(zerocal_man_page program section name)
-    set(out ${PROJECT_BINARY_DIR}/man/${program}.${section})
-    add_custom_command(
-      OUTPUT ${out}
-      COMMAND ${CMAKE_COMMAND} -E make_directory ${PROJECT_BINARY_DIR}/man
-      COMMAND ${ZEROCAL_HELP2MAN} --no-info --no-discard-stderr --section ${section} --name ${name}
-              --output ${out} $<TARGET_FILE:${program}>
-      DEPENDS ${program}
-      COMMENT "man page ${program}(${section})"
-      VERBATIM)
-    install(FILES ${out} DESTINATION ${CMAKE_INSTALL_MANDIR}/man${section})
-    set(_zerocal_man_pages ${_zerocal_man_pages} ${out} PARENT_SCOPE)
-  endfunction()
-  zerocal_man_page(zerocal 1 "the technician's client of zerocald, the calibration daemon")
-  zerocal_man_page(zerocal-lab 1 "calibrate robot joint offsets offline: engine, PSD, report, experiments")
-  zerocal_man_page(zerocald 8 "the zerocal cell daemon")
-  zerocal_man_page(zerocal-sim 1 "simulated ABB IRC5 controller for zerocal")
-  add_custom_target(man ALL DEPENDS ${_zerocal_man_pages})
+# The man pages, written as roff in man/ (tests/install/man_pages_test.sh keeps them to --help).
+if(ZEROCAL_INSTALL_EXTRAS)
+  install(FILES man/zerocal.1 man/zerocal-lab.1 man/zerocal-sim.1
+          DESTINATION ${CMAKE_INSTALL_MANDIR}/man1)
+  install(FILES man/zerocald.8 DESTINATION ${CMAKE_INSTALL_MANDIR}/man8)
 endif()

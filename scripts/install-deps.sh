@@ -9,7 +9,9 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev umockdev libumockdev-dev
   zlib1g-dev chromium
   chromium-driver python3-selenium  # the web terminal's browser test (tests/web/test_browser.py)
-  libsystemd-dev systemd help2man dpkg-dev file
+  libsystemd-dev systemd dpkg-dev file
+  debhelper bash-completion lintian devscripts  # the Debian package, its lintian and hardening-check
+  groff-base zsh fish  # the man pages' and the zsh and fish completions' tests
   clang libclang-rt-14-dev  # the fuzz targets: clang++ and its libFuzzer and sanitizer runtimes
 )
 sudo=""

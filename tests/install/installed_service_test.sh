@@ -59,7 +59,8 @@ for f in bin/zerocal bin/zerocal-lab share/zerocal/rapid/ZerocalServer.mod \
   share/bash-completion/completions/zerocal share/bash-completion/completions/zerocal-lab \
   share/bash-completion/completions/zerocald share/bash-completion/completions/zerocal-sim \
   share/man/man1/zerocal.1 share/man/man1/zerocal-lab.1 share/man/man8/zerocald.8 \
-  share/man/man1/zerocal-sim.1; do
+  share/man/man1/zerocal-sim.1 share/zsh/vendor-completions/_zerocal \
+  share/fish/vendor_completions.d/zerocal.fish share/fish/vendor_completions.d/zerocal-lab.fish; do
   [ -f "${root}${prefix}/${f}" ] || fail "${prefix}/${f} was not installed"
 done
 

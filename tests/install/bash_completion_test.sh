@@ -11,8 +11,8 @@ export PATH="${bin}:${PATH}"
 source "$1"
 fail() { echo "FAIL: $*" >&2; exit 1; }
 work=$(mktemp -d)
-# shellcheck source=tests/install/completion_daemon.sh
-source "$(dirname "$0")/completion_daemon.sh"
+# shellcheck source=tests/install/completion_test_lib.sh
+source "$(dirname "$0")/completion_test_lib.sh"
 trap 'stop_completion_daemon; rm -rf "${work}"' EXIT
 
 complete -p zerocal zerocal-lab zerocald zerocal-sim | grep -c -- '-F _zerocal' | grep -qx 4 ||
@@ -25,29 +25,6 @@ complete_words() {  # complete_words WORD... : the completions of the last word
   _zerocal 2>"${work}/stderr"
   [ ! -s "${work}/stderr" ] || fail "'$*' wrote to stderr: $(cat "${work}/stderr")"
   [ "${#COMPREPLY[@]}" -eq 0 ] || printf '%s\n' "${COMPREPLY[@]}"
-}
-expect() {  # expect "WORDS" COMPLETION... (a trailing space in WORDS: complete an empty word)
-  local words=$1 got
-  shift
-  local -a w
-  read -ra w <<<"${words}"
-  [[ ${words} != *" " ]] || w+=("")
-  got=$(complete_words "${w[@]}")
-  [ -z "$(sort <<<"${got}" | uniq -d)" ] || fail "'${words}' offers duplicates: $(sort <<<"${got}" | uniq -d)"
-  for want in "$@"; do
-    grep -qx -- "${want}" <<<"${got}" || fail "'${words}' completes to [${got//$'\n'/ }], not ${want}"
-  done
-}
-reject() {  # reject "WORDS" COMPLETION... : none of these is offered
-  local words=$1 got
-  shift
-  local -a w
-  read -ra w <<<"${words}"
-  [[ ${words} != *" " ]] || w+=("")
-  got=$(complete_words "${w[@]}")
-  for bad in "$@"; do
-    ! grep -qx -- "${bad}" <<<"${got}" || fail "'${words}' offers ${bad}"
-  done
 }
 expect "zerocal-lab so" solve
 expect "zerocal st" start status

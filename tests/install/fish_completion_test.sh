@@ -11,8 +11,8 @@ bin=$(cd "$2" && pwd)
 fail() { echo "FAIL: $*" >&2; exit 1; }
 command -v fish >/dev/null || fail "fish is not installed (scripts/install-deps.sh)"
 work=$(mktemp -d)
-# shellcheck source=tests/install/completion_daemon.sh
-source "$(dirname "$0")/completion_daemon.sh"
+# shellcheck source=tests/install/completion_test_lib.sh
+source "$(dirname "$0")/completion_test_lib.sh"
 trap 'stop_completion_daemon; rm -rf "${work}"' EXIT
 mkdir -p "${work}/completions" "${work}/home"
 for program in zerocal zerocal-lab zerocald zerocal-sim; do
@@ -25,18 +25,7 @@ complete_line() {  # complete_line LINE : the candidates fish offers (descriptio
     2>"${work}/stderr" | cut -f1
   [ ! -s "${work}/stderr" ] || fail "'$1' wrote to stderr: $(cat "${work}/stderr")"
 }
-expect() {  # expect LINE COMPLETION...
-  local line=$1 got
-  shift
-  got=$(complete_line "${line}")
-  [ -z "$(sort <<<"${got}" | uniq -d)" ] || fail "'${line}' offers duplicates: $(sort <<<"${got}" | uniq -d)"
-  for want in "$@"; do
-    grep -qx -- "${want}" <<<"${got}" || fail "'${line}' completes to [${got//$'\n'/ }], not ${want}"
-  done
-  for bad in ${reject:-}; do
-    ! grep -qx -- "${bad}" <<<"${got}" || fail "'${line}' offers ${bad}"
-  done
-}
+complete_words() { complete_line "$*"; }  # the words as the line fish is asked to complete
 expect "zerocal st" start status
 reject="solve report psd --robot" expect "zerocal " start status sessions result apply plan
 expect "zerocal start --kind " calibrate reference check restore

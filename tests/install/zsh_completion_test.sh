@@ -11,8 +11,8 @@ bin=$(cd "$2" && pwd)
 fail() { echo "FAIL: $*" >&2; exit 1; }
 command -v zsh >/dev/null || fail "zsh is not installed (scripts/install-deps.sh)"
 work=$(mktemp -d)
-# shellcheck source=tests/install/completion_daemon.sh
-source "$(dirname "$0")/completion_daemon.sh"
+# shellcheck source=tests/install/completion_test_lib.sh
+source "$(dirname "$0")/completion_test_lib.sh"
 trap 'stop_completion_daemon; rm -rf "${work}"' EXIT
 
 bound=$(zsh -f -c "fpath=('${dir}' \$fpath); autoload -Uz compinit; compinit -u -d '${work}/zcompdump'
@@ -27,21 +27,6 @@ complete_words() {  # complete_words WORD... : what _zerocal offers for the last
     words=("$@"); CURRENT=$#; _zerocal' zsh "${dir}" "$@" 2>"${work}/stderr" |
     { grep -v '^$' || true; }
   [ ! -s "${work}/stderr" ] || fail "'$*' wrote to stderr: $(cat "${work}/stderr")"
-}
-expect() {  # expect "WORDS" COMPLETION... (a trailing space in WORDS: complete an empty word)
-  local words=$1 got
-  shift
-  local -a w
-  read -ra w <<<"${words}"
-  [[ ${words} != *" " ]] || w+=("")
-  got=$(complete_words "${w[@]}")
-  [ -z "$(sort <<<"${got}" | uniq -d)" ] || fail "'${words}' offers duplicates: $(sort <<<"${got}" | uniq -d)"
-  for want in "$@"; do
-    grep -qx -- "${want}" <<<"${got}" || fail "'${words}' completes to [${got//$'\n'/ }], not ${want}"
-  done
-  for bad in ${reject:-}; do
-    ! grep -qx -- "${bad}" <<<"${got}" || fail "'${words}' offers ${bad}"
-  done
 }
 reject="solve report psd --robot" expect "zerocal " start status sessions result apply plan
 expect "zerocal start --kind " calibrate reference check restore

@@ -1,6 +1,39 @@
-# Sourced by the shell completion tests: a simulated zerocald whose data folder holds one finished
-# session, serving the control port on an ephemeral port. Sets ZEROCAL_TEST_PORT, _TOKEN and
-# _SESSION; stop_completion_daemon ends it (call it from the test's EXIT trap).
+# Sourced by the shell completion tests: what they check of each shell, and a simulated zerocald.
+#
+# The checks, on the test's own complete_words WORD... (what its shell offers for the last word)
+# and fail MESSAGE; WORDS is a line of words, a trailing space in it an empty last word:
+#   expect "WORDS" COMPLETION...  each COMPLETION is offered, none twice, none of ${reject:-}
+#   reject "WORDS" COMPLETION...  none of these is offered
+completions_of() {
+  local -a w
+  read -ra w <<<"$1"
+  [[ $1 != *" " ]] || w+=("")
+  complete_words "${w[@]}"
+}
+expect() {
+  local words=$1 got
+  shift
+  got=$(completions_of "${words}")
+  [ -z "$(sort <<<"${got}" | uniq -d)" ] || fail "'${words}' offers duplicates: $(sort <<<"${got}" | uniq -d)"
+  for want in "$@"; do
+    grep -qx -- "${want}" <<<"${got}" || fail "'${words}' completes to [${got//$'\n'/ }], not ${want}"
+  done
+  for bad in ${reject:-}; do
+    ! grep -qx -- "${bad}" <<<"${got}" || fail "'${words}' offers ${bad}"
+  done
+}
+reject() {
+  local words=$1 got
+  shift
+  got=$(completions_of "${words}")
+  for bad in "$@"; do
+    ! grep -qx -- "${bad}" <<<"${got}" || fail "'${words}' offers ${bad}"
+  done
+}
+
+# A simulated zerocald whose data folder holds one finished session, serving the control port on
+# an ephemeral port. Sets ZEROCAL_TEST_PORT, _TOKEN and _SESSION; stop_completion_daemon ends it
+# (call it from the test's EXIT trap).
 # Usage: start_completion_daemon BIN_DIR WORK_DIR
 start_completion_daemon() {
   local bin=$1 dir=$2 i

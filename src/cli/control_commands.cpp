@@ -1,8 +1,9 @@
 #include "control_commands.h"
 
+#include <fmt/format.h>
+
 #include <cctype>
 #include <cmath>
-#include <cstdio>
 #include <cstdlib>
 #include <ctime>
 #include <limits>
@@ -32,17 +33,12 @@ bool isFinal(const std::string& state) {
          state == "unrecovered";
 }
 
-std::string format(const char* fmt, double value) {
-  char text[64];
-  std::snprintf(text, sizeof text, fmt, value);
-  return text;
-}
-
 std::string sigmaText(const json& sigmas) {
   std::string text;
   for (std::size_t k = 0; k < sigmas.size() && k < 4; ++k) {
     text += std::string(k ? ", " : "") + kSigmaNames[k] + " ";
-    text += sigmas[k].is_number() ? format("%.5f", sigmas[k].get<double>()) : "not identifiable";
+    text +=
+        sigmas[k].is_number() ? fmt::format("{:.5f}", sigmas[k].get<double>()) : "not identifiable";
   }
   return text.empty() ? "-" : text + " deg";
 }
@@ -56,14 +52,14 @@ std::string progressLine(const json& s) {
             std::to_string(s.value("recorded", 0));
   const json live = s.value("live_servo_error_um", json(nullptr));
   if (live.is_number())  // servoing now: where the spot is
-    line += "  servo error " + format("%.1f", live.get<double>()) + " um now";
+    line += "  servo error " + fmt::format("{:.1f}", live.get<double>()) + " um now";
   else if (s.value("recorded", 0) > 0)
-    line += "  servo error " + format("%.1f", s.value("last_servo_error_um", 0.0)) + " um";
+    line += "  servo error " + fmt::format("{:.1f}", s.value("last_servo_error_um", 0.0)) + " um";
   if (s.value("placement_count", 0) > 1)
     line += "  placement " + std::to_string(s.value("placement", 0)) + " of " +
             std::to_string(s.value("placement_count", 0));
   if (s.value("cell_time_s", 0.0) > 0)
-    line += "  " + format("%.0f", s["cell_time_s"].get<double>()) + " s";
+    line += "  " + fmt::format("{:.0f}", s["cell_time_s"].get<double>()) + " s";
   return line;
 }
 
@@ -78,15 +74,15 @@ std::string barLine(const json& s) {
                      std::to_string(count) + " [" + std::string(filled, '#') +
                      std::string(kWidth - filled, '.') + "] " + s.value("state", "?");
   const json live = s.value("live_servo_error_um", json(nullptr));
-  if (live.is_number()) line += format("  %.0f um", live.get<double>());
+  if (live.is_number()) line += fmt::format("  {:.0f} um", live.get<double>());
   if (s.value("placement_count", 0) > 1)
     line += "  placement " + std::to_string(s.value("placement", 0)) + " of " +
             std::to_string(s.value("placement_count", 0));
   const double elapsed = s.value("cell_time_s", 0.0);
   if (recorded > 0 && elapsed > 0 && recorded < count) {
     const double left = elapsed / recorded * (count - recorded);
-    line += left >= 60 ? format("  about %.0f min left", std::ceil(left / 60))
-                       : format("  about %.0f s left", std::ceil(left));
+    line += left >= 60 ? fmt::format("  about {:.0f} min left", std::ceil(left / 60))
+                       : fmt::format("  about {:.0f} s left", std::ceil(left));
   }
   return line;
 }
@@ -95,10 +91,10 @@ std::string barLine(const json& s) {
 std::string poseLine(const json& s) {
   std::string line = "pose " + std::to_string(s.value("recorded", 0)) + " of " +
                      std::to_string(s.value("pose_count", 0)) + " recorded: spot " +
-                     format("%.1f um from its aim", s.value("last_servo_error_um", 0.0));
-  // The zone is widened where the arm scatters more at the detector (docs/servo.md).
+                     fmt::format("{:.1f} um from its aim", s.value("last_servo_error_um", 0.0));
+  // A pose is recorded only this close to the aim (docs/servo.md): what the error is judged by.
   if (s.value("servo_zone_um", 0.0) > 0)
-    line += format(" (zone at least %.0f um)", s["servo_zone_um"].get<double>());
+    line += fmt::format(" (recorded within {:.0f} um)", s["servo_zone_um"].get<double>());
   if (s.value("placement_count", 0) > 1)
     line += ", placement " + std::to_string(s.value("placement", 0)) + " of " +
             std::to_string(s.value("placement_count", 0));
@@ -124,13 +120,12 @@ void printStatus(const json& s, std::ostream& out) {
     out << "placement:  " << s.value("placement", 0) << " of " << s.value("placement_count", 0)
         << "\n";
   if (s.value("recorded", 0) > 0) {
-    out << "servo:      " << format("%.2f", s.value("last_servo_error_um", 0.0))
+    out << "servo:      " << fmt::format("{:.2f}", s.value("last_servo_error_um", 0.0))
         << " um from the aim point at the last recorded pose";
     if (s.value("servo_zone_um", 0.0) > 0)
-      out << format(" (recorded within %.0f um or the wider zone the arm's scatter needs)",
-                    s["servo_zone_um"].get<double>());
+      out << fmt::format(" (recorded within {:.0f} um)", s["servo_zone_um"].get<double>());
     const json live = s.value("live_servo_error_um", json(nullptr));
-    if (live.is_number()) out << ", " << format("%.2f", live.get<double>()) << " um now";
+    if (live.is_number()) out << ", " << fmt::format("{:.2f}", live.get<double>()) << " um now";
     out << "\n";
   }
   out << "predicted:  " << sigmaText(s.value("predicted_sigma_deg", json::array())) << "\n";
@@ -259,9 +254,9 @@ void printResult(const ResultFile& r, const json& applied, std::ostream& out) {
   for (const ParameterEstimate& p : r.report.parameters)
     if (p.name.rfind("delta", 0) == 0) offsets.push_back(&p);
   if (!offsets.empty()) {
-    char line[200];
-    std::snprintf(line, sizeof line, "%-7s %12s %11s   %-26s", "offset",
-                  against ? "change deg" : "value deg", "sigma deg", "95% interval deg");
+    std::string line;
+    line = fmt::format("{:<7} {:>12} {:>11}   {:<26}", "offset",
+                       against ? "change deg" : "value deg", "sigma deg", "95% interval deg");
     out << "\n" << line << (simulated ? "  truth deg      error" : "") << "\n";
     for (std::size_t k = 0; k < offsets.size(); ++k) {
       const ParameterEstimate& p = *offsets[k];
@@ -276,12 +271,12 @@ void printResult(const ResultFile& r, const json& applied, std::ostream& out) {
         out << offset << "  withheld: the result is not usable\n";
         continue;
       }
-      std::snprintf(line, sizeof line, "%-7s %+12.5f %11.5f   [%+.5f, %+.5f]", offset.c_str(),
-                    p.value, p.sigma, p.ci95_low, p.ci95_high);
+      line = fmt::format("{:<7} {:+12.5f} {:11.5f}   [{:+.5f}, {:+.5f}]", offset.c_str(), p.value,
+                         p.sigma, p.ci95_low, p.ci95_high);
       out << line;
       if (simulated && k < r.truth->offsets_deg.size()) {
         const double truth = r.truth->offsets_deg[k];
-        std::snprintf(line, sizeof line, "  %+9.5f  %+9.5f", truth, p.value - truth);
+        line = fmt::format("  {:+9.5f}  {:+9.5f}", truth, p.value - truth);
         out << line;
       }
       out << "\n";
@@ -304,9 +299,9 @@ void printResult(const ResultFile& r, const json& applied, std::ostream& out) {
       for (std::size_t k = 0; usable && k < offsets.size(); ++k) {
         const ParameterEstimate& p = *offsets[k];
         if (!p.identifiable || !std::isfinite(p.value)) continue;
-        std::snprintf(line, sizeof line,
-                      "  joint %c: the reading grows by %+.5f deg (its zero moves %+.5f deg)\n",
-                      p.name[5], p.value, -p.value);
+        line = fmt::format(
+            "  joint {}: the reading grows by {:+.5f} deg (its zero moves {:+.5f} deg)\n",
+            p.name[5], p.value, -p.value);
         out << line;
       }
       if (usable) out << "  joints 1 and 6: unchanged (this method cannot determine them).\n";
@@ -315,9 +310,8 @@ void printResult(const ResultFile& r, const json& applied, std::ostream& out) {
     }
   }
   if (r.cell_time_s) {
-    char line[80];
-    std::snprintf(line, sizeof line, "cell time %.1f s, %d poses\n", *r.cell_time_s,
-                  r.report.pose_count);
+    std::string line;
+    line = fmt::format("cell time {:.1f} s, {} poses\n", *r.cell_time_s, r.report.pose_count);
     out << line;
   }
 }
@@ -438,7 +432,7 @@ int watch(control::ControlClient& client, const ClientArgs& args, std::ostream& 
 // The numbers of an apply event, as the technician reads them.
 void printApplyEvent(const json& e, std::ostream& out) {
   const auto rad = [](const json& a, int joint) {
-    return a.is_array() && a.size() == 6 ? format("%.6f", a[joint - 1].get<double>()) : "?";
+    return a.is_array() && a.size() == 6 ? fmt::format("{:.6f}", a[joint - 1].get<double>()) : "?";
   };
   if (e.contains("before_rad") && !e.contains("written_rad")) {
     out << "cal_offset now (rad):";
@@ -454,9 +448,9 @@ void printApplyEvent(const json& e, std::ostream& out) {
     out << "left after it, as the verification " << e.value("verification", "")
         << " measured (deg):\n";
     for (const auto& item : e["remaining_deg"].items()) {
-      char line[120];
-      std::snprintf(line, sizeof line, "  %-8s %+.5f  (sigma %.5f)\n", item.key().c_str(),
-                    item.value().value("value", 0.0), item.value().value("sigma", 0.0));
+      std::string line;
+      line = fmt::format("  {:<8} {:+.5f}  (sigma {:.5f})\n", item.key().c_str(),
+                         item.value().value("value", 0.0), item.value().value("sigma", 0.0));
       out << line;
     }
   }
@@ -573,13 +567,13 @@ int printPlan(const json& plan, const ClientArgs& args, std::ostream& out) {
     out << plan.value("description", "") << "\n";
     out << "predicted one-sigma uncertainty before any move:\n";
     for (const auto& item : predicted.items()) {
-      char line[160];
+      std::string line;
       if (item.value().value("identifiable", false) && item.value()["sigma"].is_number())
-        std::snprintf(line, sizeof line, "  %-19s %10.5f\n", item.key().c_str(),
-                      item.value()["sigma"].get<double>());
+        line = fmt::format("  {:<19} {:10.5f}\n", item.key().c_str(),
+                           item.value()["sigma"].get<double>());
       else
-        std::snprintf(line, sizeof line, "  %-19s not identifiable: %s\n", item.key().c_str(),
-                      item.value().value("reason", std::string()).c_str());
+        line = fmt::format("  {:<19} not identifiable: {}\n", item.key().c_str(),
+                           item.value().value("reason", std::string()).c_str());
       out << line;
     }
     out << plan.value("poses", json::array()).size() << " poses\n";
@@ -591,8 +585,8 @@ int printPlan(const json& plan, const ClientArgs& args, std::ostream& out) {
           !(predicted[name]["sigma"].get<double>() <= required))
         short_of += std::string(short_of.empty() ? "" : ", ") + std::string(name).substr(0, 6);
     if (!short_of.empty()) {
-      char line[200];
-      std::snprintf(line, sizeof line, "%.4f", required);
+      std::string line;
+      line = fmt::format("{:.4f}", required);
       out << "short of the required " << line << " deg: " << short_of
           << ". `zerocal start` refuses this plan unless --even-if-not-usable (its result would "
              "withhold them); several PSD placements (--placements 3) would reach it, or a "
@@ -730,13 +724,13 @@ int run(const ClientArgs& args, std::ostream& out, std::ostream& err, bool tty) 
       out << list.dump(2) << "\n";
     } else {
       for (const auto& s : list) {
-        char line[200];
-        std::snprintf(
-            line, sizeof line, "%-24s %-10s %3d of %3d poses  %s\n", s.value("id", "").c_str(),
-            s.contains("damaged")        ? "DAMAGED"
-            : s.value("finished", false) ? "finished"
-                                         : "unfinished",
-            s.value("recorded_poses", 0), s.value("planned_poses", 0), s.value("dir", "").c_str());
+        std::string line;
+        line = fmt::format("{:<24} {:<10} {:3} of {:3} poses  {}\n", s.value("id", "").c_str(),
+                           s.contains("damaged")        ? "DAMAGED"
+                           : s.value("finished", false) ? "finished"
+                                                        : "unfinished",
+                           s.value("recorded_poses", 0), s.value("planned_poses", 0),
+                           s.value("dir", "").c_str());
         out << line;
         if (s.value("skipped_poses", 0) > 0)
           out << "    " << s.value("skipped_poses", 0) << " of them skipped\n";

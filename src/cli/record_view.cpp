@@ -1,6 +1,7 @@
 #include "record_view.h"
 
-#include <cstdio>
+#include <fmt/format.h>
+
 #include <ctime>
 #include <string>
 
@@ -30,19 +31,14 @@ std::string verdict(const json& session) {
 
 std::string offsetText(const json& offset) {
   if (!offset.is_object()) return "withheld";
-  char text[64];
-  std::snprintf(text, sizeof text, "%+.5f +- %.5f", offset.value("value", 0.0),
-                offset.value("sigma", 0.0));
-  return text;
+  return fmt::format("{:+.5f} +- {:.5f}", offset.value("value", 0.0), offset.value("sigma", 0.0));
 }
 
 std::string valuesText(const json& rad) {
   if (!rad.is_array() || rad.size() != 6) return "-";
   std::string text;
   for (std::size_t j = 1; j <= 4; ++j) {
-    char v[48];
-    std::snprintf(v, sizeof v, "%srob1_%zu %.6f", j > 1 ? " " : "", j + 1, rad[j].get<double>());
-    text += v;
+    text += fmt::format("{}rob1_{} {:.6f}", j > 1 ? " " : "", j + 1, rad[j].get<double>());
   }
   return text;
 }
@@ -54,15 +50,13 @@ std::string csvField(const std::string& s) {
   return quoted + "\"";
 }
 
-std::string number(const json& v, const char* fmt) {
+std::string number(const json& v, int decimals) {
   if (!v.is_number()) return "";
-  char text[48];
-  std::snprintf(text, sizeof text, fmt, v.get<double>());
-  return text;
+  return fmt::format("{:.{}f}", v.get<double>(), decimals);
 }
 
 // A table row without the padding after its last column.
-std::string trimmed(const char* row) {
+std::string trimmed(const std::string& row) {
   std::string s = row;
   const std::size_t end = s.find_last_not_of(' ');
   return s.substr(0, end == std::string::npos ? 0 : end + 1) + "\n";
@@ -92,22 +86,20 @@ void printHistory(const json& answer, std::ostream& out) {
   const json& history = answer.at("history");
   out << robotLine(answer.at("robot")) << ": " << history.size() << " session"
       << (history.size() == 1 ? "" : "s") << "\n";
-  char head[256];
-  std::snprintf(head, sizeof head, "%-16s  %-18s %-12s %-10s  %-20s %-20s %-20s %-20s",
-                "started (UTC)", "session", "kind", "verdict", "delta2 (deg)", "delta3 (deg)",
-                "delta4 (deg)", "delta5 (deg)");
+  const std::string head = fmt::format(
+      "{:<16}  {:<18} {:<12} {:<10}  {:<20} {:<20} {:<20} {:<20}", "started (UTC)", "session",
+      "kind", "verdict", "delta2 (deg)", "delta3 (deg)", "delta4 (deg)", "delta5 (deg)");
   out << trimmed(head);
   for (const json& s : history) {
     const json offsets = s.value("offsets", json::object());
-    char line[512];
-    std::snprintf(line, sizeof line, "%-16s  %-18s %-12s %-10s  %-20s %-20s %-20s %-20s",
-                  utc(s.value("started_unix_s", json(nullptr))).c_str(),
-                  s.value("session", std::string("?")).c_str(),
-                  s.value("kind", std::string("?")).c_str(), verdict(s).c_str(),
-                  offsetText(offsets.value(kOffsets[0], json(nullptr))).c_str(),
-                  offsetText(offsets.value(kOffsets[1], json(nullptr))).c_str(),
-                  offsetText(offsets.value(kOffsets[2], json(nullptr))).c_str(),
-                  offsetText(offsets.value(kOffsets[3], json(nullptr))).c_str());
+    const std::string line = fmt::format(
+        "{:<16}  {:<18} {:<12} {:<10}  {:<20} {:<20} {:<20} {:<20}",
+        utc(s.value("started_unix_s", json(nullptr))).c_str(),
+        s.value("session", std::string("?")).c_str(), s.value("kind", std::string("?")).c_str(),
+        verdict(s).c_str(), offsetText(offsets.value(kOffsets[0], json(nullptr))).c_str(),
+        offsetText(offsets.value(kOffsets[1], json(nullptr))).c_str(),
+        offsetText(offsets.value(kOffsets[2], json(nullptr))).c_str(),
+        offsetText(offsets.value(kOffsets[3], json(nullptr))).c_str());
     out << trimmed(line);
     for (const json& e : s.value("events", json::array())) {
       out << "    " << utc(e.value("time_unix_s", json(nullptr))) << "  "
@@ -142,14 +134,14 @@ void printHistoryCsv(const json& answer, std::ostream& out) {
     const json offsets = s.value("offsets", json::object());
     for (const char* name : kOffsets) {
       const json o = offsets.value(name, json(nullptr));
-      out << "," << (o.is_object() ? number(o["value"], "%.6f") : "") << ","
-          << (o.is_object() ? number(o["sigma"], "%.6f") : "");
+      out << "," << (o.is_object() ? number(o["value"], 6) : "") << ","
+          << (o.is_object() ? number(o["sigma"], 6) : "");
     }
     std::string events;
     for (const json& e : s.value("events", json::array()))
       events += (events.empty() ? "" : "; ") + e.value("kind", std::string("?")) + " " +
                 e.value("outcome", std::string("?"));
-    out << "," << number(s.value("cell_time_s", json(nullptr)), "%.1f") << ","
+    out << "," << number(s.value("cell_time_s", json(nullptr)), 1) << ","
         << csvField(s.value("software_version", "")) << "," << csvField(events) << "\n";
   }
 }

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <cctype>
+#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <ctime>
@@ -27,6 +28,10 @@ using nlohmann::json;
 namespace {
 
 const char* const kSigmaNames[] = {"delta2", "delta3", "delta4", "delta5"};
+
+// Planning takes the daemon a second or so of CPU, tens of seconds on a loaded machine: `plan`
+// and `start`, which plans before it answers, wait this much beyond --timeout.
+constexpr std::chrono::seconds kPlanningAllowance{60};
 
 bool isFinal(const std::string& state) {
   return state == "done" || state == "aborted" || state == "faulted" || state == "idle" ||
@@ -690,7 +695,10 @@ int run(const ClientArgs& args, std::ostream& out, std::ostream& err, bool tty) 
     const bool counter =
         cmd == "continue" && client.call("status", json::object(), timeout)["status"].value(
                                  "state", "") == "awaiting_counter";
-    const auto r = cmd == "start"    ? client.call("start", startMembers(args), timeout)
+    // A start plans before it answers, as `plan` does (21 s for the optimal plan on a 2-core
+    // machine busy with a build): the same room beyond --timeout.
+    const auto r = cmd == "start"
+                       ? client.call("start", startMembers(args), timeout + kPlanningAllowance)
                    : cmd == "resume" ? client.call("resume", resumeMembers(args), timeout)
                                      : client.call("continue", continued, timeout);
     const std::string id = r.value("session", "");
@@ -791,8 +799,7 @@ int run(const ClientArgs& args, std::ostream& out, std::ostream& err, bool tty) 
                        args, out);
   }
   if (cmd == "plan") {
-    // Planning takes the daemon a second or so of CPU; give it room beyond --timeout.
-    const auto r = client.call("plan", startMembers(args), timeout + std::chrono::seconds(30));
+    const auto r = client.call("plan", startMembers(args), timeout + kPlanningAllowance);
     return printPlan(r["plan"], args, out);
   }
   err << "zerocal: unknown client command '" << cmd << "'\n";
@@ -812,7 +819,9 @@ void addConnectionOptions(CLI::App* command, ClientArgs& args) {
   command->add_option(
       "--token-file", args.token_file,
       "the access token (default $ZEROCAL_TOKEN_FILE, else " + std::string(kConfigDir) + "/token)");
-  command->add_option("--timeout", args.timeout_s, "seconds to wait for an answer")
+  command
+      ->add_option("--timeout", args.timeout_s,
+                   "seconds to wait for an answer (start and plan: 60 more, for planning)")
       ->default_val(args.timeout_s)
       ->check(CLI::PositiveNumber);
 }

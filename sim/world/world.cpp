@@ -587,7 +587,12 @@ World randomWorld(std::uint64_t seed, WorldKind kind) {
   w.psd_rotation = rpy(Eigen::Vector3d(10 * unit(rng), 10 * unit(rng), 180 * unit(rng)));
   w.psd_rotation_configured = w.psd_rotation;
   w.psd_centre_taught_mm = w.psd_position_mm + Eigen::Vector3d(3, -3, 3);
-  if (kind == WorldKind::kIdeal) return w;
+  if (kind == WorldKind::kIdeal) {
+    // The ideal arm is the robot file's exactly, without sag: the model a session is given
+    // (knowledgeOf) admits no error, and nothing is counted for one.
+    w.robot.tolerance = {};
+    return w;
+  }
 
   // The imperfections from their own stream: the ideal world of a seed stays what it was, and
   // the realistic one shares its offsets, laser and PSD pose. Magnitudes: docs/simulated-cell.md.

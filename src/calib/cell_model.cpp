@@ -9,7 +9,8 @@
 
 namespace zerocal {
 
-Robot withLinkErrors(const Robot& robot, const Eigen::Matrix<double, kLinkParamCount, 1>& link) {
+Robot withLinkErrors(const Robot& robot,
+                     const Eigen::Matrix<double, kLinkParameterCount, 1>& link) {
   Robot out = robot;
   for (int j = 0; j < kJointCount; ++j) {
     out.dh[j].a_mm += link[3 * j];

@@ -318,20 +318,19 @@ SolveReport solveChange(const CellModel& cell, const ReferenceFit& reference,
 
   // What the link tolerances leave: their effect on the misses at the joints now less their
   // effect at the reference's joints (docs/maths.md section 10).
-  const ModelTolerances t{options.solve.model_length_mm, options.solve.model_angle_deg,
-                          options.solve.model_sag_deg};
+  const ModelTolerances& t = options.solve.model;
   Eigen::MatrixXd model_cov = Eigen::MatrixXd::Zero(unknowns, unknowns);
-  if ((t.length_mm > 0 || t.angle_deg > 0 || t.sag_deg > 0) && unit.rank == unknowns) {
+  if (t.counted() && unit.rank == unknowns) {
     const Eigen::MatrixXd g =
-        detail::linkSpread(cell, now_used, p, readings, t.length_mm, t.angle_deg, t.sag_deg) -
-        detail::linkSpread(cell, before_used, reference.estimate, readings, t.length_mm,
-                           t.angle_deg, t.sag_deg);
+        detail::linkSpread(cell, now_used, p, readings, t) -
+        detail::linkSpread(cell, before_used, reference.estimate, readings, t);
     const Eigen::MatrixXd s = unit.cov * j.transpose() * g;
     model_cov = s * s.transpose();
     cov += model_cov;
   }
   report.model_length_mm = t.length_mm;
   report.model_angle_deg = t.angle_deg;
+  report.model_calibrated = t.calibrated();
   report.model_sag_deg = cell.robot.hasGravityModel() ? t.sag_deg : 0;
 
   report.estimate = p;

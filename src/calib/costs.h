@@ -48,7 +48,7 @@ Frame<T> dhLinkWithErrors(const DhRow& row, const T& joint_rad, const T* error) 
   return f;
 }
 
-// Flange pose with the offsets delta2..delta5, the link errors (kLinkParamCount, in
+// Flange pose with the offsets delta2..delta5, the link errors (kLinkParameterCount, in
 // linkParamName order) and the compliance of joints 2 and 3 (rad per kN m, times the pose's
 // gravity torque in kN m) added.
 template <typename T>
@@ -208,7 +208,7 @@ class LinkPointToLineCost {
                                      const Eigen::Vector3d& hit_offset, double sigma_mm,
                                      const Eigen::Matrix2d& weight = Eigen::Matrix2d::Identity()) {
     return new ceres::AutoDiffCostFunction<LinkPointToLineCost, 2, kOffsetCount, kLaserParamCount,
-                                           kLinkParamCount, kComplianceCount, kTargetCount>(
+                                           kLinkParameterCount, kComplianceCount, kTargetCount>(
         new LinkPointToLineCost(cell, q_deg, hit_offset, sigma_mm, weight));
   }
 

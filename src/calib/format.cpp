@@ -138,7 +138,7 @@ std::string toText(const Plan& plan) {
   const Prediction& pr = plan.prediction;
   if (pr.placements > 1) {
     o << "link errors (" << pr.placements << " placements):\n";
-    for (int l = 0; l < kLinkParamCount; ++l) {
+    for (int l = 0; l < kLinkParameterCount; ++l) {
       if (pr.link_identifiable[l])
         o << printf("  %-19s %10.5f\n", linkParamName(l).c_str(), pr.link_sigma[l]);
       else
@@ -147,8 +147,9 @@ std::string toText(const Plan& plan) {
   }
   o << printf("  RMS over delta2..delta5: %.5f deg; %s %d of %d, condition number %.1f\n",
               pr.rms_offset_sigma_deg, pr.placements > 1 ? "identified" : "rank", pr.rank,
-              pr.placements > 1 ? kIdentifiedCount + kLinkParamCount + kTargetCount * pr.placements
-                                : kUnknownCount,
+              pr.placements > 1
+                  ? kIdentifiedCount + kLinkParameterCount + kTargetCount * pr.placements
+                  : kUnknownCount,
               pr.condition_number);
   return o.str();
 }

@@ -262,7 +262,7 @@ Eigen::MatrixXd placementJacobian(const CellModel& cell, const std::vector<Pose>
   if (residuals) residuals->resize(2 * n);
   Eigen::Matrix<double, 2, kOffsetCount, Eigen::RowMajor> jd;
   Eigen::Matrix<double, 2, kLaserParamCount, Eigen::RowMajor> jl;
-  Eigen::Matrix<double, 2, kLinkParamCount, Eigen::RowMajor> jk;
+  Eigen::Matrix<double, 2, kLinkParameterCount, Eigen::RowMajor> jk;
   Eigen::Matrix<double, 2, kComplianceCount, Eigen::RowMajor> jc;
   Eigen::Matrix<double, 2, kTargetCount, Eigen::RowMajor> jt;
   double* jacobians[5] = {jd.data(), jl.data(), jk.data(), jc.data(), jt.data()};
@@ -276,12 +276,12 @@ Eigen::MatrixXd placementJacobian(const CellModel& cell, const std::vector<Pose>
     LinkPointToLineCost functor(cell, poses[i].q_deg, hitPointOffset(cell, poses[i], use_readings),
                                 sigma_mm, missWeight(cell, poses[i], at, use_readings));
     ceres::AutoDiffCostFunction<LinkPointToLineCost, 2, kOffsetCount, kLaserParamCount,
-                                kLinkParamCount, kComplianceCount, kTargetCount>
+                                kLinkParameterCount, kComplianceCount, kTargetCount>
         cost(&functor, ceres::DO_NOT_TAKE_OWNERSHIP);
     cost.Evaluate(blocks, r, jacobians);
     jac.block(2 * i, 0, 2, kOffsetCount) = jd;
     jac.block(2 * i, kOffsetCount, 2, kLaserParamCount) = jl;
-    jac.block(2 * i, PlacementLayout::firstLink(), 2, kLinkParamCount) = jk;
+    jac.block(2 * i, PlacementLayout::firstLink(), 2, kLinkParameterCount) = jk;
     jac.block(2 * i, PlacementLayout::firstCompliance(), 2, layout.compliance) =
         jc.leftCols(layout.compliance);
     jac.block(2 * i, layout.firstTarget() + kTargetCount * slot, 2, kTargetCount) = jt;

@@ -65,7 +65,8 @@ MultiFit fit(const CellModel& cell, const std::vector<Pose>& poses, const Placem
   }
   holdUnidentified(problem, f.est.delta_rad.data(), 0, kOffsetCount, base);
   holdUnidentified(problem, f.est.laser.data(), kOffsetCount, kLaserParamCount, base);
-  holdUnidentified(problem, f.est.link.data(), PlacementLayout::firstLink(), kLinkParamCount, base);
+  holdUnidentified(problem, f.est.link.data(), PlacementLayout::firstLink(), kLinkParameterCount,
+                   base);
   if (layout.compliance == 0)
     problem.SetParameterBlockConstant(f.est.compliance.data());
   else
@@ -126,18 +127,21 @@ void checkPlacements(const std::vector<Pose>& poses, const PlacementLayout& layo
 Eigen::MatrixXd placementModelCovariance(const CellModel& cell, const std::vector<Pose>& used,
                                          const PlacementLayout& layout, const BaseParameters& base,
                                          const Eigen::MatrixXd& jac,
-                                         const Eigen::MatrixXd& unit_cov, double length_mm,
-                                         double angle_deg, double sag_deg) {
+                                         const Eigen::MatrixXd& unit_cov,
+                                         const ModelTolerances& model) {
   const int unknowns = layout.unknownCount();
+  const double sag_deg = model.sag_deg;
   const bool count_sag = layout.compliance == 0 && sag_deg > 0 && cell.robot.hasGravityModel();
   std::vector<Eigen::VectorXd> columns;
   std::vector<double> tolerances;
-  if (length_mm > 0 || angle_deg > 0)
+  // Each link error the poses do not identify, to its one sigma (a calibrated model's: its
+  // covariance's diagonal; its correlations are left out here, the poses re-identify the rest).
+  const Eigen::VectorXd link_sigma = model.linkSigmas();
+  if (model.linksCounted())
     for (int k = PlacementLayout::firstLink(); k < PlacementLayout::firstCompliance(); ++k)
       if (!base.identified[k]) {
         columns.push_back(jac.col(k));
-        tolerances.push_back((k - PlacementLayout::firstLink()) % 3 == 2 ? angle_deg * kDegToRad
-                                                                         : length_mm);
+        tolerances.push_back(link_sigma[k - PlacementLayout::firstLink()]);
       }
   if (count_sag) {
     const auto bound = gravityTorqueBoundKnm(cell.robot, cell.robot.masses);
@@ -158,6 +162,34 @@ Eigen::MatrixXd placementModelCovariance(const CellModel& cell, const std::vecto
   return s_matrix * s_matrix.transpose();
 }
 
+// The covariance of a calibrated model's link errors (what it holds less the truth): an
+// identified error's estimate carries its covariance `cov` (noise and what is held at nominal);
+// one the poses do not identify stays at nominal, known to the model's sigma s_u, and the
+// estimates that absorbed it moved by S_u = unit_cov J^T J_u per unit of it, so that each is
+// correlated with it by -S_u s_u^2. (A given model's own correlations and the sag's are left
+// out: the diagonal of what the model admitted.)
+Eigen::MatrixXd calibratedLinkCovariance(const PlacementLayout& layout, const BaseParameters& base,
+                                         const Eigen::MatrixXd& jac,
+                                         const Eigen::MatrixXd& unit_cov,
+                                         const Eigen::MatrixXd& cov, const ModelTolerances& model) {
+  const int first = PlacementLayout::firstLink();
+  const Eigen::VectorXd sigma = model.linkSigmas();
+  Eigen::MatrixXd p = Eigen::MatrixXd::Zero(kLinkParameterCount, kLinkParameterCount);
+  for (int a = 0; a < kLinkParameterCount; ++a)
+    for (int b = 0; b < kLinkParameterCount; ++b)
+      if (base.identified[first + a] && base.identified[first + b])
+        p(a, b) = cov(first + a, first + b);
+  for (int u = 0; u < kLinkParameterCount; ++u) {
+    if (base.identified[first + u]) continue;
+    const double variance = sigma[u] * sigma[u];
+    p(u, u) = variance;
+    const Eigen::VectorXd moved = unit_cov * jac.transpose() * jac.col(first + u);
+    for (int i = 0; i < kLinkParameterCount; ++i)
+      if (base.identified[first + i]) p(i, u) = p(u, i) = -moved[first + i] * variance;
+  }
+  return p;
+}
+
 SolveReport solveMultiPlacement(const CellModel& cell, const std::vector<Pose>& poses,
                                 const SolveOptions& options) {
   const auto started = std::chrono::steady_clock::now();
@@ -166,8 +198,9 @@ SolveReport solveMultiPlacement(const CellModel& cell, const std::vector<Pose>& 
   const int n = static_cast<int>(poses.size());
   SolveReport report = startReport(cell, poses, options);
   const bool readings = report.used_readings;
-  report.model_length_mm = options.model_length_mm;
-  report.model_angle_deg = options.model_angle_deg;
+  report.model_length_mm = options.model.length_mm;
+  report.model_angle_deg = options.model.angle_deg;
+  report.model_calibrated = options.model.calibrated();
 
   const std::vector<int> duplicate_of = findDuplicates(poses);
   std::vector<int> active;
@@ -264,14 +297,15 @@ SolveReport solveMultiPlacement(const CellModel& cell, const std::vector<Pose>& 
   // by c_j tau_j(q), so its column is delta_j's times the pose's torque, and c_j is known to the
   // sag tolerance at the largest torque.
   const bool count_sag =
-      layout.compliance == 0 && options.model_sag_deg > 0 && cell.robot.hasGravityModel();
-  report.model_sag_deg = count_sag ? options.model_sag_deg : 0;
+      layout.compliance == 0 && options.model.sag_deg > 0 && cell.robot.hasGravityModel();
+  report.model_sag_deg = count_sag ? options.model.sag_deg : 0;
   const Eigen::MatrixXd unit_cov =
       (cov / (sigma * sigma)).unaryExpr([](double x) { return std::isfinite(x) ? x : 0.0; });
   const Eigen::MatrixXd model_cov =
-      placementModelCovariance(cell, used, layout, base, jac, unit_cov, options.model_length_mm,
-                               options.model_angle_deg, options.model_sag_deg);
+      placementModelCovariance(cell, used, layout, base, jac, unit_cov, options.model);
   cov += model_cov;
+  report.link_covariance =
+      calibratedLinkCovariance(layout, base, jac, unit_cov, cov, options.model);
 
   const double quantile = intervalQuantile(report);
   report.not_identifiable.push_back({"delta1_deg", delta1Reason()});

@@ -142,8 +142,7 @@ Prediction predictSeveralPlacements(const CellModel& cell, const std::vector<Pos
   Eigen::MatrixXd cov = baseCovariance(jac, base, &out.condition_number);
   cov += detail::placementModelCovariance(
       cell, poses, layout, base, jac,
-      cov.unaryExpr([](double x) { return std::isfinite(x) ? x : 0.0; }), tolerances.length_mm,
-      tolerances.angle_deg, tolerances.sag_deg);
+      cov.unaryExpr([](double x) { return std::isfinite(x) ? x : 0.0; }), tolerances);
   constexpr double kMeaningfulDeg = 0.5;  // as with one placement
   double sum = 0;
   for (int k = 0; k < kIdentifiedCount; ++k) {
@@ -159,7 +158,7 @@ Prediction predictSeveralPlacements(const CellModel& cell, const std::vector<Pos
     if (k < kOffsetCount) sum += ok ? sigma * sigma : INFINITY;
   }
   out.rms_offset_sigma_deg = std::sqrt(sum / kOffsetCount);
-  for (int l = 0; l < kLinkParamCount; ++l) {
+  for (int l = 0; l < kLinkParameterCount; ++l) {
     const int k = PlacementLayout::firstLink() + l;
     out.link_identifiable.push_back(base.identified[k]);
     out.link_sigma.push_back(
@@ -187,14 +186,12 @@ Prediction predictUncertainty(const CellModel& cell, const std::vector<Pose>& po
       "the largest sigma at which an offset's value means anything (whether the plan reaches the "
       "calibration's required accuracy is the daemon's verdict on it)");
   Eigen::MatrixXd cov = id.unit_covariance;  // jac is in noise sigmas: this is the covariance
-  if (tolerances.length_mm > 0 || tolerances.angle_deg > 0 || tolerances.sag_deg > 0) {
+  if (tolerances.counted()) {
     // As the solve: the link errors' (and sag's) consider covariance, with the misses in noise
     // sigmas.
     const Eigen::MatrixXd u = cov.unaryExpr([](double x) { return std::isfinite(x) ? x : 0.0; });
-    const Eigen::MatrixXd s = u * jac.transpose() *
-                              detail::linkSpread(cell, poses, at, false, tolerances.length_mm,
-                                                 tolerances.angle_deg, tolerances.sag_deg) /
-                              sigma_mm;
+    const Eigen::MatrixXd s =
+        u * jac.transpose() * detail::linkSpread(cell, poses, at, false, tolerances) / sigma_mm;
     if (s.allFinite()) cov += s * s.transpose();
   }
   Prediction out;
@@ -617,14 +614,12 @@ Plan planPoses(const CellModel& cell, const Eigen::Vector3d& target, const PlanO
                          " reachable poses aim at the target; " + std::to_string(o.poses) +
                          " were asked for (move the target or widen the stand-off range)");
       const Eigen::MatrixXd jac = pointToLineJacobian(cell, candidates, at, o.noise_mm, false);
-      const bool with_links =
-          o.tolerances.length_mm > 0 || o.tolerances.angle_deg > 0 || o.tolerances.sag_deg > 0;
+      const bool with_links = o.tolerances.counted();
       const Eigen::MatrixXd spread =
-          with_links ? Eigen::MatrixXd(
-                           detail::linkSpread(cell, candidates, at, false, o.tolerances.length_mm,
-                                              o.tolerances.angle_deg, o.tolerances.sag_deg) /
-                           o.noise_mm)
-                     : Eigen::MatrixXd();
+          with_links
+              ? Eigen::MatrixXd(detail::linkSpread(cell, candidates, at, false, o.tolerances) /
+                                o.noise_mm)
+              : Eigen::MatrixXd();
       CandidateInfo info;
       for (std::size_t i = 0; i < candidates.size(); ++i) {
         const auto rows = jac.middleRows<2>(2 * i);

@@ -112,10 +112,14 @@ std::string SolveOptions::validate() const {
   if (noise_mm && !(std::isfinite(*noise_mm) && *noise_mm > 0))
     return "the noise level must be a positive number of mm";
   if (!(loss_scale_sigmas > 0)) return "the robust loss scale must be positive";
-  if (!(model_length_mm >= 0 && model_length_mm <= 10 && model_angle_deg >= 0 &&
-        model_angle_deg <= 1))
+  if (!(model.length_mm >= 0 && model.length_mm <= 10 && model.angle_deg >= 0 &&
+        model.angle_deg <= 1))
     return "the link tolerances must be 0..10 mm and 0..1 deg";
-  if (!(model_sag_deg >= 0 && model_sag_deg <= 1)) return "the sag tolerance must be 0..1 deg";
+  if (!(model.sag_deg >= 0 && model.sag_deg <= 1)) return "the sag tolerance must be 0..1 deg";
+  if (model.calibrated() &&
+      (model.link_covariance.rows() != kLinkParameterCount ||
+       model.link_covariance.cols() != kLinkParameterCount || !model.link_covariance.allFinite()))
+    return "the link covariance must be a finite 18 x 18 matrix";
   if (loss != RobustLoss::kNone && !noise_mm)
     return "a robust loss needs the noise level (--noise), to know what counts as large";
   if (max_iterations < 1) return "max_iterations must be at least 1";
@@ -326,20 +330,31 @@ bool significant(const DeletionTest& t, int i) { return t.checkable && i >= 0 &&
 namespace detail {
 
 Eigen::MatrixXd linkSpread(const CellModel& cell, const std::vector<Pose>& poses,
-                           const CalibrationParameters& est, bool readings, double length_mm,
-                           double angle_deg, double sag_deg) {
+                           const CalibrationParameters& est, bool readings,
+                           const ModelTolerances& tolerances) {
   const Eigen::VectorXd r0 = misses(cell, poses, est, readings);
-  const bool with_sag = sag_deg > 0 && cell.robot.hasGravityModel();
-  Eigen::MatrixXd g(r0.size(), 3 * kJointCount + (with_sag ? kComplianceCount : 0));
+  const bool with_sag = tolerances.sag_deg > 0 && cell.robot.hasGravityModel();
+  // The misses' derivatives by each link parameter (mm per mm, mm per rad).
+  Eigen::MatrixXd unit(r0.size(), kLinkParameterCount);
   for (int j = 0; j < kJointCount; ++j)
     for (int kind = 0; kind < 3; ++kind) {
       CellModel perturbed = cell;
       DhRow& row = perturbed.robot.dh[j];
       const double h = kind == 2 ? 1e-6 : 1e-3;  // rad, mm
       (kind == 0 ? row.a_mm : kind == 1 ? row.d_mm : row.alpha_rad) += h;
-      const double tolerance = kind == 2 ? angle_deg * kDegToRad : length_mm;
-      g.col(3 * j + kind) = (misses(perturbed, poses, est, readings) - r0) / h * tolerance;
+      unit.col(3 * j + kind) = (misses(perturbed, poses, est, readings) - r0) / h;
     }
+  Eigen::MatrixXd g(r0.size(), kLinkParameterCount + (with_sag ? kComplianceCount : 0));
+  if (tolerances.calibrated()) {
+    // A calibrated model's link errors are correlated (each identified combination is known far
+    // better than its parts): one standard deviation of their joint spread is the covariance's
+    // square root, whose columns are independent unit draws.
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(tolerances.link_covariance);
+    g.leftCols(kLinkParameterCount) =
+        unit * eigen.eigenvectors() * eigen.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();
+  } else {
+    g.leftCols(kLinkParameterCount) = unit * tolerances.linkSigmas().asDiagonal();
+  }
   if (with_sag) {
     // The sag of joints 2 and 3 turns the joint by c_j tau_j(q): at each pose what a change of
     // that joint's offset does, times the pose's torque, with c_j known to the sag tolerance at
@@ -353,7 +368,7 @@ Eigen::MatrixXd linkSpread(const CellModel& cell, const std::vector<Pose>& poses
       for (std::size_t i = 0; i < poses.size(); ++i)
         column.segment<2>(2 * static_cast<Eigen::Index>(i)) *=
             gravityTorqueKnm(cell.robot, cell.robot.masses, poses[i].q_deg)[c] / bound[c];
-      g.col(3 * kJointCount + c) = column * sag_deg * kDegToRad;
+      g.col(kLinkParameterCount + c) = column * tolerances.sag_deg * kDegToRad;
     }
   }
   return g;
@@ -639,9 +654,8 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
     estimates.push_back(f.est);
     t.misses_mm = misses(cell, chosen, f.est, readings);
     t.jacobian_mm = pointToLineJacobian(cell, chosen, f.est, 1.0, readings);
-    if (options.model_length_mm > 0 || options.model_angle_deg > 0 || options.model_sag_deg > 0)
-      t.spread_mm = detail::linkSpread(cell, chosen, f.est, readings, options.model_length_mm,
-                                       options.model_angle_deg, options.model_sag_deg);
+    if (options.model.counted())
+      t.spread_mm = detail::linkSpread(cell, chosen, f.est, readings, options.model);
     const auto s = standoffs(cell, chosen, f.est);
     t.beam_points_away = *std::min_element(s.begin(), s.end()) <= 0;
     return t;
@@ -722,11 +736,9 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
   // the chi-square, and with it the Birge ratio and the noise gate, is that of the link-weighted
   // misses (W^T W = (I + G G^T / sigma^2)^-1, the deletion test's), so that the link misfit is
   // counted once, in the model part below, and not a second time in a scaled-up noise.
-  const Eigen::MatrixXd spread =
-      options.model_length_mm > 0 || options.model_angle_deg > 0 || options.model_sag_deg > 0
-          ? detail::linkSpread(cell, used, est, readings, options.model_length_mm,
-                               options.model_angle_deg, options.model_sag_deg)
-          : Eigen::MatrixXd();
+  const Eigen::MatrixXd spread = options.model.counted()
+                                     ? detail::linkSpread(cell, used, est, readings, options.model)
+                                     : Eigen::MatrixXd();
   const bool link_weighted = spread.cols() > 0 && options.noise_mm &&
                              options.loss == RobustLoss::kNone && jac_mm.rows() > 0;
   if (link_weighted) {
@@ -754,10 +766,11 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
   // estimate by S = J^+ G (G: the misses' derivatives by that link parameter) whatever the number
   // of poses. Their consider covariance S diag(tolerance^2) S^T is added to the statistical one.
   Eigen::MatrixXd model_cov = Eigen::MatrixXd::Zero(kUnknownCount, kUnknownCount);
-  report.model_length_mm = options.model_length_mm;
-  report.model_angle_deg = options.model_angle_deg;
+  report.model_length_mm = options.model.length_mm;
+  report.model_angle_deg = options.model.angle_deg;
+  report.model_calibrated = options.model.calibrated();
   report.model_sag_deg =
-      spread.cols() > 3 * kJointCount ? options.model_sag_deg : 0;  // counted: a gravity model
+      spread.cols() > kLinkParameterCount ? options.model.sag_deg : 0;  // counted: a gravity model
   if (spread.cols() > 0) {
     // A parameter the poses do not determine has no covariance (NaN) and no model part either.
     const Eigen::MatrixXd u =
@@ -847,6 +860,12 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
   report.solve_time_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return report;
+}
+
+Robot calibratedRobot(const Robot& robot, const SolveReport& report) {
+  Robot out = calibratedRobot(robot, report.estimate);
+  if (report.link_covariance.size() > 0) out.tolerance.link_covariance = report.link_covariance;
+  return out;
 }
 
 }  // namespace zerocal

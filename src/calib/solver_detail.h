@@ -101,12 +101,13 @@ Eigen::VectorXd poseMisses(const CellModel& cell, const std::vector<Pose>& poses
                            const CalibrationParameters& est, bool readings);
 
 // The misses' derivatives by each link length and twist (a, d, alpha of every joint) times its
-// tolerance, mm: 2 rows per pose, 3 columns per joint; with a sag tolerance and a robot file with
-// a gravity model, 2 more, joints 2 and 3's compliance. What the model errors the tolerances
-// allow do to the misses, one standard deviation per column.
+// tolerance, mm: 2 rows per pose, 3 columns per joint (for a calibrated model, by the square root
+// of its link covariance: independent combinations); with a sag tolerance and a robot file with a
+// gravity model, 2 more, joints 2 and 3's compliance. What the model errors the tolerances allow
+// do to the misses, one standard deviation per column: G with G G^T their covariance.
 Eigen::MatrixXd linkSpread(const CellModel& cell, const std::vector<Pose>& poses,
-                           const CalibrationParameters& est, bool readings, double length_mm,
-                           double angle_deg, double sag_deg = 0);
+                           const CalibrationParameters& est, bool readings,
+                           const ModelTolerances& tolerances);
 
 // The several-placement fit's consider covariance (its unknowns' units: rad, mm): what it holds
 // at nominal but knows only to a tolerance moves the identified unknowns by S = unit_cov J^T G.
@@ -118,8 +119,8 @@ Eigen::MatrixXd linkSpread(const CellModel& cell, const std::vector<Pose>& poses
 Eigen::MatrixXd placementModelCovariance(const CellModel& cell, const std::vector<Pose>& used,
                                          const PlacementLayout& layout, const BaseParameters& base,
                                          const Eigen::MatrixXd& jac,
-                                         const Eigen::MatrixXd& unit_cov, double length_mm,
-                                         double angle_deg, double sag_deg);
+                                         const Eigen::MatrixXd& unit_cov,
+                                         const ModelTolerances& tolerances);
 
 // solve() for poses at two or more PSD placements (docs/maths.md section 8).
 SolveReport solveMultiPlacement(const CellModel& cell, const std::vector<Pose>& poses,

@@ -114,9 +114,6 @@ std::vector<Field> schema(DaemonConfig& c) {
   f.push_back(realField("session.psd_noise_mm", c.session.psd_noise_mm));
   f.push_back(realField("session.noise_mm", c.session.noise_mm));
   f.push_back(realField("session.required_accuracy_deg", c.session.required_accuracy_deg));
-  f.push_back(realField("session.model_length_mm", c.session.model_length_mm));
-  f.push_back(realField("session.model_angle_deg", c.session.model_angle_deg));
-  f.push_back(realField("session.model_sag_deg", c.session.model_sag_deg));
   f.push_back(pathField("session.data_dir", c.session.data_dir));
 
   auto& o = c.control;
@@ -167,6 +164,12 @@ bool isSection(const std::vector<Field>& fields, const std::string& path) {
 // board's keys sat directly under controller: and daq: before each kind owned a section.
 std::string unknownKey(const std::vector<Field>& fields, const std::string& path) {
   std::string message = "unknown key '" + path + "'";
+  // The link and sag tolerances are the robot model's own: a calibrated model carries others.
+  if (path == "session.model_length_mm" || path == "session.model_angle_deg" ||
+      path == "session.model_sag_deg")
+    return message +
+           ": the robot model states its tolerances now, in the robot file's "
+           "model_tolerance (controller.robot; docs/file-formats.md)";
   const auto dot = path.find('.');
   if (dot == std::string::npos) return message;
   const std::string family = path.substr(0, dot + 1), rest = path.substr(dot + 1);
@@ -399,9 +402,6 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
   check.range("session.psd_noise_mm", n.psd_noise_mm, 0.0, 1.0);
   // Beyond a degree the offsets would be mastering errors, not a calibration's business.
   check.positive("session.required_accuracy_deg", n.required_accuracy_deg, 1.0);
-  check.range("session.model_length_mm", n.model_length_mm, 0.0, 10.0);
-  check.range("session.model_angle_deg", n.model_angle_deg, 0.0, 1.0);
-  check.range("session.model_sag_deg", n.model_sag_deg, 0.0, 1.0);
   if (n.data_dir.empty()) check.fail("session.data_dir", "must not be empty");
 
   const auto& o = c.control;

@@ -81,7 +81,8 @@ void addSolve(CLI::App& app, EngineCommands& commands) {
                 "robot file's gravity model");
   cmd->add_option("--sag-tolerance", a.sag_tolerance,
                   "several placements: the gravity sag's one-sigma tolerance at the largest "
-                  "torque, deg, counted in every sigma when the compliance is not identified")
+                  "torque, deg, counted in every sigma when the compliance is not identified "
+                  "(default: the robot file's model_tolerance.sag_deg)")
       ->check(CLI::Range(0.0, 1.0));
   cmd->add_option("--save-model", a.save_model,
                   "several placements: write the robot file with the identified link "
@@ -175,7 +176,10 @@ int runSolve(const SolveArgs& a) {
   options.required_accuracy_deg = a.required_accuracy;
   options.max_offset_deg = a.max_offset;
   options.identify_compliance = a.identify_compliance;
-  options.model_sag_deg = a.sag_tolerance;
+  // What the robot file admits about its model (a nominal one's tolerances, a calibrated one's
+  // covariance), the sag's tolerance as given here when it is.
+  options.model = cell.robot.tolerance;
+  if (a.sag_tolerance) options.model.sag_deg = *a.sag_tolerance;
   bool has_readings = !poses.empty() && poses.front().spot.has_value();
   options.use_readings = has_readings && !a.ignore_readings;
   if (options.use_readings) {
@@ -204,7 +208,7 @@ int runSolve(const SolveArgs& a) {
           "--save-model needs poses at two or more PSD placements: one "
           "placement identifies no link error");
     if (report.verdict.usable) {
-      saveCalibratedModel(a.save_model, calibratedRobot(cell.robot, report.estimate),
+      saveCalibratedModel(a.save_model, calibratedRobot(cell.robot, report),
                           "calibrated from " + a.joints_file + " by zerocal solve");
       std::cerr << "zerocal-lab: calibrated robot model written to " << a.save_model << "\n";
     } else {

@@ -36,7 +36,7 @@ struct SolveArgs {
   double required_accuracy = SolveOptions{}.required_accuracy_deg;
   double max_offset = SolveOptions{}.max_offset_deg;
   bool identify_compliance = false;
-  double sag_tolerance = 0;
+  std::optional<double> sag_tolerance;  // unset: the robot file's
   std::string save_model;
   std::optional<int> holdout_count;
   std::vector<int> holdout_poses;

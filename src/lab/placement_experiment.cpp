@@ -11,6 +11,7 @@
 #include "zerocal/calib/planner.h"
 #include "zerocal/calib/solver.h"
 #include "zerocal/error.h"
+#include "zerocal/model/builtin.h"
 #include "zerocal/model/kinematics.h"
 #include "zerocal/sim/world.h"
 
@@ -264,9 +265,9 @@ int runPlacementExperiment(const PlacementExperimentArgs& args) {
   options.noise_mm = args.noise_mm;
   options.identify_compliance = args.identify_compliance;
   if (!args.ideal_world) {
-    options.model_length_mm = args.model_length_mm;
-    options.model_angle_deg = args.model_angle_deg;
-    if (!args.without_sag) options.model_sag_deg = args.model_sag_deg;
+    // What the robot file admits (the shipped IRB 1600's tolerances), the sag's as given.
+    options.model = builtinIrb1600().tolerance;
+    options.model.sag_deg = args.without_sag ? 0 : args.model_sag_deg;
   }
   Tally several, one;
   GrossTally gross_several, gross_one;
@@ -341,7 +342,7 @@ int runPlacementExperiment(const PlacementExperimentArgs& args) {
                      {"world", args.ideal_world ? "ideal" : "realistic"},
                      {"without_sag", args.without_sag},
                      {"identify_compliance", args.identify_compliance},
-                     {"sag_tolerance_deg", options.model_sag_deg},
+                     {"sag_tolerance_deg", options.model.sag_deg},
                      {"placements", args.placements},
                      {"poses_per_placement", args.poses},
                      {"noise_mm", args.noise_mm},
@@ -363,10 +364,10 @@ int runPlacementExperiment(const PlacementExperimentArgs& args) {
         args.worlds, args.ideal_world ? "ideal" : "realistic",
         args.without_sag ? " without gravity sag" : "", static_cast<unsigned long long>(args.seed0),
         args.placements, args.poses, args.placements * args.poses, args.noise_mm,
-        args.ideal_world ? "" : ", link tolerances 0.1 mm and 0.01 deg counted");
-    if (options.model_sag_deg > 0)
+        args.ideal_world ? "" : ", the robot file's link tolerances counted");
+    if (options.model.sag_deg > 0)
       std::printf("gravity sag of joints 2 and 3 counted as a tolerance of %.4f deg\n",
-                  options.model_sag_deg);
+                  options.model.sag_deg);
     if (args.identify_compliance) std::printf("compliance of joints 2 and 3 identified\n");
     std::printf("%-22s %8s %8s %10s %14s %12s %14s %12s\n", "session", "usable", "offered",
                 "within 3s", "worst (sigma)", "RMS (deg)", "links ident.", "");

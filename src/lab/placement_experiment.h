@@ -11,11 +11,9 @@ namespace zerocal::lab {
 struct PlacementExperimentArgs {
   int worlds = 30;
   std::uint64_t seed0 = 1;
-  int placements = 3;            // PSD placements of the several-placement session
-  int poses = 12;                // per placement; the one-placement session has them all at one
-  double noise_mm = 0.020;       // the measurement sigma given to the solve (the daemon's)
-  double model_length_mm = 0.1;  // link tolerances counted (the daemon's defaults)
-  double model_angle_deg = 0.01;
+  int placements = 3;       // PSD placements of the several-placement session
+  int poses = 12;           // per placement; the one-placement session has them all at one
+  double noise_mm = 0.020;  // the measurement sigma given to the solve (the daemon's)
   // The gravity sag's tolerance at the largest torque, counted when the compliance is not
   // identified (the realistic world's sag is 0.003..0.010 deg on joint 2: RMS 0.007).
   double model_sag_deg = 0.007;

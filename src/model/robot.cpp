@@ -2,6 +2,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <Eigen/Eigenvalues>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -201,6 +202,89 @@ void parseGravity(const YAML::Node& root, Robot& robot, Problems& problems) {
   }
 }
 
+// The one-sigma tolerances a model may state: beyond these it is not a model of the arm.
+constexpr double kMaxLengthToleranceMm = 10, kMaxAngleToleranceDeg = 1;
+
+void parseTolerance(const YAML::Node& root, Robot& robot, Problems& problems) {
+  const YAML::Node t = root["model_tolerance"];
+  if (!t) {
+    problems.add(root,
+                 "missing 'model_tolerance': the one-sigma tolerances of this model's link "
+                 "lengths (length_mm) and twists (angle_deg), which every solve counts "
+                 "(docs/file-formats.md); 0 and 0 state a model taken as exact");
+    return;
+  }
+  if (!t.IsMap()) {
+    problems.add(t, "model_tolerance: must be a map with 'length_mm' and 'angle_deg'");
+    return;
+  }
+  const std::string where = "model_tolerance";
+  ModelTolerances& m = robot.tolerance;
+  m.length_mm = number(t, "length_mm", where, problems);
+  m.angle_deg = number(t, "angle_deg", where, problems);
+  if (t["sag_deg"]) m.sag_deg = number(t, "sag_deg", where, problems);
+  for (const auto& [key, value, bound] :
+       {std::tuple<const char*, double, double>{"length_mm", m.length_mm, kMaxLengthToleranceMm},
+        {"angle_deg", m.angle_deg, kMaxAngleToleranceDeg},
+        {"sag_deg", m.sag_deg, kMaxAngleToleranceDeg}})
+    if (t[key] && !(value >= 0 && value <= bound))
+      problems.add(t[key], where + ": '" + key + "' must lie within 0.." + fmt(bound));
+  if (const YAML::Node c = t["link_covariance"]) {
+    // A calibrated model's: rows and columns a1, d1, alpha1, a2, ... in mm and deg.
+    const std::string shape = where + ": 'link_covariance' must be " +
+                              std::to_string(kLinkParameterCount) + " rows of " +
+                              std::to_string(kLinkParameterCount) +
+                              " numbers (a, d in mm and alpha in deg of each joint)";
+    if (!c.IsSequence() || c.size() != kLinkParameterCount) {
+      problems.add(c, shape);
+    } else {
+      Eigen::MatrixXd cov(kLinkParameterCount, kLinkParameterCount);
+      bool ok = true;
+      for (int r = 0; r < kLinkParameterCount && ok; ++r) {
+        if (!c[r].IsSequence() || c[r].size() != kLinkParameterCount) {
+          problems.add(c[r], shape);
+          ok = false;
+          break;
+        }
+        for (int k = 0; k < kLinkParameterCount; ++k) {
+          try {
+            const double v = c[r][k].as<double>();
+            if (!std::isfinite(v)) throw YAML::Exception({}, "");
+            const double unit = (r % 3 == 2 ? kDegToRad : 1.0) * (k % 3 == 2 ? kDegToRad : 1.0);
+            cov(r, k) = v * unit;
+          } catch (const YAML::Exception&) {
+            problems.add(c[r][k], where + ": link_covariance[" + std::to_string(r) + "][" +
+                                      std::to_string(k) + "] is not a finite number");
+            ok = false;
+          }
+        }
+      }
+      if (ok) {
+        const double scale = cov.cwiseAbs().maxCoeff();
+        const double min_eigen =
+            Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(0.5 * (cov + cov.transpose()))
+                .eigenvalues()
+                .minCoeff();
+        if (!((cov - cov.transpose()).cwiseAbs().maxCoeff() <= 1e-9 * scale))
+          problems.add(c, where + ": 'link_covariance' is not symmetric");
+        else if (!(min_eigen >= -1e-9 * scale))
+          problems.add(c, where +
+                              ": 'link_covariance' is not a covariance (not positive "
+                              "semi-definite)");
+        else if (!((cov.diagonal().array() >= 0).all()))
+          problems.add(c, where + ": 'link_covariance' has a negative variance");
+        else
+          m.link_covariance = cov;
+      }
+    }
+  }
+  for (const auto& kv : t) {
+    const auto key = keyOf(kv.first);
+    if (key != "length_mm" && key != "angle_deg" && key != "sag_deg" && key != "link_covariance")
+      problems.add(kv.first, where + ": unknown key '" + key + "'");
+  }
+}
+
 void parseJoints(const YAML::Node& root, Robot& robot, Problems& problems) {
   const YAML::Node joints = root["joints"];
   if (!joints || !joints.IsSequence()) {
@@ -326,10 +410,12 @@ Robot parseRobot(const std::string& yaml_text, const std::string& origin) {
       }
     }
     parseGravity(root, robot, problems);
+    parseTolerance(root, robot, problems);
     for (const auto& kv : root) {
       const auto key = keyOf(kv.first);
       if (key != "name" && key != "joints" && key != "description" &&
-          key != "transmission_confirmed" && key != "gravity" && key != "compliance_deg_per_knm")
+          key != "transmission_confirmed" && key != "gravity" && key != "compliance_deg_per_knm" &&
+          key != "model_tolerance")
         problems.add(kv.first, "unknown key '" + key + "'");
     }
   } catch (const YAML::Exception& e) {
@@ -389,7 +475,30 @@ std::string robotYaml(const Robot& robot, const std::string& comment) {
   if (robot.hasCompliance())
     o << "compliance_deg_per_knm: [" << exact(robot.compliance_deg_per_knm[0]) << ", "
       << exact(robot.compliance_deg_per_knm[1]) << "]\n";
+  const ModelTolerances& t = robot.tolerance;
+  o << "model_tolerance:\n  length_mm: " << exact(t.length_mm)
+    << "\n  angle_deg: " << exact(t.angle_deg) << "\n";
+  if (t.sag_deg > 0) o << "  sag_deg: " << exact(t.sag_deg) << "\n";
+  if (t.calibrated()) {
+    o << "  link_covariance:\n";
+    for (int r = 0; r < kLinkParameterCount; ++r) {
+      o << "    - [";
+      for (int k = 0; k < kLinkParameterCount; ++k) {
+        const double unit = (r % 3 == 2 ? kRadToDeg : 1.0) * (k % 3 == 2 ? kRadToDeg : 1.0);
+        o << (k ? ", " : "") << exact(t.link_covariance(r, k) * unit);
+      }
+      o << "]\n";
+    }
+  }
   return o.str();
+}
+
+Eigen::VectorXd ModelTolerances::linkSigmas() const {
+  if (calibrated()) return link_covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+  Eigen::VectorXd sigma(kLinkParameterCount);
+  for (int k = 0; k < kLinkParameterCount; ++k)
+    sigma[k] = k % 3 == 2 ? angle_deg * kDegToRad : length_mm;
+  return sigma;
 }
 
 Robot loadRobot(const std::string& path) {

@@ -57,7 +57,12 @@ std::vector<std::string> placementCentres(const SessionReport& r) {
 std::string toleranceNote(const SessionReport& r) {
   const SolveReport& s = r.solve();
   std::string counted;
-  if (s.model_length_mm > 0 || s.model_angle_deg > 0)
+  if (s.model_calibrated)
+    counted = s.placements.size() < 2
+                  ? "the calibrated robot model's link covariance"
+                  : "the calibrated robot model's uncertainty of the link errors these poses do "
+                    "not identify";
+  else if (s.model_length_mm > 0 || s.model_angle_deg > 0)
     counted = format(s.placements.size() < 2
                          ? "the robot's link tolerances (%.3g mm, %.3g deg)"
                          : "the tolerances (%.3g mm, %.3g deg) of the link errors these poses do "

@@ -34,7 +34,7 @@ nlohmann::json toJson(const Plan& plan) {
     j["pose_placements"] = nlohmann::json::array();
     for (const auto& p : plan.poses) j["pose_placements"].push_back(p.placement);
     nlohmann::json links = nlohmann::json::object();
-    for (int l = 0; l < kLinkParamCount; ++l) {
+    for (int l = 0; l < kLinkParameterCount; ++l) {
       if (!holds(l, pr.link_identifiable, pr.link_sigma, pr.link_reason)) continue;
       nlohmann::json e{{"identifiable", plan.prediction.link_identifiable[l]},
                        {"sigma", numberOrNull(plan.prediction.link_sigma[l])}};
@@ -108,10 +108,10 @@ Plan planFromJson(const nlohmann::json& json, const std::string& where) {
   }
   if (j.present("predicted_link_errors")) {
     const JsonReader links = j.object("predicted_link_errors");
-    p.link_sigma.assign(kLinkParamCount, std::nan(""));
-    p.link_identifiable.assign(kLinkParamCount, false);
-    p.link_reason.assign(kLinkParamCount, "not predicted");
-    for (int l = 0; l < kLinkParamCount; ++l) {
+    p.link_sigma.assign(kLinkParameterCount, std::nan(""));
+    p.link_identifiable.assign(kLinkParameterCount, false);
+    p.link_reason.assign(kLinkParameterCount, "not predicted");
+    for (int l = 0; l < kLinkParameterCount; ++l) {
       const std::string name = linkParamName(l);
       if (!links.has(name.c_str())) continue;
       const JsonReader e = links.object(name.c_str());

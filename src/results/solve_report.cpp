@@ -64,6 +64,7 @@ nlohmann::json toJson(const SolveReport& r) {
   j["required_accuracy_deg"] = r.required_accuracy_deg;
   j["model_tolerance"] = {{"length_mm", r.model_length_mm}, {"angle_deg", r.model_angle_deg}};
   if (r.model_sag_deg > 0) j["model_tolerance"]["sag_deg"] = r.model_sag_deg;
+  if (r.model_calibrated) j["model_tolerance"]["calibrated"] = true;
   nlohmann::json params = nlohmann::json::object();
   for (const auto& p : r.parameters) {
     nlohmann::json e;
@@ -162,6 +163,7 @@ SolveReport solveReportFromJson(const nlohmann::json& json, const std::string& w
     r.model_length_mm = m.number("length_mm");
     r.model_angle_deg = m.number("angle_deg");
     r.model_sag_deg = m.has("sag_deg") ? m.number("sag_deg") : 0;
+    r.model_calibrated = m.has("calibrated") && m.boolean("calibrated");
   }
   const nlohmann::json& params = j.at("parameters");
   if (!params.is_object()) throw InputError(where + ": 'parameters' is not an object");
@@ -195,7 +197,7 @@ SolveReport solveReportFromJson(const nlohmann::json& json, const std::string& w
       else
         r.estimate.laser[k - kOffsetCount] = e.value;
     }
-    for (int l = 0; l < kLinkParamCount; ++l)  // several placements: a, d in mm, alpha in deg
+    for (int l = 0; l < kLinkParameterCount; ++l)  // several placements: a, d in mm, alpha in deg
       if (linkParamName(l) == name && e.identifiable)
         r.estimate.link[l] = l % 3 == 2 ? e.value * kDegToRad : e.value;
     r.parameters.push_back(e);

@@ -14,14 +14,6 @@ RunSettings runSettingsOf(const DaemonConfig& config) {
   s.servo.limit_margin_deg = config.controller.section().motion().limit_margin_deg;
   s.solve.noise_mm = config.session.noise_mm;
   s.solve.required_accuracy_deg = config.session.required_accuracy_deg;
-  s.solve.model_length_mm = config.session.model_length_mm;
-  s.solve.model_angle_deg = config.session.model_angle_deg;
-  s.solve.model_sag_deg = config.session.model_sag_deg;
-  // The simulated cell's ideal world has the robot file's links exactly and no sag: nothing to
-  // count.
-  if (config.backend.kind == BackendKind::kSim && config.backend.sim_ideal_world &&
-      config.backend.sim_world.empty())
-    s.solve.model_length_mm = s.solve.model_angle_deg = s.solve.model_sag_deg = 0;
   return s;
 }
 

@@ -271,9 +271,7 @@ PlannedSession RequestPlanner::plan(const StartRequest& request) const {
 ChangeOptions RequestPlanner::changeOptions(SessionKind kind) const {
   ChangeOptions o;
   o.solve.noise_mm = settings_.noise_mm;
-  o.solve.model_length_mm = settings_.tolerances.length_mm;
-  o.solve.model_angle_deg = settings_.tolerances.angle_deg;
-  o.solve.model_sag_deg = settings_.tolerances.sag_deg;
+  o.solve.model = settings_.tolerances;
   o.solve.required_accuracy_deg = settings_.required_accuracy_deg;
   // A restore's values are written, and its verification decides whether they stay: the arm's
   // growth since the reference is an unknown of both, so that a reference taken warm and a

@@ -67,7 +67,7 @@ PlannerSettings plannerSettingsOf(const ManagerSettings& settings) {
   p.noise_mm = settings.session.noise_mm;
   p.target_mm = settings.target_mm;
   const SolveOptions& solve = settings.run.solve;
-  p.tolerances = {solve.model_length_mm, solve.model_angle_deg, solve.model_sag_deg};
+  p.tolerances = solve.model;
   p.limit_margin_deg = settings.run.servo.limit_margin_deg;
   p.required_accuracy_deg = solve.required_accuracy_deg;
   p.travel_s = settings.travel_s;
@@ -76,8 +76,15 @@ PlannerSettings plannerSettingsOf(const ManagerSettings& settings) {
 
 }  // namespace
 
+// Every solve and plan of the daemon counts what its robot model admits (the robot file's
+// model_tolerance: a nominal model's tolerances or a calibrated model's covariance).
+ManagerSettings withModelOf(ManagerSettings settings, const CellKnowledge& knowledge) {
+  settings.run.solve.model = knowledge.cell.robot.tolerance;
+  return settings;
+}
+
 SessionManager::SessionManager(CellBackend& backend, ManagerSettings settings)
-    : settings_(std::move(settings)),
+    : settings_(withModelOf(std::move(settings), backend.knowledge())),
       store_(settings_.session.data_dir),
       knowledge_(withNoiseModel(backend.knowledge(), settings_.session)),
       board_(backend.name()),
@@ -447,7 +454,8 @@ ResultFile SessionManager::verificationRun(const std::string& applied, std::stri
   const std::string reference = store_.readSession(applied).reference;
   request.reference = reference.empty() ? applied : reference;
   // The spot predicted from the calibration's laser line and its last placement's centre.
-  if (reference.empty()) request.found_before = loadAppliedCalibration(store_, applied).fit.estimate;
+  if (reference.empty())
+    request.found_before = loadAppliedCalibration(store_, applied).fit.estimate;
   const NewSession n = createSession(request);
   id = n.id;
   runner_.run(n.run);

@@ -33,8 +33,8 @@ std::vector<int> allOf(std::size_t n) {
 ChangeOptions changeOptions(double noise_mm) {
   ChangeOptions o;
   o.solve.noise_mm = noise_mm;
-  o.solve.model_length_mm = 0.25;
-  o.solve.model_angle_deg = 0.02;
+  o.solve.model.length_mm = 0.25;
+  o.solve.model.angle_deg = 0.02;
   return o;
 }
 

@@ -57,8 +57,9 @@ TEST_F(CostGradients, PointToLineWithHitPointOffset) {
 
 TEST_F(CostGradients, PointToLineWithLinkErrorsAndCompliance) {
   ASSERT_TRUE(sc.cell.robot.hasGravityModel());  // the shipped robot's: the torque is not zero
-  Eigen::Matrix<double, kLinkParamCount, 1> link;
-  for (int k = 0; k < kLinkParamCount; ++k) link[k] = (k % 3 == 2 ? 1e-4 : 0.1) * (k % 2 ? -1 : 1);
+  Eigen::Matrix<double, kLinkParameterCount, 1> link;
+  for (int k = 0; k < kLinkParameterCount; ++k)
+    link[k] = (k % 3 == 2 ? 1e-4 : 0.1) * (k % 2 ? -1 : 1);
   const Eigen::Vector2d compliance(2e-4, -1e-4);  // rad per kN m
   for (const auto& pose : poses) {
     std::unique_ptr<ceres::CostFunction> cost(
@@ -69,8 +70,8 @@ TEST_F(CostGradients, PointToLineWithLinkErrorsAndCompliance) {
 
 // The compliance turns joint j by c_j tau_j(q): the same residual as the offset turned so.
 TEST_F(CostGradients, ComplianceActsAsTheTorqueTimesItOnTheJoint) {
-  const Eigen::Matrix<double, kLinkParamCount, 1> zero_link =
-      Eigen::Matrix<double, kLinkParamCount, 1>::Zero();
+  const Eigen::Matrix<double, kLinkParameterCount, 1> zero_link =
+      Eigen::Matrix<double, kLinkParameterCount, 1>::Zero();
   const Eigen::Vector2d compliance(3e-4, -2e-4);
   for (const auto& pose : poses) {
     const auto torque = gravityTorqueKnm(sc.cell.robot, sc.cell.robot.masses, pose.q_deg);
@@ -89,8 +90,8 @@ TEST_F(CostGradients, ComplianceActsAsTheTorqueTimesItOnTheJoint) {
 }
 
 TEST_F(CostGradients, LinkErrorsOfZeroGiveThePointToLineResidual) {
-  const Eigen::Matrix<double, kLinkParamCount, 1> zero =
-      Eigen::Matrix<double, kLinkParamCount, 1>::Zero();
+  const Eigen::Matrix<double, kLinkParameterCount, 1> zero =
+      Eigen::Matrix<double, kLinkParameterCount, 1>::Zero();
   for (const auto& pose : poses) {
     const Eigen::Vector3d offset(0.2, 0.1, 0);
     double plain[2], with_links[2];

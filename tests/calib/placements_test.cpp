@@ -106,7 +106,7 @@ TEST(SeveralPlacements, RecoverTheOffsetsAndTheIdentifiableLinkErrorsWithoutNois
   std::mt19937_64 rng(5);
   std::normal_distribution<double> normal;
   int identified_links = 0;
-  for (int l = 0; l < kLinkParamCount; ++l)
+  for (int l = 0; l < kLinkParameterCount; ++l)
     if (base.identified[PlacementLayout::firstLink() + l]) {
       sc.truth.link[l] = l % 3 == 2 ? 0.01 * kDegToRad * normal(rng) : 0.1 * normal(rng);
       ++identified_links;
@@ -119,14 +119,14 @@ TEST(SeveralPlacements, RecoverTheOffsetsAndTheIdentifiableLinkErrorsWithoutNois
   ASSERT_TRUE(r.converged) << r.message;
   EXPECT_TRUE(r.verdict.usable) << ::testing::PrintToString(r.verdict.reasons);
   EXPECT_LT(r.rms_miss_mm, 1e-7);
-  ASSERT_EQ(r.parameters.size(), static_cast<std::size_t>(kIdentifiedCount + kLinkParamCount));
+  ASSERT_EQ(r.parameters.size(), static_cast<std::size_t>(kIdentifiedCount + kLinkParameterCount));
   for (int k = 0; k < kOffsetCount; ++k) {
     EXPECT_TRUE(r.parameters[k].identifiable) << r.parameters[k].reason;
     EXPECT_NEAR(r.parameters[k].value, sc.truth.delta_rad[k] * kRadToDeg, 1e-7) << k;
   }
   for (int k = 0; k < kLaserParamCount; ++k)
     EXPECT_NEAR(r.estimate.laser[k], sc.truth.laser[k], 1e-7) << k;
-  for (int l = 0; l < kLinkParamCount; ++l) {
+  for (int l = 0; l < kLinkParameterCount; ++l) {
     const ParameterEstimate& p = r.parameters[kIdentifiedCount + l];
     EXPECT_EQ(p.name, linkParamName(l));
     EXPECT_EQ(p.identifiable, base.identified[PlacementLayout::firstLink() + l]) << p.name;
@@ -153,7 +153,7 @@ TEST(SeveralPlacements, EveryLinkErrorOfTheArmLeavesTheOffsetsExact) {
   Table2Scenario sc = table2Scenario();
   std::mt19937_64 rng(9);
   std::normal_distribution<double> normal;
-  for (int l = 0; l < kLinkParamCount; ++l)
+  for (int l = 0; l < kLinkParameterCount; ++l)
     sc.truth.link[l] = l % 3 == 2 ? 0.01 * kDegToRad * normal(rng) : 0.1 * normal(rng);
   const auto recorded = record(sc.cell, sc.truth, centresOf(sc), threePlacementPlan());
   SolveOptions options;
@@ -240,7 +240,7 @@ TEST(SeveralPlacements, IdentifyTheComplianceOfJoints2And3OrCountItsSag) {
   // Not identified: the sag biases delta2 and delta3, and its tolerance widens their sigmas.
   options.identify_compliance = false;
   const SolveReport plain = solve(sc.cell, recorded, options);
-  options.model_sag_deg = 0.01;
+  options.model.sag_deg = 0.01;
   const SolveReport counted = solve(sc.cell, recorded, options);
   EXPECT_EQ(find(plain, "compliance2_deg_per_knm"), nullptr);
   EXPECT_EQ(counted.model_sag_deg, 0.01);
@@ -360,9 +360,9 @@ TEST(SeveralPlacements, ThePlanPredictsTheLinkErrorsTheyIdentify) {
   const std::vector<Pose>& planned = threePlacementPlan();
   const Prediction three = predictUncertainty(sc.cell, planned, {}, 0.02);
   EXPECT_EQ(three.placements, 3);
-  ASSERT_EQ(three.link_sigma.size(), static_cast<std::size_t>(kLinkParamCount));
+  ASSERT_EQ(three.link_sigma.size(), static_cast<std::size_t>(kLinkParameterCount));
   int identified = 0;
-  for (int l = 0; l < kLinkParamCount; ++l) {
+  for (int l = 0; l < kLinkParameterCount; ++l) {
     if (!three.link_identifiable[l]) {
       EXPECT_TRUE(std::isnan(three.link_sigma[l]));
       EXPECT_FALSE(three.link_reason[l].empty());
@@ -389,9 +389,9 @@ TEST(SeveralPlacements, ThePlanPredictsWhatTheSolveCountsBesideTheNoise) {
   const std::vector<Pose>& planned = threePlacementPlan();
   SolveOptions options;
   options.noise_mm = 0.02;
-  options.model_length_mm = 0.1;
-  options.model_angle_deg = 0.01;
-  options.model_sag_deg = 0.007;
+  options.model.length_mm = 0.1;
+  options.model.angle_deg = 0.01;
+  options.model.sag_deg = 0.007;
   options.required_accuracy_deg = 0.5;
   const ModelTolerances tolerances{0.1, 0.01, 0.007};
   const std::vector<Pose> first(planned.begin(), planned.begin() + 10);
@@ -444,6 +444,55 @@ TEST(SeveralPlacements, ACalibratedModelReadsBackAndLeavesNoLinkErrorToFind) {
     }
   for (int k = 0; k < kOffsetCount; ++k)
     EXPECT_NEAR(again.parameters[k].value, first.parameters[k].value, 1e-5) << k;
+}
+
+// Solved with the link tolerances counted, several placements leave a calibrated model whose file
+// carries the covariance of its links' remaining errors; a one-placement solve with that model
+// counts that covariance instead of the nominal tolerances, and blurs the offsets less.
+TEST(SeveralPlacements, ACalibratedModelCarriesItsLinkCovarianceIntoTheNextSolve) {
+  const Table2Scenario sc = table2Scenario();
+  CalibrationParameters truth = sc.truth;
+  truth.link[3 * 1 + 0] = 0.1;
+  truth.link[3 * 2 + 2] = 0.01 * kDegToRad;
+  const auto recorded = record(sc.cell, truth, centresOf(sc), threePlacementPlan());
+  SolveOptions options;
+  options.noise_mm = 0.01;
+  options.model.length_mm = 0.1;
+  options.model.angle_deg = 0.01;
+  const SolveReport first = solve(sc.cell, recorded, options);
+  ASSERT_TRUE(first.converged) << first.message;
+  ASSERT_EQ(first.link_covariance.rows(), kLinkParameterCount);
+  const Robot saved = calibratedRobot(sc.cell.robot, first);
+  ASSERT_TRUE(saved.tolerance.calibrated());
+  const Robot back = parseRobot(robotYaml(saved, "calibrated by a test"), "test");
+  ASSERT_TRUE(back.tolerance.calibrated());
+  EXPECT_LT((back.tolerance.link_covariance - first.link_covariance).cwiseAbs().maxCoeff(),
+            1e-12 * first.link_covariance.cwiseAbs().maxCoeff());
+  // What the placements pinned down is known better than the nominal tolerance says.
+  const Eigen::VectorXd sigmas = back.tolerance.linkSigmas();
+  EXPECT_LT(sigmas.minCoeff(), 0.5 * 0.1);
+
+  std::vector<Pose> one;
+  for (const Pose& p : recorded)
+    if (p.placement == 1) one.push_back(p);
+  SolveOptions nominal = options;
+  const SolveReport before = solve(sc.cell, one, nominal);
+  CellModel calibrated = sc.cell;
+  calibrated.robot = back;
+  SolveOptions with_model = options;
+  with_model.model = back.tolerance;
+  const SolveReport after = solve(calibrated, one, with_model);
+  ASSERT_TRUE(before.converged && after.converged);
+  EXPECT_FALSE(before.model_calibrated);
+  EXPECT_TRUE(after.model_calibrated);
+  double worst_before = 0, worst_after = 0;
+  for (int k = 0; k < kOffsetCount; ++k) {
+    if (!before.parameters[k].identifiable || !after.parameters[k].identifiable) continue;
+    worst_before = std::max(worst_before, before.parameters[k].model_sigma);
+    worst_after = std::max(worst_after, after.parameters[k].model_sigma);
+  }
+  EXPECT_GT(worst_before, 0);
+  EXPECT_LT(worst_after, 0.7 * worst_before) << worst_after << " vs " << worst_before;
 }
 
 }  // namespace

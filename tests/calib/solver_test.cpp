@@ -61,8 +61,8 @@ TEST(Solver, TheLinkTolerancesCoverWhatAWrongLinkDoesToTheOffsets) {
   exact.noise_mm = 0.005;
   exact.required_accuracy_deg = 0.5;
   SolveOptions tolerant = exact;
-  tolerant.model_length_mm = 0.1;
-  tolerant.model_angle_deg = 0.01;
+  tolerant.model.length_mm = 0.1;
+  tolerant.model.angle_deg = 0.01;
   const SolveReport a = solve(sc.cell, recorded, exact), b = solve(sc.cell, recorded, tolerant);
   ASSERT_TRUE(a.converged && b.converged);
   // The exact model blames a pose for what the links do at all of them; with the tolerances
@@ -101,7 +101,7 @@ TEST(Solver, TheLinkTolerancesCoverWhatAWrongLinkDoesToTheOffsets) {
 
   // Held to 0.01 deg, an offset the link tolerances blur beyond it is not offered.
   tolerant.required_accuracy_deg = 0.01;
-  tolerant.model_length_mm = 1.0;
+  tolerant.model.length_mm = 1.0;
   const SolveReport c = solve(sc.cell, recorded, tolerant);
   EXPECT_FALSE(c.verdict.usable);
   bool named = false;
@@ -208,8 +208,8 @@ TEST(Solver, AGrossErrorStandsOutOfWhatTheLinkTolerancesExplain) {
   options.noise_mm = 0.02 / std::sqrt(3.0);
   options.required_accuracy_deg = 0.5;
   const SolveReport clean_exact = solve(sc.cell, recorded, options);
-  options.model_length_mm = 0.1;
-  options.model_angle_deg = 0.01;
+  options.model.length_mm = 0.1;
+  options.model.angle_deg = 0.01;
   const SolveReport clean = solve(sc.cell, recorded, options);
   EXPECT_TRUE(clean.suspect_poses.empty()) << clean.suspect_poses.front().reason;
   // Without the tolerances the same clean poses have one blamed for the links' misfit.
@@ -502,6 +502,7 @@ TEST(Solver, AnyStandardDhArmWorks) {
   // the flange z-axis, offset from it: plan, record, solve, recover the truth.
   const Robot ur = parseRobot(R"(
 name: UR5-like
+model_tolerance: {length_mm: 0, angle_deg: 0}
 joints:
   - {a_mm: 0, alpha_deg: 90, d_mm: 89.159, theta_offset_deg: 0, lower_deg: -360, upper_deg: 360, max_speed_deg_s: 180}
   - {a_mm: -425, alpha_deg: 0, d_mm: 0, theta_offset_deg: 0, lower_deg: -360, upper_deg: 360, max_speed_deg_s: 180}

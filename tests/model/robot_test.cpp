@@ -45,12 +45,13 @@ joints:
     EXPECT_TRUE(has("joint 2: max_speed_deg_s must lie within 0.1..2000"));
     EXPECT_TRUE(has("joint 5: missing 'max_speed_deg_s'"));
     EXPECT_TRUE(has("joint 6: unknown key 'colour'"));
-    EXPECT_EQ(p.size(), 6u);
+    EXPECT_TRUE(has("missing 'model_tolerance'"));
+    EXPECT_EQ(p.size(), 7u);
   }
 }
 
 TEST(RobotFile, AbsurdLimitsSpeedsAndLinksAreRefused) {
-  std::string yaml = "name: wide\njoints:\n";
+  std::string yaml = "name: wide\nmodel_tolerance: {length_mm: 0, angle_deg: 0}\njoints:\n";
   for (int i = 0; i < kJointCount; ++i)
     yaml += i == 0 ? "  - {a_mm: 0, alpha_deg: 0, d_mm: 1e9, theta_offset_deg: 0, lower_deg: "
                      "-1e308, upper_deg: 1e308, max_speed_deg_s: 1e-300}\n"

@@ -6,6 +6,7 @@
 #include "zerocal/irc5/irc5_kind.h"
 #include "zerocal/irc5/motion_time.h"
 #include "zerocal/model/builtin.h"
+#include "zerocal/service/cell_factory.h"
 
 namespace zerocal::service {
 namespace {
@@ -26,8 +27,6 @@ TEST(DaemonSetup, TheRunTakesTheServoSectionWholeAndTheSessionsAccuracy) {
   irc5Of(config).limit_margin_deg = 2.5;
   config.session.noise_mm = 0.03;
   config.session.required_accuracy_deg = 0.02;
-  config.session.model_length_mm = 0.2;
-  config.session.model_angle_deg = 0.02;
   const RunSettings run = runSettingsOf(config);
   EXPECT_EQ(run.servo.stop, servo::ServoStop::kCentre);
   EXPECT_EQ(run.servo.tolerance_um, 1.5);
@@ -37,23 +36,22 @@ TEST(DaemonSetup, TheRunTakesTheServoSectionWholeAndTheSessionsAccuracy) {
   EXPECT_EQ(run.servo.limit_margin_deg, 2.5);
   EXPECT_EQ(run.solve.noise_mm, 0.03);
   EXPECT_EQ(run.solve.required_accuracy_deg, 0.02);
-  EXPECT_EQ(run.solve.model_length_mm, 0.2);
-  EXPECT_EQ(run.solve.model_angle_deg, 0.02);
   EXPECT_TRUE(run.servo.validate().empty()) << run.servo.validate();
 }
 
-// The simulated ideal world's links are exact: their tolerance is not counted there, and is
-// everywhere else.
-TEST(DaemonSetup, TheLinkTolerancesCountExceptInTheIdealWorld) {
+// Every solve counts what the robot model admits: the shipped robot file's tolerances on the
+// realistic simulated cell and on the hardware cell, nothing in the seed's ideal world (its arm
+// is the robot file exactly).
+TEST(DaemonSetup, TheRobotModelsTolerancesCountExceptInTheIdealWorld) {
   DaemonConfig config;
   config.backend.kind = BackendKind::kSim;
-  EXPECT_EQ(runSettingsOf(config).solve.model_length_mm, 0.1);
-  EXPECT_EQ(runSettingsOf(config).solve.model_angle_deg, 0.01);
+  const auto counted = [&] { return makeBackend(config)->knowledge().cell.robot.tolerance; };
+  EXPECT_EQ(counted().length_mm, 0.1);
+  EXPECT_EQ(counted().angle_deg, 0.01);
+  EXPECT_EQ(counted().sag_deg, 0.007);
   config.backend.sim_ideal_world = true;
-  EXPECT_EQ(runSettingsOf(config).solve.model_length_mm, 0);
-  EXPECT_EQ(runSettingsOf(config).solve.model_angle_deg, 0);
-  config.backend.kind = BackendKind::kHardware;
-  EXPECT_EQ(runSettingsOf(config).solve.model_length_mm, 0.1);
+  EXPECT_FALSE(counted().counted());
+  EXPECT_EQ(robotOf(config.controller).tolerance.length_mm, 0.1);
 }
 
 // One set of defaults: the configuration's are the servo's and the solver's.

@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "exact_robot.h"
 #include "stored_plan_request.h"
 #include "umockdev_board.h"
 #include "zerocal/irc5/irc5_kind.h"
@@ -75,8 +76,7 @@ class HardwareBackendOnSimulatedCell : public ::testing::Test {
     config_.session.data_dir = dir_.path + "/sessions";
     // The cell behind the board and the port is the ideal world: its links are the robot
     // file's exactly, it has no sag, and the result is checked against its truth.
-    config_.session.model_length_mm = config_.session.model_angle_deg = 0;
-    config_.session.model_sag_deg = 0;
+    config_.controller.robot = testing::writeExactRobot(dir_.path + "/exact-robot.yaml");
   }
 
   static usb1408fs::BoardSettings& boardOf(DaemonConfig& config) {

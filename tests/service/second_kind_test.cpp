@@ -6,6 +6,7 @@
 
 #include <cmath>
 
+#include "exact_robot.h"
 #include "line_kind.h"
 #include "stored_plan_request.h"
 #include "temp_dir.h"
@@ -112,8 +113,7 @@ TEST_F(SecondControllerKind, CalibratesTheSimulatedArmThroughItsOwnProtocol) {
   const Eigen::Vector3d taught = sim::knowledgeOf(world).taught_centre;
   config.session.target_mm = {taught.x(), taught.y(), taught.z()};
   // The ideal world's links are the robot file's exactly, and it has no sag.
-  config.session.model_length_mm = config.session.model_angle_deg = 0;
-  config.session.model_sag_deg = 0;
+  config.controller.robot = testing::writeExactRobot(dir.path + "/exact-robot.yaml");
 
   LineCellBackend cell(world);
   config.controller.sections.get<LineSettings>("line")->port = cell.server().port();

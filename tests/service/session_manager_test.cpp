@@ -198,7 +198,8 @@ TEST(SessionManager, RunsASessionToDoneThroughEveryStateWithAResultNearTheTruth)
   // Each pose weighed by its own noise, from the configuration's joint repeatability (the
   // default): the result says so, and its noise_mm is the model's reference sigma.
   EXPECT_EQ(result["noise_source"], "per pose, from the joints' repeatability");
-  EXPECT_EQ(result["joint_repeatability_deg"].get<double>(), SessionConfig{}.joint_repeatability_deg);
+  EXPECT_EQ(result["joint_repeatability_deg"].get<double>(),
+            SessionConfig{}.joint_repeatability_deg);
   EXPECT_NEAR(result["noise_mm"].get<double>(), 1.5e-3 * kDegToRad * 1000, 1e-4);
   // Whose result: the robot as the (simulated) controller named itself, the map that read the
   // PSD, this zerocal, and when.
@@ -519,7 +520,7 @@ TEST(SessionManagerPlacements, WaitsForThePsdAtEachPlacementAndSolvesWithEveryPl
   EXPECT_LT((centre2 - turn * world.placements[0].position_mm).norm(), 0.5)
       << centre2.transpose() << " against " << (turn * world.placements[0].position_mm).transpose();
   int links_identified = 0, links_named = 0;
-  for (int l = 0; l < kLinkParamCount; ++l) {
+  for (int l = 0; l < kLinkParameterCount; ++l) {
     const nlohmann::json& p = result["parameters"].at(linkParamName(l));
     links_identified += p["identifiable"].get<bool>() ? 1 : 0;
   }
@@ -530,7 +531,7 @@ TEST(SessionManagerPlacements, WaitsForThePsdAtEachPlacementAndSolvesWithEveryPl
       EXPECT_FALSE(n["reason"].get<std::string>().empty());
     }
   EXPECT_GE(links_identified, 10);
-  EXPECT_EQ(links_identified + links_named, kLinkParamCount);
+  EXPECT_EQ(links_identified + links_named, kLinkParameterCount);
   EXPECT_GT(result["rank"].get<int>(), kIdentifiedCount);
   ASSERT_TRUE(result.contains("truth"));
   for (int k = 0; k < kOffsetCount; ++k) {

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <string>
 
+#include "exact_robot.h"
 #include "stored_plan_request.h"
 #include "temp_dir.h"
 #include "zerocal/error.h"
@@ -81,9 +82,10 @@ TEST(RobotLife, TwoSessionsInOneDataFolderDrawTheirOwnNoiseOnTheSameArm) {
   replay.backend.sim_world = elsewhere.path + "/second.yaml";
   // A world file's arm may have link errors, so the solve counts them; this one has none, as the
   // seed's ideal world: solved the same way.
-  replay.session.model_length_mm = replay.session.model_angle_deg = 0;
-  replay.session.model_sag_deg = 0;
-  { std::ofstream(replay.backend.sim_world) << worldYaml(second.truth); }
+  {
+    std::ofstream(replay.backend.sim_world)
+        << worldYaml(second.truth, testing::writeExactRobot(elsewhere.path + "/exact-robot.yaml"));
+  }
   const Session again = runOnce(replay);
   ASSERT_TRUE(again.result.truth && again.result.truth->noise_seed);
   EXPECT_EQ(*again.result.truth->noise_seed, *second.result.truth->noise_seed);

@@ -62,9 +62,9 @@ TEST(SessionFiles, ASessionAtSeveralPlacementsComesBack) {
   for (std::size_t i = 0; i < s.plan.poses.size(); ++i)
     s.plan.poses[i].placement = 2 * i < s.plan.poses.size() ? 1 : 2;
   s.plan.prediction.placements = 2;
-  s.plan.prediction.link_sigma.assign(kLinkParamCount, 0.05);
-  s.plan.prediction.link_identifiable.assign(kLinkParamCount, true);
-  s.plan.prediction.link_reason.assign(kLinkParamCount, "");
+  s.plan.prediction.link_sigma.assign(kLinkParameterCount, 0.05);
+  s.plan.prediction.link_identifiable.assign(kLinkParameterCount, true);
+  s.plan.prediction.link_reason.assign(kLinkParameterCount, "");
   s.plan.prediction.link_sigma[1] = std::nan("");
   s.plan.prediction.link_identifiable[1] = false;
   s.plan.prediction.link_reason[1] = "combined with the placement-1 centre";

@@ -63,7 +63,7 @@ Eigen::Matrix2d missCovariance(const CellModel& cell, const Pose& pose,
                                const CalibrationParameters& at, bool use_readings, double noise_mm);
 
 // The robot with the link errors added to its DH rows (and kept as its identified errors).
-Robot withLinkErrors(const Robot& robot, const Eigen::Matrix<double, kLinkParamCount, 1>& link);
+Robot withLinkErrors(const Robot& robot, const Eigen::Matrix<double, kLinkParameterCount, 1>& link);
 // The robot as calibrated: the identified link errors and compliance of `params` added to its
 // own (a robot file written with them reproduces the identified kinematics).
 Robot calibratedRobot(const Robot& robot, const CalibrationParameters& params);

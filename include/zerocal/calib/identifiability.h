@@ -61,7 +61,7 @@ struct PlacementLayout {
         compliance(identify_compliance && robot.hasGravityModel() ? kComplianceCount : 0) {}
   int count() const { return static_cast<int>(placements.size()); }
   static constexpr int firstLink() { return kIdentifiedCount; }
-  static constexpr int firstCompliance() { return kIdentifiedCount + kLinkParamCount; }
+  static constexpr int firstCompliance() { return kIdentifiedCount + kLinkParameterCount; }
   int firstTarget() const { return firstCompliance() + compliance; }
   int unknownCount() const { return firstTarget() + kTargetCount * count(); }
   bool isLink(int k) const { return k >= firstLink() && k < firstCompliance(); }

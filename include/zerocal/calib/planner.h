@@ -32,14 +32,9 @@ std::optional<Joints> servoOnto(const CellModel& cell, const CalibrationParamete
 // poses at several placements, that of the several-placement model: each placement's centre a
 // nuisance, the link errors identified where the base-parameter analysis keeps them (their
 // sigmas in link_sigma); the centres are where each placement's nominal lines cross.
-// `tolerances`: what the solve will count beside the noise (SolveOptions::model_length_mm,
-// model_angle_deg, model_sag_deg), added as the solve adds them (its consider covariance), so
+// `tolerances`: what the solve will count beside the noise (SolveOptions::model, the robot
+// model's own), added as the solve adds them (its consider covariance), so
 // that the prediction is what the solve will report; zero: the noise alone.
-struct ModelTolerances {
-  double length_mm = 0;
-  double angle_deg = 0;
-  double sag_deg = 0;
-};
 Prediction predictUncertainty(const CellModel& cell, const std::vector<Pose>& poses,
                               const CalibrationParameters& at, double sigma_mm,
                               const ModelTolerances& tolerances = {});

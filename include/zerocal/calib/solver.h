@@ -36,18 +36,17 @@ struct SolveOptions {
   // of chi-square per degree of freedom) mean the stated noise or the model is not the cell's.
   double max_offset_deg = 10.0;
   double max_noise_scale = 5.0;
-  // The model's own uncertainty: the robot's link lengths (a, d) and twists (alpha), which the
-  // method does not identify, known to these one-sigma tolerances. Their effect on each estimate
+  // The model's own uncertainty (the robot file's model_tolerance, Robot::tolerance): the link
+  // lengths (a, d) and twists (alpha), which the method does not identify, known to its
+  // one-sigma tolerances or, for a calibrated model, its covariance. Their effect on each estimate
   // is a bias no number of poses averages away; it is added to the statistical sigma as a
-  // consider covariance (ParameterEstimate::model_sigma). 0: the model is taken as exact.
-  double model_length_mm = 0;
-  double model_angle_deg = 0;
+  // consider covariance (ParameterEstimate::model_sigma). Zero: the model is taken as exact.
   // The gravity sag of joints 2 and 3 (several placements, a robot file with a gravity model):
   // identify_compliance makes their compliance unknowns of the solve (docs/maths.md section 8);
-  // otherwise the sag is a model error known to this one-sigma tolerance at the largest gravity
-  // torque (deg), counted in the consider covariance as the link tolerances are.
+  // otherwise the sag is a model error known to model.sag_deg at the largest gravity torque,
+  // counted in the consider covariance as the link tolerances are.
+  ModelTolerances model;
   bool identify_compliance = false;
-  double model_sag_deg = 0;
   // Deletion diagnostics (maximum-likelihood cost): a pose whose removal lowers the misfit by
   // more than chance allows at this family-wise level is named and left out of the result.
   bool find_gross_errors = true;
@@ -77,5 +76,10 @@ void checkJointLimits(const CellModel& cell, const std::vector<Pose>& poses);
 // be used.
 SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
                   const SolveOptions& options = {});
+
+// The robot as a several-placement solve calibrated it: calibratedRobot of its estimate, the
+// model's tolerance then the covariance of the identified link errors (report.link_covariance),
+// so that later solves with it count what the calibration left, not the nominal tolerances.
+Robot calibratedRobot(const Robot& robot, const SolveReport& report);
 
 }  // namespace zerocal

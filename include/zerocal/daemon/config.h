@@ -115,13 +115,6 @@ struct SessionConfig {
   // The accuracy the calibration is for: an offset known only worse than this (one sigma) is
   // not identified, and the result not usable (SolveOptions::required_accuracy_deg).
   double required_accuracy_deg = 0.01;
-  // One-sigma tolerances of the robot's link lengths and twists, which the method does not
-  // identify: their effect is added to every offset's sigma (SolveOptions::model_length_mm).
-  double model_length_mm = 0.1;
-  double model_angle_deg = 0.01;
-  // Sessions at several PSD placements: the one-sigma tolerance of the gravity sag of joints 2
-  // and 3 at the largest gravity torque, counted in every sigma (SolveOptions::model_sag_deg).
-  double model_sag_deg = 0.007;
   std::string data_dir = "/var/lib/zerocal/sessions";  // one folder per session (journal.h)
 };
 

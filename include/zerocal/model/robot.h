@@ -6,6 +6,7 @@
 // flange (tool0) frame is DH frame 6. Lengths are millimetres.
 #pragma once
 
+#include <Eigen/Core>
 #include <array>
 #include <string>
 #include <vector>
@@ -44,6 +45,30 @@ struct LumpedMass {
 // The compliance of joints 2 and 3 is identified against the gravity torque of these joints.
 constexpr int kComplianceCount = 2;
 
+// The link parameters of a robot model: a, d (mm) and alpha (rad) of each joint in turn.
+constexpr int kLinkParameterCount = 3 * kJointCount;
+
+// What a robot model admits about itself (its file's `model_tolerance` section): the one-sigma
+// tolerances of a nominal model's link lengths (a, d) and twists (alpha), and of the gravity sag
+// of joints 2 and 3 at the largest torque; a calibrated model adds the covariance of its link
+// parameters' remaining errors, which replaces the two link tolerances. The method does not
+// identify these at one PSD placement: every solve and prediction counts their effect on the
+// estimates as a consider covariance (docs/maths.md section 5).
+struct ModelTolerances {
+  double length_mm = 0;
+  double angle_deg = 0;
+  double sag_deg = 0;
+  // kLinkParameterCount square (mm^2, mm rad, rad^2), or empty: a nominal model.
+  Eigen::MatrixXd link_covariance;
+
+  bool calibrated() const { return link_covariance.size() > 0; }
+  bool linksCounted() const { return calibrated() || length_mm > 0 || angle_deg > 0; }
+  bool counted() const { return linksCounted() || sag_deg > 0; }
+  // Each link parameter's one-sigma error (mm, rad): the covariance's diagonal, or the
+  // tolerances.
+  Eigen::VectorXd linkSigmas() const;
+};
+
 struct Robot {
   std::string name;
   std::array<DhRow, kJointCount> dh;
@@ -66,6 +91,9 @@ struct Robot {
   // joint angle is the commanded one plus compliance x gravity torque (gravityTorqueKnm).
   std::array<std::array<double, 3>, kJointCount> identified_link_error{};
   std::array<double, kComplianceCount> compliance_deg_per_knm{};
+  // What the model admits about its links and sag (required in a robot file: 0 and 0 state a
+  // model taken as exact).
+  ModelTolerances tolerance;
 
   bool hasGravityModel() const { return !masses.empty(); }
   bool hasCompliance() const {

@@ -17,9 +17,9 @@ constexpr int kOffsetCount = 4;                                    // delta2..de
 constexpr int kIdentifiedCount = kOffsetCount + kLaserParamCount;  // the paper's 8
 constexpr int kTargetCount = 3;
 constexpr int kUnknownCount = kIdentifiedCount + kTargetCount;  // with the target: 11
-// The arm's link errors, identified only from several PSD placements: the DH a, d (mm) and
-// alpha (rad inside, deg in reports) of each joint, in the order a1, d1, alpha1, a2, ...
-constexpr int kLinkParamCount = 3 * kJointCount;
+// The arm's link errors (kLinkParameterCount, model/robot.h), identified only from several PSD
+// placements: the DH a, d (mm) and alpha (rad inside, deg in reports) of each joint, in the order
+// a1, d1, alpha1, a2, ...
 
 struct CalibrationParameters {
   Eigen::Vector4d delta_rad = Eigen::Vector4d::Zero();  // joints 2..5
@@ -27,8 +27,8 @@ struct CalibrationParameters {
   Eigen::Vector3d target_mm = Eigen::Vector3d::Zero();
   // Link errors added to the robot's DH rows (a, d in mm, alpha in rad; linkParamName order):
   // zero unless identified from several placements.
-  Eigen::Matrix<double, kLinkParamCount, 1> link =
-      Eigen::Matrix<double, kLinkParamCount, 1>::Zero();
+  Eigen::Matrix<double, kLinkParameterCount, 1> link =
+      Eigen::Matrix<double, kLinkParameterCount, 1>::Zero();
   // The compliance of joints 2 and 3 (rad per kN m of gravity torque, added to the robot file's
   // own): zero unless identified from several placements with a gravity model.
   Eigen::Vector2d compliance = Eigen::Vector2d::Zero();

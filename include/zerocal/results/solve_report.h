@@ -71,6 +71,10 @@ struct SolveReport {
   int poses_used = 0;  // in the fit
   double required_accuracy_deg = 0;
   double model_length_mm = 0, model_angle_deg = 0;  // the link tolerances counted (SolveOptions)
+  bool model_calibrated = false;  // a calibrated model's link covariance counted instead
+  // Several placements: the covariance of the calibrated model's link errors (kLinkParameterCount
+  // square, mm and rad; Robot::tolerance.link_covariance of calibratedRobot), empty otherwise.
+  Eigen::MatrixXd link_covariance;
   double model_sag_deg = 0;  // the sag tolerance counted (several placements, SolveOptions)
 
   // The 8 of unknownName order; with several placements then the 18 link errors

@@ -420,12 +420,18 @@ Verdict judge(const SolveReport& r, const SolveOptions& o,
                     "not the zero");
     }
   }
-  if (r.noise_scale > o.max_noise_scale)
-    why.push_back("the poses miss by " + fixed(r.noise_scale, 1) +
-                  " times the given noise (chi-square per degree of freedom " +
-                  fixed(r.chi2_per_dof.value_or(0), 1) + ", largest believable " +
-                  fixed(o.max_noise_scale * o.max_noise_scale, 0) +
-                  "): the stated noise or the model is not the cell's");
+  if (r.noise_scale > o.max_noise_scale) {
+    // With the link tolerances counted, what the misses exceed is the noise and the tolerated
+    // link errors together: the next step is to calibrate the links, not to mistrust the cell.
+    const bool links = o.model.linksCounted();
+    why.push_back("the poses miss by " + fixed(r.noise_scale, 1) + " times the given noise" +
+                  (links ? " and the robot file's link tolerances allow" : "") +
+                  " (chi-square per degree of freedom " + fixed(r.chi2_per_dof.value_or(0), 1) +
+                  ", largest believable " + fixed(o.max_noise_scale * o.max_noise_scale, 0) +
+                  (links ? "): the noise is worse than stated, or the links are worse than the "
+                           "robot file admits (calibrate them with several PSD placements)"
+                         : "): the stated noise or the model is not the cell's"));
+  }
   for (const std::string& g : gross_problems) why.push_back(g);
   v.usable = why.empty();
   return v;

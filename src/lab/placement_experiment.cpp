@@ -164,6 +164,8 @@ struct Tally {
   std::vector<double> errors_deg;  // every estimate of delta2..delta5
   double worst_sigmas = 0;
   int within = 0, offered = 0, usable = 0, solved = 0;
+  int usable_wrong = 0;  // usable results with an offset beyond max_sigmas of its truth
+  double noise_scale_sum = 0;
   int compliances = 0;                   // compliance unknowns identified, over the sessions
   std::vector<double> identified_links;  // per session
 
@@ -176,6 +178,8 @@ struct Tally {
       if (r.parameters[k].identifiable) ++(compliance ? compliances : links);
     }
     identified_links.push_back(links);
+    noise_scale_sum += r.noise_scale;
+    bool wrong = false;
     for (int k = 0; k < kOffsetCount; ++k) {
       const ParameterEstimate& p = r.parameters[k];
       const double error = p.value - world.true_offsets_deg[k + 1];
@@ -184,8 +188,11 @@ struct Tally {
       worst_sigmas = std::max(worst_sigmas, sigmas);
       within += sigmas <= max_sigmas ? 1 : 0;
       offered += p.identifiable ? 1 : 0;
+      wrong = wrong || (p.identifiable && !(sigmas <= max_sigmas));
     }
+    usable_wrong += r.verdict.usable && wrong ? 1 : 0;
   }
+  double meanNoiseScale() const { return solved ? noise_scale_sum / solved : NAN; }
   double rms() const {
     double s = 0;
     for (double e : errors_deg) s += e * e;
@@ -205,7 +212,9 @@ struct Tally {
             {"worst_error_sigmas", worst_sigmas},
             {"rms_error_deg", rms()},
             {"mean_identified_link_errors", meanLinks()},
-            {"compliances_identified", compliances}};
+            {"compliances_identified", compliances},
+            {"usable_with_an_offset_beyond_3_sigma", usable_wrong},
+            {"mean_noise_scale", meanNoiseScale()}};
   }
 };
 
@@ -242,6 +251,11 @@ void addPlacementExperiment(CLI::App& experiment, PlacementExperimentArgs& args)
   cmd->add_flag("--without-sag", args.without_sag,
                 "the worlds without the gravity sag of joints 2 and 3, which the solve does not "
                 "model (to see what it costs)");
+  cmd->add_option("--link-scale", args.link_scale,
+                  "the realistic worlds' link errors times this (2.5: links 2.5 times worse "
+                  "than the robot file's tolerances, which the solve still counts)")
+      ->default_val(args.link_scale)
+      ->check(CLI::Range(0.0, 10.0));
   cmd->add_option("--sag-tolerance", args.model_sag_deg,
                   "the gravity sag's one-sigma tolerance at the largest torque, deg, counted "
                   "when the compliance is not identified (realistic worlds with their sag)")
@@ -276,6 +290,11 @@ int runPlacementExperiment(const PlacementExperimentArgs& args) {
     const std::uint64_t seed = args.seed0 + static_cast<std::uint64_t>(w);
     World world = randomWorld(seed, kind);
     if (args.without_sag) world.compliance = Compliance{};
+    for (DhError& e : world.dh_errors) {
+      e.a_mm *= args.link_scale;
+      e.d_mm *= args.link_scale;
+      e.alpha_deg *= args.link_scale;
+    }
     const std::vector<SimPlacement> placements =
         placementsOf(world, args.placements, seed, args.ideal_world);
     // What the session knows: the nominal robot and laser, the taught centres and the
@@ -341,6 +360,7 @@ int runPlacementExperiment(const PlacementExperimentArgs& args) {
                      {"seed0", args.seed0},
                      {"world", args.ideal_world ? "ideal" : "realistic"},
                      {"without_sag", args.without_sag},
+                     {"link_scale", args.link_scale},
                      {"identify_compliance", args.identify_compliance},
                      {"sag_tolerance_deg", options.model.sag_deg},
                      {"placements", args.placements},
@@ -365,18 +385,23 @@ int runPlacementExperiment(const PlacementExperimentArgs& args) {
         args.without_sag ? " without gravity sag" : "", static_cast<unsigned long long>(args.seed0),
         args.placements, args.poses, args.placements * args.poses, args.noise_mm,
         args.ideal_world ? "" : ", the robot file's link tolerances counted");
+    if (args.link_scale != 1.0)
+      std::printf("the worlds' link errors %.2f times their realistic size\n", args.link_scale);
     if (options.model.sag_deg > 0)
       std::printf("gravity sag of joints 2 and 3 counted as a tolerance of %.4f deg\n",
                   options.model.sag_deg);
     if (args.identify_compliance) std::printf("compliance of joints 2 and 3 identified\n");
-    std::printf("%-22s %8s %8s %10s %14s %12s %14s %12s\n", "session", "usable", "offered",
-                "within 3s", "worst (sigma)", "RMS (deg)", "links ident.", "");
+    std::printf("%-22s %8s %8s %10s %14s %12s %14s %12s %12s\n", "session", "usable", "offered",
+                "within 3s", "worst (sigma)", "RMS (deg)", "links ident.", "noise scale",
+                "usable>3s");
     for (const auto& [name, t] :
          {std::pair<const char*, const Tally*>{"several placements", &several},
           {"one placement", &one}}) {
-      std::snprintf(line, sizeof line, "%-22s %5d/%-2d %5d/%-3zu %6d/%-3zu %14.2f %12.5f %14.1f",
-                    name, t->usable, t->solved, t->offered, t->errors_deg.size(), t->within,
-                    t->errors_deg.size(), t->worst_sigmas, t->rms(), t->meanLinks());
+      std::snprintf(line, sizeof line,
+                    "%-22s %5d/%-2d %5d/%-3zu %6d/%-3zu %14.2f %12.5f %14.1f %12.2f %12d", name,
+                    t->usable, t->solved, t->offered, t->errors_deg.size(), t->within,
+                    t->errors_deg.size(), t->worst_sigmas, t->rms(), t->meanLinks(),
+                    t->meanNoiseScale(), t->usable_wrong);
       std::cout << line << "\n";
     }
     if (args.gross != "none") {

@@ -25,6 +25,8 @@ struct PlacementExperimentArgs {
   double gross_joint_deg = 0.05;
   bool ideal_world = false;
   bool without_sag = false;  // the realistic world less its gravity sag (what the sag costs)
+  // The realistic world's link errors times this (2.5: links worse than the robot file admits).
+  double link_scale = 1.0;
   bool json = false;
   // The requirements of the several-placement sessions.
   double max_rms_deg = 0.005;

@@ -1,5 +1,7 @@
 #include "zerocal/results/solve_report.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -25,22 +27,24 @@ std::string noiseSourceName(const SolveReport& r) {
 }
 
 std::string noiseText(const SolveReport& r) {
-  char text[200];
   if (r.noise_estimated) return "estimated from the residuals";
   const char* given = r.joint_repeatability_deg > 0 ? "the per-pose model's reference" : "given";
   if (r.noise_scale > 1) {
-    std::snprintf(text, sizeof text,
-                  "%s %.4f mm, scaled up by sqrt(chi2/dof) = %.2f: the poses miss by more than it",
-                  given, r.noise_mm / r.noise_scale, r.noise_scale);
-    return text;
+    // With the link tolerances counted the chi-square is of the misses they do not explain: the
+    // noise or the links are worse than stated, and both parts of each sigma grow by the ratio.
+    const bool links = r.model_calibrated || r.model_length_mm > 0 || r.model_angle_deg > 0;
+    return fmt::format("{} {:.4f} mm, scaled up by sqrt(chi2/dof) = {:.2f}: {}", given,
+                       r.noise_mm / r.noise_scale, r.noise_scale,
+                       links ? "the poses miss by more than it and the robot file's link "
+                               "tolerances allow together (the noise, or the links, are worse "
+                               "than stated); both parts of each sigma are scaled"
+                             : "the poses miss by more than it");
   }
-  if (r.joint_repeatability_deg > 0) {
-    std::snprintf(text, sizeof text,
-                  "the reference of the per-pose model: %.4f deg joint repeatability, each pose "
-                  "weighed by its own covariance",
-                  r.joint_repeatability_deg);
-    return text;
-  }
+  if (r.joint_repeatability_deg > 0)
+    return fmt::format(
+        "the reference of the per-pose model: {:.4f} deg joint repeatability, each pose weighed "
+        "by its own covariance",
+        r.joint_repeatability_deg);
   return "given";
 }
 

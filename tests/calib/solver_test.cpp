@@ -309,6 +309,26 @@ TEST(Solver, AbsurdMisfitIsRefused) {
   ASSERT_FALSE(r.verdict.reasons.empty());
   EXPECT_NE(r.verdict.reasons.back().find("times the given noise"), std::string::npos)
       << r.verdict.reasons.back();
+  EXPECT_EQ(r.verdict.reasons.back().find("link tolerances"), std::string::npos);
+  // With the link tolerances counted, the misfit is of the noise and the links together, and
+  // the verdict and the noise line name the links as a cause and what to do.
+  options.model.length_mm = 0.1;
+  options.model.angle_deg = 0.01;
+  options.noise_mm = 0.05 / std::sqrt(3.0) / 30;  // the tolerated links explain a part
+  const SolveReport with_links = solve(sc.cell, recorded, options);
+  ASSERT_GT(with_links.noise_scale, 1.0);
+  EXPECT_NE(noiseText(with_links).find("link tolerances allow together"), std::string::npos)
+      << noiseText(with_links);
+  ASSERT_GT(with_links.noise_scale, options.max_noise_scale);
+  {
+    EXPECT_FALSE(with_links.verdict.usable);
+    bool named = false;
+    for (const std::string& why : with_links.verdict.reasons)
+      named = named || why.find(
+                           "worse than the robot file admits (calibrate them with several "
+                           "PSD placements)") != std::string::npos;
+    EXPECT_TRUE(named) << ::testing::PrintToString(with_links.verdict.reasons);
+  }
 }
 
 TEST(Solver, ExactDuplicatePoseIsNamedAndCountedOnce) {

@@ -202,6 +202,10 @@ void parseGravity(const YAML::Node& root, Robot& robot, Problems& problems) {
   }
 }
 
+// A link parameter (a1, d1, alpha1, a2, ...) in the file's unit, mm or deg, per internal unit
+// (mm or rad): link_covariance is written in mm and deg, held in mm and rad.
+double fileUnit(int k) { return k % 3 == 2 ? kDegToRad : 1.0; }
+
 // The one-sigma tolerances a model may state: beyond these it is not a model of the arm.
 constexpr double kMaxLengthToleranceMm = 10, kMaxAngleToleranceDeg = 1;
 
@@ -250,8 +254,7 @@ void parseTolerance(const YAML::Node& root, Robot& robot, Problems& problems) {
           try {
             const double v = c[r][k].as<double>();
             if (!std::isfinite(v)) throw YAML::Exception({}, "");
-            const double unit = (r % 3 == 2 ? kDegToRad : 1.0) * (k % 3 == 2 ? kDegToRad : 1.0);
-            cov(r, k) = v * unit;
+            cov(r, k) = v * fileUnit(r) * fileUnit(k);
           } catch (const YAML::Exception&) {
             problems.add(c[r][k], where + ": link_covariance[" + std::to_string(r) + "][" +
                                       std::to_string(k) + "] is not a finite number");
@@ -271,8 +274,6 @@ void parseTolerance(const YAML::Node& root, Robot& robot, Problems& problems) {
           problems.add(c, where +
                               ": 'link_covariance' is not a covariance (not positive "
                               "semi-definite)");
-        else if (!((cov.diagonal().array() >= 0).all()))
-          problems.add(c, where + ": 'link_covariance' has a negative variance");
         else
           m.link_covariance = cov;
       }
@@ -484,8 +485,7 @@ std::string robotYaml(const Robot& robot, const std::string& comment) {
     for (int r = 0; r < kLinkParameterCount; ++r) {
       o << "    - [";
       for (int k = 0; k < kLinkParameterCount; ++k) {
-        const double unit = (r % 3 == 2 ? kRadToDeg : 1.0) * (k % 3 == 2 ? kRadToDeg : 1.0);
-        o << (k ? ", " : "") << exact(t.link_covariance(r, k) * unit);
+        o << (k ? ", " : "") << exact(t.link_covariance(r, k) / (fileUnit(r) * fileUnit(k)));
       }
       o << "]\n";
     }
@@ -497,7 +497,7 @@ Eigen::VectorXd ModelTolerances::linkSigmas() const {
   if (calibrated()) return link_covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
   Eigen::VectorXd sigma(kLinkParameterCount);
   for (int k = 0; k < kLinkParameterCount; ++k)
-    sigma[k] = k % 3 == 2 ? angle_deg * kDegToRad : length_mm;
+    sigma[k] = k % 3 == 2 ? angle_deg * kDegToRad : length_mm;  // a, d in mm; alpha in rad
   return sigma;
 }
 

@@ -29,13 +29,10 @@ Eigen::Matrix3d fromRpyDeg(const std::vector<double>& rpy) {
 
 void emit(const nlohmann::json& j) { std::cout << j.dump(2) << "\n"; }
 
-// Writes a calibrated robot file, after checking that it reads back (a model that the loader
-// refuses must not be left behind as if it were one).
+// Writes a calibrated robot file, whole or not at all: a robot file cut short by a crash would be
+// read as another robot.
 void saveCalibratedModel(const std::string& path, const Robot& robot, const std::string& comment) {
-  const std::string text = robotYaml(robot, comment);
-  parseRobot(text, path);
-  // Whole or not at all: a robot file cut short by a crash would be read as another robot.
-  writeFileDurably(path, text);
+  writeFileDurably(path, checkedRobotYaml(robot, comment));
 }
 
 void addSolve(CLI::App& app, EngineCommands& commands) {

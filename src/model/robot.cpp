@@ -516,4 +516,10 @@ Frame<double> flangePoseDeg(const Robot& robot, const Joints& q_deg, const Joint
   return flangePose(robot, rad);
 }
 
+std::string checkedRobotYaml(const Robot& robot, const std::string& comment) {
+  std::string text = robotYaml(robot, comment);
+  parseRobot(text, "the calibrated model written for " + robot.name);
+  return text;
+}
+
 }  // namespace zerocal

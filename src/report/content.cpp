@@ -59,7 +59,10 @@ std::string toleranceNote(const SessionReport& r) {
   std::string counted;
   if (s.model_calibrated)
     counted = s.placements.size() < 2
-                  ? "the calibrated robot model's link covariance"
+                  ? "the calibrated robot model's link covariance" +
+                        (r.result.model_from.empty()
+                             ? std::string()
+                             : " (the model calibration " + r.result.model_from + " wrote)")
                   : "the calibrated robot model's uncertainty of the link errors these poses do "
                     "not identify";
   else if (s.model_length_mm > 0 || s.model_angle_deg > 0)
@@ -71,8 +74,16 @@ std::string toleranceNote(const SessionReport& r) {
   if (s.model_sag_deg > 0)
     counted += (counted.empty() ? "" : " and ") +
                format("the gravity sag of joints 2 and 3 (%.3g deg)", s.model_sag_deg);
-  if (counted.empty()) return {};
-  return "The achieved sigmas count " + counted + " beside the noise.";
+  // A calibration that identified the links leaves them for later ones at one placement.
+  const std::string written =
+      r.result.model_file.empty()
+          ? std::string()
+          : " This calibration identified the robot's links: its calibrated model (" +
+                r.result.model_file +
+                " beside this report, with the covariance of the link errors) is what later "
+                "calibrations of this robot at one PSD placement are planned and solved with.";
+  if (counted.empty()) return written.empty() ? std::string() : written.substr(1);
+  return "The achieved sigmas count " + counted + " beside the noise." + written;
 }
 
 int jointOf(const ParameterRow& p) { return isOffset(p) ? p.name[5] - '0' : 0; }

@@ -71,6 +71,8 @@ Json toJson(const ResultFile& r) {
     j["change"] = change;
   }
   if (r.check) j["check"] = toJson(*r.check);
+  if (!r.model_from.empty()) j["model_from"] = r.model_from;
+  if (!r.model_file.empty()) j["model_file"] = r.model_file;
   if (!r.reference.empty()) {
     j["drift"] = Json::array();
     for (const Drift& d : r.drift) j["drift"].push_back(toJson(d));
@@ -114,6 +116,8 @@ ResultFile resultFileFromJson(const Json& json) {
   r.session = j.has("session") ? j.string("session") : "";
   if (j.has("kind")) r.kind = sessionKindFromName(j.string("kind"), kResultWhere);
   r.reference = j.has("reference") ? j.string("reference") : "";
+  r.model_from = j.has("model_from") ? j.string("model_from") : "";
+  r.model_file = j.has("model_file") ? j.string("model_file") : "";
   if (j.present("check")) r.check = checkJudgementFromJson(j.at("check"), "result.json check");
   if (j.present("drift"))
     for (std::size_t i = 0; i < j.array("drift").size(); ++i)

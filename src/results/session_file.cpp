@@ -56,6 +56,7 @@ Json toJson(const SessionFile& s) {
     j["reference"] = s.reference;
     j["reference_poses"] = s.reference_poses;
   }
+  if (!s.model_from.empty()) j["model_from"] = s.model_from;
   return j;
 }
 
@@ -76,6 +77,7 @@ SessionFile sessionFileFromJson(const Json& json) {
       s.reference_poses.push_back(pose.get<int>());
     }
   }
+  s.model_from = j.has("model_from") ? j.string("model_from") : "";
   const bool measured_against = s.kind == SessionKind::kCheck || s.kind == SessionKind::kRestore;
   if (measured_against && s.reference.empty())
     throw InputError(std::string(kSessionWhere) + ": a " + sessionKindName(s.kind) +

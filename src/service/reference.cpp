@@ -52,6 +52,25 @@ Reference referenceOf(const std::string& id, const SessionFolder& folder, int pl
   return r;
 }
 
+// The latest finished session of `kind` whose result `wanted` accepts, of the robot with this
+// serial when given; empty when there is none.
+std::string latestFinished(const SessionStore& store, SessionKind kind, const std::string& serial,
+                           bool (*wanted)(const ResultFile&)) {
+  const std::vector<SessionInfo> sessions = store.list();  // oldest first: ids sort by age
+  for (auto s = sessions.rbegin(); s != sessions.rend(); ++s) {
+    if (s->kind != kind || !s->finished) continue;
+    try {
+      const ResultFile result = store.readResult(s->id);
+      if (!wanted(result)) continue;
+      if (!serial.empty() && (!result.cell || result.cell->controller.serial != serial)) continue;
+      return s->id;
+    } catch (const Error&) {
+      continue;  // a damaged result counts for nothing; loading the session says why
+    }
+  }
+  return "";
+}
+
 }  // namespace
 
 Reference loadReference(const SessionStore& store, const std::string& id) {
@@ -89,19 +108,31 @@ Reference loadComparedWith(const SessionStore& store, const SessionFile& session
 }
 
 std::string latestReference(const SessionStore& store, const std::string& serial) {
-  const std::vector<SessionInfo> sessions = store.list();  // oldest first: ids sort by age
-  for (auto s = sessions.rbegin(); s != sessions.rend(); ++s) {
-    if (s->kind != SessionKind::kReference || !s->finished) continue;
-    try {
-      const ResultFile result = store.readResult(s->id);
-      if (!result.report.verdict.usable) continue;
-      if (!serial.empty() && (!result.cell || result.cell->controller.serial != serial)) continue;
-      return s->id;
-    } catch (const Error&) {
-      continue;  // a damaged result is no reference; loadReference says why when asked for it
-    }
+  return latestFinished(store, SessionKind::kReference, serial,
+                        [](const ResultFile& r) { return r.report.verdict.usable; });
+}
+
+CalibratedModel loadCalibratedModel(const SessionStore& store, const std::string& id) {
+  const SessionFolder folder = readListed(store, id);
+  if (folder.result.model_file.empty())
+    throw Refused("no_model", "session " + id +
+                                  " wrote no calibrated model: a usable calibration at several "
+                                  "PSD placements writes one");
+  CalibratedModel model;
+  model.id = id;
+  try {
+    model.robot = loadRobot(store.sessionDir(id) + "/" + folder.result.model_file);
+  } catch (const Error& e) {
+    throw Refused("damaged", "the calibrated model of session " + id + " cannot be read: " +
+                                 e.what());
   }
-  return "";
+  if (folder.result.cell) model.origin = folder.result.cell->controller;
+  return model;
+}
+
+std::string latestCalibratedModel(const SessionStore& store, const std::string& serial) {
+  return latestFinished(store, SessionKind::kCalibration, serial,
+                        [](const ResultFile& r) { return !r.model_file.empty(); });
 }
 
 std::string suggestedKind(const std::string& latest) {

@@ -200,8 +200,15 @@ bool RequestPlanner::identifiesWithout(const RunPlan& plan,
   return identifiesEveryOffset(predictWithout(plan.poses, skipped, plan.target, plan.noise_mm));
 }
 
-Plan RequestPlanner::makePlan(const StartRequest& request, Eigen::Vector3d& target,
-                              double& noise_mm) const {
+Plan RequestPlanner::makePlan(const StartRequest& request, const Robot* model,
+                              Eigen::Vector3d& target, double& noise_mm) const {
+  // The cell as the session's solve will know it, and what its model admits.
+  CellModel cell = knowledge_.cell;
+  ModelTolerances tolerances = settings_.tolerances;
+  if (model) {
+    cell.robot = *model;
+    tolerances = model->tolerance;
+  }
   target = request.target_mm.value_or(settings_.target_mm.value_or(knowledge_.taught_centre_mm));
   noise_mm = request.noise_mm.value_or(settings_.noise_mm);
   try {
@@ -211,11 +218,13 @@ Plan RequestPlanner::makePlan(const StartRequest& request, Eigen::Vector3d& targ
         throw Refused("bad_request", "plan 'file' needs a plan_file (a joint-set file)");
       Plan plan;
       plan.poses = readJointSet(request.plan_file);
-      checkPoses(knowledge_.cell, plan.poses);  // the same minimum and limits as a solve
-      refuseOutsideLimits(knowledge_.cell.robot, plan.poses, settings_.limit_margin_deg,
+      checkPoses(cell, plan.poses);  // the same minimum and limits as a solve
+      refuseOutsideLimits(cell.robot, plan.poses, settings_.limit_margin_deg,
                           "plan file " + request.plan_file + ": ");
       plan.description = "plan file " + request.plan_file;
-      plan.prediction = predictWithout(plan.poses, {}, target, noise_mm);
+      CalibrationParameters nominal;
+      nominal.target_mm = target;
+      plan.prediction = predictUncertainty(cell, plan.poses, nominal, noise_mm, tolerances);
       return plan;
     }
     PlanOptions options;
@@ -223,7 +232,7 @@ Plan RequestPlanner::makePlan(const StartRequest& request, Eigen::Vector3d& targ
     options.poses = request.poses;
     options.noise_mm = noise_mm;
     options.psd_normal = knowledge_.cell.psd_rotation.col(2);
-    options.tolerances = settings_.tolerances;  // the prediction the technician sees is the solve's
+    options.tolerances = tolerances;  // the prediction the technician sees is the solve's
     if (settings_.travel_s)
       options.travel_s = [this](const Joints& from, const Joints& to) {
         return settings_.travel_s(knowledge_.cell.robot, from, to);
@@ -235,26 +244,25 @@ Plan RequestPlanner::makePlan(const StartRequest& request, Eigen::Vector3d& targ
       refuseUnlessPlaceable(backend_);
       options.more_placements = defaultPlacements(target, request.placements);
     }
-    Plan plan = planPoses(knowledge_.cell, target, options);
-    if (request.found_before)
-      leastSensitiveFirst(plan.poses, knowledge_.cell, *request.found_before);
+    Plan plan = planPoses(cell, target, options);
+    if (request.found_before) leastSensitiveFirst(plan.poses, cell, *request.found_before);
     return plan;
   } catch (const InputError& e) {
     throw Refused("bad_request", e.what());
   }
 }
 
-Plan RequestPlanner::preview(const StartRequest& request) const {
+Plan RequestPlanner::preview(const StartRequest& request, const Robot* model) const {
   Eigen::Vector3d target;
   double noise_mm = 0;
-  Plan plan = makePlan(request, target, noise_mm);
+  Plan plan = makePlan(request, model, target, noise_mm);
   plan.prediction.required_accuracy_deg = settings_.required_accuracy_deg;
   return plan;
 }
 
-PlannedSession RequestPlanner::plan(const StartRequest& request) const {
+PlannedSession RequestPlanner::plan(const StartRequest& request, const Robot* model) const {
   PlannedSession p;
-  p.plan = makePlan(request, p.run.target, p.run.noise_mm);
+  p.plan = makePlan(request, model, p.run.target, p.run.noise_mm);
   p.plan.prediction.required_accuracy_deg = settings_.required_accuracy_deg;
   refuseUnlessIdentifiable(p.plan.prediction);
   // A verification is the daemon's own check of an apply, judged by what it changed; a reference

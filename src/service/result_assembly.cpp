@@ -11,6 +11,8 @@ ResultFile assembleResult(const std::string& session_id, const RunOutcome& outco
   result.session = session_id;
   result.kind = facts.kind;
   result.reference = facts.reference;
+  result.model_from = facts.model_from;
+  result.model_file = facts.model_file;
   result.check = facts.check;
   result.drift = facts.drift;
   result.cell_time_s = facts.cell_time_s;

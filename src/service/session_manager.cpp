@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "zerocal/daemon/logging.h"
+#include "zerocal/results/placements.h"
 
 namespace zerocal::service {
 
@@ -172,7 +173,32 @@ StartRequest SessionManager::defaultRequest() const {
 }
 
 Plan SessionManager::preview(const StartRequest& request) const {
-  return planner_.preview(request);
+  const bool against_reference = request.kind == SessionKind::kCheck ||
+                                 request.kind == SessionKind::kRestore ||
+                                 !request.reference.empty();
+  if (against_reference) return planner_.preview(request);
+  std::string model_from;
+  return planCalibration(request, false, model_from).plan;
+}
+
+PlannedSession SessionManager::planCalibration(const StartRequest& request, bool checked,
+                                               std::string& model_from) const {
+  const auto planWith = [&](const Robot* model) {
+    if (checked) return planner_.plan(request, model);
+    PlannedSession p;
+    p.plan = planner_.preview(request, model);
+    return p;
+  };
+  model_from.clear();
+  if (request.kind != SessionKind::kCalibration || request.placements > 1) return planWith(nullptr);
+  const std::string latest = latestCalibratedModel(store_);
+  if (latest.empty()) return planWith(nullptr);
+  const CalibratedModel model = loadCalibratedModel(store_, latest);
+  PlannedSession planned = planWith(&model.robot);
+  if (placementCount(planned.plan.poses) > 1) return planWith(nullptr);  // a plan file's
+  model_from = latest;
+  planned.plan.description += "; solved with the calibrated model of session " + latest;
+  return planned;
 }
 
 SessionManager::NewSession SessionManager::createSession(const StartRequest& request) {
@@ -195,7 +221,7 @@ SessionManager::NewSession SessionManager::createSession(const StartRequest& req
                                                : loadReference(store_, draft.reference));
     draft.reference_poses = planned.reference_poses;
   } else {
-    planned = planner_.plan(request);
+    planned = planCalibration(request, true, draft.model_from);
   }
   const Plan& plan = planned.plan;
   NewSession n;

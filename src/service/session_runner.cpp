@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "zerocal/calib/change.h"
+#include "zerocal/calib/solver.h"
 #include "zerocal/daemon/logging.h"
 #include "zerocal/service/result_assembly.h"
 #include "zerocal/service/session_recording.h"
@@ -14,6 +15,8 @@ namespace {
 
 // A simulated session's whole world, beside its result (docs/simulated-cell.md).
 constexpr const char* kTruthWorldFile = "truth-world.yaml";
+// A calibration's calibrated model, beside its result (docs/record.md).
+constexpr const char* kModelFile = "model.yaml";
 
 // The run's PSD reader, passing each reading on to the live slot, and its time to the watchdog's
 // progress mark (an atomic store: nothing that allocates or locks in the servo cycle).
@@ -178,12 +181,16 @@ void SessionRunner::runMeasurement(const RunRequest& request) {
   // Measured against a reference: its poses and fit, and the robot must be the reference's.
   std::optional<Reference> reference;
   std::vector<int> reference_poses;
+  // Planned with an earlier calibration's calibrated model: solved with it too, and the robot
+  // must be the one it calibrated.
+  std::optional<CalibratedModel> model;
   try {
     const SessionFile session = store_.readSession(id);
     if (!session.reference.empty()) {
       reference = loadComparedWith(store_, session);
       reference_poses = session.reference_poses;
     }
+    if (!session.model_from.empty()) model = loadCalibratedModel(store_, session.model_from);
   } catch (const std::exception& e) {
     return finish(SessionState::kFaulted, e.what());
   }
@@ -195,6 +202,17 @@ void SessionRunner::runMeasurement(const RunRequest& request) {
                       identity.robot.serial + ", and reference " + reference->id + " is of " +
                       reference->robot.robot_type + " serial " + reference->robot.serial +
                       ": a robot is compared only with its own reference");
+  if (model && !model->origin.serial.empty() &&
+      (identity.robot.serial != model->origin.serial ||
+       identity.robot.robot_type != model->origin.robot_type))
+    return finish(SessionState::kFaulted,
+                  "the controller names its robot " + identity.robot.robot_type + " serial " +
+                      identity.robot.serial + ", and the calibrated model of session " +
+                      model->id + " is of " + model->origin.robot_type + " serial " +
+                      model->origin.serial + ": a robot is solved only with its own model");
+  // The cell as this session's solve knows it: the daemon's robot file, or the calibrated model.
+  CellModel cell_model = knowledge_.cell;
+  if (model) cell_model.robot = model->robot;
   ConnectedCell& cell = connection_.cell();
   cell.beginSession();
 
@@ -206,6 +224,7 @@ void SessionRunner::runMeasurement(const RunRequest& request) {
       log->warn("session {}: {} (the pose will be measured again)", id, journal.dropped());
     RunSettings run_settings = settings_.run;
     run_settings.solve.noise_mm = run_plan.noise_mm;
+    run_settings.solve.model = cell_model.robot.tolerance;  // what its robot model admits
     // A reference claims nothing of the absolute zeros: its offsets are not judged by the
     // required accuracy, only its fit by the noise.
     if (request.kind == SessionKind::kReference)
@@ -223,7 +242,7 @@ void SessionRunner::runMeasurement(const RunRequest& request) {
     // pose in progress (not journalled) is then measured again from its planned move.
     run_settings.reconnect_link = [&cell] { cell.reconnectRobot(); };
     run_settings.reopen_sensor = [&cell] { cell.reopenPsd(); };
-    CalibrationRun run(knowledge_.cell, run_plan.target, run_plan.poses, run_settings, journal);
+    CalibrationRun run(cell_model, run_plan.target, run_plan.poses, run_settings, journal);
     run.found_before = request.found_before;
     if (reference) run.earlier = reference->fit.poses;
     if (request.place_next) run.placeNext(*request.place_next);
@@ -345,6 +364,7 @@ void SessionRunner::runMeasurement(const RunRequest& request) {
     for (const Drift& d : facts.drift) log->warn("session {}: {}", id, d.summary);
   }
   facts.cell = ResultFile::Cell{identity.robot, knowledge_.psd_map};
+  if (model) facts.model_from = model->id;
   facts.cal_offset_rad = identity.cal_offset_rad;
   facts.cell_time_s = cell_time_s;
   facts.finished_unix_s = unixSeconds();
@@ -357,6 +377,25 @@ void SessionRunner::runMeasurement(const RunRequest& request) {
       facts.truth_world_file = kTruthWorldFile;
     } catch (const std::exception& e) {
       return finish(SessionState::kFaulted, std::string("cannot write the truth: ") + e.what());
+    }
+  }
+  const SolveReport& report = *outcome->report;
+  if (request.kind == SessionKind::kCalibration && !report.placements.empty() &&
+      report.verdict.usable) {
+    // Identified links with their covariance: later one-placement calibrations of this robot
+    // count what this one left of the link errors, not the robot file's tolerances.
+    try {
+      store_.writeFile(
+          id, kModelFile,
+          checkedRobotYaml(calibratedRobot(cell_model.robot, report),
+                           "calibrated model of " + identity.robot.robot_type + " serial " +
+                               identity.robot.serial + ", identified by zerocald session " + id +
+                               " at " + std::to_string(report.placements.size()) +
+                               " PSD placements"));
+      facts.model_file = kModelFile;
+    } catch (const std::exception& e) {
+      return finish(SessionState::kFaulted,
+                    std::string("cannot write the calibrated model: ") + e.what());
     }
   }
   complete(id, *outcome, std::move(facts));

@@ -131,5 +131,8 @@ Robot parseRobot(const std::string& yaml_text, const std::string& origin);
 // rows with the identified errors beside them (da_mm, dd_mm, dalpha_deg), the gravity model
 // and the identified compliance, every number to 17 digits. `comment` heads it ('#' lines).
 std::string robotYaml(const Robot& robot, const std::string& comment = "");
+// robotYaml read back by parseRobot before it is given out: a calibrated model that the loader
+// would refuse is never written as if it were one. Throws ConfigError as parseRobot does.
+std::string checkedRobotYaml(const Robot& robot, const std::string& comment = "");
 
 }  // namespace zerocal

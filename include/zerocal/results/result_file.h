@@ -48,6 +48,12 @@ struct ResultFile {
   SessionKind kind = SessionKind::kCalibration;
   std::string reference;
   std::optional<CheckJudgement> check;
+  // The robot model: the calibration whose calibrated model (its model_file) the solve used in
+  // place of the daemon's robot file, empty when it used the robot file; and the calibrated
+  // model this session wrote beside its result (a usable calibration at several placements:
+  // its identified link errors with their covariance, for later sessions), empty when none.
+  std::string model_from;
+  std::string model_file;
   // Against a reference: the zeros that moved since the robot's last comparison with it.
   std::vector<Drift> drift;
   std::optional<double> cell_time_s;

@@ -39,6 +39,9 @@ struct SessionFile {
   // re-measures. Empty otherwise.
   std::string reference;
   std::vector<int> reference_poses;
+  // A calibration planned and solved with the calibrated model of an earlier calibration
+  // (ResultFile::model_file): that calibration's id. Empty: the daemon's robot file.
+  std::string model_from;
   Plan plan;  // the poses (joints only), how they were chosen, the predicted uncertainty
   Eigen::Vector3d target_mm = Eigen::Vector3d::Zero();  // nominal PSD centre, base frame
   double noise_mm = 0;                                  // measurement sigma of the plan and solve

@@ -10,6 +10,7 @@
 
 #include "zerocal/calib/change.h"
 #include "zerocal/cell/robot_info.h"
+#include "zerocal/model/robot.h"
 #include "zerocal/store/session_store.h"
 
 namespace zerocal::service {
@@ -47,6 +48,23 @@ Reference loadComparedWith(const SessionStore& store, const SessionFile& session
 // The latest finished reference of `store` whose verdict is usable, of the robot with this
 // serial when given; empty when there is none.
 std::string latestReference(const SessionStore& store, const std::string& serial = "");
+
+// A robot's calibrated model as later calibrations use it (docs/record.md): the kinematics a
+// usable calibration at several PSD placements identified, with the covariance of its link
+// errors, written beside its result (ResultFile::model_file).
+struct CalibratedModel {
+  std::string id;    // the calibration that wrote it
+  Robot robot;       // as the model file reads
+  RobotInfo origin;  // the robot it calibrated, as its controller named itself
+};
+
+// The calibrated model of calibration `id`. Throws Refused as loadReference does for an id, and
+// ("no_model") when the session wrote none, ("damaged") when its model file cannot be read.
+CalibratedModel loadCalibratedModel(const SessionStore& store, const std::string& id);
+
+// The latest finished calibration of `store` whose result wrote a calibrated model, of the robot
+// with this serial when given; empty when there is none.
+std::string latestCalibratedModel(const SessionStore& store, const std::string& serial = "");
 
 // The kind to run next, in a sentence for the status (SessionStatus::suggestion): a reference
 // when `latest` (latestReference's answer) is empty, else a check against it.

@@ -76,12 +76,13 @@ class RequestPlanner {
   // The plan of a request, with its prediction, as `zerocal plan` shows it; not checked for
   // identifiability. Throws Refused("bad_request") for an invalid request, ("out_of_limits") for
   // a plan file's pose inside the limits' margin, ("unsupported") for placements the cell cannot
-  // have.
-  Plan preview(const StartRequest& request) const;
+  // have. `model`: the calibrated model the session's solve will use, predicted with its
+  // covariance in place of the robot file's tolerances (null: the robot file).
+  Plan preview(const StartRequest& request, const Robot* model = nullptr) const;
   // The plan of a request for a new session; throws as preview(), Refused("not_identifiable")
   // when the plan does not identify delta2..delta5, and ("not_accurate") when it is predicted
   // short of the required accuracy and the request does not ask for it anyway.
-  PlannedSession plan(const StartRequest& request) const;
+  PlannedSession plan(const StartRequest& request, const Robot* model = nullptr) const;
   // The plan of a session measured against `reference` (a check, a restore, or with
   // request.verifies the verification of a restore's apply): a check and a verification
   // re-measure the fewest of its poses that see a change of the required accuracy's size (each
@@ -120,7 +121,8 @@ class RequestPlanner {
                         const std::vector<PoseRecord>& records, int stopped_at) const;
 
  private:
-  Plan makePlan(const StartRequest& request, Eigen::Vector3d& target, double& noise_mm) const;
+  Plan makePlan(const StartRequest& request, const Robot* model, Eigen::Vector3d& target,
+                double& noise_mm) const;
 
   const CellKnowledge& knowledge_;
   const CellBackend& backend_;

@@ -20,6 +20,8 @@ struct RunFacts {
   SessionKind kind = SessionKind::kCalibration;
   std::string reference;                // the reference session measured against, if any
   std::optional<CheckJudgement> check;  // a check's judgement
+  std::string model_from;               // ResultFile::model_from
+  std::string model_file;               // ResultFile::model_file
   std::vector<Drift> drift;             // zeros moved since the last comparison
   ResultFile::Cell cell;                // the controller as it named the robot, the PSD map
   // The controller's motor calibration while the session measured (rad); absent when its link

@@ -81,6 +81,12 @@ class SessionManager final : public SessionControl {
   };
   // Plans `request` (refusing it as start() does), creates its folder, and begins it on the board.
   NewSession createSession(const StartRequest& request);
+  // The plan of a calibration (not against a reference), preview() when `checked` is false and
+  // RequestPlanner::plan otherwise, and in `model_from` the calibration whose calibrated model it
+  // is planned, and will be solved, with: the latest in the store when the plan has one PSD
+  // placement (a calibration at several identifies the links itself).
+  PlannedSession planCalibration(const StartRequest& request, bool checked,
+                                 std::string& model_from) const;
   // Runs the verification of session `applied`'s apply on the worker thread: the change of the
   // zeros since its reference (a restore) or since its own poses at its last PSD placement (a
   // calibration), ApplyCoordinator::VerificationRun.

@@ -92,12 +92,11 @@ Reference loadReference(const SessionStore& store, const std::string& id) {
 Reference loadAppliedCalibration(const SessionStore& store, const std::string& id) {
   const SessionFolder folder = readListed(store, id);
   if (folder.session.kind != SessionKind::kCalibration)
-    throw Refused("not_a_calibration", "session " + id + " is a " +
-                                           sessionKindName(folder.session.kind) +
-                                           ", not a calibration");
+    throw Refused(
+        "not_a_calibration",
+        "session " + id + " is a " + sessionKindName(folder.session.kind) + ", not a calibration");
   const std::vector<int> placements = placementsOf(posesOf(folder.journal));
-  if (placements.empty())
-    throw Refused("damaged", "session " + id + " recorded no pose");
+  if (placements.empty()) throw Refused("damaged", "session " + id + " recorded no pose");
   return referenceOf(id, folder, placements.back());
 }
 
@@ -123,8 +122,8 @@ CalibratedModel loadCalibratedModel(const SessionStore& store, const std::string
   try {
     model.robot = loadRobot(store.sessionDir(id) + "/" + folder.result.model_file);
   } catch (const Error& e) {
-    throw Refused("damaged", "the calibrated model of session " + id + " cannot be read: " +
-                                 e.what());
+    throw Refused("damaged",
+                  "the calibrated model of session " + id + " cannot be read: " + e.what());
   }
   if (folder.result.cell) model.origin = folder.result.cell->controller;
   return model;

@@ -75,6 +75,12 @@ PlannerSettings plannerSettingsOf(const ManagerSettings& settings) {
   return p;
 }
 
+// A check, a restore, or a session given a reference (a verification): measured against it.
+bool againstReference(const StartRequest& request) {
+  return request.kind == SessionKind::kCheck || request.kind == SessionKind::kRestore ||
+         !request.reference.empty();
+}
+
 }  // namespace
 
 // Every solve and plan of the daemon counts what its robot model admits (the robot file's
@@ -173,10 +179,7 @@ StartRequest SessionManager::defaultRequest() const {
 }
 
 Plan SessionManager::preview(const StartRequest& request) const {
-  const bool against_reference = request.kind == SessionKind::kCheck ||
-                                 request.kind == SessionKind::kRestore ||
-                                 !request.reference.empty();
-  if (against_reference) return planner_.preview(request);
+  if (againstReference(request)) return planner_.preview(request);
   std::string model_from;
   return planCalibration(request, false, model_from).plan;
 }
@@ -203,11 +206,8 @@ PlannedSession SessionManager::planCalibration(const StartRequest& request, bool
 
 SessionManager::NewSession SessionManager::createSession(const StartRequest& request) {
   SessionFile draft;
-  const bool against_reference = request.kind == SessionKind::kCheck ||
-                                 request.kind == SessionKind::kRestore ||
-                                 !request.reference.empty();
   PlannedSession planned;
-  if (against_reference) {
+  if (againstReference(request)) {
     draft.reference = request.reference.empty() ? latestReference(store_) : request.reference;
     if (draft.reference.empty())
       throw Refused("no_reference",

@@ -94,6 +94,18 @@ std::vector<Drift> driftSinceLastComparison(const SessionStore& store, const std
   return {};
 }
 
+// Why a session on the robot the controller names (`controller`) may not use `what`, recorded of
+// the robot `recorded`: another type or serial. Empty when it may (or nothing was recorded).
+std::string otherRobot(const RobotInfo& controller, const RobotInfo& recorded,
+                       const std::string& what, const std::string& rule) {
+  if (recorded.serial.empty() ||
+      (controller.serial == recorded.serial && controller.robot_type == recorded.robot_type))
+    return "";
+  return "the controller names its robot " + controller.robot_type + " serial " +
+         controller.serial + ", and " + what + " is of " + recorded.robot_type + " serial " +
+         recorded.serial + ": a robot is " + rule;
+}
+
 SessionState stateOf(RunPhase phase) {
   switch (phase) {
     case RunPhase::kMoving:
@@ -194,22 +206,15 @@ void SessionRunner::runMeasurement(const RunRequest& request) {
   } catch (const std::exception& e) {
     return finish(SessionState::kFaulted, e.what());
   }
-  if (reference && !reference->robot.serial.empty() &&
-      (identity.robot.serial != reference->robot.serial ||
-       identity.robot.robot_type != reference->robot.robot_type))
-    return finish(SessionState::kFaulted,
-                  "the controller names its robot " + identity.robot.robot_type + " serial " +
-                      identity.robot.serial + ", and reference " + reference->id + " is of " +
-                      reference->robot.robot_type + " serial " + reference->robot.serial +
-                      ": a robot is compared only with its own reference");
-  if (model && !model->origin.serial.empty() &&
-      (identity.robot.serial != model->origin.serial ||
-       identity.robot.robot_type != model->origin.robot_type))
-    return finish(SessionState::kFaulted,
-                  "the controller names its robot " + identity.robot.robot_type + " serial " +
-                      identity.robot.serial + ", and the calibrated model of session " +
-                      model->id + " is of " + model->origin.robot_type + " serial " +
-                      model->origin.serial + ": a robot is solved only with its own model");
+  std::string other_robot;
+  if (reference)
+    other_robot = otherRobot(identity.robot, reference->robot, "reference " + reference->id,
+                             "compared only with its own reference");
+  if (model && other_robot.empty())
+    other_robot =
+        otherRobot(identity.robot, model->origin, "the calibrated model of session " + model->id,
+                   "solved only with its own model");
+  if (!other_robot.empty()) return finish(SessionState::kFaulted, other_robot);
   // The cell as this session's solve knows it: the daemon's robot file, or the calibrated model.
   CellModel cell_model = knowledge_.cell;
   if (model) cell_model.robot = model->robot;

@@ -1,5 +1,7 @@
 #include "zerocal/irc5/irc5_client.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <boost/asio.hpp>
 #include <cmath>
@@ -251,13 +253,10 @@ void Irc5Client::checkRobotFileAgainst(const std::array<JointLimit, kJointCount>
     const JointLimit& file = options_.robot.limits[i];
     if (file.lower_deg < bounds[i].lower_deg - kTolerance ||
         file.upper_deg > bounds[i].upper_deg + kTolerance) {
-      char text[200];
-      std::snprintf(text, sizeof text,
-                    "joint %d: the robot file allows %.3f..%.3f deg, the controller only "
-                    "%.3f..%.3f deg",
-                    i + 1, file.lower_deg, file.upper_deg, bounds[i].lower_deg,
-                    bounds[i].upper_deg);
-      problems.push_back(text);
+      problems.push_back(fmt::format(FMT_STRING("joint {}: the robot file allows {:.3f}..{:.3f} "
+                                                "deg, the controller only {:.3f}..{:.3f} deg"),
+                                     i + 1, file.lower_deg, file.upper_deg, bounds[i].lower_deg,
+                                     bounds[i].upper_deg));
     }
   }
   if (!problems.empty())

@@ -1,10 +1,13 @@
 #include "zerocal/irc5/protocol.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <iterator>
 #include <string>
 
 #include "zerocal/irc5/errors.h"
@@ -48,15 +51,13 @@ bool parseInt(std::string_view s, int* value) {
 }  // namespace
 
 void formatRequest(std::string& out, int code, const Param* params, std::size_t count) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%02d ", code);
-  out = buf;
+  out.clear();  // its capacity is kept: a request in the servo cycle allocates nothing
+  fmt::format_to(std::back_inserter(out), FMT_STRING("{:02d} "), code);
   for (std::size_t i = 0; i < count; ++i) {
     const Param& p = params[i];
     // Values that round to zero would print "-0.00000"; RAPID reads it but logs read oddly.
     const double v = std::abs(p.value) < 0.5 * std::pow(10.0, -p.decimals) ? 0.0 : p.value;
-    std::snprintf(buf, sizeof buf, "%+.*f ", p.decimals, v);
-    out += buf;
+    fmt::format_to(std::back_inserter(out), FMT_STRING("{:+.{}f} "), v, p.decimals);
   }
   out += '#';
 }

@@ -1,5 +1,7 @@
 #include "zerocal/sim/sim_controller.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <boost/asio.hpp>
 #include <cmath>
@@ -41,12 +43,10 @@ namespace {
 // (the arm rounds what it stores, SimulatedArmOptions::single_precision).
 double f32(double v) { return sim::roundToFloat32(v); }
 
-std::string fmt(double v, int decimals) {
-  char buf[48];
+std::string fixed(double v, int decimals) {
   // Values that round to zero print as "0.000", never "-0.000".
   if (std::abs(v) < 0.5 * std::pow(10.0, -decimals)) v = 0.0;
-  std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
-  return buf;
+  return fmt::format(FMT_STRING("{:.{}f}"), v, decimals);
 }
 
 // Seven parameters (x, y, z, qw, qx, qy, qz) as RAPID parses them.
@@ -409,7 +409,7 @@ std::string SimController::Impl::moved(int code, const sim::MoveResult& result,
   if (code != irc5::kSearchRun) return c + " 1 ";
   if (!result.latched_deg) return c + " 1 0";
   std::string reply = c + " 1 1";
-  for (double v : *result.latched_deg) reply += " " + fmt(v, irc5::kJointDecimals);
+  for (double v : *result.latched_deg) reply += " " + fixed(v, irc5::kJointDecimals);
   return reply;
 }
 
@@ -422,7 +422,7 @@ std::optional<std::string> SimController::Impl::respond(const irc5::ParsedReques
   const std::size_t n = r.params.size();
   const auto six = [&](const std::array<double, 6>& v, int decimals) {
     std::string s = done;
-    for (int i = 0; i < 6; ++i) s += fmt(v[i], decimals) + (i < 5 ? " " : "");
+    for (int i = 0; i < 6; ++i) s += fixed(v[i], decimals) + (i < 5 ? " " : "");
     return s;
   };
   switch (r.code) {
@@ -441,9 +441,9 @@ std::optional<std::string> SimController::Impl::respond(const irc5::ParsedReques
       if (n != 0) return bad;
       const TcpPose pose = arm->toolPose();
       std::string s = done;
-      for (int i = 0; i < 3; ++i) s += fmt(f32(pose.xyz_mm[i]), irc5::kXyzDecimals) + " ";
+      for (int i = 0; i < 3; ++i) s += fixed(f32(pose.xyz_mm[i]), irc5::kXyzDecimals) + " ";
       for (int i = 0; i < 4; ++i)
-        s += fmt(f32(pose.quat_wxyz[i]), irc5::kQuatDecimals) + (i < 3 ? " " : "");
+        s += fixed(f32(pose.quat_wxyz[i]), irc5::kQuatDecimals) + (i < 3 ? " " : "");
       return s;
     }
     case irc5::kReadJoints:
@@ -535,7 +535,7 @@ std::optional<std::string> SimController::Impl::respond(const irc5::ParsedReques
       if (!hit || !hit->spot.finite() || std::abs(hit->spot.u_mm) > 1e6 ||
           std::abs(hit->spot.v_mm) > 1e6)
         return done + "0 0 0";
-      return done + "1 " + fmt(hit->spot.u_mm, 5) + " " + fmt(hit->spot.v_mm, 5);
+      return done + "1 " + fixed(hit->spot.u_mm, 5) + " " + fixed(hit->spot.v_mm, 5);
     }
     case irc5::kSimWorldId:
       return n == 0 ? done + worldHash(arm->world()) + " " + std::to_string(arm->seed()) : bad;

@@ -1,5 +1,6 @@
 #include "zerocal/sim/world.h"
 
+#include <fmt/format.h>
 #include <yaml-cpp/yaml.h>
 
 #include <Eigen/Geometry>
@@ -227,9 +228,7 @@ std::string worldHash(const World& w) {
     for (const double q : *w.gross.forced_at_deg) value(q);
     value(static_cast<int>(w.gross.forced_kind));
   }
-  char buf[17];
-  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
-  return buf;
+  return fmt::format(FMT_STRING("{:016x}"), h);
 }
 
 namespace {
@@ -663,11 +662,7 @@ Eigen::Vector3d rpyOf(const Eigen::Matrix3d& r) {
          kRadToDeg;
 }
 
-std::string num(double v) {
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.17g", v);
-  return buf;
-}
+std::string num(double v) { return fmt::format(FMT_STRING("{:.17g}"), v); }
 
 template <typename V>
 std::string list(const V& v, int n) {

@@ -1,5 +1,7 @@
 #include "zerocal/apply/motor_calibration.h"
 
+#include <fmt/format.h>
+
 #include <cmath>
 #include <cstdio>
 
@@ -37,24 +39,16 @@ CalOffsetChange calOffsetChange(int joint, double delta_rad, double transmission
 }
 
 std::string formulaText(const CalOffsetChange& c) {
-  char buf[256];
-  std::snprintf(buf, sizeof buf, "cal_offset_%d = wrap(%.6f - (%+g) x (%+.8f rad)) = wrap(%+.6f)",
-                c.joint, c.old_rad, c.transmission, c.delta_rad, c.unwrapped_rad);
-  std::string s = buf;
-  std::snprintf(buf, sizeof buf, " = %.6f rad", c.new_rad);
-  s += buf;
-  if (c.crossesSeam()) {
-    std::snprintf(buf, sizeof buf, " (%+d motor turn%s: crosses the 0 / 2 pi seam)", c.turns,
-                  std::abs(c.turns) == 1 ? "" : "s");
-    s += buf;
-  }
+  std::string s = fmt::format(
+      FMT_STRING("cal_offset_{} = wrap({:.6f} - ({:+g}) x ({:+.8f} rad)) = wrap({:+.6f}) = {:.6f} "
+                 "rad"),
+      c.joint, c.old_rad, c.transmission, c.delta_rad, c.unwrapped_rad, c.new_rad);
+  if (c.crossesSeam())
+    s += fmt::format(FMT_STRING(" ({:+d} motor turn{}: crosses the 0 / 2 pi seam)"), c.turns,
+                     std::abs(c.turns) == 1 ? "" : "s");
   return s;
 }
 
-std::string mocNumber(double rad) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.6G", rad);
-  return buf;
-}
+std::string mocNumber(double rad) { return fmt::format(FMT_STRING("{:.6G}"), rad); }
 
 }  // namespace zerocal::apply

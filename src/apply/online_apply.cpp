@@ -1,6 +1,7 @@
 #include "zerocal/apply/online_apply.h"
 
 #include <fcntl.h>
+#include <fmt/printf.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -19,10 +20,9 @@ using nlohmann::json;
 
 constexpr double kDeg = 57.29577951308232;
 
-std::string fmt(const char* f, double a, double b = 0, double c = 0) {
-  char buf[160];
-  std::snprintf(buf, sizeof buf, f, a, b, c);
-  return buf;
+// printf's format, as long as the text is.
+std::string printed(const char* format, double a, double b = 0, double c = 0) {
+  return fmt::sprintf(format, a, b, c);
 }
 
 json offsetsJson(const Offsets& o) {
@@ -39,14 +39,15 @@ void writeAndRestart(ControllerCalibration& store, const std::array<double, 6>& 
   for (int j = 2; j <= 5; ++j)
     if (std::abs(now[j - 1] - values[j - 1]) > 2e-6)
       throw Error("joint " + std::to_string(j) + ": the controller reads back cal_offset " +
-                  fmt("%.6f", now[j - 1]) + " after writing " + fmt("%.6f", values[j - 1]));
+                  printed("%.6f", now[j - 1]) + " after writing " + printed("%.6f", values[j - 1]));
 }
 
 }  // namespace
 
 std::string valuesText(const std::array<double, 6>& v) {
   std::string s;
-  for (int j = 2; j <= 5; ++j) s += "rob1_" + std::to_string(j) + " " + fmt("%.6f", v[j - 1]) + " ";
+  for (int j = 2; j <= 5; ++j)
+    s += "rob1_" + std::to_string(j) + " " + printed("%.6f", v[j - 1]) + " ";
   return s;
 }
 
@@ -91,21 +92,22 @@ Verdict judge(const std::array<CalOffsetChange, 4>& changes, const Offsets& befo
     const double turn_deg = kTwoPi / changes[k].transmission * kDeg;
     std::string why;
     if (std::abs(b) > 3 * sigma && std::abs(a / b - 2.0) < 0.25)
-      why = d + " doubled (" + fmt("%+.4f deg before, %+.4f deg after", b, a) +
+      why = d + " doubled (" + printed("%+.4f deg before, %+.4f deg after", b, a) +
             "): the sign of joint " + std::to_string(j) + "'s transmission is wrong";
     else if (std::abs(std::abs(a) - std::abs(turn_deg)) < std::max(bound, 0.02))
-      why = "joint " + std::to_string(j) + fmt(" is one motor turn (%+.4f deg) off", a) +
+      why = "joint " + std::to_string(j) + printed(" is one motor turn (%+.4f deg) off", a) +
             ": its revolution counter was not updated at the synchronisation mark";
     else if (std::abs(b) > 3 * sigma && std::abs(a) > 5 * sigma && std::abs(1 - a / b) > 0.05)
-      why = d + fmt(" went from %+.4f to %+.4f deg", b, a) + ": joint " + std::to_string(j) +
-            "'s transmission looks like " + fmt("%+.1f", changes[k].transmission / (1 - a / b)) +
-            ", not " + fmt("%+g", changes[k].transmission);
+      why = d + printed(" went from %+.4f to %+.4f deg", b, a) + ": joint " + std::to_string(j) +
+            "'s transmission looks like " +
+            printed("%+.1f", changes[k].transmission / (1 - a / b)) + ", not " +
+            printed("%+g", changes[k].transmission);
     else
-      why = d + fmt(" = %+.4f deg remains, beyond max(3 sigma, required) = %.4f deg", a, bound);
+      why = d + printed(" = %+.4f deg remains, beyond max(3 sigma, required) = %.4f deg", a, bound);
     reasons += (reasons.empty() ? "" : "; ") + why;
   }
   v.message = v.pass ? "every remaining offset of joints 2..5 is within max(3 sigma, " +
-                           fmt("%.4f", required_deg) + " deg)"
+                           printed("%.4f", required_deg) + " deg)"
                      : reasons;
   return v;
 }
@@ -123,8 +125,9 @@ OnlineApplyOutcome applyOnline(ControllerCalibration& store,
   for (const CalOffsetChange& c : changes) {
     if (std::abs(out.before_rad[c.joint - 1] - c.old_rad) > 2e-6)
       throw Error("joint " + std::to_string(c.joint) + ": the controller holds cal_offset " +
-                  fmt("%.6f", out.before_rad[c.joint - 1]) + ", the new value was computed from " +
-                  fmt("%.6f", c.old_rad) + "; nothing was written");
+                  printed("%.6f", out.before_rad[c.joint - 1]) +
+                  ", the new value was computed from " + printed("%.6f", c.old_rad) +
+                  "; nothing was written");
     out.written_rad[c.joint - 1] = c.new_rad;
     changes_json.push_back({{"joint", c.joint},
                             {"delta_rad", c.delta_rad},
@@ -173,8 +176,8 @@ OnlineApplyOutcome applyOnline(ControllerCalibration& store,
     for (int j = 2; j <= 5; ++j)
       if (std::abs(now[j - 1] - out.written_rad[j - 1]) > 2e-6) {
         rollBack("joint " + std::to_string(j) + ": the controller reads back " +
-                 fmt("%.6f", now[j - 1]) + " after the restart, not the " +
-                 fmt("%.6f", out.written_rad[j - 1]) + " written");
+                 printed("%.6f", now[j - 1]) + " after the restart, not the " +
+                 printed("%.6f", out.written_rad[j - 1]) + " written");
         return out;
       }
     for (const CalOffsetChange& c : changes) {
@@ -441,7 +444,7 @@ Recovery recoverApply(ControllerCalibration& store, ApplyJournal& journal,
     std::string joints;
     for (int j : r.differing_joints)
       joints += (joints.empty() ? "" : ", ") + std::to_string(j) + " (" +
-                fmt("%.6f", r.found_rad[j - 1]) + ")";
+                printed("%.6f", r.found_rad[j - 1]) + ")";
     // Someone or something changed the calibration since (a later apply, a technician): a
     // backup written over it would undo a calibration nobody asked to undo.
     return refuse(RecoveryOutcome::kConflict,

@@ -1,5 +1,7 @@
 #include "zerocal/apply/transmission_check.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -56,12 +58,9 @@ TransmissionMeasurement measureTransmission(ControllerLink& link,
   const Joints back = link.readJoints();
   for (int k = 0; k < kJointCount; ++k)
     if (std::abs(back[k] - start[k]) > kBackDeg) {
-      char text[160];
-      std::snprintf(text, sizeof text,
-                    "%s: after the transmission check joint %d reads %.5f deg, not the %.5f deg "
-                    "it started from",
-                    name.c_str(), k + 1, back[k], start[k]);
-      throw Error(text);
+      throw Error(fmt::format(FMT_STRING("{}: after the transmission check joint {} reads {:.5f} "
+                                         "deg, not the {:.5f} deg it started from"),
+                              name, k + 1, back[k], start[k]));
     }
 
   m.joint_step_deg = reached[i] - start[i];
@@ -75,24 +74,21 @@ TransmissionMeasurement measureTransmission(ControllerLink& link,
   const bool same_sign = (m.measured > 0) == (m.configured > 0);
   const double relative = m.measured / m.configured - 1;
   m.agrees = same_sign && std::abs(relative) <= options.tolerance;
-  char text[240];
   if (m.agrees)
-    std::snprintf(text, sizeof text,
-                  "%s: transmission %+.2f measured (%+.4f rad motor over %+.4f deg), the robot "
-                  "file's %+g agrees",
-                  name.c_str(), m.measured, change, m.joint_step_deg, m.configured);
+    m.message = fmt::format(FMT_STRING("{}: transmission {:+.2f} measured ({:+.4f} rad motor over "
+                                       "{:+.4f} deg), the robot file's {:+g} agrees"),
+                            name, m.measured, change, m.joint_step_deg, m.configured);
   else if (!same_sign)
-    std::snprintf(text, sizeof text,
-                  "%s: the robot file's transmission is %+g, the cell measured %+.2f (%+.4f rad "
-                  "motor over %+.4f deg): the sign is wrong",
-                  name.c_str(), m.configured, m.measured, change, m.joint_step_deg);
+    m.message = fmt::format(FMT_STRING("{}: the robot file's transmission is {:+g}, the cell "
+                                       "measured {:+.2f} ({:+.4f} rad motor over {:+.4f} deg): "
+                                       "the sign is wrong"),
+                            name, m.configured, m.measured, change, m.joint_step_deg);
   else
-    std::snprintf(text, sizeof text,
-                  "%s: the robot file's transmission is %+g, the cell measured %+.2f (%+.4f rad "
-                  "motor over %+.4f deg): %.1f%% apart, beyond %.1f%%",
-                  name.c_str(), m.configured, m.measured, change, m.joint_step_deg, 100 * relative,
-                  100 * options.tolerance);
-  m.message = text;
+    m.message = fmt::format(FMT_STRING("{}: the robot file's transmission is {:+g}, the cell "
+                                       "measured {:+.2f} ({:+.4f} rad motor over {:+.4f} deg): "
+                                       "{:.1f}% apart, beyond {:.1f}%"),
+                            name, m.configured, m.measured, change, m.joint_step_deg,
+                            100 * relative, 100 * options.tolerance);
   return m;
 }
 

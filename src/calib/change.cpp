@@ -1,5 +1,7 @@
 #include "zerocal/calib/change.h"
 
+#include <fmt/format.h>
+
 #include <Eigen/Cholesky>
 #include <Eigen/SVD>
 #include <algorithm>
@@ -283,10 +285,8 @@ SolveReport solveChange(const CellModel& cell, const ReferenceFit& reference,
   report.converged = fit.converged;
   report.message = fit.message;
   if (options.thermal_growth) {
-    char growth[96];
-    std::snprintf(growth, sizeof growth, "; the arm grown by %+.1f ppm since the reference",
-                  fit.growth * 1e6);
-    report.message += growth;
+    report.message += fmt::format(FMT_STRING("; the arm grown by {:+.1f} ppm since the reference"),
+                                  fit.growth * 1e6);
   }
   report.iterations = fit.iterations;
   const CalibrationParameters p = fit.p;
@@ -539,24 +539,21 @@ CheckJudgement judgeCheck(const SolveReport& change, double bound_deg) {
     if (!(size + kOneSided95 * pe.sigma <= bound_deg)) all_within = false;
     if (change.converged && std::isfinite(pe.sigma) && size > bound_deg && size > 3 * pe.sigma) {
       out.joints.push_back(k + 2);
-      char text[96];
-      std::snprintf(text, sizeof text, "joint %d by %+.4f deg (sigma %.4f)", k + 2, pe.value,
-                    pe.sigma);
-      moved += (moved.empty() ? "" : ", ") + std::string(text);
+      moved += (moved.empty() ? "" : ", ") +
+               fmt::format(FMT_STRING("joint {} by {:+.4f} deg (sigma {:.4f})"), k + 2, pe.value,
+                           pe.sigma);
     }
   }
-  char bound[32];
-  std::snprintf(bound, sizeof bound, "%.4f", bound_deg);
+  const std::string bound = fmt::format(FMT_STRING("{:.4f}"), bound_deg);
   if (!out.joints.empty()) {
     out.outcome = CheckJudgement::Outcome::kChanged;
     out.summary = "changed since the reference: " + moved + "; a restore brings it back";
   } else if (all_within) {
     out.outcome = CheckJudgement::Outcome::kPass;
-    out.summary =
-        std::string("pass: every zero within ") + bound + " deg of the reference's (95% one-sided)";
+    out.summary = "pass: every zero within " + bound + " deg of the reference's (95% one-sided)";
   } else {
     out.outcome = CheckJudgement::Outcome::kMarginal;
-    out.summary = std::string("marginal: no zero is shown to have moved beyond ") + bound +
+    out.summary = "marginal: no zero is shown to have moved beyond " + bound +
                   " deg, nor every one to be within it" +
                   (change.verdict.reasons.empty() ? "" : " (" + change.verdict.reasons[0] + ")") +
                   "; check again, or restore";

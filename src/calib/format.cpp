@@ -1,8 +1,9 @@
 #include "zerocal/calib/format.h"
 
+#include <fmt/printf.h>
+
 #include <algorithm>
 #include <cmath>
-#include <cstdarg>
 #include <cstdio>
 #include <sstream>
 
@@ -12,14 +13,10 @@
 namespace zerocal {
 namespace {
 
-std::string printf(const char* format, ...) __attribute__((format(printf, 1, 2)));
-std::string printf(const char* format, ...) {
-  char buf[512];
-  va_list args;
-  va_start(args, format);
-  std::vsnprintf(buf, sizeof buf, format, args);
-  va_end(args);
-  return buf;
+// printf's format, as long as the text is (fmt's sprintf: each argument formatted by its type).
+template <typename... Args>
+std::string printf(const char* spec, const Args&... args) {
+  return fmt::sprintf(spec, args...);
 }
 
 }  // namespace

@@ -1,5 +1,7 @@
 #include "zerocal/calib/solver.h"
 
+#include <fmt/format.h>
+
 #include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
 #include <algorithm>
@@ -264,16 +266,10 @@ std::string poseName(const std::vector<Pose>& poses, int i) {
 }
 
 std::string fixed(double v, int precision) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*f", precision, v);
-  return buf;
+  return fmt::format(FMT_STRING("{:.{}f}"), v, precision);
 }
 
-std::string general(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.2g", v);
-  return buf;
-}
+std::string general(double v) { return fmt::format(FMT_STRING("{:.2g}"), v); }
 
 // One round of the deletion test on a fit: its misses (mm, 2 per pose) and their Jacobian.
 struct DeletionTest {

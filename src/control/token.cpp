@@ -1,5 +1,6 @@
 #include "zerocal/control/token.h"
 
+#include <fmt/format.h>
 #include <sys/stat.h>
 
 #include <cerrno>
@@ -19,8 +20,7 @@ std::string loadToken(const std::string& path) {
   // The file's group is the set of people who may drive the robot (group zerocal on a cell PC:
   // root:zerocal 0640); others nothing, and nobody but the owner may change it.
   if ((st.st_mode & (S_IWGRP | S_IXGRP | S_IRWXO)) != 0) {
-    char mode[8];
-    std::snprintf(mode, sizeof mode, "%03o", static_cast<unsigned>(st.st_mode & 0777));
+    const std::string mode = fmt::format(FMT_STRING("{:03o}"), st.st_mode & 0777);
     throw Error("the token file " + path + " has mode " + mode +
                 ": others may read it or the group may change it; chmod 640 " + path +
                 " (readable by its group) or chmod 600 " + path);

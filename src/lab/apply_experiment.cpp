@@ -4,6 +4,7 @@
 // manager and sim backend driving the simulated controller over TCP through Irc5Client.
 #include "apply_experiment.h"
 
+#include <fmt/printf.h>
 #include <unistd.h>
 
 #include <cmath>
@@ -25,10 +26,8 @@ namespace {
 
 constexpr double kDegPerRad = 57.29577951308232;
 
-std::string f(const char* fmt, double a, double b = 0, double c = 0, double d = 0) {
-  char buf[200];
-  std::snprintf(buf, sizeof buf, fmt, a, b, c, d);
-  return buf;
+std::string f(const char* spec, double a, double b = 0, double c = 0, double d = 0) {
+  return fmt::sprintf(spec, a, b, c, d);
 }
 
 struct WorldRun {

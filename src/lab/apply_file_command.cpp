@@ -1,5 +1,7 @@
 #include "apply_file_command.h"
 
+#include <fmt/printf.h>
+
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -32,10 +34,8 @@ enum ApplyExit {
   kApplyNotIdentifiable = 4
 };
 
-std::string format(const char* fmt, double a, double b = 0, double c = 0, double d = 0) {
-  char buf[256];
-  std::snprintf(buf, sizeof buf, fmt, a, b, c, d);
-  return buf;
+std::string format(const char* spec, double a, double b = 0, double c = 0, double d = 0) {
+  return fmt::sprintf(spec, a, b, c, d);
 }
 
 // "ABB IRB 1600-10/1.45" -> {1600, 10, 1.45}; "ROB1_1600_1.45_10" -> the same. Empty when the

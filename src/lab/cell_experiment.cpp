@@ -1,5 +1,6 @@
 #include "cell_experiment.h"
 
+#include <fmt/format.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -190,10 +191,8 @@ int runGrossErrorExperiment(const CellExperimentArgs& args) {
                          {"sigma_deg", g.sigma},
                          {"statistical_sigma_deg", stat},
                          {"change_sigmas", change / g.sigma}});
-      char cell[48];
-      std::snprintf(cell, sizeof cell, " %5.2f (%5.2f)", change / g.sigma,
-                    stat > 0 ? change / stat : 0.0);
-      line += cell;
+      line += fmt::format(FMT_STRING(" {:5.2f} ({:5.2f})"), change / g.sigma,
+                          stat > 0 ? change / stat : 0.0);
     }
     row["remeasured"] = again;
     row["named"] = found;
@@ -398,9 +397,7 @@ int runCellExperiment(const CellExperimentArgs& args) {
                            {"error_deg", error},
                            {"sigma_deg", sigma},
                            {"error_sigmas", sigmas}});
-        char cell[48];
-        std::snprintf(cell, sizeof cell, " %+.5f (%.2f)", error, sigmas);
-        line += cell;
+        line += fmt::format(FMT_STRING(" {:+.5f} ({:.2f})"), error, sigmas);
       }
       world["offsets"] = offsets;
       world["chi2_per_dof"] = result_json["chi2_per_dof"];

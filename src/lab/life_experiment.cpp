@@ -4,6 +4,7 @@
 // from its result.json.
 #include "life_experiment.h"
 
+#include <fmt/format.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -333,9 +334,7 @@ int runLifeExperiment(const LifeExperimentArgs& args) {
                          {"model_sigma_deg", e.model_sigma},
                          {"error_sigmas", sigmas},
                          {"covered_95", inside}});
-      char cell[32];
-      std::snprintf(cell, sizeof cell, " %+.4f(%3.1f)", error, sigmas);
-      errors += cell;
+      errors += fmt::format(FMT_STRING(" {:+.4f}({:3.1f})"), error, sigmas);
     }
     row["restore"] = {{"joint", restore_joint},
                       {"change_deg", restore_deg},
@@ -366,14 +365,14 @@ int runLifeExperiment(const LifeExperimentArgs& args) {
                     {"verified", restore.verified},
                     {"zeros_after_less_reference_deg", left}};
     if (!args.json) {
-      char check_changed[40], change[24];
-      std::snprintf(check_changed, sizeof check_changed, "j%d %+.3f %s", check_joint, check_deg,
-                    named_it ? "named" : checkOutcomeName(c1.outcome));
-      std::snprintf(change, sizeof change, "j%d %+.3f", restore_joint, restore_deg);
+      const std::string check_changed =
+          fmt::format(FMT_STRING("j{} {:+.3f} {}"), check_joint, check_deg,
+                      named_it ? "named" : checkOutcomeName(c1.outcome));
+      const std::string change = fmt::format(FMT_STRING("j{} {:+.3f}"), restore_joint, restore_deg);
       std::printf("%6llu %7.1f  %-8s %5.1f  %-18s %5.1f  %-10s %-48s %6s %6.1f  %-12s %9.5f\n",
                   static_cast<unsigned long long>(seed), growth_ppm, checkOutcomeName(c0.outcome),
-                  unchanged.cell_time_s, check_changed, changed.cell_time_s, change, errors.c_str(),
-                  restore_usable ? "yes" : "NO", restore.cell_time_s,
+                  unchanged.cell_time_s, check_changed.c_str(), changed.cell_time_s, change.c_str(),
+                  errors.c_str(), restore_usable ? "yes" : "NO", restore.cell_time_s,
                   restore.verified ? "verified" : "NOT verified", worst_left);
     }
     worlds.push_back(row);

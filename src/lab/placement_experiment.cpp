@@ -1,5 +1,7 @@
 #include "placement_experiment.h"
 
+#include <fmt/format.h>
+
 #include <Eigen/Geometry>
 #include <cmath>
 #include <cstdio>
@@ -377,7 +379,6 @@ int runPlacementExperiment(const PlacementExperimentArgs& args) {
     }
     std::cout << j.dump(2) << "\n";
   } else {
-    char line[300];
     std::printf(
         "%d %s worlds%s from seed %llu; %d placements x %d poses against one placement "
         "with %d poses; noise %.3f mm given%s\n",
@@ -397,12 +398,13 @@ int runPlacementExperiment(const PlacementExperimentArgs& args) {
     for (const auto& [name, t] :
          {std::pair<const char*, const Tally*>{"several placements", &several},
           {"one placement", &one}}) {
-      std::snprintf(line, sizeof line,
-                    "%-22s %5d/%-2d %5d/%-3zu %6d/%-3zu %14.2f %12.5f %14.1f %12.2f %12d", name,
-                    t->usable, t->solved, t->offered, t->errors_deg.size(), t->within,
-                    t->errors_deg.size(), t->worst_sigmas, t->rms(), t->meanLinks(),
-                    t->meanNoiseScale(), t->usable_wrong);
-      std::cout << line << "\n";
+      std::cout << fmt::format(
+                       FMT_STRING("{:<22} {:5d}/{:<2d} {:5d}/{:<3d} {:6d}/{:<3d} {:14.2f} {:12.5f} "
+                                  "{:14.1f} {:12.2f} {:12d}"),
+                       name, t->usable, t->solved, t->offered, t->errors_deg.size(), t->within,
+                       t->errors_deg.size(), t->worst_sigmas, t->rms(), t->meanLinks(),
+                       t->meanNoiseScale(), t->usable_wrong)
+                << "\n";
     }
     if (args.gross != "none") {
       std::printf("one gross error per session (%s): %-22s %8s %8s %8s %8s\n",

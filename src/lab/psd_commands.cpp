@@ -1,5 +1,7 @@
 #include "psd_commands.h"
 
+#include <fmt/printf.h>
+
 #include <chrono>
 #include <cstdio>
 #include <fstream>
@@ -21,10 +23,8 @@
 namespace zerocal::lab {
 namespace {
 
-std::string format(const char* fmt, double a, double b = 0, double c = 0, double d = 0) {
-  char buffer[256];
-  std::snprintf(buffer, sizeof buffer, fmt, a, b, c, d);
-  return buffer;
+std::string format(const char* spec, double a, double b = 0, double c = 0, double d = 0) {
+  return fmt::sprintf(spec, a, b, c, d);
 }
 
 // A map for `psd --sim` when the configuration has none: fitted from a simulated sweep with

@@ -1,5 +1,6 @@
 #include "zerocal/model/robot.h"
 
+#include <fmt/format.h>
 #include <yaml-cpp/yaml.h>
 
 #include <Eigen/Eigenvalues>
@@ -430,11 +431,7 @@ Robot parseRobot(const std::string& yaml_text, const std::string& origin) {
 
 namespace {
 
-std::string exact(double v) {
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.17g", v);
-  return buf;
-}
+std::string exact(double v) { return fmt::format(FMT_STRING("{:.17g}"), v); }
 
 }  // namespace
 

@@ -1,5 +1,7 @@
 #include "zerocal/psd/psd.h"
 
+#include <fmt/format.h>
+
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
@@ -250,9 +252,7 @@ PsdReading PsdMap::apply(const VoltageReading& reading) const {
 std::string PsdMap::fingerprint() const {
   std::uint64_t hash = 0xcbf29ce484222325ULL;
   for (const unsigned char c : serialize()) hash = (hash ^ c) * 0x100000001b3ULL;
-  char text[17];
-  std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(hash));
-  return text;
+  return fmt::format(FMT_STRING("{:016x}"), hash);
 }
 
 std::string PsdMap::serialize() const {

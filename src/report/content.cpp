@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdarg>
 #include <cstdio>
 #include <ctime>
 #include <map>
@@ -14,15 +13,6 @@ namespace {
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 
 }  // namespace
-
-std::string format(const char* fmt, ...) {
-  char buf[1024];
-  va_list args;
-  va_start(args, fmt);
-  std::vsnprintf(buf, sizeof buf, fmt, args);
-  va_end(args);
-  return buf;
-}
 
 std::string num(const char* fmt, double v) { return std::isfinite(v) ? format(fmt, v) : "n/a"; }
 

@@ -2,6 +2,8 @@
 // poses, the ABB section's statements. The two renderings differ only in markup.
 #pragma once
 
+#include <fmt/printf.h>
+
 #include <string>
 #include <vector>
 
@@ -10,7 +12,11 @@
 
 namespace zerocal::report::detail {
 
-std::string format(const char* fmt, ...) __attribute__((format(printf, 1, 2)));
+// printf's format, as long as the text is (fmt's sprintf: each argument formatted by its type).
+template <typename... Args>
+std::string format(const char* spec, const Args&... args) {
+  return fmt::sprintf(spec, args...);
+}
 
 // "n/a" for a non-finite number, else printf with `fmt`.
 std::string num(const char* fmt, double v);

@@ -1,5 +1,7 @@
 #include "zerocal/results/check_judgement.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -68,12 +70,10 @@ std::vector<Drift> driftBetween(const std::string& then_session,
     d.then_sigma_deg = then_sigma_deg[k];
     d.now_deg = now_deg[k];
     d.now_sigma_deg = now_sigma_deg[k];
-    char text[200];
-    std::snprintf(text, sizeof text,
-                  "joint %d's zero moved %+.4f deg since session %s (%.1f sigma): a drift, or "
-                  "something happened to the robot in between",
-                  d.joint, moved, then_session.c_str(), std::abs(moved) / sigma);
-    d.summary = text;
+    d.summary = fmt::format(FMT_STRING("joint {}'s zero moved {:+.4f} deg since session {} ({:.1f} "
+                                       "sigma): a drift, or something happened to the robot in "
+                                       "between"),
+                            d.joint, moved, then_session, std::abs(moved) / sigma);
     out.push_back(d);
   }
   return out;

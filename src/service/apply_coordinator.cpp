@@ -1,5 +1,7 @@
 #include "zerocal/service/apply_coordinator.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -291,8 +293,7 @@ void ApplyCoordinator::runApply(const std::string& id, const ResultFile& result)
     // verification then finds a counter left on its old turn as a whole motor turn.
     options.update_revolution_counter = [&](int joint, double turn_error_deg) {
       if (calibration.updateRevolutionCounter(joint)) return true;
-      char off[32];
-      std::snprintf(off, sizeof off, "%+.4f", turn_error_deg);
+      const std::string off = fmt::format(FMT_STRING("{:+.4f}"), turn_error_deg);
       const std::string message =
           "update joint " + std::to_string(joint) +
           "'s revolution counter: its calibration value crossed the motor's turn, and until the "

@@ -63,11 +63,7 @@ void refuseUnlessIdentifiable(const Prediction& prediction) {
                   "the plan cannot identify every offset, nothing moved: " + refusal);
 }
 
-std::string fixedDeg(double deg) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%.4f", deg);
-  return text;
-}
+std::string fixedDeg(double deg) { return fmt::format(FMT_STRING("{:.4f}"), deg); }
 
 // A calibration whose plan is predicted not to reach the required accuracy would move the robot
 // for minutes to answer "not usable": it is refused before anything moves, with what would reach
@@ -169,9 +165,7 @@ ResultFile finishedResult(const SessionStore& store, const std::string& requeste
 }
 
 std::string centreText(const Eigen::Vector3d& c) {
-  char text[96];
-  std::snprintf(text, sizeof text, "(%.1f, %.1f, %.1f) mm", c.x(), c.y(), c.z());
-  return text;
+  return fmt::format(FMT_STRING("({:.1f}, {:.1f}, {:.1f}) mm"), c.x(), c.y(), c.z());
 }
 
 std::vector<bool> skippedPoses(const std::vector<PoseRecord>& records, std::size_t plan_size) {

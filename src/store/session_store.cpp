@@ -1,5 +1,7 @@
 #include "zerocal/store/session_store.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -27,9 +29,7 @@ std::string newSessionId(const fs::path& data_dir) {
   std::string id = stamp;
   // Zero-padded so that ids made within one second still sort in creation order.
   for (int n = 2; fs::exists(data_dir / id); ++n) {
-    char suffix[16];
-    std::snprintf(suffix, sizeof suffix, "-%03d", n);
-    id = std::string(stamp) + suffix;
+    id = fmt::format(FMT_STRING("{}-{:03d}"), stamp, n);
   }
   return id;
 }

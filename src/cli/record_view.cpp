@@ -101,6 +101,10 @@ void printHistory(const json& answer, std::ostream& out) {
         offsetText(offsets.value(kOffsets[2], json(nullptr))).c_str(),
         offsetText(offsets.value(kOffsets[3], json(nullptr))).c_str());
     out << trimmed(line);
+    if (s.contains("model_from"))
+      out << "    solved with the calibrated model of " << s.value("model_from", "") << "\n";
+    if (s.contains("model_file"))
+      out << "    wrote the robot's calibrated model (" << s.value("model_file", "") << ")\n";
     for (const json& e : s.value("events", json::array())) {
       out << "    " << utc(e.value("time_unix_s", json(nullptr))) << "  "
           << e.value("kind", std::string("?")) << " " << e.value("outcome", std::string("?"));
@@ -122,7 +126,7 @@ void printHistoryCsv(const json& answer, std::ostream& out) {
   const json& robot = answer.at("robot");
   out << "robot_type,serial,session,started_utc,finished_utc,kind,verifies,usable";
   for (const char* name : kOffsets) out << "," << name << "," << name << "_sigma";
-  out << ",cell_time_s,software_version,controller_events\n";
+  out << ",cell_time_s,software_version,controller_events,model_from,model_file\n";
   for (const json& s : answer.at("history")) {
     const json usable = s.value("usable", json(nullptr));
     out << csvField(robot.value("robot_type", "")) << "," << csvField(robot.value("serial", ""))
@@ -142,7 +146,9 @@ void printHistoryCsv(const json& answer, std::ostream& out) {
       events += (events.empty() ? "" : "; ") + e.value("kind", std::string("?")) + " " +
                 e.value("outcome", std::string("?"));
     out << "," << number(s.value("cell_time_s", json(nullptr)), 1) << ","
-        << csvField(s.value("software_version", "")) << "," << csvField(events) << "\n";
+        << csvField(s.value("software_version", "")) << "," << csvField(events) << ","
+        << csvField(s.value("model_from", "")) << "," << csvField(s.value("model_file", ""))
+        << "\n";
   }
 }
 

@@ -288,6 +288,8 @@ json toJson(const record::HistoryEntry& entry) {
          {"cal_offset_rad", valuesJson(s.cal_offset_rad)},
          {"events", events}};
   if (!s.verifies.empty()) j["verifies"] = s.verifies;
+  if (!s.model_from.empty()) j["model_from"] = s.model_from;
+  if (!s.model_file.empty()) j["model_file"] = s.model_file;
   return j;
 }
 

@@ -53,6 +53,8 @@ SessionEntry sessionEntryOf(const SessionFile& session, const ResultFile& result
   e.started_unix_s = session.created_unix_s;
   e.finished_unix_s = result.finished_unix_s;
   if (result.cal_offset_rad) e.cal_offset_rad = *result.cal_offset_rad;
+  e.model_from = result.model_from;
+  e.model_file = result.model_file;
   return e;
 }
 

@@ -9,7 +9,8 @@ bool SessionEntry::operator==(const SessionEntry& o) const {
          kind == o.kind && verifies == o.verifies && usable == o.usable && reasons == o.reasons &&
          converged == o.converged && poses_used == o.poses_used && offsets == o.offsets &&
          cell_time_s == o.cell_time_s && started_unix_s == o.started_unix_s &&
-         finished_unix_s == o.finished_unix_s && cal_offset_rad == o.cal_offset_rad;
+         finished_unix_s == o.finished_unix_s && cal_offset_rad == o.cal_offset_rad &&
+         model_from == o.model_from && model_file == o.model_file;
 }
 
 bool ControllerEvent::operator==(const ControllerEvent& o) const {

@@ -80,9 +80,17 @@ CREATE TABLE controller_events (
   PRIMARY KEY (session, seq)
 ) WITHOUT ROWID;
 )sql"},
+    // The robot model each session counted and wrote; the catch-up at open fills them in for the
+    // sessions recorded before, from their folders (kModelsSince).
+    {3, R"sql(
+ALTER TABLE sessions ADD COLUMN model_from TEXT NOT NULL DEFAULT '';
+ALTER TABLE sessions ADD COLUMN model_file TEXT NOT NULL DEFAULT '';
+)sql"},
 };
 static_assert(sizeof kMigrations / sizeof kMigrations[0] == kRecordSchemaVersion,
               "one migration per schema version");
+// The schema version that added the sessions' model_from and model_file.
+constexpr int kModelsSince = 3;
 
 std::optional<std::array<double, 6>> valuesFromText(const Statement& s, int column) {
   if (s.isNull(column)) return std::nullopt;
@@ -117,7 +125,8 @@ constexpr const char* kSessionColumns =
     "s.id, r.robot_type, r.serial, s.software_version, s.kind, s.verifies, s.usable, s.reasons, "
     "s.converged, s.poses_used, s.delta2_deg, s.delta2_sigma_deg, s.delta3_deg, "
     "s.delta3_sigma_deg, s.delta4_deg, s.delta4_sigma_deg, s.delta5_deg, s.delta5_sigma_deg, "
-    "s.cell_time_s, s.started_unix_s, s.finished_unix_s, s.cal_offset_rad";
+    "s.cell_time_s, s.started_unix_s, s.finished_unix_s, s.cal_offset_rad, s.model_from, "
+    "s.model_file";
 
 SessionEntry sessionFrom(const Statement& s) {
   SessionEntry e;
@@ -135,6 +144,8 @@ SessionEntry sessionFrom(const Statement& s) {
   e.started_unix_s = s.integer(19);
   if (!s.isNull(20)) e.finished_unix_s = s.integer(20);
   e.cal_offset_rad = valuesFromText(s, 21);
+  e.model_from = s.text(22);
+  e.model_file = s.text(23);
   return e;
 }
 
@@ -177,9 +188,9 @@ void putSession(Connection& db, const SessionEntry& e) {
 INSERT INTO sessions (id, robot, software_version, kind, verifies, usable, reasons, converged,
                       poses_used, delta2_deg, delta2_sigma_deg, delta3_deg, delta3_sigma_deg,
                       delta4_deg, delta4_sigma_deg, delta5_deg, delta5_sigma_deg, cell_time_s,
-                      started_unix_s, finished_unix_s, cal_offset_rad)
+                      started_unix_s, finished_unix_s, cal_offset_rad, model_from, model_file)
 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20,
-        ?21)
+        ?21, ?22, ?23)
 ON CONFLICT (id) DO UPDATE SET
   robot = excluded.robot, software_version = excluded.software_version, kind = excluded.kind,
   verifies = excluded.verifies, usable = excluded.usable, reasons = excluded.reasons,
@@ -189,7 +200,8 @@ ON CONFLICT (id) DO UPDATE SET
   delta4_deg = excluded.delta4_deg, delta4_sigma_deg = excluded.delta4_sigma_deg,
   delta5_deg = excluded.delta5_deg, delta5_sigma_deg = excluded.delta5_sigma_deg,
   cell_time_s = excluded.cell_time_s, started_unix_s = excluded.started_unix_s,
-  finished_unix_s = excluded.finished_unix_s, cal_offset_rad = excluded.cal_offset_rad
+  finished_unix_s = excluded.finished_unix_s, cal_offset_rad = excluded.cal_offset_rad,
+  model_from = excluded.model_from, model_file = excluded.model_file
 )sql",
               "record session " + e.session);
   s.bind(1, e.session).bind(2, robot).bind(3, e.software_version).bind(4, e.kind);
@@ -197,8 +209,18 @@ ON CONFLICT (id) DO UPDATE SET
   s.bind(8, e.converged).bind(9, e.poses_used);
   bindOffsets(s, 10, e.offsets);
   s.bind(18, e.cell_time_s).bind(19, e.started_unix_s).bind(20, e.finished_unix_s);
-  s.bind(21, valuesText(e.cal_offset_rad));
+  s.bind(21, valuesText(e.cal_offset_rad)).bind(22, e.model_from).bind(23, e.model_file);
   s.run();
+}
+
+// Inside a transaction.
+void putModels(Connection& db, const SessionEntry& e) {
+  Statement(db, "UPDATE sessions SET model_from = ?2, model_file = ?3 WHERE id = ?1",
+            "record session " + e.session + "'s robot model")
+      .bind(1, e.session)
+      .bind(2, e.model_from)
+      .bind(3, e.model_file)
+      .run();
 }
 
 bool hasSession(Connection& db, const std::string& session) {
@@ -433,19 +455,31 @@ FillReport SqliteRecord::fill(const SessionStore& store, bool everything) {
     Statement s(db, "SELECT id FROM sessions", "list the recorded sessions");
     while (s.step()) known.insert(s.text(0));
   }
+  // A record older than the model columns holds its sessions with them empty: what the folders
+  // say of them is filled in, the rest kept as recorded.
+  const bool fill_models =
+      !everything && opened_at_version_ > 0 && opened_at_version_ < kModelsSince;
   for (const SessionInfo& info : sessions) {
     if (!info.finished) continue;
-    if (!known.count(info.id)) {
+    const bool recorded = known.count(info.id) > 0;
+    if (!recorded || fill_models) {
       SessionEntry entry;
       try {
         entry = sessionEntryOf(store.readSession(info.id), store.readResult(info.id));
       } catch (const Error& e) {
         // One session that cannot be read (or names no robot) must not keep the others out.
-        report.problems.push_back(e.what());
-        continue;
+        report.problems.push_back(recorded ? std::string(e.what()) +
+                                                 "; the session keeps no robot model in the record"
+                                           : std::string(e.what()));
+        if (!recorded) continue;
       }
-      putSession(db, entry);  // the record's own failure stops the fill: rolled back
-      ++report.sessions;
+      // The record's own failure stops the fill: rolled back.
+      if (!recorded) {
+        putSession(db, entry);
+        ++report.sessions;
+      } else if (!entry.session.empty()) {
+        putModels(db, entry);
+      }
     }
     std::vector<ControllerEvent> events;
     try {

@@ -158,6 +158,7 @@ void fillRecord(testing::FakeSession& session) {
   c.cell_time_s = 61.5;
   c.started_unix_s = 1'795'000'000;
   c.software_version = "6.13.02";
+  c.model_file = "model.yaml";
   record::ControllerEvent apply;
   apply.outcome = "verified";
   apply.time_unix_s = 1'795'000'200;
@@ -172,6 +173,8 @@ void fillRecord(testing::FakeSession& session) {
   verification.session.usable.reset();
   verification.session.reasons = {"one, with a comma"};
   verification.session.started_unix_s = 1'795'003'600;
+  verification.session.model_file.clear();
+  verification.session.model_from = "20261120T000000Z";
   session.history_list = {calibration, verification};
 }
 
@@ -197,6 +200,8 @@ TEST_F(ClientCommandsTest, RobotsAndAHistoryAsTextCsvAndJson) {
   EXPECT_THAT(text, HasSubstr("apply verified: cal_offset rob1_2 2.000000 rob1_3 3.000000"));
   EXPECT_THAT(text, HasSubstr("-> rob1_2 2.000541"));
   EXPECT_THAT(text, HasSubstr("no verdict"));
+  EXPECT_THAT(text, HasSubstr("wrote the robot's calibrated model (model.yaml)"));
+  EXPECT_THAT(text, HasSubstr("solved with the calibrated model of 20261120T000000Z"));
 
   h.csv = true;
   EXPECT_EQ(run(h), 0);
@@ -209,11 +214,12 @@ TEST_F(ClientCommandsTest, RobotsAndAHistoryAsTextCsvAndJson) {
   EXPECT_EQ(header,
             "robot_type,serial,session,started_utc,finished_utc,kind,verifies,usable,delta2_deg,"
             "delta2_deg_sigma,delta3_deg,delta3_deg_sigma,delta4_deg,delta4_deg_sigma,delta5_deg,"
-            "delta5_deg_sigma,cell_time_s,software_version,controller_events");
+            "delta5_deg_sigma,cell_time_s,software_version,controller_events,model_from,model_file");
   EXPECT_THAT(first, HasSubstr("IRB 1600-10/1.45,SN-0001,20261122T070000Z,"));
   EXPECT_THAT(first, HasSubstr(",calibration,,true,0.310000,0.002000,-0.520000,0.003000,,,"));
-  EXPECT_THAT(first, HasSubstr(",61.5,6.13.02,apply verified"));
+  EXPECT_THAT(first, HasSubstr(",61.5,6.13.02,apply verified,,model.yaml"));
   EXPECT_THAT(second, HasSubstr(",verification,,,"));
+  EXPECT_THAT(second, HasSubstr(",20261120T000000Z,"));
 
   h.csv = false;
   h.json = true;
@@ -223,6 +229,9 @@ TEST_F(ClientCommandsTest, RobotsAndAHistoryAsTextCsvAndJson) {
   EXPECT_EQ(j["history"][0]["events"][0]["kind"], "apply");
   EXPECT_TRUE(j["history"][0]["offsets"]["delta4_deg"].is_null());
   EXPECT_TRUE(j["history"][1]["usable"].is_null());
+  EXPECT_EQ(j["history"][0]["model_file"], "model.yaml");
+  EXPECT_FALSE(j["history"][0].contains("model_from"));
+  EXPECT_EQ(j["history"][1]["model_from"], "20261120T000000Z");
 
   h.serial = "SN-9999";
   h.json = false;

@@ -30,6 +30,8 @@ TEST(SessionEntryOf, HoldsTheRobotVerdictOffsetsAndTimesTheSessionsFilesSay) {
   s.offsets[3].reset();
   s.kind = SessionKind::kVerification;
   s.verifies = "20261122T070000Z";
+  s.model_from = "20261120T000000Z";
+  s.model_file = "model.yaml";
   const std::string id = test::makeFinishedSession(store, s);
   const SessionFile session = store.readSession(id);
   const SessionEntry e = sessionEntryOf(session, store.readResult(id));
@@ -50,6 +52,8 @@ TEST(SessionEntryOf, HoldsTheRobotVerdictOffsetsAndTimesTheSessionsFilesSay) {
   EXPECT_EQ(e.started_unix_s, session.created_unix_s);
   EXPECT_EQ(e.finished_unix_s, 1'800'000'000);
   EXPECT_EQ(e.cal_offset_rad, kPresent);
+  EXPECT_EQ(e.model_from, "20261120T000000Z");
+  EXPECT_EQ(e.model_file, "model.yaml");
 }
 
 TEST(SessionEntryOf, AResultWrittenBeforeVerdictsHasNoVerdictNotAFalseOne) {

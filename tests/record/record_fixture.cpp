@@ -33,6 +33,8 @@ ResultFile resultOf(const FinishedSession& s, const std::string& id) {
   if (s.identity) r.cell = ResultFile::Cell{s.robot, "psd.yaml (fingerprint 1)"};
   r.cell_time_s = s.cell_time_s;
   r.cal_offset_rad = s.cal_offset_rad;
+  r.model_from = s.model_from;
+  r.model_file = s.model_file;
   r.finished_unix_s = 1'800'000'000;
   r.zerocal_version = "test";
   return r;
@@ -53,6 +55,7 @@ std::string makeFinishedSession(SessionStore& store, const FinishedSession& s) {
   SessionFile session = plannedSession();
   session.kind = s.kind;
   session.verifies = s.verifies;
+  session.model_from = s.model_from;
   session = store.create(session);
   store.writeResult(session.id, resultOf(s, session.id));
   return session.id;

@@ -42,6 +42,7 @@ SessionEntry entry(const std::string& id, const RobotId& robot, std::int64_t sta
   e.started_unix_s = started;
   e.finished_unix_s = started + 80;
   e.cal_offset_rad = std::array<double, 6>{1, 2.5, 3.0000001, 0.2, 5, 6.2831};
+  e.model_file = "model.yaml";
   return e;
 }
 
@@ -82,6 +83,8 @@ TEST(SqliteRecord, GivesBackTheSessionsAndEventsItRecordedRobotByRobotOldestFirs
   bare.cal_offset_rad.reset();
   bare.kind = "verification";
   bare.verifies = "S1";
+  bare.model_file.clear();
+  bare.model_from = "S1";
   bare.reasons = {"delta4 is withheld", "the PSD's \"map\" is old"};
   record.recordSessions({entry("S1", kRobotA, 1'700'000'100), entry("S2", kRobotB, 1'700'000'200),
                          bare, entry("S0", kRobotA, 1'700'000'000),
@@ -242,6 +245,80 @@ TEST(SqliteRecord, MigratesAVersion1RecordKeepingItsSessionsAndFillsInTheEventsF
   ASSERT_EQ(h[1].events.size(), 2u);
   EXPECT_EQ(h[1].events[0].outcome, "verified");
   EXPECT_EQ(h[1].events[1].kind, ControllerEventKind::kVerification);
+}
+
+// Version 2's step (the controller events), frozen here as zerocal released it.
+constexpr const char* kVersion2Step = R"sql(
+CREATE TABLE controller_events (
+  session TEXT NOT NULL REFERENCES sessions (id) ON DELETE CASCADE,
+  seq INTEGER NOT NULL,
+  kind TEXT NOT NULL,
+  time_unix_s REAL NOT NULL,
+  outcome TEXT NOT NULL,
+  before_rad TEXT,
+  after_rad TEXT,
+  verification TEXT NOT NULL,
+  delta2_deg REAL, delta2_sigma_deg REAL,
+  delta3_deg REAL, delta3_sigma_deg REAL,
+  delta4_deg REAL, delta4_sigma_deg REAL,
+  delta5_deg REAL, delta5_sigma_deg REAL,
+  message TEXT NOT NULL,
+  PRIMARY KEY (session, seq)
+) WITHOUT ROWID;
+PRAGMA user_version = 2;
+)sql";
+
+TEST(SqliteRecord, MigratesAVersion2RecordFillingInEachSessionsRobotModelFromItsFolder) {
+  const testing::TempDir dir("zerocal-record");
+  SessionStore store(dir.path);
+  FinishedSession model_session;
+  model_session.model_file = "model.yaml";
+  const std::string calibrated = test::makeFinishedSession(store, model_session);
+  FinishedSession later;
+  later.model_from = calibrated;
+  const std::string counted = test::makeFinishedSession(store, later);
+  const std::string path = recordPath(dir.path);
+  rawSql(path, std::string(kVersion1Schema) + kVersion2Step);
+  // Both sessions as version 2 recorded them (no model columns), with a start time the folders
+  // do not say, and a session whose folder was removed since.
+  std::string rows =
+      "INSERT INTO robots (id, robot_type, serial) VALUES (1, 'IRB 1600-10/1.45', 'SN-0001');";
+  for (const std::string& id : {calibrated, counted})
+    rows += "INSERT INTO sessions VALUES ('" + id +
+            "', 1, '6.13.02', 'calibration', '', 1, '[]', 1, 16, 0.31, 0.002, -0.52, 0.003, "
+            "0.12, 0.004, 0.05, 0.005, 61.5, 1700000000, 1800000000, '[1,2,3,3.2,5,6]');";
+  rows +=
+      "INSERT INTO sessions VALUES ('20200101T000000Z', 1, '6.10.00', 'calibration', '', NULL, "
+      "'[]', 1, 12, 0.5, 0.01, NULL, NULL, 0.1, 0.01, 0.2, 0.01, NULL, 1500000000, NULL, NULL);";
+  rawSql(path, rows);
+
+  const OpenedRecord opened = openRecord(store, dir.path);
+  EXPECT_EQ(opened.migrated_from, 2);
+  EXPECT_FALSE(opened.built);
+  EXPECT_TRUE(opened.filled.problems.empty());
+  EXPECT_EQ(opened.filled.sessions, 0) << "every finished session was recorded already";
+  EXPECT_EQ(rawValue(path, "PRAGMA user_version"), std::to_string(kRecordSchemaVersion));
+  const std::vector<HistoryEntry> h = opened.record->history(kRobotA);
+  ASSERT_EQ(h.size(), 3u);
+  EXPECT_EQ(h[0].session.session, "20200101T000000Z");
+  EXPECT_EQ(h[0].session.model_from, "") << "no folder: nothing to fill in";
+  EXPECT_EQ(h[1].session.session, calibrated);
+  EXPECT_EQ(h[1].session.model_file, "model.yaml");
+  EXPECT_EQ(h[1].session.model_from, "");
+  EXPECT_EQ(h[1].session.started_unix_s, 1'700'000'000) << "the rest kept as recorded";
+  EXPECT_EQ(h[2].session.model_from, calibrated);
+  EXPECT_EQ(h[2].session.model_file, "");
+
+  // Opened again at the current version, a record's model columns are its own: a session
+  // recorded with another model than its folder says keeps what was recorded.
+  opened.record->recordSession([&] {
+    SessionEntry e = h[2].session;
+    e.model_from = "20261201T000000Z";
+    return e;
+  }());
+  const OpenedRecord again = openRecord(store, dir.path);
+  EXPECT_EQ(again.migrated_from, 0);
+  EXPECT_EQ(again.record->history(kRobotA).at(2).session.model_from, "20261201T000000Z");
 }
 
 TEST(SqliteRecord, RefusesARecordOfANewerSchemaAndLeavesItAsItIs) {

@@ -63,6 +63,11 @@ struct SessionEntry {
   std::optional<std::int64_t> finished_unix_s;  // result.json's
   // The controller's MOTOR_CALIB cal_offset values (rad, joints 1..6) while it measured.
   std::optional<std::array<double, 6>> cal_offset_rad;
+  // The robot model: the calibration whose calibrated model the solve counted (empty: the
+  // daemon's robot file), and the calibrated model this session wrote, its file in the session
+  // folder (empty: none).
+  std::string model_from;
+  std::string model_file;
   bool operator==(const SessionEntry& o) const;
 };
 

@@ -3,13 +3,17 @@
 #include <spdlog/pattern_formatter.h>
 #include <spdlog/sinks/rotating_file_sink.h>
 #include <spdlog/sinks/stdout_sinks.h>
+#include <spdlog/sinks/systemd_sink.h>
 #include <sys/stat.h>
+#include <sys/uio.h>
 
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <iterator>
 #include <mutex>
+#include <utility>
 #include <vector>
 
 #include "zerocal/error.h"
@@ -17,30 +21,48 @@
 namespace zerocal {
 namespace {
 
-// %* in a pattern: the line's syslog priority as journald reads it on a stream, "<3>" for an
-// error (sd-daemon(3)), so that `journalctl -p warning` and the colours work.
-class JournalPriorityFlag final : public spdlog::custom_flag_formatter {
+// The journal's native protocol (sd_journal_sendv): spdlog's systemd sink gives each line its
+// priority and SYSLOG_IDENTIFIER=zerocald; this one adds the fields of the session the daemon is
+// running, so that `journalctl SESSION_ID=<id>` shows one session's lines and `journalctl
+// ROBOT=<serial>` one robot's. The line keeps its logger's name ("[servo] ...").
+class JournalSink final : public spdlog::sinks::systemd_sink<std::mutex> {
  public:
-  void format(const spdlog::details::log_msg& msg, const std::tm&,
-              spdlog::memory_buf_t& dest) override {
-    static constexpr const char* kPriority[] = {"<7>", "<7>", "<6>", "<4>", "<3>", "<2>", "<6>"};
-    const char* p = kPriority[std::min<int>(msg.level, spdlog::level::off)];
-    dest.append(p, p + 3);
+  explicit JournalSink(JournalSend send) : systemd_sink("zerocald", true), send_(send) {
+    set_formatter(std::make_unique<spdlog::pattern_formatter>(
+        "[%n] %v", spdlog::pattern_time_type::local, std::string()));
   }
-  std::unique_ptr<spdlog::custom_flag_formatter> clone() const override {
-    return std::make_unique<JournalPriorityFlag>();
+
+  void setSession(const LogSession& s) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    session_ = s.session.empty() ? std::string() : "SESSION_ID=" + s.session;
+    robot_ = s.robot.empty() ? std::string() : "ROBOT=" + s.robot;
   }
+
+ protected:
+  void sink_it_(const spdlog::details::log_msg& msg) override {
+    spdlog::memory_buf_t text;
+    formatter_->format(msg, text);
+    const std::string message = "MESSAGE=" + std::string(text.data(), text.size());
+    const std::string priority = "PRIORITY=" + std::to_string(syslog_level(msg.level));
+    const std::string identifier = "SYSLOG_IDENTIFIER=" + ident_;
+    const std::string* const lines[] = {&message, &priority, &identifier, &session_, &robot_};
+    iovec fields[std::size(lines)];
+    int count = 0;
+    for (const std::string* field : lines)
+      if (!field->empty())
+        fields[count++] = iovec{const_cast<char*>(field->data()), field->size()};
+    // journald unreachable: the line still goes to stderr, which systemd records too.
+    if (send_(fields, count) < 0)
+      std::fprintf(stderr, "%.*s\n", static_cast<int>(text.size()), text.data());
+  }
+
+ private:
+  JournalSend send_;
+  std::string session_, robot_;
 };
 
 std::shared_ptr<spdlog::sinks::sink> makeStderrSink() {
-  auto sink = std::make_shared<spdlog::sinks::stderr_sink_mt>();
-  if (stderrIsJournal()) {
-    // journald stamps each line itself: no second timestamp, the level as a priority prefix.
-    auto formatter = std::make_unique<spdlog::pattern_formatter>();
-    formatter->add_flag<JournalPriorityFlag>('*').set_pattern("%*[%n] %v");
-    sink->set_formatter(std::move(formatter));
-  }
-  return sink;
+  return std::make_shared<spdlog::sinks::stderr_sink_mt>();
 }
 
 // The sinks every named logger writes to. One set for the process: spdlog's registry already is
@@ -49,6 +71,8 @@ struct Sinks {
   std::mutex mutex;
   std::vector<spdlog::sink_ptr> sinks{makeStderrSink()};
   spdlog::level::level_enum level = spdlog::level::info;
+  std::shared_ptr<JournalSink> journal;  // in sinks, when the log goes to the journal
+  LogSession session;
 };
 
 Sinks& sinks() {
@@ -90,8 +114,12 @@ spdlog::level::level_enum toSpdlogLevel(LogLevel level) {
   return spdlog::level::info;
 }
 
-void initLogging(const LoggingConfig& config) {
-  std::vector<spdlog::sink_ptr> next{makeStderrSink()};
+void initLogging(const LoggingConfig& config, JournalSend journal) {
+  if (!journal && stderrIsJournal()) journal = sd_journal_sendv;
+  std::shared_ptr<JournalSink> journal_sink;
+  if (journal) journal_sink = std::make_shared<JournalSink>(journal);
+  std::vector<spdlog::sink_ptr> next{journal_sink ? spdlog::sink_ptr(journal_sink)
+                                                  : makeStderrSink()};
   if (!config.directory.empty()) {
     try {
       std::filesystem::create_directories(config.directory);
@@ -106,11 +134,21 @@ void initLogging(const LoggingConfig& config) {
   auto& state = sinks();
   std::lock_guard<std::mutex> lock(state.mutex);
   state.sinks = next;
+  state.journal = journal_sink;
+  if (journal_sink) journal_sink->setSession(state.session);
   state.level = toSpdlogLevel(config.level);
   spdlog::apply_all([&](const std::shared_ptr<spdlog::logger>& logger) {
     logger->sinks() = state.sinks;
     logger->set_level(state.level);
   });
+}
+
+LogSession setLogSession(const LogSession& next) {
+  auto& state = sinks();
+  std::lock_guard<std::mutex> lock(state.mutex);
+  LogSession previous = std::exchange(state.session, next);
+  if (state.journal) state.journal->setSession(next);
+  return previous;
 }
 
 std::shared_ptr<spdlog::logger> makeLogger(const std::string& name) {

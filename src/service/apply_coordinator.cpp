@@ -228,6 +228,8 @@ void ApplyCoordinator::start(const std::string& id, const std::string& held_as,
 
 void ApplyCoordinator::runApply(const std::string& id, const ResultFile& result) {
   auto log = makeLogger("apply");
+  const LoggedSession logged(id);
+  if (result.cell) logged.setRobot(result.cell->controller.serial);
   ApplyEvent event;
   event.session = id;
   const auto progress = [&](const std::string& message) {
@@ -370,6 +372,8 @@ void ApplyCoordinator::runApply(const std::string& id, const ResultFile& result)
 }
 
 void ApplyCoordinator::runVerify(const std::string& id, const ResultFile& result) {
+  const LoggedSession logged(id);
+  if (result.cell) logged.setRobot(result.cell->controller.serial);
   ApplyEvent event;
   event.session = id;
   try {

@@ -174,6 +174,7 @@ void SessionRunner::finish(SessionState state, const std::string& message) {
 void SessionRunner::runMeasurement(const RunRequest& request) {
   auto log = makeLogger("session");
   const std::string& id = request.id;
+  const LoggedSession logged(id);
   const RunPlan& run_plan = request.plan;
   // Every placement's planned centre, placement 1's first: the target alone with one.
   const std::vector<Eigen::Vector3d> centres =
@@ -190,6 +191,7 @@ void SessionRunner::runMeasurement(const RunRequest& request) {
     return finish(SessionState::kFaulted, std::string("cannot connect to the cell: ") + e.what());
   }
   const CellIdentity identity = connection_.identify(id);
+  logged.setRobot(identity.robot.serial);
   // Measured against a reference: its poses and fit, and the robot must be the reference's.
   std::optional<Reference> reference;
   std::vector<int> reference_poses;

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <spdlog/spdlog.h>
+#include <sys/uio.h>
 
 #include <memory>
 #include <string>
@@ -13,12 +14,40 @@
 
 namespace zerocal {
 
-// Sets the sinks and level of every logger, existing and future: stderr (which systemd's journal
-// records; when stderr is the journal's stream, each line carries its priority as "<4>" and no
-// timestamp of its own), plus a rotating zerocald.log in `config.directory` when it is not empty
-// (the folder is created). Call once at start-up, before other threads log. Throws Error when the
-// log file cannot be opened.
-void initLogging(const LoggingConfig& config);
+// sd_journal_sendv(3)'s signature: a line to the journal as its fields.
+using JournalSend = int (*)(const iovec* fields, int count);
+
+// Sets the sinks and level of every logger, existing and future: the journal when stderr is the
+// journal's stream (under systemd: each line with its priority, SYSLOG_IDENTIFIER=zerocald and
+// the running session's SESSION_ID and ROBOT: LogSession), else stderr; plus a rotating
+// zerocald.log in `config.directory` when it is not empty (the folder is created). `journal`
+// sends to the journal whatever stderr is (a test's capture). Call once at start-up, before
+// other threads log. Throws Error when the log file cannot be opened.
+void initLogging(const LoggingConfig& config, JournalSend journal = nullptr);
+
+// The session the daemon is running and its robot (the controller's serial), which each line to
+// the journal carries as SESSION_ID and ROBOT; empty: none.
+struct LogSession {
+  std::string session, robot;
+};
+// Sets it until set again, and returns the one it replaces. Thread-safe.
+LogSession setLogSession(const LogSession& next);
+
+// The journal's fields of a session while it lives (the robot's set when known); the one before
+// it again after (an apply's verification inside the apply).
+class LoggedSession {
+ public:
+  explicit LoggedSession(std::string session)
+      : session_(std::move(session)), previous_(setLogSession({session_, ""})) {}
+  ~LoggedSession() { setLogSession(previous_); }
+  LoggedSession(const LoggedSession&) = delete;
+  LoggedSession& operator=(const LoggedSession&) = delete;
+  void setRobot(const std::string& serial) const { setLogSession({session_, serial}); }
+
+ private:
+  std::string session_;
+  LogSession previous_;
+};
 
 // The logger of that name, created on first use with the current sinks and level. Thread-safe.
 // Before initLogging() it logs to stderr at info level.

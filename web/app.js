@@ -191,8 +191,11 @@ async function loadPlan() {
     body.append(row);
   }
   $("plan-poses").textContent = `${plan.poses.length} poses; required accuracy ${plan.required_accuracy_deg} deg`;
-  $("plan-time").textContent = status && status.cell_time_s && status.pose_count
-      ? `the last session took ${status.cell_time_s.toFixed(0)} s of cell time for ${status.pose_count} poses` : "";
+  const time = plan.predicted_cell_time;
+  $("plan-time").textContent = time
+      ? `about ${time.seconds.toFixed(0)} s of cell time (${time.per_pose_s.toFixed(1)} s a pose in the daemon's latest ${time.from_sessions} session${time.from_sessions === 1 ? "" : "s"})`
+        + ((plan.placements || 1) > 1 ? ", and the PSD moved by hand between its placements" : "")
+      : "cell time not predicted: the daemon has no finished session to go by";
   $("start-confirm").disabled = false;
 }
 

@@ -560,6 +560,21 @@ json resumeMembers(const ClientArgs& args) {
   return m;
 }
 
+// The plan's predicted cell time, and what it is from.
+std::string cellTimeText(const json& plan) {
+  const json t = plan.value("predicted_cell_time", json(nullptr));
+  if (!t.is_object())
+    return "cell time not predicted: the daemon has no finished session to go by";
+  const int sessions = t.value("from_sessions", 0);
+  return fmt::format("about {:.0f} s of cell time ({:.1f} s a pose in the daemon's latest {} "
+                     "session{}){}",
+                     t.value("seconds", 0.0), t.value("per_pose_s", 0.0), sessions,
+                     sessions == 1 ? "" : "s",
+                     plan.value("placements", 1) > 1
+                         ? ", and the PSD moved by hand between its placements"
+                         : "");
+}
+
 int printPlan(const json& plan, const ClientArgs& args, std::ostream& out) {
   bool identifiable = true;
   const auto& predicted = plan.value("predicted", json::object());
@@ -582,6 +597,7 @@ int printPlan(const json& plan, const ClientArgs& args, std::ostream& out) {
       out << line;
     }
     out << plan.value("poses", json::array()).size() << " poses\n";
+    out << cellTimeText(plan) << "\n";
     // The daemon's verdict on the plan, as `start` will apply it.
     const double required = plan.value("required_accuracy_deg", 0.0);
     std::string short_of;

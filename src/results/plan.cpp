@@ -45,6 +45,10 @@ nlohmann::json toJson(const Plan& plan) {
   }
   j["predicted_rms_offset_sigma_deg"] = numberOrNull(plan.prediction.rms_offset_sigma_deg);
   if (pr.required_accuracy_deg > 0) j["required_accuracy_deg"] = pr.required_accuracy_deg;
+  if (pr.cell_time_sessions > 0)
+    j["predicted_cell_time"] = {{"seconds", pr.cell_time_s},
+                                {"per_pose_s", pr.cell_time_per_pose_s},
+                                {"from_sessions", pr.cell_time_sessions}};
   j["rank"] = plan.prediction.rank;
   j["condition_number"] = numberOrNull(plan.prediction.condition_number);
   return j;
@@ -92,6 +96,14 @@ Plan planFromJson(const nlohmann::json& json, const std::string& where) {
     p.required_accuracy_deg = j.numberOrNan("required_accuracy_deg");
     if (!(p.required_accuracy_deg > 0 && p.required_accuracy_deg <= 1))
       throw InputError(where + " required_accuracy_deg: not a number in (0, 1] deg");
+  }
+  if (j.present("predicted_cell_time")) {
+    const JsonReader t = j.object("predicted_cell_time");
+    p.cell_time_s = t.number("seconds");
+    p.cell_time_per_pose_s = t.number("per_pose_s");
+    p.cell_time_sessions = t.integer("from_sessions");
+    if (!(p.cell_time_s >= 0 && p.cell_time_per_pose_s >= 0 && p.cell_time_sessions > 0))
+      throw InputError(where + " predicted_cell_time: not a time >= 0 from one session or more");
   }
   // A plan at several PSD placements: each pose's placement, and what it predicts of the link
   // errors (toJson writes these only then).

@@ -4,6 +4,7 @@
 
 #include "zerocal/daemon/logging.h"
 #include "zerocal/results/placements.h"
+#include "zerocal/service/cell_time.h"
 
 namespace zerocal::service {
 
@@ -179,9 +180,11 @@ StartRequest SessionManager::defaultRequest() const {
 }
 
 Plan SessionManager::preview(const StartRequest& request) const {
-  if (againstReference(request)) return planner_.preview(request);
   std::string model_from;
-  return planCalibration(request, false, model_from).plan;
+  Plan plan = againstReference(request) ? planner_.preview(request)
+                                        : planCalibration(request, false, model_from).plan;
+  predictCellTime(plan, cellTimePerPose(store_));
+  return plan;
 }
 
 PlannedSession SessionManager::planCalibration(const StartRequest& request, bool checked,
@@ -223,6 +226,7 @@ SessionManager::NewSession SessionManager::createSession(const StartRequest& req
   } else {
     planned = planCalibration(request, true, draft.model_from);
   }
+  predictCellTime(planned.plan, cellTimePerPose(store_));
   const Plan& plan = planned.plan;
   NewSession n;
   n.run.plan = planned.run;

@@ -397,11 +397,14 @@ TEST_F(ClientCommandsTest, PlanOnTheDaemon) {
   EXPECT_EQ(run(a), 0);
   EXPECT_THAT(out_.str(), HasSubstr("fake plan of 9 poses"));
   EXPECT_THAT(out_.str(), HasSubstr("9 poses"));
+  EXPECT_THAT(out_.str(), HasSubstr("about 47 s of cell time (5.2 s a pose in the daemon's "
+                                    "latest 4 sessions)\n"));
   EXPECT_THAT(out_.str(), Not(HasSubstr("short of the required")));
   a.poses = 10;  // the fake daemon predicts delta2 to 0.02 deg against 0.01
   EXPECT_EQ(run(a), 0);
   EXPECT_THAT(out_.str(), HasSubstr("short of the required 0.0100 deg: delta2. `zerocal start` "
                                     "refuses this plan unless --even-if-not-usable"));
+  EXPECT_THAT(out_.str(), HasSubstr("cell time not predicted: the daemon has no finished session"));
   a.poses = 3;
   EXPECT_EQ(run(a), 2);
   EXPECT_EQ(session_.startCalls(), 0);

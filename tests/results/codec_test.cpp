@@ -169,6 +169,18 @@ TEST(ResultsCodec, APlanWithoutAPredictionWritesAndReadsBack) {
   EXPECT_EQ(planFromJson(judged, "plan").prediction.required_accuracy_deg, 0.01);
   judged["required_accuracy_deg"] = -1;
   EXPECT_THROW(planFromJson(judged, "plan"), InputError);
+  // So does its predicted cell time, when it has one.
+  EXPECT_FALSE(j.contains("predicted_cell_time"));
+  plan.prediction.cell_time_s = 47.25;
+  plan.prediction.cell_time_per_pose_s = 5.25;
+  plan.prediction.cell_time_sessions = 4;
+  nlohmann::json timed = toJson(plan);
+  const Prediction t = planFromJson(timed, "plan").prediction;
+  EXPECT_EQ(t.cell_time_s, 47.25);
+  EXPECT_EQ(t.cell_time_per_pose_s, 5.25);
+  EXPECT_EQ(t.cell_time_sessions, 4);
+  timed["predicted_cell_time"]["from_sessions"] = 0;
+  EXPECT_THROW(planFromJson(timed, "plan"), InputError);
 }
 
 }  // namespace

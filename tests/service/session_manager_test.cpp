@@ -117,8 +117,11 @@ TEST(SessionManager, RunsASessionToDoneThroughEveryStateWithAResultNearTheTruth)
   EventLog log;
   manager.setEventSink(log.sink());
   EXPECT_EQ(manager.status().state, SessionState::kIdle);
+  const StartRequest request = testing::onStoredPlan(manager.defaultRequest(), "ideal-5");
+  EXPECT_EQ(manager.preview(request).prediction.cell_time_sessions, 0)
+      << "no session yet to predict its cell time from";
 
-  const std::string id = manager.start(testing::onStoredPlan(manager.defaultRequest(), "ideal-5"));
+  const std::string id = manager.start(request);
   // Polled as a terminal would: the live servo error shows while servoing, and only then.
   int live_seen = 0, polls = 0, servoing = 0, any = 0;
   double cell_time_s = 0;
@@ -233,6 +236,12 @@ TEST(SessionManager, RunsASessionToDoneThroughEveryStateWithAResultNearTheTruth)
   EXPECT_EQ(truth.true_offsets_deg, simulated.true_offsets_deg);
   EXPECT_EQ(truth.psd_centre_taught_mm, simulated.psd_centre_taught_mm);
   EXPECT_EQ(truth.gross.stray_light_rate, simulated.gross.stray_light_rate);
+  // The next plan's cell time, from what a pose cost this session.
+  const Plan next = manager.preview(request);
+  EXPECT_EQ(next.prediction.cell_time_sessions, 1);
+  const double per_pose = result["cell_time_s"].get<double>() / result["poses"].get<double>();
+  EXPECT_DOUBLE_EQ(next.prediction.cell_time_per_pose_s, per_pose);
+  EXPECT_DOUBLE_EQ(next.prediction.cell_time_s, static_cast<double>(next.poses.size()) * per_pose);
 }
 
 // The disk fills up at the end of a session: the result is on disk, the report cannot be

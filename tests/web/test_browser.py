@@ -293,6 +293,8 @@ def run(driver, base, token, relay, restart, screenshots):
     until(lambda: "poses" in text("plan-poses") and element("start-confirm").is_enabled(),
           "the plan's prediction is shown before anything moves", timeout=60)
     check("deg" in text("plan-table"), "predicted sigmas in degrees")
+    check("cell time not predicted" in text("plan-time"),
+          "no cell time predicted before the daemon has finished a session")
     shot("start")
     element("start-confirm").click()
     until(lambda: visible_page() == "progress", "the progress page once started")
@@ -342,6 +344,8 @@ def run(driver, base, token, relay, restart, screenshots):
     element("to-start").click()
     element("kinds").find_element(By.CSS_SELECTOR, "input[value=restore]").click()
     until(lambda: element("start-confirm").is_enabled(), "a restore's start", timeout=60)
+    check(re.search(r"about \d+ s of cell time \([0-9.]+ s a pose in the daemon's latest 1 session\)",
+                    text("plan-time")), "the restore's cell time, predicted from the reference's")
     element("start-confirm").click()
     until(lambda: visible_page() == "result" and text("verdict") in ("USABLE", "NOT USABLE")
           and "restore" in text("result-kind"), "the restore runs to its verdict", timeout=120)

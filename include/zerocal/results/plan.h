@@ -31,6 +31,12 @@ struct Prediction {
   // The one-sigma accuracy a result must reach, when the daemon's planner judged the plan by it
   // (a session is refused unless every offset's sigma is within it); 0 when not judged.
   double required_accuracy_deg = 0;
+  // The cell time the plan should take (s): cell_time_per_pose_s, what a pose cost the daemon's
+  // latest cell_time_sessions sessions, times its poses (zerocal/service/cell_time.h). 0 when
+  // the daemon had no session to go by.
+  double cell_time_s = 0;
+  double cell_time_per_pose_s = 0;
+  int cell_time_sessions = 0;
 };
 
 struct Plan {

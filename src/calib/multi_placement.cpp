@@ -376,7 +376,8 @@ SolveReport solveMultiPlacement(const CellModel& cell, const std::vector<Pose>& 
     pr.source_line = poses[i].source_line;
     pr.miss_mm = r_at_detector.segment<2>(2 * i);
     pr.miss_norm_mm = pr.miss_mm.norm();
-    pr.normalised = r_all.segment<2>(2 * i).norm() / sigma;
+    // In the given noise, not scaled by the fit's misfit (the estimated one when none is given).
+    pr.normalised = r_all.segment<2>(2 * i).norm() / (options.noise_mm ? *options.noise_mm : sigma);
     pr.used = std::binary_search(active.begin(), active.end(), i);
     pr.outlier = std::find(left_out.begin(), left_out.end(), i) != left_out.end();
     pr.duplicate_of = duplicate_of[i] + 1;

@@ -833,10 +833,23 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
     for (int b = 0; b < kIdentifiedCount; ++b)
       report.correlation(a, b) = cov(a, b) / std::sqrt(cov(a, a) * cov(b, b));
 
+  // Each pose's miss in what the model allows at it (a 2-D Mahalanobis distance): the given
+  // noise, not scaled by the fit's misfit, so that misses beyond it show; with the link
+  // tolerances counted, plus what they spread there (sigma^2 I + S_i S_i^T, the weighting the
+  // noise gate and the deletion test use); the estimated noise when none is given.
+  const double unit = options.noise_mm ? *options.noise_mm : sigma;
+  std::vector<int> fitted_as(n, -1);
+  for (int k = 0; k < m; ++k) fitted_as[active[k]] = k;
   for (int i = 0; i < n; ++i) {
     auto& pr = report.poses[i];
     pr.standoff_mm = stand[i];
-    pr.normalised = r_all.segment<2>(2 * i).norm() / sigma;
+    const Eigen::Vector2d miss = r_all.segment<2>(2 * i);
+    Eigen::Matrix2d allowed = unit * unit * Eigen::Matrix2d::Identity();
+    if (link_weighted && fitted_as[i] >= 0) {
+      const Eigen::MatrixXd s_i = spread.middleRows(2 * fitted_as[i], 2);
+      allowed += s_i * s_i.transpose();
+    }
+    pr.normalised = std::sqrt(miss.dot(allowed.ldlt().solve(miss)));
   }
   for (int i : active)
     if (options.loss != RobustLoss::kNone &&

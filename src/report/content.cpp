@@ -44,6 +44,13 @@ std::vector<std::string> placementCentres(const SessionReport& r) {
   return out;
 }
 
+bool linksWeighMisses(const SessionReport& r) {
+  const SolveReport& s = r.solve();
+  return s.placements.size() < 2 && !s.noise_estimated &&
+         (s.model_calibrated || s.model_length_mm > 0 || s.model_angle_deg > 0 ||
+          s.model_sag_deg > 0);
+}
+
 std::string toleranceNote(const SessionReport& r) {
   const SolveReport& s = r.solve();
   std::string counted;

@@ -68,6 +68,11 @@ std::vector<std::string> placementCentres(const SessionReport& r);
 // (zerocald's plans predict with the same tolerances.)
 std::string toleranceNote(const SessionReport& r);
 
+// True when each pose's normalised miss counts the link tolerances beside the noise (one PSD
+// placement, the noise given, the tolerances or a calibrated model counted: the solver's link
+// weighting).
+bool linksWeighMisses(const SessionReport& r);
+
 // Wraps text at `width` columns with `indent` spaces before every line.
 std::string wrap(const std::string& text, std::size_t width, std::size_t indent);
 

@@ -55,10 +55,14 @@ struct Series {
 
 // A bar chart with grouped series, axis labels, ticks and an optional horizontal reference line.
 // Log scale for quantities spanning decades (aiming errors before and after calibration).
+// `groups`, when given, names each category's group (a PSD placement): a line separates the
+// groups and each name stands under its span. Beyond 24 categories every k-th is labelled, so
+// that the labels do not run together (each bar's tooltip names it).
 std::string barChart(const std::string& id, const std::string& title,
                      const std::vector<std::string>& categories, const std::vector<Series>& series,
                      const std::string& x_label, const std::string& y_label, bool log_scale,
-                     double reference = std::nan(""), const std::string& reference_label = "") {
+                     double reference = std::nan(""), const std::string& reference_label = "",
+                     const std::vector<std::string>& groups = {}) {
   const double w = 640, h = 316, left = 72, right = 16, top = 50, bottom = 56;
   const double pw = w - left - right, ph = h - top - bottom;
   double lo = std::numeric_limits<double>::infinity(), hi = -lo;
@@ -103,6 +107,7 @@ std::string barChart(const std::string& id, const std::string& title,
   const double group = pw / std::max<std::size_t>(categories.size(), 1);
   const double bar = group * 0.8 / std::max<std::size_t>(series.size(), 1);
   const double base = log_scale ? lo : 0.0;
+  const std::size_t label_every = (categories.size() + 23) / 24;
   for (std::size_t c = 0; c < categories.size(); ++c) {
     const double gx = left + group * c + group * 0.1;
     for (std::size_t s = 0; s < series.size(); ++s) {
@@ -115,9 +120,23 @@ std::string barChart(const std::string& id, const std::string& title,
         << "<title>" << esc(categories[c] + ", " + series[s].name + ": " + format("%.4g", v))
         << "</title></rect>\n";
     }
-    o << format("<text x=\"%.1f\" y=\"%.1f\" class=\"tick\" text-anchor=\"middle\">",
-                left + group * (c + 0.5), top + ph + 16)
-      << esc(categories[c]) << "</text>\n";
+    if (c % label_every == 0 || c + 1 == categories.size())
+      o << format("<text x=\"%.1f\" y=\"%.1f\" class=\"tick\" text-anchor=\"middle\">",
+                  left + group * (c + 0.5), top + ph + 16)
+        << esc(categories[c]) << "</text>\n";
+  }
+  if (groups.size() == categories.size()) {
+    for (std::size_t first = 0; first < groups.size();) {
+      std::size_t end = first;
+      while (end < groups.size() && groups[end] == groups[first]) ++end;
+      if (first > 0)
+        o << format("<line x1=\"%.1f\" x2=\"%.1f\" y1=\"%.1f\" y2=\"%.1f\" class=\"axis\"/>",
+                    left + group * first, left + group * first, top, top + ph + 34);
+      o << format("<text x=\"%.1f\" y=\"%.1f\" class=\"tick\" text-anchor=\"middle\">",
+                  left + group * (first + end) / 2.0, top + ph + 32)
+        << esc(groups[first]) << "</text>\n";
+      first = end;
+    }
   }
   if (std::isfinite(reference))
     o << format("<line x1=\"%.1f\" x2=\"%.1f\" y1=\"%.1f\" y2=\"%.1f\" class=\"ref\"/>", left,
@@ -317,15 +336,23 @@ std::string reportHtml(const SessionReport& r) {
 
   // Residuals.
   o << "<h2>Per-pose residuals</h2>\n";
-  std::vector<std::string> cats;
+  std::vector<std::string> cats, placements;
   Series norm{"miss / sigma", "#2a5db0", {}};
   for (const PoseRow& p : r.poses) {
     cats.push_back(std::to_string(p.pose));
+    placements.push_back(p.placement > 0 ? "placement " + std::to_string(p.placement) : "");
     norm.values.push_back(p.solved ? p.normalised : std::nan(""));
   }
+  const bool several = std::any_of(r.poses.begin(), r.poses.end(),
+                                   [](const PoseRow& p) { return p.placement > 1; });
+  o << "<p>Each bar is the pose's miss in what the given noise";
+  if (detail::linksWeighMisses(r)) o << " and the robot's link tolerances";
+  o << " allow at it: about 1 for a pose that fits, beyond 3.5 one that stands out (not scaled "
+       "by how well the whole fit went).</p>\n";
   o << barChart("residuals", "How far each pose's laser line misses the PSD point", cats, {norm},
-                "pose (held-out and skipped poses have no bar)", "miss / noise sigma (1)", false,
-                3.5, "outlier threshold 3.5");
+                "pose (held-out and skipped poses have no bar)", "miss / what is allowed (1)",
+                false, 3.5, "outlier threshold 3.5",
+                several ? placements : std::vector<std::string>{});
   o << "<p>Worst poses:</p>\n<table>\n<tr><th>pose</th><th>miss (um)</th><th>miss / sigma</th>"
        "<th>stand-off (mm)</th><th>fit</th></tr>\n";
   for (const PoseRow* p : detail::worstPoses(r))

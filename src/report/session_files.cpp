@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "zerocal/calib/cell_model.h"
+#include "zerocal/results/placements.h"
 #include "zerocal/calib/format.h"
 #include "zerocal/report/session_report.h"
 #include "zerocal/store/journal.h"
@@ -150,6 +151,9 @@ SessionReport parseSession(const SessionFolder& files) {
     PoseRow row;
     row.pose = record.planIndex() + 1;
     row.again = record.remeasure_of >= 0;
+    const std::vector<Pose>& planned = r.session.plan.poses;
+    if (placementCount(planned) > 1 && record.planIndex() < static_cast<int>(planned.size()))
+      row.placement = planned[record.planIndex()].placement;
     if (!record.measured()) {
       row.solved = false;
       row.skipped = record.skipped;

@@ -91,8 +91,9 @@ std::string summaryText(const SessionReport& r) {
     rows(false);
   }
 
-  o << "\nWorst poses (normalised residual = miss / noise sigma; SUSPECT: did not fit the "
-       "others):\n";
+  o << "\nWorst poses (normalised residual = miss in what the given noise"
+    << (detail::linksWeighMisses(r) ? " and the link tolerances allow" : " allows")
+    << "; SUSPECT: did not fit the others):\n";
   o << format("  %5s %10s %11s %12s\n", "pose", "miss um", "normalised", "standoff mm");
   for (const PoseRow* p : detail::worstPoses(r))
     o << format("  %5d %10.1f %11.2f %12.1f%s\n", p->pose, p->miss_um, p->normalised,

@@ -295,6 +295,13 @@ TEST(Solver, UnderstatedNoiseScalesTheSigmaUp) {
   // Told the truth, nothing is scaled down even when chi2/dof happens to fall below 1.
   EXPECT_GE(right.noise_scale, 1.0);
   EXPECT_GT(*right.chi2_p_value, 0.001);
+  // Each pose's normalised miss is in the given noise, not in the scaled one: told half, every
+  // pose misses by twice as many sigmas, and shows it.
+  ASSERT_EQ(r.poses.size(), right.poses.size());
+  for (std::size_t i = 0; i < r.poses.size(); ++i)
+    EXPECT_NEAR(r.poses[i].normalised, 2 * right.poses[i].normalised,
+                1e-6 * right.poses[i].normalised + 1e-12)
+        << "pose " << i + 1;
 }
 
 TEST(Solver, AbsurdMisfitIsRefused) {
@@ -316,6 +323,20 @@ TEST(Solver, AbsurdMisfitIsRefused) {
   options.model.angle_deg = 0.01;
   options.noise_mm = 0.05 / std::sqrt(3.0) / 30;  // the tolerated links explain a part
   const SolveReport with_links = solve(sc.cell, recorded, options);
+  // Each pose's miss is judged in what the noise and the tolerated links allow at it: never more
+  // sigmas than in the noise alone, and fewer where the links spread the line.
+  SolveOptions noise_only = options;
+  noise_only.model = {};
+  const SolveReport plain = solve(sc.cell, recorded, noise_only);
+  ASSERT_EQ(plain.poses.size(), with_links.poses.size());
+  ASSERT_EQ(plain.poses_used, with_links.poses_used) << "the same fit";
+  double sum_links = 0, sum_plain = 0;
+  for (std::size_t i = 0; i < plain.poses.size(); ++i) {
+    EXPECT_LE(with_links.poses[i].normalised, plain.poses[i].normalised * (1 + 1e-9)) << i + 1;
+    sum_links += with_links.poses[i].normalised;
+    sum_plain += plain.poses[i].normalised;
+  }
+  EXPECT_LT(sum_links, 0.8 * sum_plain);
   ASSERT_GT(with_links.noise_scale, 1.0);
   EXPECT_NE(noiseText(with_links).find("link tolerances allow together"), std::string::npos)
       << noiseText(with_links);

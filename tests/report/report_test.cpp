@@ -295,6 +295,27 @@ TEST(Html, HasAPrintLayoutWithTheResultOnAPageOfItsOwn) {
   EXPECT_FALSE(contains(html, "<td></td></tr>"));
 }
 
+TEST(Html, ResidualsOfManyPosesAreGroupedByPlacementWithLabelsThatDoNotRunTogether) {
+  test::FixtureOptions o;
+  o.poses = 40;
+  SessionFolder files = test::sessionFiles(o);
+  for (std::size_t i = 0; i < files.session.plan.poses.size(); ++i)
+    files.session.plan.poses[i].placement = i < 14 ? 1 : i < 27 ? 2 : 3;
+  const std::string h = reportHtml(parseSession(files));
+  std::string residuals = h.substr(h.find("id=\"residuals\""));
+  residuals = residuals.substr(0, residuals.find("</svg>"));
+  EXPECT_EQ(count(residuals, "<rect "), 40 + 1) << "a bar per pose (+ legend)";
+  for (const char* name : {">placement 1<", ">placement 2<", ">placement 3<"})
+    EXPECT_EQ(count(residuals, name), 1) << name;
+  // Pose labels: every second of 40 (at most 24), and the last.
+  EXPECT_EQ(count(residuals, "text-anchor=\"middle\">1</text>"), 1);
+  EXPECT_EQ(count(residuals, "text-anchor=\"middle\">2</text>"), 0);
+  EXPECT_EQ(count(residuals, "text-anchor=\"middle\">40</text>"), 1);
+  // With one placement no group is named.
+  const std::string one = reportHtml(parseSession(test::sessionFiles(o)));
+  EXPECT_FALSE(contains(one, ">placement 1<"));
+}
+
 TEST(Summary, ListsTheWorstPosesFirst) {
   const SessionReport& r = plainSession();
   const std::string s = summaryText(r);
@@ -395,7 +416,7 @@ TEST(Html, HasEveryPlotWithAxisLabels) {
   const std::string h = reportHtml(heldOutSession());
   for (const char* id : {"residuals", "servo-paths", "sigma-offsets", "sigma-laser", "validation"})
     EXPECT_TRUE(contains(h, std::string("<svg class=\"plot\" id=\"") + id + "\"")) << id;
-  EXPECT_TRUE(contains(h, "miss / noise sigma"));
+  EXPECT_TRUE(contains(h, "miss / what is allowed"));
   EXPECT_TRUE(contains(h, "sigma (millidegrees)"));
   EXPECT_TRUE(contains(h, "spot distance on the PSD (mm, log)"));
   // Bars: 10 solved poses; 4 predicted + 4 achieved offsets; 2 x 2 held-out poses.

@@ -42,7 +42,8 @@ struct PoseRow {
   bool again = false;       // a second measurement, made because the first solve named the pose
   bool superseded = false;  // measured again later: the solve took the later measurement
   double miss_um = 0;       // line's miss of the hit point (solved poses)
-  double normalised = 0;    // miss / noise sigma
+  double normalised = 0;    // miss in what the given noise (and link tolerances) allow
+  int placement = 0;        // its PSD placement, with several (0: one placement)
   bool outlier = false;
   double standoff_mm = 0;
   // The spot's path during the servo (journal.jsonl servo_path); absent: not recorded. A

@@ -290,6 +290,7 @@ json toJson(const record::HistoryEntry& entry) {
   if (!s.verifies.empty()) j["verifies"] = s.verifies;
   if (!s.model_from.empty()) j["model_from"] = s.model_from;
   if (!s.model_file.empty()) j["model_file"] = s.model_file;
+  if (!s.reference.empty()) j["reference"] = s.reference;
   return j;
 }
 

@@ -55,6 +55,7 @@ SessionEntry sessionEntryOf(const SessionFile& session, const ResultFile& result
   if (result.cal_offset_rad) e.cal_offset_rad = *result.cal_offset_rad;
   e.model_from = result.model_from;
   e.model_file = result.model_file;
+  e.reference = result.reference;
   return e;
 }
 

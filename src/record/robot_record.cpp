@@ -10,7 +10,7 @@ bool SessionEntry::operator==(const SessionEntry& o) const {
          converged == o.converged && poses_used == o.poses_used && offsets == o.offsets &&
          cell_time_s == o.cell_time_s && started_unix_s == o.started_unix_s &&
          finished_unix_s == o.finished_unix_s && cal_offset_rad == o.cal_offset_rad &&
-         model_from == o.model_from && model_file == o.model_file;
+         model_from == o.model_from && model_file == o.model_file && reference == o.reference;
 }
 
 bool ControllerEvent::operator==(const ControllerEvent& o) const {

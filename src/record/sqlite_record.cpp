@@ -81,16 +81,21 @@ CREATE TABLE controller_events (
 ) WITHOUT ROWID;
 )sql"},
     // The robot model each session counted and wrote; the catch-up at open fills them in for the
-    // sessions recorded before, from their folders (kModelsSince).
+    // sessions recorded before, from their folders (putFolderColumns).
     {3, R"sql(
 ALTER TABLE sessions ADD COLUMN model_from TEXT NOT NULL DEFAULT '';
 ALTER TABLE sessions ADD COLUMN model_file TEXT NOT NULL DEFAULT '';
 )sql"},
+    // The reference a session compares with; filled in as version 3's columns.
+    {4, R"sql(
+ALTER TABLE sessions ADD COLUMN reference TEXT NOT NULL DEFAULT '';
+)sql"},
 };
 static_assert(sizeof kMigrations / sizeof kMigrations[0] == kRecordSchemaVersion,
               "one migration per schema version");
-// The schema version that added the sessions' model_from and model_file.
-constexpr int kModelsSince = 3;
+// A record older than this lacks session columns that the folders say (model_from, model_file,
+// reference): the catch-up fills them in for the sessions it holds.
+constexpr int kFolderColumnsSince = 4;
 
 std::optional<std::array<double, 6>> valuesFromText(const Statement& s, int column) {
   if (s.isNull(column)) return std::nullopt;
@@ -126,7 +131,7 @@ constexpr const char* kSessionColumns =
     "s.converged, s.poses_used, s.delta2_deg, s.delta2_sigma_deg, s.delta3_deg, "
     "s.delta3_sigma_deg, s.delta4_deg, s.delta4_sigma_deg, s.delta5_deg, s.delta5_sigma_deg, "
     "s.cell_time_s, s.started_unix_s, s.finished_unix_s, s.cal_offset_rad, s.model_from, "
-    "s.model_file";
+    "s.model_file, s.reference";
 
 SessionEntry sessionFrom(const Statement& s) {
   SessionEntry e;
@@ -146,6 +151,7 @@ SessionEntry sessionFrom(const Statement& s) {
   e.cal_offset_rad = valuesFromText(s, 21);
   e.model_from = s.text(22);
   e.model_file = s.text(23);
+  e.reference = s.text(24);
   return e;
 }
 
@@ -188,9 +194,10 @@ void putSession(Connection& db, const SessionEntry& e) {
 INSERT INTO sessions (id, robot, software_version, kind, verifies, usable, reasons, converged,
                       poses_used, delta2_deg, delta2_sigma_deg, delta3_deg, delta3_sigma_deg,
                       delta4_deg, delta4_sigma_deg, delta5_deg, delta5_sigma_deg, cell_time_s,
-                      started_unix_s, finished_unix_s, cal_offset_rad, model_from, model_file)
+                      started_unix_s, finished_unix_s, cal_offset_rad, model_from, model_file,
+                      reference)
 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20,
-        ?21, ?22, ?23)
+        ?21, ?22, ?23, ?24)
 ON CONFLICT (id) DO UPDATE SET
   robot = excluded.robot, software_version = excluded.software_version, kind = excluded.kind,
   verifies = excluded.verifies, usable = excluded.usable, reasons = excluded.reasons,
@@ -201,7 +208,8 @@ ON CONFLICT (id) DO UPDATE SET
   delta5_deg = excluded.delta5_deg, delta5_sigma_deg = excluded.delta5_sigma_deg,
   cell_time_s = excluded.cell_time_s, started_unix_s = excluded.started_unix_s,
   finished_unix_s = excluded.finished_unix_s, cal_offset_rad = excluded.cal_offset_rad,
-  model_from = excluded.model_from, model_file = excluded.model_file
+  model_from = excluded.model_from, model_file = excluded.model_file,
+  reference = excluded.reference
 )sql",
               "record session " + e.session);
   s.bind(1, e.session).bind(2, robot).bind(3, e.software_version).bind(4, e.kind);
@@ -210,16 +218,19 @@ ON CONFLICT (id) DO UPDATE SET
   bindOffsets(s, 10, e.offsets);
   s.bind(18, e.cell_time_s).bind(19, e.started_unix_s).bind(20, e.finished_unix_s);
   s.bind(21, valuesText(e.cal_offset_rad)).bind(22, e.model_from).bind(23, e.model_file);
+  s.bind(24, e.reference);
   s.run();
 }
 
-// Inside a transaction.
-void putModels(Connection& db, const SessionEntry& e) {
-  Statement(db, "UPDATE sessions SET model_from = ?2, model_file = ?3 WHERE id = ?1",
-            "record session " + e.session + "'s robot model")
+// Inside a transaction: the columns a record older than kFolderColumnsSince lacks.
+void putFolderColumns(Connection& db, const SessionEntry& e) {
+  Statement(db,
+            "UPDATE sessions SET model_from = ?2, model_file = ?3, reference = ?4 WHERE id = ?1",
+            "record session " + e.session + "'s robot model and reference")
       .bind(1, e.session)
       .bind(2, e.model_from)
       .bind(3, e.model_file)
+      .bind(4, e.reference)
       .run();
 }
 
@@ -455,21 +466,21 @@ FillReport SqliteRecord::fill(const SessionStore& store, bool everything) {
     Statement s(db, "SELECT id FROM sessions", "list the recorded sessions");
     while (s.step()) known.insert(s.text(0));
   }
-  // A record older than the model columns holds its sessions with them empty: what the folders
+  // A record older than the folder columns holds its sessions with them empty: what the folders
   // say of them is filled in, the rest kept as recorded.
-  const bool fill_models =
-      !everything && opened_at_version_ > 0 && opened_at_version_ < kModelsSince;
+  const bool fill_columns =
+      !everything && opened_at_version_ > 0 && opened_at_version_ < kFolderColumnsSince;
   for (const SessionInfo& info : sessions) {
     if (!info.finished) continue;
     const bool recorded = known.count(info.id) > 0;
-    if (!recorded || fill_models) {
+    if (!recorded || fill_columns) {
       SessionEntry entry;
       try {
         entry = sessionEntryOf(store.readSession(info.id), store.readResult(info.id));
       } catch (const Error& e) {
         // One session that cannot be read (or names no robot) must not keep the others out.
         report.problems.push_back(recorded ? std::string(e.what()) +
-                                                 "; the session keeps no robot model in the record"
+                                                 "; its robot model and reference are not in the record"
                                            : std::string(e.what()));
         if (!recorded) continue;
       }
@@ -478,7 +489,7 @@ FillReport SqliteRecord::fill(const SessionStore& store, bool everything) {
         putSession(db, entry);
         ++report.sessions;
       } else if (!entry.session.empty()) {
-        putModels(db, entry);
+        putFolderColumns(db, entry);
       }
     }
     std::vector<ControllerEvent> events;

@@ -2,7 +2,9 @@
 // CSS and the plots are inline and there is no script; every text from the files is escaped.
 #include <algorithm>
 #include <cmath>
+#include <ctime>
 #include <limits>
+#include <optional>
 #include <sstream>
 
 #include "content.h"
@@ -238,6 +240,146 @@ std::string td(const std::string& s, const char* cls = nullptr) {
              : "<td>" + esc(s) + "</td>";
 }
 
+// One point of a trend: a session's value of one offset (deg), absent when it withheld it.
+struct TrendPoint {
+  double t = 0;  // its start, unix s
+  std::optional<record::RecordedOffset> offset;
+  bool current = false;  // the session of this report
+  std::string label;     // for its tooltip
+};
+
+// A point per session over time with its +-3 sigma bar (the band a check is judged by), a
+// withheld value as a hollow mark on the time axis, this session's point in red, and the
+// controller's applies and rollbacks (`changes`, unix s) as vertical dashed lines.
+std::string trendPlot(const std::string& id, const std::string& title,
+                      const std::vector<TrendPoint>& points, const std::vector<double>& changes) {
+  const double w = 520, h = 220, left = 72, right = 16, top = 40, bottom = 40;
+  const double pw = w - left - right, ph = h - top - bottom;
+  double t0 = std::numeric_limits<double>::infinity(), t1 = -t0;
+  double lo = t0, hi = -t0;
+  for (const TrendPoint& p : points) {
+    t0 = std::min(t0, p.t), t1 = std::max(t1, p.t);
+    if (p.offset)
+      lo = std::min(lo, p.offset->value_deg - 3 * p.offset->sigma_deg),
+      hi = std::max(hi, p.offset->value_deg + 3 * p.offset->sigma_deg);
+  }
+  for (const double t : changes) t0 = std::min(t0, t), t1 = std::max(t1, t);
+  if (!(t1 - t0 >= 60)) t0 -= 30, t1 += 30;  // one session, or a few within a minute
+  if (!std::isfinite(lo)) lo = -0.01, hi = 0.01;
+  const double pad = std::max((hi - lo) * 0.08, 0.001);
+  lo -= pad, hi += pad;
+  const std::vector<double> ticks = linearTicks(lo, hi, 4);
+  lo = std::min(lo, ticks.front()), hi = std::max(hi, ticks.back());
+  const auto x = [&](double t) { return left + pw * (t - t0) / (t1 - t0); };
+  const auto y = [&](double v) { return top + ph * (hi - v) / (hi - lo); };
+  std::ostringstream o;
+  o << format(
+      "<svg class=\"plot\" id=\"%s\" xmlns=\"http://www.w3.org/2000/svg\" width=\"%.0f\" "
+      "height=\"%.0f\" viewBox=\"0 0 %.0f %.0f\" role=\"img\">\n",
+      id.c_str(), w, h, w, h);
+  o << "<title>" << esc(title) << "</title>\n";
+  o << format("<text x=\"%.0f\" y=\"20\" class=\"ptitle\">", left) << esc(title) << "</text>\n";
+  for (const double t : ticks)
+    o << format("<line x1=\"%.1f\" x2=\"%.1f\" y1=\"%.1f\" y2=\"%.1f\" class=\"grid\"/>", left,
+                left + pw, y(t), y(t))
+      << format("<text x=\"%.1f\" y=\"%.1f\" class=\"tick\" text-anchor=\"end\">%s</text>\n",
+                left - 6, y(t) + 4, tickLabel(t).c_str());
+  for (const double t : changes)
+    o << format("<line x1=\"%.1f\" x2=\"%.1f\" y1=\"%.1f\" y2=\"%.1f\" class=\"change\"/>\n",
+                x(t), x(t), top, top + ph);
+  for (const TrendPoint& p : points) {
+    const char* cls = p.current ? "point current" : "point";
+    if (!p.offset) {
+      o << format("<circle cx=\"%.1f\" cy=\"%.1f\" r=\"4\" class=\"withheld\">", x(p.t),
+                  top + ph)
+        << "<title>" << esc(p.label + ": withheld") << "</title></circle>\n";
+      continue;
+    }
+    const double v = p.offset->value_deg, bar = 3 * p.offset->sigma_deg;
+    o << format("<line x1=\"%.1f\" x2=\"%.1f\" y1=\"%.1f\" y2=\"%.1f\" class=\"bar\"/>", x(p.t),
+                x(p.t), y(v - bar), y(v + bar))
+      << format("<circle cx=\"%.1f\" cy=\"%.1f\" r=\"4\" class=\"%s\">", x(p.t), y(v), cls)
+      << "<title>" << esc(p.label + format(": %+.5f +- %.5f deg", v, p.offset->sigma_deg))
+      << "</title></circle>\n";
+  }
+  o << format("<line x1=\"%.1f\" x2=\"%.1f\" y1=\"%.1f\" y2=\"%.1f\" class=\"axis\"/>", left,
+              left + pw, top + ph, top + ph)
+    << format("<line x1=\"%.1f\" x2=\"%.1f\" y1=\"%.1f\" y2=\"%.1f\" class=\"axis\"/>\n", left,
+              left, top, top + ph);
+  const auto date = [](double t) {
+    const std::time_t s = static_cast<std::time_t>(t);
+    std::tm utc{};
+    ::gmtime_r(&s, &utc);
+    char text[32];
+    std::strftime(text, sizeof text, "%Y-%m-%d %H:%M", &utc);
+    return std::string(text);
+  };
+  o << format("<text x=\"%.1f\" y=\"%.1f\" class=\"tick\" text-anchor=\"start\">", left,
+              top + ph + 16)
+    << esc(date(t0)) << "</text>\n"
+    << format("<text x=\"%.1f\" y=\"%.1f\" class=\"tick\" text-anchor=\"end\">", left + pw,
+              top + ph + 16)
+    << esc(date(t1) + " UTC") << "</text>\n";
+  o << format("<text x=\"16\" y=\"%.1f\" class=\"label\" text-anchor=\"middle\" "
+              "transform=\"rotate(-90 16 %.1f)\">deg</text>\n",
+              top + ph / 2, top + ph / 2);
+  o << "</svg>\n";
+  return o.str();
+}
+
+// The robot's zeros over time, from its record: the sessions that measured what this one did.
+// Compared with a reference: those compared with the same one, each zero's change since it.
+// A calibration: the robot's calibrations, each zero's offset. Empty for other sessions, and
+// when the report has no record.
+std::string trendSection(const SessionReport& r) {
+  const std::string& reference = r.result.reference;
+  const bool calibration = r.session.kind == SessionKind::kCalibration && reference.empty();
+  if (r.history.empty() || (reference.empty() && !calibration)) return "";
+  std::vector<const record::HistoryEntry*> chosen;
+  std::vector<double> changes;
+  for (const record::HistoryEntry& h : r.history) {
+    const record::SessionEntry& s = h.session;
+    if (reference.empty() ? (s.kind == "calibration" && s.reference.empty())
+                          : s.reference == reference)
+      chosen.push_back(&h);
+    for (const record::ControllerEvent& e : h.events)
+      if ((e.kind == record::ControllerEventKind::kApply && e.outcome != "refused" &&
+           e.outcome != "not_written") ||
+          (e.kind == record::ControllerEventKind::kRollback && e.outcome == "restored"))
+        changes.push_back(e.time_unix_s);
+  }
+  if (chosen.empty()) return "";
+  std::ostringstream o;
+  o << "<h2>This robot's zeros over time</h2>\n<p>"
+    << esc(reference.empty()
+               ? format("Each zero's offset as the robot's %d calibration%s in the record found "
+                        "it",
+                        static_cast<int>(chosen.size()), chosen.size() == 1 ? "" : "s")
+               : format("Each zero's change since reference %s, as the %d session%s compared "
+                        "with it in the record found it",
+                        reference.c_str(), static_cast<int>(chosen.size()),
+                        chosen.size() == 1 ? "" : "s"))
+    << esc(": bars are +-3 sigma (the band a check judges by), this session in red, a hollow "
+           "mark where a value was withheld, dashed lines where an apply or a rollback changed "
+           "the controller's values.")
+    << "</p>\n";
+  for (int k = 0; k < kOffsetCount; ++k) {
+    std::vector<TrendPoint> points;
+    for (const record::HistoryEntry* h : chosen) {
+      TrendPoint p;
+      p.t = static_cast<double>(h->session.started_unix_s);
+      p.offset = h->session.offsets[static_cast<std::size_t>(k)];
+      p.current = h->session.session == r.session.id;
+      p.label = h->session.session + " (" + h->session.kind + ")";
+      points.push_back(p);
+    }
+    const std::string name = unknownName(k).substr(0, 6);
+    o << trendPlot("trend-" + name, name + (reference.empty() ? "" : ", change since reference"),
+                   points, changes);
+  }
+  return o.str();
+}
+
 constexpr const char* kStyle = R"(
 body { font-family: sans-serif; margin: 1.5em auto; max-width: 1100px; color: #222; }
 h1 { font-size: 1.5em; } h2 { font-size: 1.2em; margin-top: 1.6em; border-bottom: 1px solid #ccc; }
@@ -257,6 +399,9 @@ svg .ref { stroke: #b00; stroke-width: 1.5; stroke-dasharray: 6 4; }
 svg .panel { fill: #fafafa; stroke: #999; }
 svg .path { fill: none; stroke: #2a5db0; stroke-width: 1.5; }
 svg .start { fill: #2a2; } svg .end { fill: #c22; }
+svg .point { fill: #2a5db0; } svg .point.current { fill: #c22; }
+svg .withheld { fill: #fff; stroke: #666; } svg .bar { stroke: #555; stroke-width: 1.5; }
+svg .change { stroke: #888; stroke-dasharray: 4 3; }
 .identity { color: #444; }
 @media print {
   body { margin: 0; max-width: none; font-size: 10pt; }
@@ -458,6 +603,8 @@ std::string reportHtml(const SessionReport& r) {
     o << "<h2>" << esc(applied.heading) << "</h2>\n";
     for (const std::string& p : applied.paragraphs) o << "<p>" << esc(p) << "</p>\n";
   }
+
+  o << trendSection(r);
 
   // Every pose.
   o << "<h2>Recorded poses</h2>\n<table>\n<tr><th>pose</th><th>q1..q6 (deg)</th><th>u, v (mm)"

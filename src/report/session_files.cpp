@@ -179,8 +179,10 @@ SessionReport parseSession(const SessionFolder& files) {
   return r;
 }
 
-void writeSessionReport(const std::string& session_dir) {
+void writeSessionReport(const std::string& session_dir,
+                        const std::vector<record::HistoryEntry>& history) {
   SessionReport report = parseSession(readSessionFiles(session_dir));
+  report.history = history;
   report.applied = apply::lastApplyRecord(apply::ApplyJournal(session_dir + "/apply.jsonl"));
   const fs::path dir(session_dir);
   writeAtomically(dir / "summary.txt", summaryText(report));

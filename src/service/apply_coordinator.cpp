@@ -685,7 +685,8 @@ void ApplyCoordinator::endApply(const ApplyEvent& event, bool ok, bool wrote) {
   if (settings_.write_reports) {
     // The session's report gains the apply: before / written, the verdict, the warnings.
     try {
-      settings_.write_reports(store_.sessionDir(event.session));
+      settings_.write_reports(store_.sessionDir(event.session),
+                              robotHistory(settings_.record, store_, event.session));
     } catch (const std::exception& e) {
       log->error("session {}: the report does not show the apply: {}", event.session, e.what());
     }

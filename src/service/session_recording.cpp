@@ -17,4 +17,18 @@ void recordSession(record::RobotRecord* record, const SessionStore& store, const
   }
 }
 
+std::vector<record::HistoryEntry> robotHistory(const record::RobotRecord* record,
+                                               const SessionStore& store, const std::string& id) {
+  if (record == nullptr || id.empty()) return {};
+  try {
+    const ResultFile result = store.readResult(id);
+    if (!result.cell) return {};
+    return record->history({result.cell->controller.robot_type, result.cell->controller.serial});
+  } catch (const std::exception& e) {
+    makeLogger("record")->error("session {}: its report goes without the robot's trend: {}", id,
+                                e.what());
+    return {};
+  }
+}
+
 }  // namespace zerocal::service

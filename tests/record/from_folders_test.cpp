@@ -32,6 +32,7 @@ TEST(SessionEntryOf, HoldsTheRobotVerdictOffsetsAndTimesTheSessionsFilesSay) {
   s.verifies = "20261122T070000Z";
   s.model_from = "20261120T000000Z";
   s.model_file = "model.yaml";
+  s.reference = "20261119T000000Z";
   const std::string id = test::makeFinishedSession(store, s);
   const SessionFile session = store.readSession(id);
   const SessionEntry e = sessionEntryOf(session, store.readResult(id));
@@ -54,6 +55,7 @@ TEST(SessionEntryOf, HoldsTheRobotVerdictOffsetsAndTimesTheSessionsFilesSay) {
   EXPECT_EQ(e.cal_offset_rad, kPresent);
   EXPECT_EQ(e.model_from, "20261120T000000Z");
   EXPECT_EQ(e.model_file, "model.yaml");
+  EXPECT_EQ(e.reference, "20261119T000000Z");
 }
 
 TEST(SessionEntryOf, AResultWrittenBeforeVerdictsHasNoVerdictNotAFalseOne) {

@@ -35,6 +35,7 @@ ResultFile resultOf(const FinishedSession& s, const std::string& id) {
   r.cal_offset_rad = s.cal_offset_rad;
   r.model_from = s.model_from;
   r.model_file = s.model_file;
+  r.reference = s.reference;
   r.finished_unix_s = 1'800'000'000;
   r.zerocal_version = "test";
   return r;
@@ -56,6 +57,7 @@ std::string makeFinishedSession(SessionStore& store, const FinishedSession& s) {
   session.kind = s.kind;
   session.verifies = s.verifies;
   session.model_from = s.model_from;
+  session.reference = s.reference;
   session = store.create(session);
   store.writeResult(session.id, resultOf(s, session.id));
   return session.id;

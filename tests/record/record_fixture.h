@@ -28,6 +28,7 @@ struct FinishedSession {
   std::array<double, 6> cal_offset_rad{1, 2, 3, 3.2, 5, 6};
   bool identity = true;  // false: a result that names no robot
   std::string model_from, model_file;  // the robot model it counted and wrote
+  std::string reference;               // the reference it compares with
 };
 
 // A ResultFile as the daemon writes one for `s` (session `id`).

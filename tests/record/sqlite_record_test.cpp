@@ -85,6 +85,7 @@ TEST(SqliteRecord, GivesBackTheSessionsAndEventsItRecordedRobotByRobotOldestFirs
   bare.verifies = "S1";
   bare.model_file.clear();
   bare.model_from = "S1";
+  bare.reference = "S0";
   bare.reasons = {"delta4 is withheld", "the PSD's \"map\" is old"};
   record.recordSessions({entry("S1", kRobotA, 1'700'000'100), entry("S2", kRobotB, 1'700'000'200),
                          bare, entry("S0", kRobotA, 1'700'000'000),
@@ -268,7 +269,7 @@ CREATE TABLE controller_events (
 PRAGMA user_version = 2;
 )sql";
 
-TEST(SqliteRecord, MigratesAVersion2RecordFillingInEachSessionsRobotModelFromItsFolder) {
+TEST(SqliteRecord, MigratesAVersion2RecordFillingInEachSessionsModelAndReferenceFromItsFolder) {
   const testing::TempDir dir("zerocal-record");
   SessionStore store(dir.path);
   FinishedSession model_session;
@@ -276,6 +277,8 @@ TEST(SqliteRecord, MigratesAVersion2RecordFillingInEachSessionsRobotModelFromIts
   const std::string calibrated = test::makeFinishedSession(store, model_session);
   FinishedSession later;
   later.model_from = calibrated;
+  later.kind = SessionKind::kCheck;
+  later.reference = calibrated;
   const std::string counted = test::makeFinishedSession(store, later);
   const std::string path = recordPath(dir.path);
   rawSql(path, std::string(kVersion1Schema) + kVersion2Step);
@@ -308,6 +311,8 @@ TEST(SqliteRecord, MigratesAVersion2RecordFillingInEachSessionsRobotModelFromIts
   EXPECT_EQ(h[1].session.started_unix_s, 1'700'000'000) << "the rest kept as recorded";
   EXPECT_EQ(h[2].session.model_from, calibrated);
   EXPECT_EQ(h[2].session.model_file, "");
+  EXPECT_EQ(h[2].session.reference, calibrated);
+  EXPECT_EQ(h[1].session.reference, "");
 
   // Opened again at the current version, a record's model columns are its own: a session
   // recorded with another model than its folder says keeps what was recorded.

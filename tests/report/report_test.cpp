@@ -316,6 +316,78 @@ TEST(Html, ResidualsOfManyPosesAreGroupedByPlacementWithLabelsThatDoNotRunTogeth
   EXPECT_FALSE(contains(one, ">placement 1<"));
 }
 
+// The robot's history as the daemon's record gives it: two calibrations (this session the
+// second, delta4 withheld by the first), an apply of the first, and a check against a reference.
+std::vector<record::HistoryEntry> robotHistory(const std::string& current) {
+  std::vector<record::HistoryEntry> h(3);
+  h[0].session.session = "20261101T070000Z";
+  h[0].session.kind = "calibration";
+  h[0].session.started_unix_s = 1'793'516'400;
+  h[0].session.offsets = {record::RecordedOffset{0.31, 0.002}, record::RecordedOffset{-0.52, 0.003},
+                          std::nullopt, record::RecordedOffset{0.05, 0.004}};
+  record::ControllerEvent apply;
+  apply.kind = record::ControllerEventKind::kApply;
+  apply.outcome = "verified";
+  apply.time_unix_s = 1'793'517'000;
+  h[0].events = {apply};
+  h[1].session = h[0].session;
+  h[1].session.session = current;
+  h[1].session.started_unix_s = 1'795'000'000;
+  h[1].session.offsets[2] = record::RecordedOffset{0.12, 0.004};
+  h[2].session.session = "20261123T070000Z";
+  h[2].session.kind = "check";
+  h[2].session.reference = "20261120T070000Z";
+  h[2].session.started_unix_s = 1'795'100'000;
+  h[2].session.offsets = {record::RecordedOffset{0.001, 0.002}, record::RecordedOffset{0, 0.002},
+                          record::RecordedOffset{0, 0.002}, record::RecordedOffset{0, 0.002}};
+  return h;
+}
+
+std::string svgOf(const std::string& html, const std::string& id) {
+  const std::size_t at = html.find("id=\"" + id + "\"");
+  if (at == std::string::npos) return "";
+  const std::string rest = html.substr(at);
+  return rest.substr(0, rest.find("</svg>"));
+}
+
+TEST(Html, ACalibrationShowsTheRobotsCalibrationsOverTimeFromItsRecord) {
+  SessionReport r = plainSession();
+  EXPECT_FALSE(contains(reportHtml(r), "zeros over time")) << "no record, no trend";
+  r.history = robotHistory(r.session.id);
+  const std::string h = reportHtml(r);
+  EXPECT_TRUE(contains(h, "Each zero's offset as the robot's 2 calibrations in the record found it"));
+  for (const char* id : {"trend-delta2", "trend-delta3", "trend-delta4", "trend-delta5"}) {
+    const std::string svg = svgOf(h, id);
+    ASSERT_FALSE(svg.empty()) << id;
+    EXPECT_EQ(count(svg, "class=\"change\""), 1) << id << ": the first one's apply";
+    EXPECT_EQ(count(svg, "class=\"point current\""), 1) << id;
+  }
+  EXPECT_EQ(count(svgOf(h, "trend-delta2"), "class=\"point"), 2) << "not the check";
+  EXPECT_EQ(count(svgOf(h, "trend-delta2"), "class=\"bar\""), 2);
+  EXPECT_EQ(count(svgOf(h, "trend-delta4"), "class=\"withheld\""), 1);
+  EXPECT_EQ(count(svgOf(h, "trend-delta4"), "class=\"point"), 1);
+  EXPECT_TRUE(contains(svgOf(h, "trend-delta2"), "20261101T070000Z (calibration): +0.31000 +- 0.00200 deg"));
+  EXPECT_EQ(unbalancedTag(h), "");
+}
+
+TEST(Html, ACheckShowsTheChangesSinceItsReferenceOnly) {
+  SessionReport r = plainSession();
+  r.session.kind = SessionKind::kCheck;
+  r.result.reference = "20261120T070000Z";
+  r.history = robotHistory("20261101T080000Z");
+  r.history[2].session.session = r.session.id;  // this check
+  const std::string h = reportHtml(r);
+  EXPECT_TRUE(contains(h, "Each zero's change since reference 20261120T070000Z, as the 1 session "
+                          "compared with it in the record found it"));
+  const std::string svg = svgOf(h, "trend-delta3");
+  EXPECT_EQ(count(svg, "class=\"point current\""), 1);
+  EXPECT_EQ(count(svg, "class=\"point"), 1) << "no calibration on the axis of the changes";
+  // A reference's report has none: what it measured is no zero's change.
+  r.session.kind = SessionKind::kReference;
+  r.result.reference.clear();
+  EXPECT_FALSE(contains(reportHtml(r), "zeros over time"));
+}
+
 TEST(Summary, ListsTheWorstPosesFirst) {
   const SessionReport& r = plainSession();
   const std::string s = summaryText(r);

@@ -8,8 +8,12 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 
 #include "stored_plan_request.h"
+#include "zerocal/record/sqlite_record.h"
+#include "zerocal/report/session_report.h"
 #include "zerocal/model/kinematics.h"
 #include "zerocal/service/session_manager.h"
 #include "zerocal/sim/sim_backend.h"
@@ -69,7 +73,15 @@ TEST(ReferenceSessions, AReferenceACheckAMotorReplacedARestoreAppliedAndVerified
   const TempDir dir;
   sim::SimBackend backend(sim::seededCellOptions(5, WorldKind::kIdeal));
   const Robot robot = backend.knowledge().cell.robot;
-  SessionManager manager(backend, settingsIn(dir.path));
+  // As the daemon keeps them: the robot's record, and each session's report with its trend.
+  record::SqliteRecord record(dir.path + "/" + record::kRecordFileName);
+  ManagerSettings settings = settingsIn(dir.path);
+  settings.record = &record;
+  settings.write_reports = [](const std::string& session_dir,
+                              const std::vector<record::HistoryEntry>& history) {
+    report::writeSessionReport(session_dir, history);
+  };
+  SessionManager manager(backend, settings);
 
   // Nothing to compare with yet: the daemon suggests a reference.
   EXPECT_EQ(refusalOf([&] { manager.start(kindOf(manager, SessionKind::kCheck)); }),
@@ -155,6 +167,34 @@ TEST(ReferenceSessions, AReferenceACheckAMotorReplacedARestoreAppliedAndVerified
   ASSERT_TRUE(back.check);
   EXPECT_EQ(back.check->outcome, CheckJudgement::Outcome::kPass) << back.check->summary;
   EXPECT_TRUE(back.drift.empty());
+
+  // Its report shows each zero's change since the reference over the robot's life: a point for
+  // each of the five sessions compared with it (two checks, the restore, its verification, this
+  // check), this one marked, and the apply as a line.
+  std::ifstream in(dir.path + "/" + after + "/report.html");
+  std::stringstream text;
+  text << in.rdbuf();
+  const std::string html = text.str();
+  ASSERT_NE(html.find("Each zero's change since reference " + reference +
+                      ", as the 5 sessions compared with it in the record found it"),
+            std::string::npos);
+  std::string joint3 = html.substr(html.find("id=\"trend-delta3\""));
+  joint3 = joint3.substr(0, joint3.find("</svg>"));
+  const auto count = [&](const std::string& what) {
+    int n = 0;
+    for (std::size_t at = joint3.find(what); at != std::string::npos;
+         at = joint3.find(what, at + 1))
+      ++n;
+    return n;
+  };
+  EXPECT_EQ(count("class=\"point"), 5);
+  EXPECT_EQ(count("class=\"point current\""), 1);
+  EXPECT_EQ(count("class=\"change\""), 1) << "the restore's apply";
+  // The reference's own report has no trend: nothing compared with it yet when it was written.
+  std::ifstream reference_report(dir.path + "/" + reference + "/report.html");
+  std::stringstream reference_text;
+  reference_text << reference_report.rdbuf();
+  EXPECT_EQ(reference_text.str().find("zeros over time"), std::string::npos);
 }
 
 TEST(ReferenceSessions, ACheckAgainstWhatIsNoReferenceIsRefusedSayingWhy) {

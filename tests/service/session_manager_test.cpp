@@ -251,7 +251,8 @@ TEST(SessionManager, AReportThatCannotBeWrittenIsNamedInTheStatusAndTheEvents) {
   const TempDir dir;
   sim::SimBackend backend(cellFor(5));
   ManagerSettings settings = settingsIn(dir.path);
-  settings.write_reports = [](const std::string& session_dir) {
+  settings.write_reports = [](const std::string& session_dir,
+                              const std::vector<record::HistoryEntry>&) {
     // report.html's temporary on a device that is always full.
     std::filesystem::create_symlink("/dev/full", session_dir + "/report.html.tmp");
     report::writeSessionReport(session_dir);
@@ -1092,7 +1093,10 @@ ManagerSettings applySettingsIn(const std::string& dir) {
   // The verification runs the configured plan: the stored one, not seconds of planning.
   s.session.plan = PlanKind::kFile;
   s.session.plan_file = testing::storedPlanPath("ideal-5");
-  s.write_reports = [](const std::string& session_dir) { report::writeSessionReport(session_dir); };
+  s.write_reports = [](const std::string& session_dir,
+                       const std::vector<record::HistoryEntry>& history) {
+    report::writeSessionReport(session_dir, history);
+  };
   return s;
 }
 

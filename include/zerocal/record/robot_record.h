@@ -68,6 +68,9 @@ struct SessionEntry {
   // folder (empty: none).
   std::string model_from;
   std::string model_file;
+  // A check's, a restore's or a restore's verification's: the reference it compares with; its
+  // offsets are then the change of each zero since it.
+  std::string reference;
   bool operator==(const SessionEntry& o) const;
 };
 

@@ -20,8 +20,8 @@ namespace zerocal::record {
 
 inline constexpr const char* kRecordFileName = "record.sqlite";
 // The schema this code writes: 1 robots and sessions, 2 the controller events, 3 the robot model
-// each session counted and wrote.
-inline constexpr int kRecordSchemaVersion = 3;
+// each session counted and wrote, 4 the reference a session compares with.
+inline constexpr int kRecordSchemaVersion = 4;
 
 // The file is no zerocal record, or a damaged one: not an SQLite database, another program's
 // database, or its integrity check fails. openRecord() moves such a file aside and rebuilds.

@@ -15,6 +15,7 @@
 #include "zerocal/apply/online_apply.h"
 #include "zerocal/error.h"
 #include "zerocal/psd/spot.h"
+#include "zerocal/record/robot_record.h"
 #include "zerocal/store/session_files.h"
 
 namespace zerocal::report {
@@ -71,6 +72,9 @@ struct SessionReport {
   const std::vector<int>& remeasured() const;
   // The latest online apply or verification of these offsets (apply.jsonl), when there was one.
   std::optional<apply::ApplyRecord> applied;
+  // The robot's history in the daemon's record, oldest first, for the trend of its zeros; empty
+  // when the report is written without a record.
+  std::vector<record::HistoryEntry> history;
 };
 
 // Reads session.json, journal.jsonl (committed lines, through readJournal's checks) and
@@ -91,7 +95,10 @@ std::string reportHtml(const SessionReport& report);
 // (re)writes summary.txt and report.html beside result.json,
 // each atomically (temporary file, then rename). Throws ReportError
 // (missing or inconsistent files, a file that cannot be written) or JournalError.
-void writeSessionReport(const std::string& session_dir);
+// With the robot's `history` (from the daemon's record), the report shows its zeros over time
+// (docs/results.md).
+void writeSessionReport(const std::string& session_dir,
+                        const std::vector<record::HistoryEntry>& history = {});
 
 // For text that goes into HTML: & < > " ' replaced by entities.
 std::string escapeHtml(const std::string& text);

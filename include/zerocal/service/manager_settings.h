@@ -31,8 +31,11 @@ struct ManagerSettings {
   // The controller's time for a move of the robot between two poses (s): a plan's poses are then
   // visited in the order that takes least time (orderForTravel); empty, in the order chosen.
   std::function<double(const Robot& robot, const Joints& from, const Joints& to)> travel_s;
-  // Called with a finished session's folder after result.json is written (summary, report).
-  std::function<void(const std::string& session_dir)> write_reports;
+  // Called with a finished session's folder after result.json is written (summary, report),
+  // and the robot's history in the record (for the report's trend; empty without a record).
+  std::function<void(const std::string& session_dir,
+                     const std::vector<record::HistoryEntry>& history)>
+      write_reports;
   // How long the recovery of an interrupted apply waits for a controller that refuses or ignores
   // connections: a daemon killed while the controller restarted on new values comes back first.
   std::chrono::milliseconds controller_restart_timeout{90000};

@@ -309,6 +309,9 @@ def run(driver, base, token, relay, restart, screenshots):
     until(lambda: recorded() > first, "progress advances pose by pose", timeout=60)
     check(element("spot").get_attribute("visibility") in ("visible", "hidden"),
           "the detector is drawn")
+    until(lambda: text("detector-caption").startswith("spot at")
+          and element("spot").get_attribute("visibility") == "visible",
+          "the spot is drawn live on the detector while the robot measures", timeout=60)
     shot("progress")
     element("abort").click()
     until(lambda: visible_page() == "cell" and text("cell-state") == "aborted",

@@ -271,6 +271,10 @@ CLI::App* addCellExperiment(CLI::App& experiment, CellExperimentArgs& args) {
                 "an unsettled reading, alternately) at one plan pose; exit 0 when the pose is "
                 "named and measured again in at least 95% of the worlds and every estimate of "
                 "delta2..delta5 is within 1 reported sigma of the clean session's, else 7");
+  cmd->add_flag("--calibrated-model", args.calibrated_model,
+                "first calibrate each world at 3 PSD placements x 12 poses, as a technician "
+                "would once: the calibration measured then plans and solves with the calibrated "
+                "model that wrote (model.yaml), as zerocald does");
   cmd->add_flag("--ideal-world", args.ideal_world,
                 "the seeds' ideal worlds (exact arm, PSD orientation known, no gross errors) "
                 "instead of the realistic ones (docs/simulated-cell.md)");
@@ -280,6 +284,12 @@ CLI::App* addCellExperiment(CLI::App& experiment, CellExperimentArgs& args) {
 int runCellExperiment(const CellExperimentArgs& args) {
   if (args.gross_error) return runGrossErrorExperiment(args);
   const DaemonConfig config = configOf(args);
+  if (args.calibrated_model && config.session.placements > 1)
+    throw ConfigError("zerocal-lab experiment cell",
+                      {"--calibrated-model: the calibration measured with the model is at one "
+                       "placement (session.placements is " +
+                       std::to_string(config.session.placements) + ")"});
+  int models_written = 0, with_model = 0;  // --calibrated-model: models written, and used
   const TempDir dir;
   Json worlds = Json::array();
   double sum_sq = 0, worst_sigmas = 0, max_cell_s = 0;
@@ -312,7 +322,18 @@ int runCellExperiment(const CellExperimentArgs& args) {
 
   for (int w = 0; w < args.worlds; ++w) {
     const std::uint64_t seed = args.seed0 + static_cast<std::uint64_t>(w);
-    const Calibration run = calibrate(worldConfig(config, seed, dir.path));
+    const DaemonConfig world_config = worldConfig(config, seed, dir.path);
+    std::string model_note;
+    if (args.calibrated_model) {
+      DaemonConfig first = world_config;
+      first.session.placements = args.model_placements;
+      first.session.poses = args.model_poses;
+      const Calibration model = calibrate(first);
+      const bool written = model.completed && !model.result.model_file.empty();
+      models_written += written ? 1 : 0;
+      model_note = written ? "" : " (no model: " + model.message + ")";
+    }
+    const Calibration run = calibrate(world_config);
     const bool completed = run.completed;
     const std::string& message = run.message;
     const ResultFile& result = run.result;
@@ -320,6 +341,10 @@ int runCellExperiment(const CellExperimentArgs& args) {
     const double cell_time_s = run.cell_time_s;
 
     Json world{{"seed", seed}, {"cell_time_s", cell_time_s}};
+    if (args.calibrated_model) {
+      world["model_from"] = completed ? result.model_from : "";
+      with_model += completed && !result.model_from.empty() ? 1 : 0;
+    }
     Json predicted = Json::array();
     for (int k = 0; k < kOffsetCount && k < static_cast<int>(run.prediction.sigma.size()); ++k)
       predicted.push_back(run.prediction.sigma[k]);
@@ -404,6 +429,7 @@ int runCellExperiment(const CellExperimentArgs& args) {
     } else {
       line = " " + message;
     }
+    line += model_note;
     if (!args.json)
       std::printf("%6llu %9s %7.1f %6d %s\n", static_cast<unsigned long long>(seed),
                   world["state"].get<std::string>().c_str(), cell_time_s, moves, line.c_str());
@@ -458,6 +484,13 @@ int runCellExperiment(const CellExperimentArgs& args) {
                       {"delta2_predicted_sigma_deg", {delta2_predicted_min, delta2_predicted_max}},
                       {"per_offset", normalised},
                       {"world", args.ideal_world ? "ideal" : "realistic"},
+                      {"calibrated_model",
+                       args.calibrated_model
+                           ? Json{{"placements", args.model_placements},
+                                  {"poses", args.model_poses},
+                                  {"models_written", models_written},
+                                  {"calibrations_with_a_model", with_model}}
+                           : Json(nullptr)},
                       {"max_cell_time_s", max_cell_s},
                       {"max_moves", most_moves},
                       {"max_pose_moves", most_pose_moves},
@@ -488,6 +521,11 @@ int runCellExperiment(const CellExperimentArgs& args) {
     std::printf("\n%d worlds from seed %llu, %d did not complete\n", args.worlds,
                 static_cast<unsigned long long>(args.seed0), failed_runs);
     std::printf("world          %s\n", args.ideal_world ? "ideal" : "realistic");
+    if (args.calibrated_model)
+      std::printf("model          %d of %d worlds' calibrations at %d placements x %d poses wrote "
+                  "a calibrated model; %d calibrations used one\n",
+                  models_written, args.worlds, args.model_placements, args.model_poses,
+                  with_model);
     std::printf("95%% coverage   %.1f%% of %d offsets inside value +- 1.96 sigma\n", 100 * coverage,
                 estimates);
     std::printf("refused        %d results not usable by their verdict, %d offsets withheld\n",

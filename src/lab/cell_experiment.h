@@ -30,6 +30,12 @@ struct CellExperimentArgs {
   bool gross_error = false;
   double min_named_share = 0.95;
   double max_change_sigmas = 1.0;
+  // First a calibration of each world at model_placements x model_poses, whose calibrated model
+  // (model.yaml, when usable) the measured calibration then plans and solves with, in the same
+  // data folder, as the daemon does.
+  bool calibrated_model = false;
+  int model_placements = 3;
+  int model_poses = 12;
 };
 
 CLI::App* addCellExperiment(CLI::App& experiment, CellExperimentArgs& args);

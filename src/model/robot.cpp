@@ -439,54 +439,69 @@ std::string robotYaml(const Robot& robot, const std::string& comment) {
   std::ostringstream o;
   std::istringstream lines(comment);
   for (std::string line; std::getline(lines, line);) o << "# " << line << "\n";
-  // A name that YAML would read as something else (a colon, a leading quote) stays a string.
-  std::string name;
-  for (char c : robot.name)
-    name += c == '"' || c == '\\' ? std::string("\\") + c : std::string(1, c);
-  o << "name: \"" << name << "\"\n"
-    << "transmission_confirmed: " << (robot.transmission_confirmed ? "true" : "false") << "\n"
-    << "joints:\n";
+  // yaml-cpp's emitter quotes and escapes; each number is written exactly (17 digits), as text.
+  YAML::Emitter y;
+  y << YAML::BeginMap;
+  y << YAML::Key << "name" << YAML::Value << YAML::DoubleQuoted << robot.name;
+  y << YAML::Key << "transmission_confirmed" << YAML::Value << robot.transmission_confirmed;
+  y << YAML::Key << "joints" << YAML::Value << YAML::BeginSeq;
   for (int i = 0; i < kJointCount; ++i) {
     const DhRow& row = robot.dh[i];
     const auto& e = robot.identified_link_error[i];
-    o << "  - {a_mm: " << exact(row.a_mm - e[0])
-      << ", alpha_deg: " << exact((row.alpha_rad - e[2]) * kRadToDeg)
-      << ", d_mm: " << exact(row.d_mm - e[1])
-      << ", theta_offset_deg: " << exact(row.theta_offset_rad * kRadToDeg)
-      << ", lower_deg: " << exact(robot.limits[i].lower_deg)
-      << ", upper_deg: " << exact(robot.limits[i].upper_deg)
-      << ", max_speed_deg_s: " << exact(robot.max_speed_deg_s[i]);
+    y << YAML::Flow << YAML::BeginMap;
+    const auto put = [&y](const char* key, const std::string& value) {
+      y << YAML::Key << key << YAML::Value << value;
+    };
+    put("a_mm", exact(row.a_mm - e[0]));
+    put("alpha_deg", exact((row.alpha_rad - e[2]) * kRadToDeg));
+    put("d_mm", exact(row.d_mm - e[1]));
+    put("theta_offset_deg", exact(row.theta_offset_rad * kRadToDeg));
+    put("lower_deg", exact(robot.limits[i].lower_deg));
+    put("upper_deg", exact(robot.limits[i].upper_deg));
+    put("max_speed_deg_s", exact(robot.max_speed_deg_s[i]));
     if (robot.transmission[i] != 0)
-      o << ", transmission: " << (robot.transmission[i] > 0 ? "+" : "")
-        << exact(robot.transmission[i]);
-    if (e[0] != 0 || e[1] != 0 || e[2] != 0)
-      o << ", da_mm: " << exact(e[0]) << ", dd_mm: " << exact(e[1])
-        << ", dalpha_deg: " << exact(e[2] * kRadToDeg);
-    o << "}\n";
+      put("transmission", (robot.transmission[i] > 0 ? "+" : "") + exact(robot.transmission[i]));
+    if (e[0] != 0 || e[1] != 0 || e[2] != 0) {
+      put("da_mm", exact(e[0]));
+      put("dd_mm", exact(e[1]));
+      put("dalpha_deg", exact(e[2] * kRadToDeg));
+    }
+    y << YAML::EndMap;
   }
+  y << YAML::EndSeq;
   if (robot.hasGravityModel()) {
-    o << "gravity:\n  inferred: " << (robot.masses_inferred ? "true" : "false") << "\n  masses:\n";
+    y << YAML::Key << "gravity" << YAML::Value << YAML::BeginMap;
+    y << YAML::Key << "inferred" << YAML::Value << robot.masses_inferred;
+    y << YAML::Key << "masses" << YAML::Value << YAML::BeginSeq;
     for (const LumpedMass& m : robot.masses)
-      o << "    - {link: " << m.link << ", kg: " << exact(m.kg) << ", at_mm: [" << exact(m.at_mm[0])
-        << ", " << exact(m.at_mm[1]) << ", " << exact(m.at_mm[2]) << "]}\n";
+      y << YAML::Flow << YAML::BeginMap << YAML::Key << "link" << YAML::Value << m.link
+        << YAML::Key << "kg" << YAML::Value << exact(m.kg) << YAML::Key << "at_mm" << YAML::Value
+        << YAML::Flow << YAML::BeginSeq << exact(m.at_mm[0]) << exact(m.at_mm[1])
+        << exact(m.at_mm[2]) << YAML::EndSeq << YAML::EndMap;
+    y << YAML::EndSeq << YAML::EndMap;
   }
   if (robot.hasCompliance())
-    o << "compliance_deg_per_knm: [" << exact(robot.compliance_deg_per_knm[0]) << ", "
-      << exact(robot.compliance_deg_per_knm[1]) << "]\n";
+    y << YAML::Key << "compliance_deg_per_knm" << YAML::Value << YAML::Flow << YAML::BeginSeq
+      << exact(robot.compliance_deg_per_knm[0]) << exact(robot.compliance_deg_per_knm[1])
+      << YAML::EndSeq;
   const ModelTolerances& t = robot.tolerance;
-  o << "model_tolerance:\n  length_mm: " << exact(t.length_mm)
-    << "\n  angle_deg: " << exact(t.angle_deg) << "\n";
-  if (t.sag_deg > 0) o << "  sag_deg: " << exact(t.sag_deg) << "\n";
+  y << YAML::Key << "model_tolerance" << YAML::Value << YAML::BeginMap;
+  y << YAML::Key << "length_mm" << YAML::Value << exact(t.length_mm);
+  y << YAML::Key << "angle_deg" << YAML::Value << exact(t.angle_deg);
+  if (t.sag_deg > 0) y << YAML::Key << "sag_deg" << YAML::Value << exact(t.sag_deg);
   if (t.calibrated()) {
-    o << "  link_covariance:\n";
+    y << YAML::Key << "link_covariance" << YAML::Value << YAML::BeginSeq;
     for (int r = 0; r < kLinkParameterCount; ++r) {
-      o << "    - [";
-      for (int k = 0; k < kLinkParameterCount; ++k) {
-        o << (k ? ", " : "") << exact(t.link_covariance(r, k) / (fileUnit(r) * fileUnit(k)));
-      }
-      o << "]\n";
+      y << YAML::Flow << YAML::BeginSeq;
+      for (int k = 0; k < kLinkParameterCount; ++k)
+        y << exact(t.link_covariance(r, k) / (fileUnit(r) * fileUnit(k)));
+      y << YAML::EndSeq;
     }
+    y << YAML::EndSeq;
   }
+  y << YAML::EndMap << YAML::EndMap;
+  if (!y.good()) throw Error(std::string("cannot write the robot file: ") + y.GetLastError());
+  o << y.c_str() << "\n";
   return o.str();
 }
 

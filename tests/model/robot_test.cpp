@@ -188,6 +188,8 @@ TEST(RobotFile, ACalibratedModelRoundTripsWithItsKinematics) {
   }
   calibrated.identified_link_error = errors;
   calibrated.compliance_deg_per_knm = {0.012, -0.004};
+  // A name YAML would read otherwise (a colon, quotes, a backslash, a second line) stays itself.
+  calibrated.name = "IRB 1600: \"cell 3\" \\ #2\nrecalibrated";
   const std::string text = robotYaml(calibrated, "calibrated from a test\nsecond line");
   EXPECT_EQ(text.rfind("# calibrated from a test\n# second line\n", 0), 0u) << text;
   const Robot back = parseRobot(text, "saved.yaml");

@@ -563,16 +563,13 @@ json resumeMembers(const ClientArgs& args) {
 // The plan's predicted cell time, and what it is from.
 std::string cellTimeText(const json& plan) {
   const json t = plan.value("predicted_cell_time", json(nullptr));
-  if (!t.is_object())
-    return "cell time not predicted: the daemon has no finished session to go by";
+  if (!t.is_object()) return "cell time not predicted: the daemon has no finished session to go by";
   const int sessions = t.value("from_sessions", 0);
-  return fmt::format("about {:.0f} s of cell time ({:.1f} s a pose in the daemon's latest {} "
-                     "session{}){}",
-                     t.value("seconds", 0.0), t.value("per_pose_s", 0.0), sessions,
-                     sessions == 1 ? "" : "s",
-                     plan.value("placements", 1) > 1
-                         ? ", and the PSD moved by hand between its placements"
-                         : "");
+  return fmt::format(
+      "about {:.0f} s of cell time ({:.1f} s a pose in the daemon's latest {} "
+      "session{}){}",
+      t.value("seconds", 0.0), t.value("per_pose_s", 0.0), sessions, sessions == 1 ? "" : "s",
+      plan.value("placements", 1) > 1 ? ", and the PSD moved by hand between its placements" : "");
 }
 
 int printPlan(const json& plan, const ClientArgs& args, std::ostream& out) {

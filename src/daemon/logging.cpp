@@ -49,8 +49,7 @@ class JournalSink final : public spdlog::sinks::systemd_sink<std::mutex> {
     iovec fields[std::size(lines)];
     int count = 0;
     for (const std::string* field : lines)
-      if (!field->empty())
-        fields[count++] = iovec{const_cast<char*>(field->data()), field->size()};
+      if (!field->empty()) fields[count++] = iovec{const_cast<char*>(field->data()), field->size()};
     // journald unreachable: the line still goes to stderr, which systemd records too.
     if (send_(fields, count) < 0)
       std::fprintf(stderr, "%.*s\n", static_cast<int>(text.size()), text.data());

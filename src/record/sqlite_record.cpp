@@ -479,9 +479,10 @@ FillReport SqliteRecord::fill(const SessionStore& store, bool everything) {
         entry = sessionEntryOf(store.readSession(info.id), store.readResult(info.id));
       } catch (const Error& e) {
         // One session that cannot be read (or names no robot) must not keep the others out.
-        report.problems.push_back(recorded ? std::string(e.what()) +
-                                                 "; its robot model and reference are not in the record"
-                                           : std::string(e.what()));
+        report.problems.push_back(recorded
+                                      ? std::string(e.what()) +
+                                            "; its robot model and reference are not in the record"
+                                      : std::string(e.what()));
         if (!recorded) continue;
       }
       // The record's own failure stops the fill: rolled back.

@@ -285,13 +285,12 @@ std::string trendPlot(const std::string& id, const std::string& title,
       << format("<text x=\"%.1f\" y=\"%.1f\" class=\"tick\" text-anchor=\"end\">%s</text>\n",
                 left - 6, y(t) + 4, tickLabel(t).c_str());
   for (const double t : changes)
-    o << format("<line x1=\"%.1f\" x2=\"%.1f\" y1=\"%.1f\" y2=\"%.1f\" class=\"change\"/>\n",
-                x(t), x(t), top, top + ph);
+    o << format("<line x1=\"%.1f\" x2=\"%.1f\" y1=\"%.1f\" y2=\"%.1f\" class=\"change\"/>\n", x(t),
+                x(t), top, top + ph);
   for (const TrendPoint& p : points) {
     const char* cls = p.current ? "point current" : "point";
     if (!p.offset) {
-      o << format("<circle cx=\"%.1f\" cy=\"%.1f\" r=\"4\" class=\"withheld\">", x(p.t),
-                  top + ph)
+      o << format("<circle cx=\"%.1f\" cy=\"%.1f\" r=\"4\" class=\"withheld\">", x(p.t), top + ph)
         << "<title>" << esc(p.label + ": withheld") << "</title></circle>\n";
       continue;
     }
@@ -320,9 +319,10 @@ std::string trendPlot(const std::string& id, const std::string& title,
     << format("<text x=\"%.1f\" y=\"%.1f\" class=\"tick\" text-anchor=\"end\">", left + pw,
               top + ph + 16)
     << esc(date(t1) + " UTC") << "</text>\n";
-  o << format("<text x=\"16\" y=\"%.1f\" class=\"label\" text-anchor=\"middle\" "
-              "transform=\"rotate(-90 16 %.1f)\">deg</text>\n",
-              top + ph / 2, top + ph / 2);
+  o << format(
+      "<text x=\"16\" y=\"%.1f\" class=\"label\" text-anchor=\"middle\" "
+      "transform=\"rotate(-90 16 %.1f)\">deg</text>\n",
+      top + ph / 2, top + ph / 2);
   o << "</svg>\n";
   return o.str();
 }
@@ -488,8 +488,8 @@ std::string reportHtml(const SessionReport& r) {
     placements.push_back(p.placement > 0 ? "placement " + std::to_string(p.placement) : "");
     norm.values.push_back(p.solved ? p.normalised : std::nan(""));
   }
-  const bool several = std::any_of(r.poses.begin(), r.poses.end(),
-                                   [](const PoseRow& p) { return p.placement > 1; });
+  const bool several =
+      std::any_of(r.poses.begin(), r.poses.end(), [](const PoseRow& p) { return p.placement > 1; });
   o << "<p>Each bar is the pose's miss in what the given noise";
   if (detail::linksWeighMisses(r)) o << " and the robot's link tolerances";
   o << " allow at it: about 1 for a pose that fits, beyond 3.5 one that stands out (not scaled "

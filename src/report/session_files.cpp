@@ -11,9 +11,9 @@
 #include <sstream>
 
 #include "zerocal/calib/cell_model.h"
-#include "zerocal/results/placements.h"
 #include "zerocal/calib/format.h"
 #include "zerocal/report/session_report.h"
+#include "zerocal/results/placements.h"
 #include "zerocal/store/journal.h"
 
 namespace zerocal::report {

@@ -91,9 +91,11 @@ std::string summaryText(const SessionReport& r) {
     rows(false);
   }
 
-  o << "\nWorst poses (normalised residual = miss in what the given noise"
-    << (detail::linksWeighMisses(r) ? " and the link tolerances allow" : " allows")
-    << "; SUSPECT: did not fit the others):\n";
+  o << (detail::linksWeighMisses(r)
+            ? "\nWorst poses (normalised miss: in noise sigmas, the link tolerances counted; "
+              "SUSPECT: did not fit):\n"
+            : "\nWorst poses (normalised miss: in the given noise's sigmas; SUSPECT: did not fit "
+              "the others):\n");
   o << format("  %5s %10s %11s %12s\n", "pose", "miss um", "normalised", "standoff mm");
   for (const PoseRow* p : detail::worstPoses(r))
     o << format("  %5d %10.1f %11.2f %12.1f%s\n", p->pose, p->miss_um, p->normalised,

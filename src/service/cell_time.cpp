@@ -11,7 +11,9 @@ CellTimePerPose cellTimePerPose(const SessionStore& store, int count) {
     if (!s->finished) continue;
     try {
       const ResultFile result = store.readResult(s->id);
-      if (!result.cell_time_s || result.resumed_from || result.report.pose_count <= 0) continue;
+      if (!result.cell_time_s || result.resumed_from.value_or(0) > 0 ||
+          result.report.pose_count <= 0)
+        continue;
       seconds += *result.cell_time_s;
       poses += result.report.pose_count;
       ++per_pose.sessions;

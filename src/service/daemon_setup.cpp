@@ -81,8 +81,7 @@ ManagerSettings managerSettingsOf(const DaemonConfig& cfg) {
     s.move_overhead = MoveOverhead{cfg.backend.sim_move_overhead_s, motion.settle_s};
   }
   s.travel_s = motion.travel_s;
-  s.write_reports = [](const std::string& dir,
-                       const std::vector<record::HistoryEntry>& history) {
+  s.write_reports = [](const std::string& dir, const std::vector<record::HistoryEntry>& history) {
     report::writeSessionReport(dir, history);
   };
   s.controller_restart_timeout = motion.restart_timeout;

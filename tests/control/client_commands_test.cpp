@@ -211,10 +211,11 @@ TEST_F(ClientCommandsTest, RobotsAndAHistoryAsTextCsvAndJson) {
   std::getline(csv, first);
   std::getline(csv, second);
   EXPECT_FALSE(std::getline(csv, rest));
-  EXPECT_EQ(header,
-            "robot_type,serial,session,started_utc,finished_utc,kind,verifies,usable,delta2_deg,"
-            "delta2_deg_sigma,delta3_deg,delta3_deg_sigma,delta4_deg,delta4_deg_sigma,delta5_deg,"
-            "delta5_deg_sigma,cell_time_s,software_version,controller_events,model_from,model_file");
+  EXPECT_EQ(
+      header,
+      "robot_type,serial,session,started_utc,finished_utc,kind,verifies,usable,delta2_deg,"
+      "delta2_deg_sigma,delta3_deg,delta3_deg_sigma,delta4_deg,delta4_deg_sigma,delta5_deg,"
+      "delta5_deg_sigma,cell_time_s,software_version,controller_events,model_from,model_file");
   EXPECT_THAT(first, HasSubstr("IRB 1600-10/1.45,SN-0001,20261122T070000Z,"));
   EXPECT_THAT(first, HasSubstr(",calibration,,true,0.310000,0.002000,-0.520000,0.003000,,,"));
   EXPECT_THAT(first, HasSubstr(",61.5,6.13.02,apply verified,,model.yaml"));
@@ -345,7 +346,8 @@ TEST_F(ClientCommandsTest, ResultOpensWithTheVerdictThenTheOffsetsAndWhatToDo) {
   // The robot as its controller named itself, right after the verdict.
   session_.result_value.cell = ResultFile::Cell{{"1600-504321", "6.15", "IRB 1600-10/1.45"}, ""};
   EXPECT_EQ(run(args("result")), cli::kClientNotUsable);
-  EXPECT_THAT(out_.str(), HasSubstr("robot: IRB 1600-10/1.45, serial 1600-504321, RobotWare 6.15\n"));
+  EXPECT_THAT(out_.str(),
+              HasSubstr("robot: IRB 1600-10/1.45, serial 1600-504321, RobotWare 6.15\n"));
 
   // Once applied and verified, the controller holds the values: the result says so instead of
   // how to enter them.
@@ -357,8 +359,9 @@ TEST_F(ClientCommandsTest, ResultOpensWithTheVerdictThenTheOffsetsAndWhatToDo) {
   applied.message = "every remaining offset of joints 2..5 is within max(3 sigma, 0.0100 deg)";
   session_.last_apply = applied;
   EXPECT_EQ(run(args("result")), 0);
-  EXPECT_THAT(out_.str(), HasSubstr("Written to the controller on 2026-12-04 15:00 UTC, verified by "
-                                    "session 20261122-0002"));
+  EXPECT_THAT(out_.str(),
+              HasSubstr("Written to the controller on 2026-12-04 15:00 UTC, verified by "
+                        "session 20261122-0002"));
   EXPECT_THAT(out_.str(), HasSubstr("do not enter them again"));
   EXPECT_THAT(out_.str(), Not(HasSubstr("nothing was written")));
   applied.outcome = "rolled_back";

@@ -51,7 +51,7 @@ Plan FakeSession::preview(const service::StartRequest& request) const {
   plan.prediction.rank = 11;
   plan.prediction.required_accuracy_deg = 0.01;
   if (request.poses == 10) plan.prediction.sigma[0] = 0.02;  // a plan short of the accuracy
-  if (request.poses == 9) {  // what 4 sessions cost a pose
+  if (request.poses == 9) {                                  // what 4 sessions cost a pose
     plan.prediction.cell_time_per_pose_s = 5.25;
     plan.prediction.cell_time_s = 9 * 5.25;
     plan.prediction.cell_time_sessions = 4;

@@ -126,10 +126,10 @@ TEST(LoggingTest, ToTheJournalEachLineCarriesItsPriorityIdentifierAndTheRunningS
 
   using Line = std::vector<std::string>;
   ASSERT_EQ(sent.size(), 6u);
-  EXPECT_EQ(sent[0], (Line{"MESSAGE=[journal-test] planning", "PRIORITY=7",
-                           "SYSLOG_IDENTIFIER=zerocald"}));
-  EXPECT_EQ(sent[1], (Line{"MESSAGE=[journal-test] spot lost", "PRIORITY=4",
-                           "SYSLOG_IDENTIFIER=zerocald"}));
+  EXPECT_EQ(sent[0],
+            (Line{"MESSAGE=[journal-test] planning", "PRIORITY=7", "SYSLOG_IDENTIFIER=zerocald"}));
+  EXPECT_EQ(sent[1],
+            (Line{"MESSAGE=[journal-test] spot lost", "PRIORITY=4", "SYSLOG_IDENTIFIER=zerocald"}));
   EXPECT_EQ(sent[2], (Line{"MESSAGE=[journal-test] connecting", "PRIORITY=6",
                            "SYSLOG_IDENTIFIER=zerocald", "SESSION_ID=20261207T012200Z"}));
   EXPECT_EQ(sent[3], (Line{"MESSAGE=[journal-test] verifying", "PRIORITY=6",

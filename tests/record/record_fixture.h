@@ -26,7 +26,7 @@ struct FinishedSession {
       record::RecordedOffset{0.12, 0.004}, record::RecordedOffset{0.05, 0.005}};
   double cell_time_s = 61.5;
   std::array<double, 6> cal_offset_rad{1, 2, 3, 3.2, 5, 6};
-  bool identity = true;  // false: a result that names no robot
+  bool identity = true;                // false: a result that names no robot
   std::string model_from, model_file;  // the robot model it counted and wrote
   std::string reference;               // the reference it compares with
 };

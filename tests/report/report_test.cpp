@@ -355,7 +355,8 @@ TEST(Html, ACalibrationShowsTheRobotsCalibrationsOverTimeFromItsRecord) {
   EXPECT_FALSE(contains(reportHtml(r), "zeros over time")) << "no record, no trend";
   r.history = robotHistory(r.session.id);
   const std::string h = reportHtml(r);
-  EXPECT_TRUE(contains(h, "Each zero's offset as the robot's 2 calibrations in the record found it"));
+  EXPECT_TRUE(
+      contains(h, escapeHtml("Each zero's offset as the robot's 2 calibrations in the record found it")));
   for (const char* id : {"trend-delta2", "trend-delta3", "trend-delta4", "trend-delta5"}) {
     const std::string svg = svgOf(h, id);
     ASSERT_FALSE(svg.empty()) << id;
@@ -366,7 +367,8 @@ TEST(Html, ACalibrationShowsTheRobotsCalibrationsOverTimeFromItsRecord) {
   EXPECT_EQ(count(svgOf(h, "trend-delta2"), "class=\"bar\""), 2);
   EXPECT_EQ(count(svgOf(h, "trend-delta4"), "class=\"withheld\""), 1);
   EXPECT_EQ(count(svgOf(h, "trend-delta4"), "class=\"point"), 1);
-  EXPECT_TRUE(contains(svgOf(h, "trend-delta2"), "20261101T070000Z (calibration): +0.31000 +- 0.00200 deg"));
+  EXPECT_TRUE(contains(svgOf(h, "trend-delta2"),
+                       "20261101T070000Z (calibration): +0.31000 +- 0.00200 deg"));
   EXPECT_EQ(unbalancedTag(h), "");
 }
 
@@ -377,8 +379,8 @@ TEST(Html, ACheckShowsTheChangesSinceItsReferenceOnly) {
   r.history = robotHistory("20261101T080000Z");
   r.history[2].session.session = r.session.id;  // this check
   const std::string h = reportHtml(r);
-  EXPECT_TRUE(contains(h, "Each zero's change since reference 20261120T070000Z, as the 1 session "
-                          "compared with it in the record found it"));
+  EXPECT_TRUE(contains(h, escapeHtml("Each zero's change since reference 20261120T070000Z, as "
+                                     "the 1 session compared with it in the record found it")));
   const std::string svg = svgOf(h, "trend-delta3");
   EXPECT_EQ(count(svg, "class=\"point current\""), 1);
   EXPECT_EQ(count(svg, "class=\"point"), 1) << "no calibration on the axis of the changes";

@@ -32,8 +32,12 @@ TEST(CellTime, APoseCostsWhatItCostTheLatestSessionsThatRanFromTheirFirstPose) {
   r.cell_time_s = 10;
   r.resumed_from = 9;
   store.writeResult(resumed.id, r);
-  s.cell_time_s = 80;
-  test::makeFinishedSession(store, s);
+  // Not resumed: a journal from its first line (resumed_from 0).
+  SessionFile fresh = store.create(test::plannedSession());
+  r = test::resultOf(s, fresh.id);
+  r.cell_time_s = 80;
+  r.resumed_from = 0;
+  store.writeResult(fresh.id, r);
   store.create(test::plannedSession());  // unfinished: no result yet
 
   const CellTimePerPose per_pose = cellTimePerPose(store);

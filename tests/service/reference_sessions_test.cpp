@@ -12,9 +12,9 @@
 #include <sstream>
 
 #include "stored_plan_request.h"
+#include "zerocal/model/kinematics.h"
 #include "zerocal/record/sqlite_record.h"
 #include "zerocal/report/session_report.h"
-#include "zerocal/model/kinematics.h"
 #include "zerocal/service/session_manager.h"
 #include "zerocal/sim/sim_backend.h"
 #include "zerocal/sim/sim_controller.h"
@@ -175,8 +175,9 @@ TEST(ReferenceSessions, AReferenceACheckAMotorReplacedARestoreAppliedAndVerified
   std::stringstream text;
   text << in.rdbuf();
   const std::string html = text.str();
-  ASSERT_NE(html.find("Each zero's change since reference " + reference +
-                      ", as the 5 sessions compared with it in the record found it"),
+  ASSERT_NE(html.find(report::escapeHtml("Each zero's change since reference " + reference +
+                                          ", as the 5 sessions compared with it in the record "
+                                          "found it")),
             std::string::npos);
   std::string joint3 = html.substr(html.find("id=\"trend-delta3\""));
   joint3 = joint3.substr(0, joint3.find("</svg>"));

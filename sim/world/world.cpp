@@ -664,58 +664,106 @@ Eigen::Vector3d rpyOf(const Eigen::Matrix3d& r) {
 
 std::string num(double v) { return fmt::format(FMT_STRING("{:.17g}"), v); }
 
-template <typename V>
-std::string list(const V& v, int n) {
-  std::string s = "[";
-  for (int i = 0; i < n; ++i) s += num(v[i]) + (i + 1 < n ? ", " : "]");
-  return s;
-}
-
 }  // namespace
 
 std::string worldYaml(const World& w, const std::string& robot_file) {
-  std::ostringstream o;
-  o << "# The truth of a simulated cell (zerocal world file, docs/simulated-cell.md).\n"
-    << "# world hash " << worldHash(w) << " (" << w.robot.name << ")\n"
-    << "robot: " << robot_file << "\n"
-    << "true_offsets_deg: " << list(w.true_offsets_deg, 6) << "\n"
-    << "laser:\n  point_mm: " << list(w.laser_point_mm, 3)
-    << "\n  direction: " << list(w.laser_direction, 3) << "\n"
-    << "psd:\n  position_mm: " << list(w.psd_position_mm, 3)
-    << "\n  rpy_deg: " << list(rpyOf(w.psd_rotation), 3)
-    << "\n  configured_rpy_deg: " << list(rpyOf(w.psd_rotation_configured), 3)
-    << "\n  taught_centre_mm: " << list(w.psd_centre_taught_mm, 3) << "\n"
-    << "noise:\n  repeatability_deg: " << num(w.noise.repeatability_deg)
-    << "\n  psd_mm: " << num(w.noise.psd_mm) << "\n";
-  if (w.noise.seed) o << "  seed: " << *w.noise.seed << "\n";
+  // yaml-cpp's emitter quotes what needs it (a robot file's path with ": " or " #" in it);
+  // each number is written exactly (17 digits), as text, and a list in flow style.
+  YAML::Emitter y;
+  const auto list = [&y](const auto& v, int n) {
+    y << YAML::Flow << YAML::BeginSeq;
+    for (int i = 0; i < n; ++i) y << num(v[i]);
+    y << YAML::EndSeq;
+  };
+  const auto key = [&y](const char* k) -> YAML::Emitter& {
+    return y << YAML::Key << k << YAML::Value;
+  };
+  y << YAML::BeginMap;
+  key("robot") << robot_file;
+  key("true_offsets_deg");
+  list(w.true_offsets_deg, 6);
+  key("laser") << YAML::BeginMap;
+  key("point_mm");
+  list(w.laser_point_mm, 3);
+  key("direction");
+  list(w.laser_direction, 3);
+  y << YAML::EndMap;
+  key("psd") << YAML::BeginMap;
+  key("position_mm");
+  list(w.psd_position_mm, 3);
+  key("rpy_deg");
+  list(rpyOf(w.psd_rotation), 3);
+  key("configured_rpy_deg");
+  list(rpyOf(w.psd_rotation_configured), 3);
+  key("taught_centre_mm");
+  list(w.psd_centre_taught_mm, 3);
+  y << YAML::EndMap;
+  key("noise") << YAML::BeginMap;
+  key("repeatability_deg") << num(w.noise.repeatability_deg);
+  key("psd_mm") << num(w.noise.psd_mm);
+  if (w.noise.seed) key("seed") << *w.noise.seed;
+  y << YAML::EndMap;
   Joints a, d, alpha;
   for (int i = 0; i < kJointCount; ++i) {
     a[i] = w.dh_errors[i].a_mm;
     d[i] = w.dh_errors[i].d_mm;
     alpha[i] = w.dh_errors[i].alpha_deg;
   }
-  o << "dh_errors:\n  a_mm: " << list(a, 6) << "\n  d_mm: " << list(d, 6)
-    << "\n  alpha_deg: " << list(alpha, 6) << "\n"
-    << "compliance:\n  joint2_sag_deg: " << num(w.compliance.joint2_sag_deg)
-    << "\n  joint3_sag_deg: " << num(w.compliance.joint3_sag_deg)
-    << "\n  mass_share: " << list(w.compliance.mass_share, 3)
-    << "\n  mass_position: " << list(w.compliance.mass_position, 2) << "\n"
-    << "thermal:\n  expansion_per_k: " << num(w.thermal.expansion_per_k)
-    << "\n  rise_k: " << num(w.thermal.rise_k)
-    << "\n  time_constant_s: " << num(w.thermal.time_constant_s) << "\n"
-    << "gross_errors:\n  stray_light_rate: " << num(w.gross.stray_light_rate)
-    << "\n  stray_light_mm: " << num(w.gross.stray_light_mm)
-    << "\n  unsettled_rate: " << num(w.gross.unsettled_rate)
-    << "\n  unsettled_deg: " << num(w.gross.unsettled_deg) << "\n";
-  if (w.gross.forced_at_deg)
-    o << "  forced_at_deg: " << list(*w.gross.forced_at_deg, kJointCount)
-      << "\n  forced_kind: " << grossKindName(w.gross.forced_kind) << "\n";
-  if (!w.placements.empty()) o << "placements:\n";
-  for (const PsdPlacement& p : w.placements)
-    o << "  - placement: " << p.placement << "\n    planned_mm: " << list(p.planned_mm, 3)
-      << "\n    position_mm: " << list(p.position_mm, 3)
-      << "\n    rpy_deg: " << list(rpyOf(p.rotation), 3) << "\n";
-  return o.str();
+  key("dh_errors") << YAML::BeginMap;
+  key("a_mm");
+  list(a, 6);
+  key("d_mm");
+  list(d, 6);
+  key("alpha_deg");
+  list(alpha, 6);
+  y << YAML::EndMap;
+  key("compliance") << YAML::BeginMap;
+  key("joint2_sag_deg") << num(w.compliance.joint2_sag_deg);
+  key("joint3_sag_deg") << num(w.compliance.joint3_sag_deg);
+  key("mass_share");
+  list(w.compliance.mass_share, 3);
+  key("mass_position");
+  list(w.compliance.mass_position, 2);
+  y << YAML::EndMap;
+  key("thermal") << YAML::BeginMap;
+  key("expansion_per_k") << num(w.thermal.expansion_per_k);
+  key("rise_k") << num(w.thermal.rise_k);
+  key("time_constant_s") << num(w.thermal.time_constant_s);
+  y << YAML::EndMap;
+  key("gross_errors") << YAML::BeginMap;
+  key("stray_light_rate") << num(w.gross.stray_light_rate);
+  key("stray_light_mm") << num(w.gross.stray_light_mm);
+  key("unsettled_rate") << num(w.gross.unsettled_rate);
+  key("unsettled_deg") << num(w.gross.unsettled_deg);
+  if (w.gross.forced_at_deg) {
+    key("forced_at_deg");
+    list(*w.gross.forced_at_deg, kJointCount);
+    key("forced_kind") << grossKindName(w.gross.forced_kind);
+  }
+  y << YAML::EndMap;
+  if (!w.placements.empty()) {
+    key("placements") << YAML::BeginSeq;
+    for (const PsdPlacement& p : w.placements) {
+      y << YAML::BeginMap;
+      key("placement") << p.placement;
+      key("planned_mm");
+      list(p.planned_mm, 3);
+      key("position_mm");
+      list(p.position_mm, 3);
+      key("rpy_deg");
+      list(rpyOf(p.rotation), 3);
+      y << YAML::EndMap;
+    }
+    y << YAML::EndSeq;
+  }
+  y << YAML::EndMap;
+  if (!y.good()) throw Error(std::string("cannot write the world file: ") + y.GetLastError());
+  // The robot's name in a comment: on one line.
+  std::string name = w.robot.name;
+  std::replace(name.begin(), name.end(), '\n', ' ');
+  return "# The truth of a simulated cell (zerocal world file, docs/simulated-cell.md).\n"
+         "# world hash " +
+         worldHash(w) + " (" + name + ")\n" + y.c_str() + "\n";
 }
 
 }  // namespace zerocal

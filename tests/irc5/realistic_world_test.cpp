@@ -1,16 +1,20 @@
 // The realistic simulated world: the arm's link errors, compliance and warming, the PSD known only
 // as configured and taught, gross errors at their rate; and the ideal world kept exact.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <Eigen/Geometry>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
 #include <random>
 
 #include "zerocal/error.h"
 #include "zerocal/irc5/irc5_client.h"
 #include "zerocal/model/builtin.h"
 #include "zerocal/model/kinematics.h"
+#include "zerocal/model/robot.h"
 #include "zerocal/sim/sim_controller.h"
 #include "zerocal/sim/world.h"
 
@@ -257,6 +261,24 @@ TEST(GrossErrors, OneForcedErrorStrikesItsPoseOnceAndNothingElse) {
   EXPECT_EQ(back.gross.forced_kind, GrossErrors::Kind::kUnsettled);
   EXPECT_NE(worldHash(w), before);
   EXPECT_THROW(parseGrossKind("cosmic_ray"), InputError);
+}
+
+// A world file names its robot file as it is, even a path YAML would read otherwise.
+TEST(WorldFile, NamesARobotFileWhosePathYamlWouldMisreadAsItIs) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("zerocal-world-" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  Robot robot = builtinIrb1600();
+  robot.name = "cell 3's arm";
+  std::ofstream(dir / "robot: cell #3.yaml") << robotYaml(robot);
+  World w = randomWorld(3);
+  w.robot = robot;
+  const std::string text = worldYaml(w, "robot: cell #3.yaml");
+  const World back = parseWorld(text, "test", dir.string());
+  std::filesystem::remove_all(dir);
+  EXPECT_EQ(back.robot.name, "cell 3's arm") << text;
+  EXPECT_EQ(back.true_offsets_deg, w.true_offsets_deg);
+  EXPECT_EQ(back.psd_position_mm, w.psd_position_mm);
 }
 
 TEST(GrossErrors, AppearAtTheConfiguredRatePerPose) {

@@ -78,19 +78,32 @@ std::string psdMapToYaml(const PsdMap& map, const std::string& comment) {
   std::istringstream lines(comment);
   for (std::string line; std::getline(lines, line);) out << "# " << line << "\n";
   const auto zone = map.zone();
-  // The zone and threshold are stage positions and volts: 12 digits print 0.6 as 0.6.
-  out << std::setprecision(12) << "psd_map:\n  degree: " << map.degree() << "\n  zone_mm: {u: ["
-      << zone[0] << ", " << zone[1] << "], v: [" << zone[2] << ", " << zone[3]
-      << "]}\n  min_sum_v: " << map.minSumV() << "\n";
-  // 17 significant digits: the coefficients of a degree-7 fit cancel each other, so a rounded
-  // copy would not reproduce the fitted positions to the micrometre.
-  out << std::setprecision(17);
+  // The zone and threshold are stage positions and volts: 12 digits print 0.6 as 0.6. The
+  // coefficients take 17: those of a degree-7 fit cancel each other, so a rounded copy would not
+  // reproduce the fitted positions to the micrometre.
+  const auto digits = [](double v, int precision) {
+    std::ostringstream o;
+    o << std::setprecision(precision) << v;
+    return o.str();
+  };
+  YAML::Emitter y;
+  y << YAML::BeginMap << YAML::Key << "psd_map" << YAML::Value << YAML::BeginMap;
+  y << YAML::Key << "degree" << YAML::Value << map.degree();
+  y << YAML::Key << "zone_mm" << YAML::Value << YAML::Flow << YAML::BeginMap;
+  y << YAML::Key << "u" << YAML::Value << YAML::Flow << YAML::BeginSeq << digits(zone[0], 12)
+    << digits(zone[1], 12) << YAML::EndSeq;
+  y << YAML::Key << "v" << YAML::Value << YAML::Flow << YAML::BeginSeq << digits(zone[2], 12)
+    << digits(zone[3], 12) << YAML::EndSeq;
+  y << YAML::EndMap;
+  y << YAML::Key << "min_sum_v" << YAML::Value << digits(map.minSumV(), 12);
   for (const auto& [name, coeff] :
        {std::pair{"u", &map.uCoefficients()}, std::pair{"v", &map.vCoefficients()}}) {
-    out << "  " << name << ": [";
-    for (std::size_t i = 0; i < coeff->size(); ++i) out << (i ? ", " : "") << (*coeff)[i];
-    out << "]\n";
+    y << YAML::Key << name << YAML::Value << YAML::Flow << YAML::BeginSeq;
+    for (const double c : *coeff) y << digits(c, 17);
+    y << YAML::EndSeq;
   }
+  y << YAML::EndMap << YAML::EndMap;
+  out << y.c_str() << "\n";
   return out.str();
 }
 

@@ -20,6 +20,9 @@ const connection = new Connection({
   onOpen: async () => {
     setLink("connected", "connected");
     try {
+      // An operator's login checks and aborts only (docs/protocol.md, "Roles"): say whose it is.
+      const hello = await connection.call("hello");
+      if (hello.role === "operator") setLink("connected", "connected (operator: checks and abort)");
       const subscribed = await connection.call("subscribe");
       if (subscribed.ok) update(subscribed.status);
       const robots = await connection.call("robots");

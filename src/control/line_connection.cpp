@@ -247,9 +247,15 @@ bool LineConnection::handle(const std::string& line) {
     return true;
   }
   const std::string cmd = cmd_it->get<std::string>();
-  if (!isOpenCommand(cmd) && !authenticated_) {
+  if (!isOpenCommand(cmd) && !authenticated()) {
     return authFailure(id, code::kUnauthenticated,
                        "'" + cmd + "' needs authentication: send {\"cmd\":\"auth\",...} first");
+  }
+  // A start's role depends on its kind: judged once the request is read (dispatch).
+  if (const std::string why = cmd == "start" ? "" : forbiddenFor(role_, cmd, SessionKind::kCheck);
+      !why.empty()) {
+    send(errorResponse(id, code::kForbidden, why));
+    return true;
   }
   try {
     return dispatch(id, cmd, request);
@@ -276,23 +282,30 @@ bool LineConnection::dispatch(const json& id, const std::string& cmd, const json
     r["protocol"] = kProtocolVersion;
     r["daemon"] = options.daemon_version;
     if (cmd == "hello") {
-      r["authenticated"] = authenticated_;
+      r["authenticated"] = authenticated();
+      r["role"] = roleName(role_);
       r["commands"] = kCommands;
     }
   } else if (cmd == "auth") {
     const auto token = request.find("token");
-    if (token == request.end() || !token->is_string() ||
-        !tokensEqual(token->get<std::string>(), options.token))
-      return authFailure(id, code::kAuthFailed, "wrong token");
+    const Role role = token != request.end() && token->is_string()
+                          ? roleOfToken(options, token->get<std::string>())
+                          : Role::kNone;
+    if (role == Role::kNone) return authFailure(id, code::kAuthFailed, "wrong token");
     // debug: a terminal polling `zerocal status` authenticates on every connection.
-    if (!authenticated_) hub_->log_->debug("{}: authenticated", peer_);
-    authenticated_ = true;
+    if (role_ != role) hub_->log_->debug("{}: authenticated as the {}", peer_, roleName(role));
+    role_ = role;
     auth_failures_ = 0;
+    r["role"] = roleName(role);
   } else if (cmd == "status") {
     r["status"] = toJson(session.status());
   } else if (cmd == "start") {
     const auto start = planFileInPlanDir(parseStartRequest(request, hub_->default_request_),
                                          request, options.plan_dir);
+    if (const std::string why = forbiddenFor(role_, cmd, start.kind); !why.empty()) {
+      send(errorResponse(id, code::kForbidden, why));
+      return true;
+    }
     return answerAside(id, [&session, start, log = hub_->log_, peer = peer_] {
       const auto session_id = session.start(start);
       log->info("{}: started session {}", peer, session_id);
@@ -473,7 +486,7 @@ void LineConnection::armWatchdog() {
 void LineConnection::checkTimeouts() {
   const auto& o = hub_->options_;
   const auto now = Clock::now();
-  if (!authenticated_ && !closing_ && now - connected_at_ > o.auth_timeout) {
+  if (!authenticated() && !closing_ && now - connected_at_ > o.auth_timeout) {
     hub_->log_->info("{}: not authenticated within {} ms; closing", peer_, o.auth_timeout.count());
     sendAndClose(errorResponse(nullptr, code::kUnauthenticated,
                                "authenticate within " + std::to_string(o.auth_timeout.count()) +

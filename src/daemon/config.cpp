@@ -120,6 +120,7 @@ std::vector<Field> schema(DaemonConfig& c) {
   f.push_back(textField("control.bind_address", o.bind_address));
   f.push_back(integerField("control.port", o.port));
   f.push_back(pathField("control.token_file", o.token_file));
+  f.push_back(pathField("control.operator_token_file", o.operator_token_file));
   f.push_back(integerField("control.max_clients", o.max_clients));
   f.push_back(integerField("control.max_line_bytes", o.max_line_bytes));
   f.push_back(secondsField("control.idle_timeout_s", o.idle_timeout));
@@ -428,6 +429,14 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
               static_cast<double>(o.max_clients));
   check.range("control.auth_timeout_s", seconds(o.auth_timeout), 0.5, 600.0);
   if (!o.token_file.empty()) check.fileExists("control.token_file", o.token_file);
+  if (!o.operator_token_file.empty()) {
+    check.fileExists("control.operator_token_file", o.operator_token_file);
+    if (o.token_file.empty())
+      check.fail("control.operator_token_file", "needs control.token_file (the engineer's) too");
+    else if (o.operator_token_file == o.token_file)
+      check.fail("control.operator_token_file",
+                 "is control.token_file: an operator's login must have a token of its own");
+  }
 
   const auto& w = c.web;
   const auto web_address = boost::asio::ip::make_address(w.bind_address, ec);

@@ -164,11 +164,19 @@ class WebCore : public std::enable_shared_from_this<WebCore> {
   void stop();
   spdlog::logger& log() { return hub_->log(); }
 
-  // Logins: a cookie value and when it expires.
-  std::string login();
+  // Logins: a cookie value, when it expires and whose it is (control/roles.h).
+  struct Login {
+    Clock::time_point expires;
+    control::Role role = control::Role::kNone;
+  };
+  std::string login(control::Role role);
   void logout(const std::string& cookie) { logins_.erase(cookie); }
   // The time left of a login; nullopt when it is unknown or expired.
   std::optional<Clock::duration> loginLeft(const std::string& cookie);
+  // Its role; kNone when it is unknown or expired.
+  control::Role loginRole(const std::string& cookie) {
+    return loginLeft(cookie) ? logins_.at(cookie).role : control::Role::kNone;
+  }
 
   asio::io_context& io_;
   std::shared_ptr<control::ProtocolHub> hub_;
@@ -179,7 +187,7 @@ class WebCore : public std::enable_shared_from_this<WebCore> {
   std::set<std::shared_ptr<control::LineConnection>> ws_;
   // Present when web.tls_certificate and web.tls_key are set: every connection is TLS.
   std::optional<asio::ssl::context> tls_;
-  std::map<std::string, Clock::time_point> logins_;
+  std::map<std::string, Login> logins_;
   bool stopped_ = false;
   std::uint16_t port_ = 0;
 };
@@ -205,7 +213,7 @@ class WsConnection : public control::LineConnection {
     // Pings when quiet, and a close after the suggested idle time: a dead peer is found.
     ws_.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
     beast::get_lowest_layer(ws_).expires_never();
-    authenticateByTransport();
+    authenticateByTransport(core_->loginRole(cookie_));
     ws_.async_accept(request, [self = self()](beast::error_code ec) {
       if (ec || self->core_->stopped_) {
         self->abandon();
@@ -518,10 +526,13 @@ class HttpConnection : public HttpLink,
   }
 
   void loginState(const Request& request) {
-    const auto left = core_->loginLeft(cookieOf(request));
+    const std::string cookie = cookieOf(request);
+    const auto left = core_->loginLeft(cookie);
     json body{{"authenticated", left.has_value()}};
-    if (left)
+    if (left) {
       body["expires_in_s"] = std::chrono::duration_cast<std::chrono::seconds>(*left).count();
+      body["role"] = control::roleName(core_->loginRole(cookie));
+    }
     send(jsonResponse(request, left ? http::status::ok : http::status::unauthorized, body));
   }
 
@@ -538,7 +549,8 @@ class HttpConnection : public HttpLink,
       // Not JSON: no token, a failed login like any other.
     }
     const auto& options = core_->hub_->options();
-    if (!control::tokensEqual(token, options.token)) {
+    const control::Role role = control::roleOfToken(options, token);
+    if (role == control::Role::kNone) {
       ++failures_;
       const bool last = failures_ >= options.max_auth_failures;
       core_->log().warn("{} (web): login failed ({} of {}){}", peer_, failures_,
@@ -559,12 +571,13 @@ class HttpConnection : public HttpLink,
       return;
     }
     failures_ = 0;
-    const std::string cookie = core_->login();
+    const std::string cookie = core_->login(role);
     const auto lifetime_s =
         std::chrono::duration_cast<std::chrono::seconds>(core_->options_.session_lifetime).count();
-    core_->log().info("{} (web): logged in", peer_);
-    auto response =
-        jsonResponse(request, http::status::ok, {{"ok", true}, {"expires_in_s", lifetime_s}});
+    core_->log().info("{} (web): logged in as the {}", peer_, control::roleName(role));
+    auto response = jsonResponse(
+        request, http::status::ok,
+        {{"ok", true}, {"expires_in_s", lifetime_s}, {"role", control::roleName(role)}});
     response.set(http::field::set_cookie,
                  std::string(kCookieName) + "=" + cookie +
                      "; Path=/; HttpOnly; SameSite=Strict; Max-Age=" + std::to_string(lifetime_s) +
@@ -621,19 +634,19 @@ class HttpConnection : public HttpLink,
   bool closed_ = false;
 };
 
-std::string WebCore::login() {
+std::string WebCore::login(control::Role role) {
   const auto now = Clock::now();
   for (auto it = logins_.begin(); it != logins_.end();)
-    it = it->second <= now ? logins_.erase(it) : std::next(it);
+    it = it->second.expires <= now ? logins_.erase(it) : std::next(it);
   // Every login lasts as long: the one that expires first is the oldest.
   while (logins_.size() >= options_.max_logins) {
     auto oldest = logins_.begin();
     for (auto it = logins_.begin(); it != logins_.end(); ++it)
-      if (it->second < oldest->second) oldest = it;
+      if (it->second.expires < oldest->second.expires) oldest = it;
     logins_.erase(oldest);
   }
   std::string cookie = randomHex(32);
-  logins_[cookie] = now + options_.session_lifetime;
+  logins_[cookie] = Login{now + options_.session_lifetime, role};
   return cookie;
 }
 
@@ -642,11 +655,11 @@ std::optional<Clock::duration> WebCore::loginLeft(const std::string& cookie) {
   const auto it = logins_.find(cookie);
   if (it == logins_.end()) return std::nullopt;
   const auto now = Clock::now();
-  if (it->second <= now) {
+  if (it->second.expires <= now) {
     logins_.erase(it);
     return std::nullopt;
   }
-  return it->second - now;
+  return it->second.expires - now;
 }
 
 void WebCore::start() {

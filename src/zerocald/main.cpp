@@ -308,6 +308,21 @@ int main(int argc, char** argv) {
       throw ConfigError("configuration",
                         {std::string("control.token_file: ") + e.what() + make_one});
     }
+    if (!options.operator_token_file.empty()) {
+      try {
+        options.operator_token = control::loadToken(options.operator_token_file);
+      } catch (const Error& e) {
+        throw ConfigError("configuration",
+                          {std::string("control.operator_token_file: ") + e.what()});
+      }
+      if (control::tokensEqual(options.operator_token, options.token))
+        throw ConfigError("configuration",
+                          {"control.operator_token_file: holds the engineer's token "
+                           "(control.token_file): an operator's login must have a token of its "
+                           "own"});
+      log->info("operator logins (checks, abort) with the token in {}",
+                options.operator_token_file);
+    }
     options.daemon_version = PROJECT_VERSION;
     // What `start` leaves out comes from the session section. One hub serves the TCP port and
     // the web terminal's WebSocket: one event sink, the same commands and authentication.

@@ -223,6 +223,43 @@ TEST_F(ControlServerTest, AuthenticationHoldsForTheConnection) {
   EXPECT_EQ(other->request({{"cmd", "status"}})["error"]["code"], "unauthenticated");
 }
 
+// The operator's token: watch, read, plan, check the zeros and abort; nothing that calibrates
+// or writes into the controller.
+TEST_F(ControlServerTest, AnOperatorChecksAndAbortsButNeitherCalibratesNorWrites) {
+  constexpr const char* kOperatorToken = "operator-7450-checks-only";
+  ServerOptions o;
+  o.operator_token = kOperatorToken;
+  startServer(o);
+  auto c = connect(false);
+  EXPECT_EQ(c->request({{"cmd", "auth"}, {"token", kOperatorToken}})["role"], "operator");
+  EXPECT_EQ(c->call("hello")["role"], "operator");
+  EXPECT_TRUE(c->call("status")["status"].is_object());
+  EXPECT_EQ(c->request({{"cmd", "plan"}, {"poses", 8}})["ok"], true);
+  for (const json& request :
+       {json{{"cmd", "start"}}, json{{"cmd", "start"}, {"kind", "reference"}},
+        json{{"cmd", "start"}, {"kind", "calibrate"}, {"placements", 3}},
+        json{{"cmd", "apply"}, {"session", "x"}, {"confirm", true}},
+        json{{"cmd", "verify"}, {"session", "x"}}, json{{"cmd", "acknowledge"}},
+        json{{"cmd", "resume"}}, json{{"cmd", "continue"}}}) {
+    const json r = c->request(request);
+    EXPECT_EQ(r["error"]["code"], "forbidden") << request << r;
+    EXPECT_THAT(r["error"]["message"].get<std::string>(), HasSubstr("engineer's token"));
+  }
+  EXPECT_EQ(session_.startCalls(), 0);
+  EXPECT_EQ(session_.applyCalls(), 0);
+  EXPECT_EQ(c->request({{"cmd", "start"}, {"kind", "check"}})["ok"], true);
+  EXPECT_EQ(session_.startCalls(), 1);
+  EXPECT_EQ(c->request({{"cmd", "abort"}})["ok"], true);
+  // The engineer's token, on the same connection or another, may do all of it.
+  EXPECT_EQ(connect()->call("hello")["role"], "engineer");
+  EXPECT_EQ(c->request({{"cmd", "auth"}, {"token", kToken}})["role"], "engineer");
+  EXPECT_NE(c->request({{"cmd", "start"}, {"kind", "restore"}})["error"]["code"], "forbidden");
+  // Without an operator token configured, no other token logs in.
+  startServer(ServerOptions{});
+  EXPECT_EQ(connect(false)->request({{"cmd", "auth"}, {"token", kOperatorToken}})["error"]["code"],
+            "auth_failed");
+}
+
 TEST_F(ControlServerTest, AStatusPollerLeavesNoLineInTheLogAtInfo) {
   auto ring = std::make_shared<spdlog::sinks::ringbuffer_sink_mt>(20);
   makeLogger("control")->sinks().push_back(ring);

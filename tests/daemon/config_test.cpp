@@ -290,6 +290,22 @@ TEST_F(ConfigTest, InconsistentCombinations) {
   EXPECT_EQ(p.size(), 9u) << joined(p);
 }
 
+TEST_F(ConfigTest, AnOperatorsTokenNeedsTheEngineersAndAFileOfItsOwn) {
+  write("engineer.token", "engineer-token-0123456789");
+  write("main.yaml", "control:\n  operator_token_file: engineer.token\n");
+  auto p = problems(sources());
+  EXPECT_TRUE(reported(p, {"control.operator_token_file", "needs control.token_file"}))
+      << joined(p);
+  write("main.yaml",
+        "control:\n  token_file: engineer.token\n  operator_token_file: engineer.token\n");
+  p = problems(sources());
+  EXPECT_TRUE(reported(p, {"control.operator_token_file", "a token of its own"})) << joined(p);
+  write("operator.token", "operator-token-0123456789");
+  write("main.yaml",
+        "control:\n  token_file: engineer.token\n  operator_token_file: operator.token\n");
+  EXPECT_NO_THROW(loadDaemonConfig(sources()));
+}
+
 TEST_F(ConfigTest, PlanFileOnlyWithPlanFile) {
   write("plan.txt", "");
   write("main.yaml", "session:\n  plan_file: plan.txt\n");

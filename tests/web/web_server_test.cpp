@@ -40,6 +40,7 @@ using namespace std::chrono_literals;
 using ::testing::HasSubstr;
 
 constexpr const char* kToken = "c0ffee-7451-secret-web";
+constexpr const char* kOperatorToken = "operator-7451-checks-only";
 using Reply = http::response<http::string_body>;
 
 // A blocking client socket (Asio's blocking reads poll without a timeout: a daemon that never
@@ -85,6 +86,7 @@ class WebServerTest : public ::testing::Test {
     control::ServerOptions control;
     control.port = 0;
     control.token = kToken;
+    control.operator_token = kOperatorToken;
     control.auth_failure_delay = 200ms;
     control.status_period = 50ms;
     hub_ = control::ProtocolHub::create(io_, session_, control);
@@ -169,8 +171,8 @@ class WebServerTest : public ::testing::Test {
   }
 
   // The cookie's "name=value", from a login with the right token.
-  std::string login() {
-    const Reply r = request(http::verb::post, "/api/login", json{{"token", kToken}}.dump());
+  std::string login(const std::string& token = kToken) {
+    const Reply r = request(http::verb::post, "/api/login", json{{"token", token}}.dump());
     EXPECT_EQ(r.result(), http::status::ok) << r.body();
     const std::string set(r[http::field::set_cookie]);
     return set.substr(0, set.find(';'));
@@ -470,6 +472,38 @@ TEST_F(WebServerTest, TheWebSocketCarriesTheControlProtocolAuthenticatedByTheCoo
   ws->write(asio::buffer(std::string("{nope")));
   EXPECT_EQ(wsRead(*ws)["error"]["code"], "bad_json");
   EXPECT_EQ(wsCall(*ws, {{"cmd", "version"}})["ok"], true);
+}
+
+TEST_F(WebServerTest, AnOperatorsLoginChecksAndAbortsButNeitherCalibratesNorWrites) {
+  const Reply r = request(http::verb::post, "/api/login", json{{"token", kOperatorToken}}.dump());
+  ASSERT_EQ(r.result(), http::status::ok);
+  EXPECT_EQ(json::parse(r.body())["role"], "operator");
+  const std::string set(r[http::field::set_cookie]);
+  const std::string cookie = set.substr(0, set.find(';'));
+  EXPECT_EQ(json::parse(request(http::verb::get, "/api/login", {}, cookie).body())["role"],
+            "operator");
+  asio::io_context io;
+  websocket::response_type reply;
+  auto ws = openWs(io, cookie, origin(), reply);
+  EXPECT_EQ(wsCall(*ws, {{"cmd", "hello"}})["role"], "operator");
+  EXPECT_EQ(wsCall(*ws, {{"cmd", "status"}})["ok"], true);
+  for (const json& request : {json{{"cmd", "start"}}, json{{"cmd", "start"}, {"kind", "restore"}},
+                              json{{"cmd", "apply"}, {"session", "x"}, {"confirm", true}},
+                              json{{"cmd", "verify"}, {"session", "x"}},
+                              json{{"cmd", "acknowledge"}}, json{{"cmd", "resume"}}}) {
+    const json answer = wsCall(*ws, request);
+    EXPECT_EQ(answer["error"]["code"], "forbidden") << request << answer;
+  }
+  EXPECT_EQ(session_.startCalls(), 0);
+  EXPECT_EQ(session_.applyCalls(), 0);
+  EXPECT_EQ(wsCall(*ws, {{"cmd", "start"}, {"kind", "check"}})["ok"], true);
+  EXPECT_EQ(session_.startCalls(), 1);
+  EXPECT_EQ(wsCall(*ws, {{"cmd", "abort"}})["ok"], true);
+  // The engineer's login may do all of it.
+  auto engineer = openLoggedIn(io);
+  EXPECT_EQ(wsCall(*engineer, {{"cmd", "hello"}})["role"], "engineer");
+  EXPECT_NE(wsCall(*engineer, {{"cmd", "start"}, {"kind", "restore"}})["error"]["code"],
+            "forbidden");
 }
 
 TEST_F(WebServerTest, OneEventSinkFansOutToBothTransports) {

@@ -20,6 +20,7 @@
 #include <set>
 #include <string>
 
+#include "zerocal/control/roles.h"
 #include "zerocal/control/server_options.h"
 #include "zerocal/service/session_control.h"
 
@@ -107,7 +108,8 @@ class LineConnection : public std::enable_shared_from_this<LineConnection> {
   void close();
 
   bool subscribed() const { return subscribed_; }
-  bool authenticated() const { return authenticated_; }
+  bool authenticated() const { return role_ != Role::kNone; }
+  Role role() const { return role_; }
   bool isClosed() const { return closed_; }
   const std::string& peer() const { return peer_; }
   const std::string& peerAddress() const { return peer_address_; }
@@ -132,8 +134,8 @@ class LineConnection : public std::enable_shared_from_this<LineConnection> {
   void readFailed(boost::system::error_code ec);
   void written(boost::system::error_code ec);
   // The transport authenticated the connection itself (a WebSocket opened with a valid login
-  // cookie): as if it had sent a right `auth`.
-  void authenticateByTransport() { authenticated_ = true; }
+  // cookie, of `role`): as if it had sent a right `auth`.
+  void authenticateByTransport(Role role) { role_ = role; }
   // Marks a connection that was never started as closed, to hand its socket back.
   void abandon();
   ProtocolHub& hub() { return *hub_; }
@@ -166,7 +168,7 @@ class LineConnection : public std::enable_shared_from_this<LineConnection> {
   bool writing_ = false;
   bool closing_ = false;
   bool closed_ = false;
-  bool authenticated_ = false;
+  Role role_ = Role::kNone;
   bool subscribed_ = false;
   int auth_failures_ = 0;
   Clock::time_point last_line_;

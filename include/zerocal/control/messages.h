@@ -24,6 +24,7 @@ inline constexpr const char* kBadRequest = "bad_request";
 inline constexpr const char* kUnknownCommand = "unknown_command";
 inline constexpr const char* kUnauthenticated = "unauthenticated";
 inline constexpr const char* kAuthFailed = "auth_failed";
+inline constexpr const char* kForbidden = "forbidden";  // the login's role may not (roles.h)
 inline constexpr const char* kLineTooLong = "line_too_long";
 inline constexpr const char* kTooManyClients = "too_many_clients";
 inline constexpr const char* kUnavailable = "unavailable";

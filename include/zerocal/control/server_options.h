@@ -17,6 +17,10 @@ struct ServerOptions {
   // Required to serve the port; checked when bind_address is not loopback.
   std::string token_file;
   std::string token;  // required, not empty
+  // The operator's login (zerocal/control/roles.h): its file (optional; empty: every login is
+  // an engineer's) and the token read from it, which must differ from `token`.
+  std::string operator_token_file;
+  std::string operator_token;
   std::string daemon_version = "unknown";
   // Connections at once. When all are taken, a new connection displaces the oldest one that has
   // not authenticated (so that idle strangers can never lock out an abort); when every one has

@@ -1,0 +1,37 @@
+#include "zerocal/control/roles.h"
+
+#include "zerocal/control/token.h"
+
+namespace zerocal::control {
+
+const char* roleName(Role role) {
+  switch (role) {
+    case Role::kOperator:
+      return "operator";
+    case Role::kEngineer:
+      return "engineer";
+    case Role::kNone:
+      break;
+  }
+  return "none";
+}
+
+Role roleOfToken(const ServerOptions& options, const std::string& given) {
+  // Both compared, whichever matches: the time does not tell which token was tried.
+  const bool engineer = tokensEqual(given, options.token);
+  const bool op = !options.operator_token.empty() && tokensEqual(given, options.operator_token);
+  return engineer ? Role::kEngineer : op ? Role::kOperator : Role::kNone;
+}
+
+std::string forbiddenFor(Role role, const std::string& cmd, SessionKind kind) {
+  if (role != Role::kOperator) return "";
+  const bool engineers = cmd == "apply" || cmd == "verify" || cmd == "acknowledge" ||
+                         cmd == "resume" || cmd == "continue" ||
+                         (cmd == "start" && kind != SessionKind::kCheck);
+  if (!engineers) return "";
+  return "'" + cmd + (cmd == "start" ? std::string(" --kind ") + sessionKindName(kind) : "") +
+         "' is an engineer's: the operator's login checks the zeros (start --kind check), "
+         "watches and aborts; log in with the engineer's token (control.token_file)";
+}
+
+}  // namespace zerocal::control

@@ -55,6 +55,17 @@ struct Series {
   std::vector<double> values;  // one per category; NaN: no bar
 };
 
+// An SVG plot's opening: its size, its title for a screen reader and as text at its top left.
+std::string plotHead(const std::string& id, const std::string& title, double w, double h,
+                     double left) {
+  return format(
+             "<svg class=\"plot\" id=\"%s\" xmlns=\"http://www.w3.org/2000/svg\" width=\"%.0f\" "
+             "height=\"%.0f\" viewBox=\"0 0 %.0f %.0f\" role=\"img\">\n",
+             id.c_str(), w, h, w, h) +
+         "<title>" + esc(title) + "</title>\n" +
+         format("<text x=\"%.0f\" y=\"20\" class=\"ptitle\">", left) + esc(title) + "</text>\n";
+}
+
 // A bar chart with grouped series, axis labels, ticks and an optional horizontal reference line.
 // Log scale for quantities spanning decades (aiming errors before and after calibration).
 // `groups`, when given, names each category's group (a PSD placement): a line separates the
@@ -94,12 +105,7 @@ std::string barChart(const std::string& id, const std::string& title,
     return top + ph * (1 - f);
   };
   std::ostringstream o;
-  o << format(
-      "<svg class=\"plot\" id=\"%s\" xmlns=\"http://www.w3.org/2000/svg\" width=\"%.0f\" "
-      "height=\"%.0f\" viewBox=\"0 0 %.0f %.0f\" role=\"img\">\n",
-      id.c_str(), w, h, w, h);
-  o << "<title>" << esc(title) << "</title>\n";
-  o << format("<text x=\"%.0f\" y=\"20\" class=\"ptitle\">", left) << esc(title) << "</text>\n";
+  o << plotHead(id, title, w, h, left);
   for (const double t : ticks) {
     o << format("<line x1=\"%.1f\" x2=\"%.1f\" y1=\"%.1f\" y2=\"%.1f\" class=\"grid\"/>", left,
                 left + pw, y(t), y(t));
@@ -273,12 +279,7 @@ std::string trendPlot(const std::string& id, const std::string& title,
   const auto x = [&](double t) { return left + pw * (t - t0) / (t1 - t0); };
   const auto y = [&](double v) { return top + ph * (hi - v) / (hi - lo); };
   std::ostringstream o;
-  o << format(
-      "<svg class=\"plot\" id=\"%s\" xmlns=\"http://www.w3.org/2000/svg\" width=\"%.0f\" "
-      "height=\"%.0f\" viewBox=\"0 0 %.0f %.0f\" role=\"img\">\n",
-      id.c_str(), w, h, w, h);
-  o << "<title>" << esc(title) << "</title>\n";
-  o << format("<text x=\"%.0f\" y=\"20\" class=\"ptitle\">", left) << esc(title) << "</text>\n";
+  o << plotHead(id, title, w, h, left);
   for (const double t : ticks)
     o << format("<line x1=\"%.1f\" x2=\"%.1f\" y1=\"%.1f\" y2=\"%.1f\" class=\"grid\"/>", left,
                 left + pw, y(t), y(t))

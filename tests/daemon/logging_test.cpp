@@ -65,16 +65,23 @@ TEST(LoggingTest, LevelNamesMatchSpdlog) {
   EXPECT_EQ(logLevelName(LogLevel::kWarn), "warn");
 }
 
+// Sends stderr to `file` (made anew) and returns the descriptor to restore it from (dup2), or -1.
+int stderrTo(const fs::path& file) {
+  std::fflush(stderr);
+  const int fd = ::open(file.c_str(), O_CREAT | O_TRUNC | O_WRONLY, 0600);
+  if (fd < 0) return -1;
+  const int saved = ::dup(2);
+  ::dup2(fd, 2);
+  ::close(fd);
+  return saved;
+}
+
 // Under systemd, stderr is a stream to journald, named by JOURNAL_STREAM=<device>:<inode>.
 TEST(LoggingTest, StderrIsTheJournalOnlyWhenItIsTheStreamJournalStreamNames) {
   const fs::path file =
       fs::temp_directory_path() / ("zerocal-journal-" + std::to_string(::getpid()));
-  std::fflush(stderr);
-  const int saved = ::dup(2);
-  const int fd = ::open(file.c_str(), O_CREAT | O_TRUNC | O_WRONLY, 0600);
-  ASSERT_GE(fd, 0);
-  ::dup2(fd, 2);
-  ::close(fd);
+  const int saved = stderrTo(file);
+  ASSERT_GE(saved, 0);
   struct stat st {};
   ::fstat(2, &st);
   const std::string stream = std::to_string(st.st_dev) + ":" + std::to_string(st.st_ino);
@@ -146,12 +153,8 @@ TEST(LoggingTest, ToTheJournalEachLineCarriesItsPriorityIdentifierAndTheRunningS
 TEST(LoggingTest, ALineTheJournalRefusesGoesToStderr) {
   const fs::path file =
       fs::temp_directory_path() / ("zerocal-journal-down-" + std::to_string(::getpid()));
-  std::fflush(stderr);
-  const int saved = ::dup(2);
-  const int fd = ::open(file.c_str(), O_CREAT | O_TRUNC | O_WRONLY, 0600);
-  ASSERT_GE(fd, 0);
-  ::dup2(fd, 2);
-  ::close(fd);
+  const int saved = stderrTo(file);
+  ASSERT_GE(saved, 0);
   sent.clear();
   sendResult = -111;  // -ECONNREFUSED: journald stopped
   initLogging(LoggingConfig{}, captureJournal);

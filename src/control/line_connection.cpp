@@ -251,9 +251,8 @@ bool LineConnection::handle(const std::string& line) {
     return authFailure(id, code::kUnauthenticated,
                        "'" + cmd + "' needs authentication: send {\"cmd\":\"auth\",...} first");
   }
-  // A start's role depends on its kind: judged once the request is read (dispatch).
-  if (const std::string why = cmd == "start" ? "" : forbiddenFor(role_, cmd, SessionKind::kCheck);
-      !why.empty()) {
+  // A start is judged by its kind once the request is read (dispatch).
+  if (const std::string why = forbiddenCommand(role_, cmd); !why.empty()) {
     send(errorResponse(id, code::kForbidden, why));
     return true;
   }
@@ -302,7 +301,7 @@ bool LineConnection::dispatch(const json& id, const std::string& cmd, const json
   } else if (cmd == "start") {
     const auto start = planFileInPlanDir(parseStartRequest(request, hub_->default_request_),
                                          request, options.plan_dir);
-    if (const std::string why = forbiddenFor(role_, cmd, start.kind); !why.empty()) {
+    if (const std::string why = forbiddenStart(role_, start.kind); !why.empty()) {
       send(errorResponse(id, code::kForbidden, why));
       return true;
     }

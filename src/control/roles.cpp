@@ -23,15 +23,26 @@ Role roleOfToken(const ServerOptions& options, const std::string& given) {
   return engineer ? Role::kEngineer : op ? Role::kOperator : Role::kNone;
 }
 
-std::string forbiddenFor(Role role, const std::string& cmd, SessionKind kind) {
-  if (role != Role::kOperator) return "";
-  const bool engineers = cmd == "apply" || cmd == "verify" || cmd == "acknowledge" ||
-                         cmd == "resume" || cmd == "continue" ||
-                         (cmd == "start" && kind != SessionKind::kCheck);
-  if (!engineers) return "";
-  return "'" + cmd + (cmd == "start" ? std::string(" --kind ") + sessionKindName(kind) : "") +
+namespace {
+
+std::string engineers(const std::string& what) {
+  return "'" + what +
          "' is an engineer's: the operator's login checks the zeros (start --kind check), "
          "watches and aborts; log in with the engineer's token (control.token_file)";
+}
+
+}  // namespace
+
+std::string forbiddenCommand(Role role, const std::string& cmd) {
+  const bool engineer_only = cmd == "apply" || cmd == "verify" || cmd == "acknowledge" ||
+                             cmd == "resume" || cmd == "continue";
+  return role == Role::kOperator && engineer_only ? engineers(cmd) : "";
+}
+
+std::string forbiddenStart(Role role, SessionKind kind) {
+  return role == Role::kOperator && kind != SessionKind::kCheck
+             ? engineers(std::string("start --kind ") + sessionKindName(kind))
+             : "";
 }
 
 }  // namespace zerocal::control

@@ -484,13 +484,12 @@ int runCellExperiment(const CellExperimentArgs& args) {
                       {"delta2_predicted_sigma_deg", {delta2_predicted_min, delta2_predicted_max}},
                       {"per_offset", normalised},
                       {"world", args.ideal_world ? "ideal" : "realistic"},
-                      {"calibrated_model",
-                       args.calibrated_model
-                           ? Json{{"placements", args.model_placements},
-                                  {"poses", args.model_poses},
-                                  {"models_written", models_written},
-                                  {"calibrations_with_a_model", with_model}}
-                           : Json(nullptr)},
+                      {"calibrated_model", args.calibrated_model
+                                               ? Json{{"placements", args.model_placements},
+                                                      {"poses", args.model_poses},
+                                                      {"models_written", models_written},
+                                                      {"calibrations_with_a_model", with_model}}
+                                               : Json(nullptr)},
                       {"max_cell_time_s", max_cell_s},
                       {"max_moves", most_moves},
                       {"max_pose_moves", most_pose_moves},
@@ -522,10 +521,10 @@ int runCellExperiment(const CellExperimentArgs& args) {
                 static_cast<unsigned long long>(args.seed0), failed_runs);
     std::printf("world          %s\n", args.ideal_world ? "ideal" : "realistic");
     if (args.calibrated_model)
-      std::printf("model          %d of %d worlds' calibrations at %d placements x %d poses wrote "
-                  "a calibrated model; %d calibrations used one\n",
-                  models_written, args.worlds, args.model_placements, args.model_poses,
-                  with_model);
+      std::printf(
+          "model          %d of %d worlds' calibrations at %d placements x %d poses wrote "
+          "a calibrated model; %d calibrations used one\n",
+          models_written, args.worlds, args.model_placements, args.model_poses, with_model);
     std::printf("95%% coverage   %.1f%% of %d offsets inside value +- 1.96 sigma\n", 100 * coverage,
                 estimates);
     std::printf("refused        %d results not usable by their verdict, %d offsets withheld\n",

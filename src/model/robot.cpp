@@ -474,10 +474,10 @@ std::string robotYaml(const Robot& robot, const std::string& comment) {
     y << YAML::Key << "inferred" << YAML::Value << robot.masses_inferred;
     y << YAML::Key << "masses" << YAML::Value << YAML::BeginSeq;
     for (const LumpedMass& m : robot.masses)
-      y << YAML::Flow << YAML::BeginMap << YAML::Key << "link" << YAML::Value << m.link
-        << YAML::Key << "kg" << YAML::Value << exact(m.kg) << YAML::Key << "at_mm" << YAML::Value
-        << YAML::Flow << YAML::BeginSeq << exact(m.at_mm[0]) << exact(m.at_mm[1])
-        << exact(m.at_mm[2]) << YAML::EndSeq << YAML::EndMap;
+      y << YAML::Flow << YAML::BeginMap << YAML::Key << "link" << YAML::Value << m.link << YAML::Key
+        << "kg" << YAML::Value << exact(m.kg) << YAML::Key << "at_mm" << YAML::Value << YAML::Flow
+        << YAML::BeginSeq << exact(m.at_mm[0]) << exact(m.at_mm[1]) << exact(m.at_mm[2])
+        << YAML::EndSeq << YAML::EndMap;
     y << YAML::EndSeq << YAML::EndMap;
   }
   if (robot.hasCompliance())

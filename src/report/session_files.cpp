@@ -146,13 +146,14 @@ SessionReport parseSession(const SessionFolder& files) {
         residual_of[r] = static_cast<int>(residual_of.size());
     }
   }
+  const std::vector<Pose>& planned = r.session.plan.poses;
+  const bool several_placements = placementCount(planned) > 1;
   for (int i = 0; i < journal_poses; ++i) {
     const PoseRecord& record = records[i];
     PoseRow row;
     row.pose = record.planIndex() + 1;
     row.again = record.remeasure_of >= 0;
-    const std::vector<Pose>& planned = r.session.plan.poses;
-    if (placementCount(planned) > 1 && record.planIndex() < static_cast<int>(planned.size()))
+    if (several_placements && record.planIndex() < static_cast<int>(planned.size()))
       row.placement = planned[record.planIndex()].placement;
     if (!record.measured()) {
       row.solved = false;

@@ -686,7 +686,7 @@ void ApplyCoordinator::endApply(const ApplyEvent& event, bool ok, bool wrote) {
     // The session's report gains the apply: before / written, the verdict, the warnings.
     try {
       settings_.write_reports(store_.sessionDir(event.session),
-                              robotHistory(settings_.record, store_, event.session));
+                              robotHistory(settings_.record, store_.readResult(event.session)));
     } catch (const std::exception& e) {
       log->error("session {}: the report does not show the apply: {}", event.session, e.what());
     }

@@ -18,15 +18,13 @@ void recordSession(record::RobotRecord* record, const SessionStore& store, const
 }
 
 std::vector<record::HistoryEntry> robotHistory(const record::RobotRecord* record,
-                                               const SessionStore& store, const std::string& id) {
-  if (record == nullptr || id.empty()) return {};
+                                               const ResultFile& result) {
+  if (record == nullptr || !result.cell) return {};
   try {
-    const ResultFile result = store.readResult(id);
-    if (!result.cell) return {};
     return record->history({result.cell->controller.robot_type, result.cell->controller.serial});
   } catch (const std::exception& e) {
-    makeLogger("record")->error("session {}: its report goes without the robot's trend: {}", id,
-                                e.what());
+    makeLogger("record")->error("session {}: its report goes without the robot's trend: {}",
+                                result.session, e.what());
     return {};
   }
 }

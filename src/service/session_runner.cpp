@@ -422,7 +422,7 @@ void SessionRunner::complete(const std::string& id, const RunOutcome& outcome, R
   std::string report_error;
   if (settings_.write_reports) {
     try {
-      settings_.write_reports(store_.sessionDir(id), robotHistory(settings_.record, store_, id));
+      settings_.write_reports(store_.sessionDir(id), robotHistory(settings_.record, result));
     } catch (const std::exception& e) {
       report_error = e.what();
       log->error("session {}: the result is written but the report is not: {}", id, e.what());

@@ -355,8 +355,8 @@ TEST(Html, ACalibrationShowsTheRobotsCalibrationsOverTimeFromItsRecord) {
   EXPECT_FALSE(contains(reportHtml(r), "zeros over time")) << "no record, no trend";
   r.history = robotHistory(r.session.id);
   const std::string h = reportHtml(r);
-  EXPECT_TRUE(
-      contains(h, escapeHtml("Each zero's offset as the robot's 2 calibrations in the record found it")));
+  EXPECT_TRUE(contains(
+      h, escapeHtml("Each zero's offset as the robot's 2 calibrations in the record found it")));
   for (const char* id : {"trend-delta2", "trend-delta3", "trend-delta4", "trend-delta5"}) {
     const std::string svg = svgOf(h, id);
     ASSERT_FALSE(svg.empty()) << id;

@@ -176,8 +176,8 @@ TEST(ReferenceSessions, AReferenceACheckAMotorReplacedARestoreAppliedAndVerified
   text << in.rdbuf();
   const std::string html = text.str();
   ASSERT_NE(html.find(report::escapeHtml("Each zero's change since reference " + reference +
-                                          ", as the 5 sessions compared with it in the record "
-                                          "found it")),
+                                         ", as the 5 sessions compared with it in the record "
+                                         "found it")),
             std::string::npos);
   std::string joint3 = html.substr(html.find("id=\"trend-delta3\""));
   joint3 = joint3.substr(0, joint3.find("</svg>"));

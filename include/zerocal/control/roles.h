@@ -17,7 +17,9 @@ const char* roleName(Role role);  // "none", "operator", "engineer"
 // The role whose token `given` is (compared in constant time); kNone for neither.
 Role roleOfToken(const ServerOptions& options, const std::string& given);
 
-// Why `role` may not send `cmd` (a start of `kind`), or "" when it may.
-std::string forbiddenFor(Role role, const std::string& cmd, SessionKind kind);
+// Why `role` may not send `cmd`, or "" when it may. A start is judged by its kind instead.
+std::string forbiddenCommand(Role role, const std::string& cmd);
+// Why `role` may not start a session of `kind`, or "" when it may.
+std::string forbiddenStart(Role role, SessionKind kind);
 
 }  // namespace zerocal::control

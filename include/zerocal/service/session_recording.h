@@ -14,10 +14,10 @@ namespace zerocal::service {
 // record that could not take the session (logged) catches up with them at the next start.
 void recordSession(record::RobotRecord* record, const SessionStore& store, const std::string& id);
 
-// The history of the robot that finished session `id` of `store` measured, from `record`, for
-// its report's trend; empty without a record, for a result that names no robot, or when the
-// record cannot be read (logged: the report then goes without its trend).
+// The history of the robot that finished session `result` measured, from `record`, for its
+// report's trend; empty without a record, for a result that names no robot, or when the record
+// cannot be read (logged: the report then goes without its trend).
 std::vector<record::HistoryEntry> robotHistory(const record::RobotRecord* record,
-                                               const SessionStore& store, const std::string& id);
+                                               const ResultFile& result);
 
 }  // namespace zerocal::service

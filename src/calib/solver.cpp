@@ -389,7 +389,7 @@ ceres::Solver::Options solverOptions(const SolveOptions& options, CancelCallback
 }
 
 Verdict judge(const SolveReport& r, const SolveOptions& o,
-              const std::vector<std::string>& gross_problems) {
+              const std::vector<std::string>& gross_problems, MissesAgainst against) {
   Verdict v;
   auto& why = v.reasons;
   if (!r.converged) why.push_back("the solve did not converge (" + r.message + ")");
@@ -416,7 +416,20 @@ Verdict judge(const SolveReport& r, const SolveOptions& o,
                     "not the zero");
     }
   }
-  if (r.noise_scale > o.max_noise_scale) {
+  if (r.noise_scale > o.max_noise_scale && against == MissesAgainst::kReference) {
+    // Against a reference the links cancel: what the misses exceed is the noise of two
+    // sessions, and what breaks it is the cell not being as the reference had it.
+    why.push_back("the re-measured poses disagree with the reference's by " +
+                  fixed(r.noise_scale, 1) +
+                  " times the given noise (chi-square per degree of "
+                  "freedom " +
+                  fixed(r.chi2_per_dof.value_or(0), 1) + ", largest believable " +
+                  fixed(o.max_noise_scale * o.max_noise_scale, 0) +
+                  "): the PSD or the laser has been moved or re-mounted since the reference, or "
+                  "the arm has changed beyond its zeros (a collision); put them back as the "
+                  "reference had them and measure again, or, when that cannot be, calibrate the "
+                  "absolute zeros (several PSD placements)");
+  } else if (r.noise_scale > o.max_noise_scale) {
     // With the link tolerances counted, what the misses exceed is the noise and the tolerated
     // link errors together: the next step is to calibrate the links, not to mistrust the cell.
     const bool links = o.model.linksCounted();

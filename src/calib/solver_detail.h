@@ -30,9 +30,15 @@ class CancelCallback : public ceres::IterationCallback {
 // iteration limit, and `cancel` polled each iteration (it must outlive the solve).
 ceres::Solver::Options solverOptions(const SolveOptions& options, CancelCallback* cancel);
 
+// What a solve's misses are measured against: the model (an absolute calibration, whose misfit
+// is the noise or the links beyond what is stated), or a reference's poses (a change, whose
+// misfit is the cell not being as the reference had it).
+enum class MissesAgainst { kModel, kReference };
+
 // The gates: any reason here and the result is not offered for use.
 Verdict judge(const SolveReport& r, const SolveOptions& o,
-              const std::vector<std::string>& gross_problems);
+              const std::vector<std::string>& gross_problems,
+              MissesAgainst against = MissesAgainst::kModel);
 
 // The poses at the given indices, in that order.
 std::vector<Pose> subset(const std::vector<Pose>& poses, const std::vector<int>& indices);

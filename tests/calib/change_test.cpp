@@ -202,6 +202,29 @@ TEST(Change, APsdMovedSinceTheReferenceIsFoundAndRefused) {
       << ::testing::PrintToString(elsewhere.verdict.reasons);
 }
 
+TEST(Change, AMisfitAgainstTheReferenceSaysTheCellIsNotAsTheReferenceHadIt) {
+  const Table2Scenario sc = table2Scenario();
+  const CellModel arm = armWithLinkErrors(sc.cell);
+  std::mt19937_64 rng(17);
+  const double half_width = 0.01;
+  const ReferenceFit reference = takeReference(sc.cell, arm, sc.truth, half_width, rng);
+  const std::vector<int> pairs = allOf(reference.poses.size());
+  // The laser taken off and put back 0.5 mm aside: the beams no longer pass where the
+  // reference's did, which no change of the zeros explains.
+  CalibrationParameters remounted = sc.truth;
+  remounted.laser[2] += 0.5;
+  const SolveReport r =
+      solveChange(sc.cell, reference, remeasure(arm, remounted, reference, pairs, half_width, rng),
+                  pairs, changeOptions(half_width / std::sqrt(3.0)));
+  EXPECT_FALSE(r.verdict.usable);
+  const std::string reasons = ::testing::PrintToString(r.verdict.reasons);
+  EXPECT_NE(reasons.find("disagree with the reference's by"), std::string::npos) << reasons;
+  EXPECT_NE(reasons.find("the PSD or the laser has been moved or re-mounted"), std::string::npos)
+      << reasons;
+  // Not the absolute calibration's advice: against a reference the links cancel.
+  EXPECT_EQ(reasons.find("robot file admits"), std::string::npos) << reasons;
+}
+
 TEST(Change, ADisturbedPoseIsLeftOutAndNamedForMeasuringAgain) {
   const Table2Scenario sc = table2Scenario();
   const CellModel arm = armWithLinkErrors(sc.cell);

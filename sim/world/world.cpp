@@ -538,6 +538,22 @@ void applyZeroChange(const ZeroChange& change, World* world) {
   if (change.joint != 0) world->true_offsets_deg[change.joint - 1] += change.deg;
 }
 
+void applyRemount(const Remount& psd, const Remount& laser, World* world) {
+  for (const std::string& problem : {remountMoveProblem(psd), remountTurnProblem(psd),
+                                     remountMoveProblem(laser), remountTurnProblem(laser)})
+    if (!problem.empty()) throw InputError("re-mount: " + problem);
+  const auto vec = [](const std::array<double, 3>& a) { return Eigen::Vector3d(a[0], a[1], a[2]); };
+  // Nothing re-mounted leaves the world bit for bit as it was (its hash names it to zerocal-sim).
+  if (psd.any()) {
+    world->psd_position_mm += vec(psd.moved_mm);
+    world->psd_rotation = rpy(vec(psd.turned_deg)) * world->psd_rotation;
+  }
+  if (laser.any()) {
+    world->laser_point_mm += vec(laser.moved_mm);
+    world->laser_direction = (rpy(vec(laser.turned_deg)) * world->laser_direction).normalized();
+  }
+}
+
 World parseWorld(const std::string& yaml_text, const std::string& origin,
                  const std::string& base_dir) {
   YAML::Node root;

@@ -18,6 +18,7 @@
 #include "zerocal/calib/planner.h"
 #include "zerocal/cell/kinds.h"
 #include "zerocal/error.h"
+#include "zerocal/sim/remount.h"
 #include "zerocal/sim/world.h"
 #include "zerocal/sim/zero_change.h"
 
@@ -64,6 +65,10 @@ std::vector<Field> schema(DaemonConfig& c) {
                                 {{"false", false}, {"true", true}}));
   f.push_back(integerField("backend.sim_zero_change_joint", c.backend.sim_zero_change_joint));
   f.push_back(realField("backend.sim_zero_change_deg", c.backend.sim_zero_change_deg));
+  f.push_back(vec3Field("backend.sim_psd_moved_mm", c.backend.sim_psd_moved_mm));
+  f.push_back(vec3Field("backend.sim_psd_turned_deg", c.backend.sim_psd_turned_deg));
+  f.push_back(vec3Field("backend.sim_laser_moved_mm", c.backend.sim_laser_moved_mm));
+  f.push_back(vec3Field("backend.sim_laser_turned_deg", c.backend.sim_laser_turned_deg));
   f.push_back(realField("backend.sim_warm_s", c.backend.sim_warm_s));
   f.push_back(realField("backend.sim_gross_rate", c.backend.sim_gross_rate));
   f.push_back(realField("backend.sim_pace", c.backend.sim_pace));
@@ -326,6 +331,20 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
                  "an external zerocal-sim simulates its own world: change a zero on the "
                  "in-process simulated cell (leave backend.sim_host unset), or give zerocal-sim a "
                  "world file with the changed offsets");
+    const Remount psd{b.sim_psd_moved_mm, b.sim_psd_turned_deg};
+    const Remount laser{b.sim_laser_moved_mm, b.sim_laser_turned_deg};
+    const std::pair<const char*, std::string> remount_problems[] = {
+        {"backend.sim_psd_moved_mm", remountMoveProblem(psd)},
+        {"backend.sim_psd_turned_deg", remountTurnProblem(psd)},
+        {"backend.sim_laser_moved_mm", remountMoveProblem(laser)},
+        {"backend.sim_laser_turned_deg", remountTurnProblem(laser)}};
+    for (const auto& [key, problem] : remount_problems)
+      if (!problem.empty()) check.fail(key, problem);
+    if ((psd.any() || laser.any()) && !b.sim_host.empty())
+      check.fail(psd.any() ? "backend.sim_psd_moved_mm" : "backend.sim_laser_moved_mm",
+                 "an external zerocal-sim simulates its own world: re-mount the PSD or the laser "
+                 "on the in-process simulated cell (leave backend.sim_host unset), or give "
+                 "zerocal-sim a world file with them where they are");
     if (b.sim_warm_s != 0 && !b.sim_host.empty())
       check.fail("backend.sim_warm_s",
                  "an external zerocal-sim keeps its own clock: warm the arm on the in-process "

@@ -1,7 +1,6 @@
 #include "cell_experiment.h"
 
 #include <fmt/format.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <array>
@@ -12,6 +11,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "experiment_sessions.h"
 #include "zerocal/calib/solver.h"
 #include "zerocal/error.h"
 #include "zerocal/io/durable_file.h"
@@ -23,21 +23,6 @@ namespace zerocal::lab {
 namespace {
 
 using Json = nlohmann::json;
-
-// Journals go to a fresh folder, removed afterwards: the experiment keeps its figures, not the
-// sessions.
-struct TempDir {
-  TempDir() {
-    std::string pattern = (std::filesystem::temp_directory_path() / "zerocal-cell-XXXXXX").string();
-    if (!::mkdtemp(pattern.data())) throw Error("cannot create a folder for the journals");
-    path = pattern;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path, ec);
-  }
-  std::string path;
-};
 
 DaemonConfig configOf(const CellExperimentArgs& args) {
   DaemonConfig config;
@@ -115,7 +100,7 @@ int runGrossErrorExperiment(const CellExperimentArgs& args) {
   if (!config.backend.sim_world.empty())
     throw ConfigError("zerocal-lab experiment cell",
                       {"--gross-error: runs the seeds' worlds, not backend.sim_world"});
-  const TempDir dir;
+  const ExperimentDir dir("zerocal-cell");
   Json worlds = Json::array();
   int runs = 0, failed = 0, named = 0, other_named = 0;
   double worst_change = 0, worst_change_stat = 0;
@@ -127,9 +112,9 @@ int runGrossErrorExperiment(const CellExperimentArgs& args) {
     World world = randomWorld(seed);
     world.gross.stray_light_rate = world.gross.unsettled_rate = 0;
     const auto runOn = [&](const World& on, const std::string& name) {
-      const std::string file = dir.path + "/" + name + "-" + std::to_string(seed) + ".yaml";
+      const std::string file = dir.path() + "/" + name + "-" + std::to_string(seed) + ".yaml";
       writeFileDurably(file, worldYaml(on));
-      DaemonConfig c = worldConfig(config, seed, dir.path + "/" + name);
+      DaemonConfig c = worldConfig(config, seed, dir.path() + "/" + name);
       c.backend.sim_seed.reset();
       c.backend.sim_world = file;
       return calibrate(c);
@@ -290,7 +275,7 @@ int runCellExperiment(const CellExperimentArgs& args) {
                        "placement (session.placements is " +
                        std::to_string(config.session.placements) + ")"});
   int models_written = 0, with_model = 0;  // --calibrated-model: models written, and used
-  const TempDir dir;
+  const ExperimentDir dir("zerocal-cell");
   Json worlds = Json::array();
   double sum_sq = 0, worst_sigmas = 0, max_cell_s = 0;
   int estimates = 0, failed_runs = 0, covered = 0;  // covered: truth inside value +- 1.96 sigma
@@ -322,7 +307,7 @@ int runCellExperiment(const CellExperimentArgs& args) {
 
   for (int w = 0; w < args.worlds; ++w) {
     const std::uint64_t seed = args.seed0 + static_cast<std::uint64_t>(w);
-    const DaemonConfig world_config = worldConfig(config, seed, dir.path);
+    const DaemonConfig world_config = worldConfig(config, seed, dir.path());
     std::string model_note;
     if (args.calibrated_model) {
       DaemonConfig first = world_config;

@@ -24,6 +24,7 @@ void addExperimentCommands(CLI::App& app, ExperimentCommands& commands) {
   addPlacementExperiment(*exp, commands.placement_args);
   addApplyExperiment(*exp, commands.apply_args);
   addLifeExperiment(*exp, commands.life_args);
+  addRemountExperiment(*exp, commands.remount_args);
 }
 
 int runExperimentCommands(const ExperimentCommands& commands, std::ostream& out,
@@ -40,6 +41,7 @@ int runExperimentCommands(const ExperimentCommands& commands, std::ostream& out,
   if (commands.placement_args.cmd->parsed()) return runPlacementExperiment(commands.placement_args);
   if (commands.apply_args.cmd->parsed()) return runApplyExperiment(commands.apply_args, out, err);
   if (commands.life_args.cmd->parsed()) return runLifeExperiment(commands.life_args);
+  if (commands.remount_args.cmd->parsed()) return runRemountExperiment(commands.remount_args);
   return runRobustnessExperiment(commands.robustness_args);
 }
 

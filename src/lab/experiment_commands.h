@@ -1,4 +1,4 @@
-// zerocal-lab experiment table2 | cell | coverage | gross-errors | placements | apply | life: the
+// zerocal-lab experiment table2 | cell | coverage | gross-errors | placements | apply | life | remount: the
 // paper's Monte Carlo, and the experiments that measure the daemon's calibration on seeded
 // simulated worlds (the cell and the apply build it as zerocald does, through
 // zerocal/service/daemon_setup.h).
@@ -11,6 +11,7 @@
 #include "cell_experiment.h"
 #include "life_experiment.h"
 #include "placement_experiment.h"
+#include "remount_experiment.h"
 #include "robustness_experiment.h"
 #include "zerocal/calib/experiment.h"
 
@@ -27,6 +28,7 @@ struct ExperimentCommands {
   PlacementExperimentArgs placement_args;
   ApplyExperimentArgs apply_args;
   LifeExperimentArgs life_args;
+  RemountExperimentArgs remount_args;
 };
 
 // Registers `experiment` and its subcommands; `commands` must outlive the parse.

@@ -5,7 +5,6 @@
 #include "life_experiment.h"
 
 #include <fmt/format.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <array>
@@ -17,6 +16,7 @@
 #include <random>
 
 #include "cell_experiment.h"
+#include "experiment_sessions.h"
 #include "zerocal/error.h"
 #include "zerocal/service/daemon_setup.h"
 #include "zerocal/sim/world.h"
@@ -28,41 +28,8 @@ namespace {
 using Json = nlohmann::json;
 constexpr const char* kOrigin = "zerocal-lab experiment life";
 
-// The sessions go to a fresh folder, removed afterwards: the experiment keeps its figures.
-struct TempDir {
-  TempDir() {
-    std::string pattern = (std::filesystem::temp_directory_path() / "zerocal-life-XXXXXX").string();
-    if (!::mkdtemp(pattern.data())) throw Error("cannot create a folder for the sessions");
-    path = pattern;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path, ec);
-  }
-  std::string path;
-};
-
-// What the experiment sets per session: an override of it would be overwritten unseen.
-constexpr std::array<const char*, 7> kPerSessionKeys = {"backend.kind",
-                                                        "backend.sim_seed",
-                                                        "backend.sim_world",
-                                                        "backend.sim_warm_s",
-                                                        "backend.sim_zero_change_joint",
-                                                        "backend.sim_zero_change_deg",
-                                                        "session.data_dir"};
-
 DaemonConfig configOf(const LifeExperimentArgs& args) {
   std::vector<std::string> problems;
-  for (const std::string& o : args.overrides) {
-    const std::string key = o.substr(0, o.find('='));
-    for (const char* k : kPerSessionKeys)
-      if (key == k)
-        problems.push_back(key +
-                           ": the experiment sets it for each session (the world from --seed0 "
-                           "and --worlds, the arm's warm-up from --reference-warm-s, "
-                           "--check-warm-s and --restore-warm-s, the zeros' changes from "
-                           "--check-change, --restore-change-min and --restore-change-max)");
-  }
   const auto range = [&](const char* name, double v, double lo, double hi) {
     if (!(v >= lo && v <= hi))
       problems.push_back(std::string(name) + ": " + std::to_string(v) + " given, must be within " +
@@ -74,70 +41,14 @@ DaemonConfig configOf(const LifeExperimentArgs& args) {
   range("--check-change", args.check_change_deg, 1e-6, kMaxZeroChangeDeg);
   range("--restore-change-min", args.restore_min_deg, 1e-6, kMaxZeroChangeDeg);
   range("--restore-change-max", args.restore_max_deg, args.restore_min_deg, kMaxZeroChangeDeg);
-  if (!problems.empty()) throw ConfigError(kOrigin, problems);
-  DaemonConfig config;
-  ConfigOrigins origins;
-  if (args.ideal_world)
-    applyConfigOverride(config, "backend.sim_ideal_world=true", origins, problems);
-  for (const std::string& o : args.overrides) applyConfigOverride(config, o, origins, problems);
-  for (const std::string& p : validateDaemonConfig(config, origins)) problems.push_back(p);
-  if (!problems.empty()) throw ConfigError(kOrigin, problems);
-  return config;
-}
-
-// One session as `zerocald --sim --once --kind K [--apply]` runs it in the world's data folder.
-struct Session {
-  bool completed = false;
-  std::string id, message;  // message: why not completed
-  ResultFile result;
-  double cell_time_s = 0;
-  // The online apply of a restore: the status' sentence, whether it was verified, and the
-  // verification's result (its truth: the arm's zeros after the apply).
-  std::string apply;
-  bool verified = false;
-  std::optional<ResultFile> verification;
-};
-
-Session runSession(const DaemonConfig& config, SessionKind kind, bool apply) {
-  service::ManagerSettings settings = service::managerSettingsOf(config);
-  settings.write_reports = nullptr;  // figures only
-  const std::unique_ptr<CellBackend> backend = service::makeBackend(config);
-  service::SessionManager manager(*backend, settings);
-  Session out;
-  try {
-    service::StartRequest request = manager.defaultRequest();
-    request.kind = kind;
-    // What a session gives is measured whatever its plan predicts; its verdict is judged.
-    request.even_if_not_usable = true;
-    manager.start(request);
-  } catch (const service::Refused& e) {
-    out.message = std::string(sessionKindName(kind)) + " refused: " + e.what();
-    return out;
-  }
-  const service::SessionStatus end = manager.waitIdle();
-  out.id = end.session_id;
-  out.cell_time_s = end.cell_time_s;
-  if (end.state != service::SessionState::kDone) {
-    out.message = std::string(sessionKindName(kind)) + " " + service::stateName(end.state) + ": " +
-                  end.message;
-    return out;
-  }
-  out.result = manager.result(out.id);
-  out.completed = out.result.truth.has_value();
-  if (!out.completed) out.message = "session " + out.id + " has no truth";
-  if (!apply || !out.completed) return out;
-  try {
-    manager.apply({out.id, true});
-  } catch (const service::Refused& e) {
-    out.apply = std::string("not applied: ") + e.what();
-    return out;
-  }
-  out.apply = manager.waitIdle().apply;
-  out.verified = out.apply.rfind("session " + out.id + " verified", 0) == 0;
-  for (const SessionInfo& s : manager.sessions())
-    if (s.kind == SessionKind::kVerification && s.verifies == out.id && s.finished)
-      out.verification = manager.result(s.id);
-  return out;
+  return experimentConfig(
+      kOrigin, args.ideal_world, args.overrides,
+      {"backend.kind", "backend.sim_seed", "backend.sim_world", "backend.sim_warm_s",
+       "backend.sim_zero_change_joint", "backend.sim_zero_change_deg", "session.data_dir"},
+      "the world from --seed0 and --worlds, the arm's warm-up from --reference-warm-s, "
+      "--check-warm-s and --restore-warm-s, the zeros' changes from --check-change, "
+      "--restore-change-min and --restore-change-max",
+      problems);
 }
 
 // The arm's thermal growth (every length's, relative) when a session starts warm_s into the
@@ -146,13 +57,6 @@ double growthAt(const World& world, double warm_s) {
   const ThermalDrift& t = world.thermal;
   if (!(t.time_constant_s > 0)) return 0;
   return t.expansion_per_k * t.rise_k * (1 - std::exp(-warm_s / t.time_constant_s));
-}
-
-std::array<double, kOffsetCount> minus(const std::array<double, kOffsetCount>& a,
-                                       const std::array<double, kOffsetCount>& b) {
-  std::array<double, kOffsetCount> d{};
-  for (int k = 0; k < kOffsetCount; ++k) d[k] = a[k] - b[k];
-  return d;
 }
 
 const char* verdictWord(bool ok) { return ok ? "ok" : "FAIL"; }
@@ -168,14 +72,7 @@ void addLifeExperiment(CLI::App& experiment, LifeExperimentArgs& args) {
       "the figures a robot's record must meet hold (restore RMS <= 0.003 deg, each within 3 sigma, "
       "95% coverage 93..97%, usable >= 95%, <= 90 s; checks PASS and named >= 95%, <= 30 s; after "
       "the apply the true zeros within 0.003 deg RMS of the reference's), else 7");
-  cmd->add_option("--worlds", args.worlds, "number of seeded worlds")
-      ->default_val(args.worlds)
-      ->check(CLI::Range(1, 10000));
-  cmd->add_option("--seed0", args.seed0, "seed of the first world (then seed0+1, ...)")
-      ->default_val(args.seed0);
-  cmd->add_option("--set", args.overrides,
-                  "override one daemon configuration key: section.key=value (repeatable; not the "
-                  "keys the experiment sets per session)");
+  addSeededWorldOptions(cmd, args.worlds, args.seed0, args.overrides, args.json, args.ideal_world);
   cmd->add_option("--reference-warm-s", args.reference_warm_s,
                   "the arm's warm-up when the reference is taken (backend.sim_warm_s, s)")
       ->default_val(args.reference_warm_s);
@@ -193,15 +90,11 @@ void addLifeExperiment(CLI::App& experiment, LifeExperimentArgs& args) {
   cmd->add_option("--restore-change-max", args.restore_max_deg,
                   "largest change of the restore's zero (deg)")
       ->default_val(args.restore_max_deg);
-  cmd->add_flag("--json", args.json, "print one JSON object instead of text");
-  cmd->add_flag("--ideal-world", args.ideal_world,
-                "the seeds' ideal worlds (exact arm, no warming, no gross errors) instead of the "
-                "realistic ones (docs/simulated-cell.md)");
 }
 
 int runLifeExperiment(const LifeExperimentArgs& args) {
   const DaemonConfig config = configOf(args);
-  const TempDir dir;
+  const ExperimentDir dir("zerocal-life");
   Json worlds = Json::array();
   int failed = 0;  // worlds where a session did not complete
   // Checks.
@@ -223,7 +116,7 @@ int runLifeExperiment(const LifeExperimentArgs& args) {
     DaemonConfig base = config;
     base.backend.kind = BackendKind::kSim;
     base.backend.sim_seed = seed;
-    base.session.data_dir = dir.path + "/" + std::to_string(seed);
+    base.session.data_dir = dir.path() + "/" + std::to_string(seed);
     const World world = randomWorld(
         seed, config.backend.sim_ideal_world ? WorldKind::kIdeal : WorldKind::kRealistic);
     // Warmer reference: the restore's arm is shorter by this much (ppm of every length).
@@ -246,22 +139,23 @@ int runLifeExperiment(const LifeExperimentArgs& args) {
         (std::bernoulli_distribution(0.5)(draw) ? 1 : -1);
 
     std::string stopped;  // the first session that did not complete
-    const Session reference =
-        runSession(sessionConfig(args.reference_warm_s, 0, 0), SessionKind::kReference, false);
+    const ExperimentSession reference = runExperimentSession(
+        sessionConfig(args.reference_warm_s, 0, 0), SessionKind::kReference, false);
     if (!reference.completed) stopped = reference.message;
-    Session unchanged, changed, restore;
+    ExperimentSession unchanged, changed, restore;
     if (stopped.empty()) {
-      unchanged = runSession(sessionConfig(args.check_warm_s, 0, 0), SessionKind::kCheck, false);
+      unchanged =
+          runExperimentSession(sessionConfig(args.check_warm_s, 0, 0), SessionKind::kCheck, false);
       if (!unchanged.completed || !unchanged.result.check) stopped = unchanged.message;
     }
     if (stopped.empty()) {
-      changed = runSession(sessionConfig(args.check_warm_s, check_joint, check_deg),
-                           SessionKind::kCheck, false);
+      changed = runExperimentSession(sessionConfig(args.check_warm_s, check_joint, check_deg),
+                                     SessionKind::kCheck, false);
       if (!changed.completed || !changed.result.check) stopped = changed.message;
     }
     if (stopped.empty()) {
-      restore = runSession(sessionConfig(args.restore_warm_s, restore_joint, restore_deg),
-                           SessionKind::kRestore, true);
+      restore = runExperimentSession(sessionConfig(args.restore_warm_s, restore_joint, restore_deg),
+                                     SessionKind::kRestore, true);
       if (!restore.completed) stopped = restore.message;
     }
     if (!stopped.empty()) {
@@ -308,7 +202,7 @@ int runLifeExperiment(const LifeExperimentArgs& args) {
     usable += restore_usable;
     max_restore_s = std::max(max_restore_s, restore.cell_time_s);
     const std::array<double, kOffsetCount> truth =
-        minus(restore.result.truth->offsets_deg, reference_truth);
+        offsetDifference(restore.result.truth->offsets_deg, reference_truth);
     Json offsets = Json::array();
     std::string errors;
     for (int k = 0; k < kOffsetCount; ++k) {
@@ -353,7 +247,7 @@ int runLifeExperiment(const LifeExperimentArgs& args) {
         restore.verified && restore.verification && restore.verification->truth
             ? restore.verification->truth->offsets_deg
             : restore.result.truth->offsets_deg;
-    const std::array<double, kOffsetCount> left = minus(after, reference_truth);
+    const std::array<double, kOffsetCount> left = offsetDifference(after, reference_truth);
     double worst_left = 0;
     for (const double d : left) {
       after_sq += d * d;

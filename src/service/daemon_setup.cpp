@@ -39,6 +39,9 @@ std::unique_ptr<CellBackend> makeBackend(const DaemonConfig& cfg) {
   // A motor replaced: on top of the world's offsets, in the truth too (validated with the
   // configuration; applyZeroChange throws for what a caller's own configuration let through).
   applyZeroChange({cfg.backend.sim_zero_change_joint, cfg.backend.sim_zero_change_deg}, &o.world);
+  // The PSD or the laser re-mounted since an earlier session (validated as the zero change).
+  applyRemount({cfg.backend.sim_psd_moved_mm, cfg.backend.sim_psd_turned_deg},
+               {cfg.backend.sim_laser_moved_mm, cfg.backend.sim_laser_turned_deg}, &o.world);
   if (!cfg.backend.sim_host.empty()) {
     // The controller in an external zerocal-sim, the board in-process (sim::ExternalSimBackend).
     sim::ExternalSimOptions e;

@@ -250,6 +250,27 @@ TEST_F(ConfigTest, AZeroChangeIsAJointOf2To5AndAFewDegrees) {
   EXPECT_TRUE(reported(p, {"backend.sim_zero_change_joint", "external zerocal-sim"})) << joined(p);
 }
 
+TEST_F(ConfigTest, APsdOrLaserReMountIsAFewMillimetresAndDegreesOnTheInProcessCell) {
+  write("main.yaml", "backend:\n  kind: sim\n");
+  const DaemonConfig none = loadDaemonConfig(sources());
+  EXPECT_EQ(none.backend.sim_psd_moved_mm, (std::array<double, 3>{0, 0, 0}));  // not moved
+  const DaemonConfig ok = loadDaemonConfig(sources(
+      {"backend.sim_psd_moved_mm=[0.05, -0.02, 0]", "backend.sim_laser_turned_deg=[0, 0.01, 0]"}));
+  EXPECT_EQ(ok.backend.sim_psd_moved_mm, (std::array<double, 3>{0.05, -0.02, 0}));
+  EXPECT_EQ(ok.backend.sim_laser_turned_deg, (std::array<double, 3>{0, 0.01, 0}));
+
+  auto p = problems(sources({"backend.sim_psd_moved_mm=[6, 0, 0]"}));
+  EXPECT_TRUE(reported(p, {"backend.sim_psd_moved_mm", "within +-5 mm", "6 given"})) << joined(p);
+  p = problems(sources({"backend.sim_laser_turned_deg=[0, 0, -3]"}));
+  EXPECT_TRUE(reported(p, {"backend.sim_laser_turned_deg", "within +-2 deg", "-3 given"}))
+      << joined(p);
+  p = problems(sources({"backend.sim_psd_turned_deg=[1, 2]"}));
+  EXPECT_TRUE(reported(p, {"backend.sim_psd_turned_deg"})) << joined(p);
+  p = problems(sources({"backend.sim_laser_moved_mm=[0.1, 0, 0]", "backend.sim_host=127.0.0.1",
+                        "backend.sim_port=5010"}));
+  EXPECT_TRUE(reported(p, {"backend.sim_laser_moved_mm", "external zerocal-sim"})) << joined(p);
+}
+
 TEST_F(ConfigTest, TheArmsWarmUpIsSecondsFromZeroToAWeekOnTheInProcessCell) {
   write("main.yaml", "backend:\n  kind: sim\n");
   EXPECT_EQ(loadDaemonConfig(sources()).backend.sim_warm_s, 0.0);  // cold, as before

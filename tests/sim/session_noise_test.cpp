@@ -3,6 +3,8 @@
 // stays the world's. And the zero change that plays a motor replacement.
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -137,6 +139,44 @@ TEST(ZeroChange, MovesOneJointsTrueZeroOnTopOfTheWorlds) {
     EXPECT_DOUBLE_EQ(w.true_offsets_deg[j], before[j] + (j == 2 ? 0.1 : 0.0)) << "joint " << j + 1;
   applyZeroChange({}, &w);  // none: nothing
   EXPECT_DOUBLE_EQ(w.true_offsets_deg[2], before[2] + 0.1);
+}
+
+TEST(Remount, MovesAndTurnsThePsdAndTheLaserButNotWhatTheSessionIsTold) {
+  World w = randomWorld(4, WorldKind::kRealistic);
+  const World before = w;
+  applyRemount({{0.1, -0.2, 0.3}, {0, 0, 1.0}}, {{0.05, 0, 0}, {0, 0.5, 0}}, &w);
+  EXPECT_TRUE(w.psd_position_mm.isApprox(before.psd_position_mm + Eigen::Vector3d(0.1, -0.2, 0.3)));
+  // Turned by 1 deg about the base's z, on top of its true orientation.
+  const Eigen::Matrix3d turn = w.psd_rotation * before.psd_rotation.transpose();
+  EXPECT_NEAR(Eigen::AngleAxisd(turn).angle() * 180 / M_PI, 1.0, 1e-9);
+  EXPECT_NEAR(std::abs(Eigen::AngleAxisd(turn).axis().z()), 1.0, 1e-9);
+  EXPECT_TRUE(w.laser_point_mm.isApprox(before.laser_point_mm + Eigen::Vector3d(0.05, 0, 0)));
+  // The beam turned by 0.5 deg about the flange's y: a unit vector v turned by t about a unit
+  // axis a keeps cos = cos t + (1 - cos t) (v.a)^2 with itself.
+  const double t = 0.5 * M_PI / 180, along = before.laser_direction.normalized().y();
+  EXPECT_NEAR(w.laser_direction.dot(before.laser_direction.normalized()),
+              std::cos(t) + (1 - std::cos(t)) * along * along, 1e-12);
+  EXPECT_NEAR(w.laser_direction.norm(), 1.0, 1e-12);
+  EXPECT_TRUE(w.psd_rotation_configured.isApprox(before.psd_rotation_configured));
+  EXPECT_TRUE(w.psd_centre_taught_mm.isApprox(before.psd_centre_taught_mm));
+
+  World same = before;
+  applyRemount({}, {}, &same);  // none: nothing, bit for bit (the world's hash is the same)
+  EXPECT_EQ(worldHash(same), worldHash(before));
+  EXPECT_TRUE(same.laser_direction == before.laser_direction);
+}
+
+TEST(Remount, BadReMountsAreRefusedWithTheReason) {
+  World w = randomWorld(4, WorldKind::kIdeal);
+  EXPECT_THROW(applyRemount({{0, 5.5, 0}, {}}, {}, &w), InputError);
+  EXPECT_THROW(applyRemount({}, {{}, {0, 0, NAN}}, &w), InputError);
+  EXPECT_NE(remountMoveProblem({{0, 0, -7}, {}}).find("within +-5 mm (-7 given)"),
+            std::string::npos);
+  EXPECT_NE(remountTurnProblem({{}, {2.5, 0, 0}}).find("within +-2 deg (2.5 given)"),
+            std::string::npos);
+  EXPECT_EQ(remountMoveProblem({{5, -5, 0}, {2, -2, 0}}), "");
+  EXPECT_FALSE(Remount{}.any());
+  EXPECT_TRUE((Remount{{0, 0, 0}, {0, 0, 0.1}}.any()));
 }
 
 TEST(ZeroChange, BadChangesAreRefusedWithTheReason) {

@@ -44,6 +44,13 @@ struct BackendConfig {
   // offsets (sim::ZeroChange).
   int sim_zero_change_joint = 0;
   double sim_zero_change_deg = 0;
+  // The PSD and the laser taken off and mounted again (sim::Remount): the detector moved in the
+  // base frame (mm) and turned about its centre (roll, pitch, yaw deg), the laser moved in the
+  // flange frame and its beam turned; each component within +-kMaxRemountMm, +-kMaxRemountDeg.
+  std::array<double, 3> sim_psd_moved_mm{};
+  std::array<double, 3> sim_psd_turned_deg{};
+  std::array<double, 3> sim_laser_moved_mm{};
+  std::array<double, 3> sim_laser_turned_deg{};
   // The arm's thermal state: the simulated controller's time when the daemon starts it (s), as
   // if the robot had been working that long (World::thermal warms with the controller's time);
   // 0 a cold arm, 0..kMaxWarmS (a week). Two daemons with different values play a robot measured

@@ -17,6 +17,7 @@
 
 #include "zerocal/model/robot.h"
 #include "zerocal/psd/spot.h"
+#include "zerocal/sim/remount.h"
 #include "zerocal/sim/zero_change.h"
 
 namespace zerocal {
@@ -157,6 +158,13 @@ struct World {
 // The world with `change` (zerocal/sim/zero_change.h) applied to its true offsets. Throws
 // InputError for a bad change.
 void applyZeroChange(const ZeroChange& change, World* world);
+
+// The world with its PSD (at placement 1: where a check or a restore measures) and its laser
+// re-mounted (zerocal/sim/remount.h): the detector moved in the base frame and turned about its
+// centre, the laser moved in the flange frame and its beam turned about its exit point; what the
+// session is told (the configured orientation, the taught centre) stays. Throws InputError for a
+// re-mount beyond the limits.
+void applyRemount(const Remount& psd, const Remount& laser, World* world);
 
 // Where the PSD truly stands when a session puts it at `placement` (2, 3, ...) planned at
 // `planned_mm`: as far from the planned centre as the world's taught centre is from its PSD

@@ -1,6 +1,6 @@
-// zerocal-lab experiment table2 | cell | coverage | gross-errors | placements | apply | life | remount: the
-// paper's Monte Carlo, and the experiments that measure the daemon's calibration on seeded
-// simulated worlds (the cell and the apply build it as zerocald does, through
+// zerocal-lab experiment table2 | cell | coverage | gross-errors | placements | apply | life |
+// remount: the paper's Monte Carlo, and the experiments that measure the daemon's calibration on
+// seeded simulated worlds (the cell and the apply build it as zerocald does, through
 // zerocal/service/daemon_setup.h).
 #pragma once
 

@@ -31,27 +31,29 @@ struct Remount {
 constexpr double kMaxRemountMm = 5.0;
 constexpr double kMaxRemountDeg = 2.0;
 
-// What is wrong with the moves of `remount` (each component finite and within +-kMaxRemountMm),
-// empty when nothing.
-inline std::string remountMoveProblem(const Remount& remount) {
-  for (const double v : remount.moved_mm)
-    if (!std::isfinite(v) || std::abs(v) > kMaxRemountMm) {
-      std::ostringstream what;
-      what << "each component must be within +-" << kMaxRemountMm << " mm (" << v << " given)";
-      return what.str();
+// "each `what` must be within +-`limit` `unit` (v given)" for the first of `values` that is not
+// finite or beyond the limit, empty when none is.
+inline std::string firstBeyond(const std::array<double, 3>& values, double limit, const char* what,
+                               const char* unit) {
+  for (const double v : values)
+    if (!std::isfinite(v) || std::abs(v) > limit) {
+      std::ostringstream out;
+      out << "each " << what << " must be within +-" << limit << " " << unit << " (" << v
+          << " given)";
+      return out.str();
     }
   return {};
 }
 
+// What is wrong with the moves of `remount` (each component within +-kMaxRemountMm), empty when
+// nothing.
+inline std::string remountMoveProblem(const Remount& remount) {
+  return firstBeyond(remount.moved_mm, kMaxRemountMm, "component", "mm");
+}
+
 // The same for its turns (+-kMaxRemountDeg).
 inline std::string remountTurnProblem(const Remount& remount) {
-  for (const double v : remount.turned_deg)
-    if (!std::isfinite(v) || std::abs(v) > kMaxRemountDeg) {
-      std::ostringstream what;
-      what << "each angle must be within +-" << kMaxRemountDeg << " deg (" << v << " given)";
-      return what.str();
-    }
-  return {};
+  return firstBeyond(remount.turned_deg, kMaxRemountDeg, "angle", "deg");
 }
 
 }  // namespace zerocal

@@ -51,6 +51,7 @@ std::string MotionModel::validate() const {
 
 std::uint64_t grossSeed(std::uint64_t seed) { return seed ^ 0x67726f7373ull; }
 std::uint64_t searchSeed(std::uint64_t seed) { return seed ^ 0x736561726368ull; }
+std::uint64_t seatSeed(std::uint64_t seed) { return seed ^ 0x73656174ull; }
 
 struct SimulatedArm::State {
   explicit State(SimulatedArmOptions o)
@@ -66,6 +67,7 @@ struct SimulatedArm::State {
       throw ConfigError(kOrigin, {"warm_s must be within 0.." +
                                   std::to_string(static_cast<long>(kMaxWarmS)) + " s (a week)"});
     time_s = options.warm_s;
+    seatPsd(options.seed);
     commanded = store(options.start_joints);
     initMotorCalibration();
     const std::string violation = options.world.robot.limitViolation(commanded);
@@ -77,6 +79,18 @@ struct SimulatedArm::State {
     Joints s;
     for (int i = 0; i < kJointCount; ++i) s[i] = store(q[i]);
     return s;
+  }
+
+  // Where the session whose draws start from `seed` finds the PSD seated on its base
+  // (World::psd_seated_mm): its own stream, so that the other draws stay what they were.
+  void seatPsd(std::uint64_t seed) {
+    Eigen::Vector3d& seated = options.world.psd_seated_mm;
+    seated.setZero();
+    const double sigma = options.world.noise.psd_seat_mm;
+    if (!(sigma > 0)) return;
+    std::mt19937_64 rng(seatSeed(seed));
+    std::normal_distribution<double> normal(0.0, sigma);
+    for (int i = 0; i < 3; ++i) seated[i] = normal(rng);
   }
 
   void initMotorCalibration() {
@@ -411,6 +425,7 @@ void SimulatedArm::reseedNoise(std::uint64_t seed) {
   state_->rng.seed(seed);
   state_->gross_rng.seed(grossSeed(seed));
   state_->search_rng.seed(searchSeed(seed));
+  state_->seatPsd(seed);
   state_->noise_seed = seed;
 }
 

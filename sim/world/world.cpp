@@ -109,20 +109,20 @@ std::optional<BeamHit> beamHit(const World& world, const Joints& q_deg, const Jo
   const Frame<double> flange = trueFlange(world, q_deg, delta, time_s);
   const Eigen::Vector3d p = flange.apply(world.laser_point_mm);
   const Eigen::Vector3d d = (flange.R * world.laser_direction).normalized();
-  const Eigen::Vector3d* position = &world.psd_position_mm;
+  Eigen::Vector3d position = world.psd_position_mm + world.psd_seated_mm;
   const Eigen::Matrix3d* rotation = &world.psd_rotation;
   for (const PsdPlacement& placed : world.placements)
     if (placed.placement == world.active_placement) {
-      position = &placed.position_mm;
+      position = placed.position_mm;
       rotation = &placed.rotation;
     }
   const Eigen::Vector3d normal = rotation->col(2);
   const double along = normal.dot(d);
   // Grazing beams give huge, meaningless hit points long before exact parallelism.
   if (std::abs(along) < 1e-9) return std::nullopt;
-  const double t = normal.dot(*position - p) / along;
+  const double t = normal.dot(position - p) / along;
   if (!(t > 0)) return std::nullopt;
-  const Eigen::Vector3d local = rotation->transpose() * (p + t * d - *position);
+  const Eigen::Vector3d local = rotation->transpose() * (p + t * d - position);
   return BeamHit{{local.x(), local.y()}, t};
 }
 
@@ -240,6 +240,7 @@ constexpr double kMaxAngleDeg = 360;
 constexpr double kMaxDirection = 1e6;  // a direction is normalised; its square must stay finite
 constexpr double kMaxLinkErrorMm = 1000, kMaxLinkErrorDeg = 90;
 constexpr double kMaxSpotMm = 50;  // a few tens of mm: the largest detectors
+constexpr double kMaxSeatMm = 1;   // beyond, the PSD is not seated again but moved
 
 // Reads the file's values, recording each problem as "file:line: key: what" instead of throwing.
 // A value is read from a map only: indexing a scalar or a list throws in yaml-cpp, so a section
@@ -403,9 +404,10 @@ void readWorld(const YAML::Node& root, const std::string& base_dir, Reader& read
     if (read.vec<3>(psd, "rpy_deg", "psd.", kMaxAngleDeg, &angles)) w.psd_rotation = rpy(angles);
   }
   if (const YAML::Node noise = read.section(root, "noise")) {
-    read.onlyKeys(noise, "noise", {"repeatability_deg", "psd_mm", "seed"});
+    read.onlyKeys(noise, "noise", {"repeatability_deg", "psd_mm", "psd_seat_mm", "seed"});
     read.number(noise, "repeatability_deg", "noise.", kMaxAngleDeg, &w.noise.repeatability_deg);
     read.number(noise, "psd_mm", "noise.", kMaxSpotMm, &w.noise.psd_mm);
+    read.number(noise, "psd_seat_mm", "noise.", kMaxSeatMm, &w.noise.psd_seat_mm);
     if (const YAML::Node seed = noise["seed"]) {
       // A seed is a whole number of 64 bits; a sign or a fraction is a typing error.
       const std::string text = seed.IsScalar() ? seed.Scalar() : "";
@@ -637,6 +639,7 @@ World randomWorld(std::uint64_t seed, WorldKind kind) {
   w.psd_centre_taught_mm = w.psd_position_mm + between(1, 5) * direction();
   w.gross.stray_light_rate = kDefaultGrossRate;
   w.gross.unsettled_rate = kDefaultGrossRate;
+  w.noise.psd_seat_mm = kPsdSeatSigmaMm;
   // Drawn last, so that every draw before stays what it was: the masses' split +-25% of each
   // share and their places +-0.1 of their link around the robot file's nominal model.
   double total = 0;
@@ -717,6 +720,7 @@ std::string worldYaml(const World& w, const std::string& robot_file) {
   key("noise") << YAML::BeginMap;
   key("repeatability_deg") << num(w.noise.repeatability_deg);
   key("psd_mm") << num(w.noise.psd_mm);
+  if (w.noise.psd_seat_mm != 0) key("psd_seat_mm") << num(w.noise.psd_seat_mm);
   if (w.noise.seed) key("seed") << *w.noise.seed;
   y << YAML::EndMap;
   Joints a, d, alpha;

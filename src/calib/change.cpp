@@ -73,6 +73,20 @@ Eigen::MatrixXd changeJacobian(const CellModel& cell, const std::vector<Pose>& p
   return out;
 }
 
+// The misses' derivatives by the PSD's centre (3 columns, mm) at `p` and `growth`.
+Eigen::MatrixXd centreJacobian(const CellModel& cell, const std::vector<Pose>& poses,
+                               const CalibrationParameters& p, double growth, bool readings) {
+  return changeJacobian(cell, poses, p, growth, readings,
+                        {kIdentifiedCount, kIdentifiedCount + 1, kIdentifiedCount + 2});
+}
+
+// The variance per axis (mm^2) of the PSD's centre now against the reference's when each seating
+// on its base repeats to `repeatability_mm`: two seatings, each its own.
+double reseatVariance(const ChangeOptions& options) {
+  if (options.psd_remounted) return 0;
+  return 2 * options.psd_base_repeatability_mm * options.psd_base_repeatability_mm;
+}
+
 void addStep(CalibrationParameters& p, double& growth, const std::vector<int>& columns,
              const Eigen::VectorXd& dx) {
   for (std::size_t c = 0; c < columns.size(); ++c) {
@@ -235,6 +249,9 @@ std::string ChangeOptions::validate() const {
            "cannot estimate it";
   if (!(max_psd_shift_mm > 0) || !std::isfinite(max_psd_shift_mm))
     return "max_psd_shift_mm must be a positive number of millimetres";
+  if (!(psd_base_repeatability_mm >= 0 && psd_base_repeatability_mm <= kMostBaseRepeatabilityMm))
+    return "psd_base_repeatability_mm must be within 0.." +
+           detail::fixedText(kMostBaseRepeatabilityMm, 1) + " mm";
   return "";
 }
 
@@ -340,6 +357,14 @@ SolveReport solveChange(const CellModel& cell, const ReferenceFit& reference,
     model_cov = s * s.transpose();
     cov += model_cov;
   }
+  // What the PSD's re-seating leaves: the offsets' response to its centre moved, times the
+  // spread of that move (a turn of joint 2 moves every beam as a move of the centre does).
+  const double reseat_variance = reseatVariance(options);
+  if (reseat_variance > 0 && unit.rank == unknowns) {
+    const Eigen::MatrixXd s =
+        unit.cov * j.transpose() * centreJacobian(cell, now_used, p, fit.growth, readings);
+    cov += reseat_variance * s * s.transpose();
+  }
   report.model_length_mm = t.length_mm;
   report.model_angle_deg = t.angle_deg;
   report.model_calibrated = t.calibrated();
@@ -433,7 +458,9 @@ SolveReport solveChange(const CellModel& cell, const ReferenceFit& reference,
     if (free.converged && u.rank == static_cast<int>(with_centre.size())) {
       const int c = static_cast<int>(columns.size());
       const Eigen::Vector3d moved = free.p.target_mm - reference.estimate.target_mm;
-      const Eigen::Matrix3d cov_moved = pair_variance * u.cov.block<3, 3>(c, c);
+      // A centre within the base's repeatability is the PSD seated again, not moved.
+      const Eigen::Matrix3d cov_moved =
+          pair_variance * u.cov.block<3, 3>(c, c) + reseat_variance * Eigen::Matrix3d::Identity();
       const double chi2 = moved.dot(cov_moved.ldlt().solve(moved));
       constexpr double kChi2Of3At0_1Percent = 16.27;
       if (chi2 > kChi2Of3At0_1Percent)
@@ -463,14 +490,19 @@ Eigen::Vector4d predictChangeSigma(const CellModel& cell, const ReferenceFit& re
   if (const std::string why = options.validate(); !why.empty()) throw InputError(why);
   const std::vector<Pose> poses = pairedReference(reference, pairs);
   const bool readings = readingsOf(poses, poses, options.solve);
-  const UnitCovariance unit = unitCovariance(
-      changeJacobian(cell, poses, reference.estimate, 0, readings, freeColumns(options)));
-  Eigen::Vector4d out;
+  const Eigen::MatrixXd j =
+      changeJacobian(cell, poses, reference.estimate, 0, readings, freeColumns(options));
+  const UnitCovariance unit = unitCovariance(j);
+  Eigen::Vector4d out = Eigen::Vector4d::Constant(kInfinity);
+  if (unit.rank < j.cols()) return out;
   const double sigma = *options.solve.noise_mm;
-  for (int k = 0; k < kOffsetCount; ++k)
-    out[k] = std::isfinite(unit.cov(k, k))
-                 ? std::sqrt(2 * sigma * sigma * unit.cov(k, k)) * kRadToDeg
-                 : kInfinity;
+  Eigen::MatrixXd cov = 2 * sigma * sigma * unit.cov;
+  if (const double v = reseatVariance(options); v > 0) {
+    const Eigen::MatrixXd s =
+        unit.cov * j.transpose() * centreJacobian(cell, poses, reference.estimate, 0, readings);
+    cov += v * s * s.transpose();
+  }
+  for (int k = 0; k < kOffsetCount; ++k) out[k] = std::sqrt(cov(k, k)) * kRadToDeg;
   return out;
 }
 
@@ -494,29 +526,39 @@ std::vector<int> choosePosesForCheck(const CellModel& cell, const ReferenceFit& 
   for (Eigen::Index k = 0; k < scale.size(); ++k)
     if (!(scale[k] > 0)) scale[k] = 1;
   const Eigen::MatrixXd js = j * scale.cwiseInverse().asDiagonal();
-  const auto worst = [&](const Eigen::MatrixXd& info) {
+  // The centre's columns, for what the PSD's re-seating leaves (as solveChange counts it).
+  const Eigen::MatrixXd jc = centreJacobian(cell, reference.poses, reference.estimate, 0, readings);
+  const double noise_variance = 2 * *options.solve.noise_mm * *options.solve.noise_mm;
+  const double reseat_variance = reseatVariance(options);
+  const auto worst = [&](const Eigen::MatrixXd& info, const Eigen::MatrixXd& cross) {
     const Eigen::MatrixXd inv =
         info.ldlt().solve(Eigen::MatrixXd::Identity(info.rows(), info.cols()));
+    const Eigen::MatrixXd s = inv * cross;
     double w = 0;
-    for (int k = 0; k < kOffsetCount; ++k) w = std::max(w, inv(k, k) / (scale[k] * scale[k]));
-    return std::sqrt(2 * w) * *options.solve.noise_mm * kRadToDeg;
+    for (int k = 0; k < kOffsetCount; ++k)
+      w = std::max(w, (noise_variance * inv(k, k) + reseat_variance * s.row(k).squaredNorm()) /
+                          (scale[k] * scale[k]));
+    return std::sqrt(w) * kRadToDeg;
   };
   std::vector<int> chosen;
   std::vector<bool> taken(static_cast<std::size_t>(count), false);
   Eigen::MatrixXd info =
       1e-6 * Eigen::MatrixXd::Identity(static_cast<Eigen::Index>(columns.size()),
                                        static_cast<Eigen::Index>(columns.size()));
+  Eigen::MatrixXd cross = Eigen::MatrixXd::Zero(info.rows(), kTargetCount);
   while (static_cast<int>(chosen.size()) < count) {
     int best = -1;
     double best_worst = kInfinity;
     for (int i = 0; i < count; ++i) {
       if (taken[static_cast<std::size_t>(i)]) continue;
       const Eigen::MatrixXd rows = js.middleRows(2 * i, 2);
-      const double w = worst(info + rows.transpose() * rows);
+      const double w =
+          worst(info + rows.transpose() * rows, cross + rows.transpose() * jc.middleRows(2 * i, 2));
       if (w < best_worst) best_worst = w, best = i;
     }
     const Eigen::MatrixXd rows = js.middleRows(2 * best, 2);
     info += rows.transpose() * rows;
+    cross += rows.transpose() * jc.middleRows(2 * best, 2);
     taken[static_cast<std::size_t>(best)] = true;
     chosen.push_back(best);
     if (static_cast<int>(chosen.size()) >= fewest && best_worst <= sigma_deg) {

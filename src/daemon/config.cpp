@@ -15,6 +15,7 @@
 #include <utility>
 
 #include "zerocal/calib/cell_model.h"
+#include "zerocal/calib/change.h"
 #include "zerocal/calib/planner.h"
 #include "zerocal/cell/kinds.h"
 #include "zerocal/error.h"
@@ -119,6 +120,7 @@ std::vector<Field> schema(DaemonConfig& c) {
   f.push_back(realField("session.psd_noise_mm", c.session.psd_noise_mm));
   f.push_back(realField("session.noise_mm", c.session.noise_mm));
   f.push_back(realField("session.required_accuracy_deg", c.session.required_accuracy_deg));
+  f.push_back(realField("session.psd_base_repeatability_mm", c.session.psd_base_repeatability_mm));
   f.push_back(pathField("session.data_dir", c.session.data_dir));
 
   auto& o = c.control;
@@ -422,6 +424,8 @@ std::vector<std::string> validateDaemonConfig(const DaemonConfig& c, const Confi
   check.range("session.psd_noise_mm", n.psd_noise_mm, 0.0, 1.0);
   // Beyond a degree the offsets would be mastering errors, not a calibration's business.
   check.positive("session.required_accuracy_deg", n.required_accuracy_deg, 1.0);
+  check.range("session.psd_base_repeatability_mm", n.psd_base_repeatability_mm, 0.0,
+              kMostBaseRepeatabilityMm);
   if (n.data_dir.empty()) check.fail("session.data_dir", "must not be empty");
 
   const auto& o = c.control;

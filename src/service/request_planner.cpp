@@ -275,6 +275,7 @@ ChangeOptions RequestPlanner::changeOptions(SessionKind kind) const {
   o.solve.noise_mm = settings_.noise_mm;
   o.solve.model = settings_.tolerances;
   o.solve.required_accuracy_deg = settings_.required_accuracy_deg;
+  o.psd_base_repeatability_mm = settings_.psd_base_repeatability_mm;
   // A restore's values are written, and its verification decides whether they stay: the arm's
   // growth since the reference is an unknown of both, so that a reference taken warm and a
   // restore taken cold do not bias them (0.0033 deg RMS without, 0.0015 with, on 30 realistic

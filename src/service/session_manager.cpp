@@ -72,6 +72,7 @@ PlannerSettings plannerSettingsOf(const ManagerSettings& settings) {
   p.tolerances = solve.model;
   p.limit_margin_deg = settings.run.servo.limit_margin_deg;
   p.required_accuracy_deg = solve.required_accuracy_deg;
+  p.psd_base_repeatability_mm = settings.session.psd_base_repeatability_mm;
   p.travel_s = settings.travel_s;
   return p;
 }

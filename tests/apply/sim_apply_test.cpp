@@ -77,7 +77,7 @@ TEST(SimulatedMotorCalibration, AppliedValuesMoveTheTrueZeroOnTenWorlds) {
     EXPECT_EQ(sim.zeroShiftDeg()[0], 0.0);  // joints 1 and 6 untouched
     EXPECT_EQ(sim.zeroShiftDeg()[5], 0.0);
     // The beam now falls where a world with zero offsets on joints 2..5 puts it.
-    World corrected = o.world;
+    World corrected = sim.world();  // the PSD as this session's seating put it
     for (int i = 1; i <= 4; ++i) corrected.true_offsets_deg[i] = 0.0;
     const auto now = sim.beamHitNow();
     const auto expected = beamHit(corrected, sim.commandedJoints(), sim.moveErrorDeg());

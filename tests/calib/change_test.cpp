@@ -127,6 +127,60 @@ TEST(Change, NoisyChangesLieWithinTheirReportedSigmas) {
   EXPECT_LT(rms_z, 1.25);
 }
 
+TEST(Change, APsdSeatedAgainOnItsBaseIsCountedInEachChangesSigma) {
+  const Table2Scenario sc = table2Scenario();
+  const CellModel arm = armWithLinkErrors(sc.cell);
+  std::mt19937_64 rng(7);
+  const double half_width = 0.01;
+  const double repeatability_mm = 0.03;  // each seating, one sigma per axis
+  ChangeOptions counted = changeOptions(half_width / std::sqrt(3.0));
+  counted.psd_base_repeatability_mm = repeatability_mm;
+  ChangeOptions uncounted = counted;
+  uncounted.psd_base_repeatability_mm = 0;
+  std::normal_distribution<double> seat(0.0, repeatability_mm);
+  double sum_z2 = 0, sum_z2_uncounted = 0;
+  int count = 0, told_moved = 0;
+  const std::vector<int> pairs{0, 2, 4, 6, 8, 10, 12, 14};
+  for (int trial = 0; trial < 40; ++trial) {
+    CalibrationParameters at_reference = sc.truth;
+    for (int a = 0; a < 3; ++a) at_reference.target_mm[a] += seat(rng);
+    const ReferenceFit reference = takeReference(sc.cell, arm, at_reference, half_width, rng);
+    CalibrationParameters later = sc.truth;
+    for (int a = 0; a < 3; ++a) later.target_mm[a] += seat(rng);  // taken off and put back
+    later.delta_rad[trial % 4] += 0.1 * kDegToRad;
+    const std::vector<Pose> now = remeasure(arm, later, reference, pairs, half_width, rng);
+    const SolveReport change = solveChange(sc.cell, reference, now, pairs, counted);
+    const SolveReport naive = solveChange(sc.cell, reference, now, pairs, uncounted);
+    ASSERT_TRUE(change.converged) << change.message;
+    for (const std::string& reason : change.verdict.reasons)
+      if (reason.find("the PSD has moved") != std::string::npos) ++told_moved;
+    for (int k = 0; k < kOffsetCount; ++k) {
+      const double error =
+          change.parameters[k].value - (later.delta_rad[k] - sc.truth.delta_rad[k]) * kRadToDeg;
+      EXPECT_NEAR(naive.parameters[k].value, change.parameters[k].value, 1e-12) << k;
+      sum_z2 += std::pow(error / change.parameters[k].sigma, 2);
+      sum_z2_uncounted += std::pow(error / naive.parameters[k].sigma, 2);
+      ++count;
+    }
+  }
+  // Counted, the errors are as large as the sigmas say; not counted, the sigmas are too small.
+  EXPECT_GT(std::sqrt(sum_z2 / count), 0.75);
+  EXPECT_LT(std::sqrt(sum_z2 / count), 1.25);
+  EXPECT_GT(std::sqrt(sum_z2_uncounted / count), 1.5);
+  // A seating within the repeatability is not a PSD moved (at most a 0.1% false alarm each).
+  EXPECT_LE(told_moved, 1);
+  // The prediction counts it too: the sigma grows, most where a joint's turn moves every beam as
+  // a move of the centre does.
+  const ReferenceFit reference = takeReference(sc.cell, arm, sc.truth, half_width, rng);
+  const Eigen::Vector4d with = predictChangeSigma(sc.cell, reference, pairs, counted);
+  const Eigen::Vector4d without = predictChangeSigma(sc.cell, reference, pairs, uncounted);
+  for (int k = 0; k < kOffsetCount; ++k) EXPECT_GE(with[k], without[k]) << k;
+  EXPECT_GT(with.maxCoeff(), 1.5 * without.maxCoeff());
+  ChangeOptions bad = counted;
+  bad.psd_base_repeatability_mm = 2;
+  EXPECT_NE(bad.validate().find("psd_base_repeatability_mm"), std::string::npos);
+}
+
 TEST(Change, ACheckChoosesFewPosesThatReachItsSigmaAndJudgesPassAndChanged) {
   const Table2Scenario sc = table2Scenario();
   const CellModel arm = armWithLinkErrors(sc.cell);

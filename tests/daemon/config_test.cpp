@@ -271,6 +271,18 @@ TEST_F(ConfigTest, APsdOrLaserReMountIsAFewMillimetresAndDegreesOnTheInProcessCe
   EXPECT_TRUE(reported(p, {"backend.sim_laser_moved_mm", "external zerocal-sim"})) << joined(p);
 }
 
+TEST_F(ConfigTest, ThePsdsBaseRepeatsWithinAMillimetre) {
+  write("main.yaml", "backend:\n  kind: sim\n");
+  EXPECT_EQ(loadDaemonConfig(sources()).session.psd_base_repeatability_mm, 0.005);
+  EXPECT_EQ(loadDaemonConfig(sources({"session.psd_base_repeatability_mm=0"}))
+                .session.psd_base_repeatability_mm,
+            0.0);
+  for (const char* bad : {"-0.01", "1.5", "tight"}) {
+    const auto p = problems(sources({std::string("session.psd_base_repeatability_mm=") + bad}));
+    EXPECT_TRUE(reported(p, {"session.psd_base_repeatability_mm"})) << bad << ": " << joined(p);
+  }
+}
+
 TEST_F(ConfigTest, TheArmsWarmUpIsSecondsFromZeroToAWeekOnTheInProcessCell) {
   write("main.yaml", "backend:\n  kind: sim\n");
   EXPECT_EQ(loadDaemonConfig(sources()).backend.sim_warm_s, 0.0);  // cold, as before

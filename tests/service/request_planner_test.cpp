@@ -75,6 +75,18 @@ TEST(RequestPlanner, APlanPredictedShortOfTheRequiredAccuracyStartsOnlyWhenAsked
   EXPECT_EQ(asked.run.poses.size(), preview.poses.size());
 }
 
+// Every comparison with a reference counts how closely the PSD's base puts it back.
+TEST(RequestPlanner, EveryChangeCountsThePsdsBase) {
+  sim::SimBackend backend(sim::seededCellOptions(5, WorldKind::kIdeal));
+  PlannerSettings settings;
+  settings.noise_mm = kNoiseMm;
+  settings.psd_base_repeatability_mm = 0.02;
+  const RequestPlanner planner(backend.knowledge(), backend, settings);
+  for (const SessionKind kind :
+       {SessionKind::kCheck, SessionKind::kRestore, SessionKind::kVerification})
+    EXPECT_EQ(planner.changeOptions(kind).psd_base_repeatability_mm, 0.02);
+}
+
 TEST(RequestPlanner, ASkipTheSolveWouldRefuseIsRefusedAtResumeAndNotOfferedAfterAFault) {
   PlannerFixture f(kLargeTolerances, kTwoPlacements);
   CalibrationParameters nominal;

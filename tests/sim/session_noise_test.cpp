@@ -131,6 +131,74 @@ TEST(SessionNoise, AWorldFileNamesItsSessionsSeedOutsideTheHash) {
   }
 }
 
+TEST(SessionNoise, EachSessionSeatsThePsdAnewOnItsBase) {
+  constexpr std::uint64_t kWorld = 5;
+  SimulatedArm first(armOn(kWorld)), replay(armOn(kWorld));
+  const Eigen::Vector3d at_first = first.world().psd_seated_mm;
+  EXPECT_GT(at_first.norm(), 0.0);
+  first.reseedNoise(sessionNoiseSeed(kWorld, 1));
+  replay.reseedNoise(sessionNoiseSeed(kWorld, 1));
+  EXPECT_NE(first.world().psd_seated_mm, at_first);
+  EXPECT_EQ(first.world().psd_seated_mm, replay.world().psd_seated_mm);
+  // The world's own seed seats it as at the start: a fresh data folder plays what it played.
+  first.reseedNoise(kWorld);
+  EXPECT_EQ(first.world().psd_seated_mm, at_first);
+  // What is where the PSD stands (the world's hash, its file) is not the session's seating.
+  EXPECT_EQ(first.world().psd_position_mm, randomWorld(kWorld).psd_position_mm);
+
+  // Over many sessions, as the realistic world says: kPsdSeatSigmaMm per axis.
+  double sum2 = 0;
+  constexpr int kSessions = 300;
+  for (int n = 0; n < kSessions; ++n) {
+    first.reseedNoise(sessionNoiseSeed(kWorld, static_cast<std::uint64_t>(n)));
+    sum2 += first.world().psd_seated_mm.squaredNorm();
+  }
+  EXPECT_NEAR(std::sqrt(sum2 / (3 * kSessions)), kPsdSeatSigmaMm, 0.1 * kPsdSeatSigmaMm);
+
+  // The ideal world's PSD never leaves where it stands.
+  SimulatedArmOptions ideal = armOn(kWorld);
+  ideal.world = randomWorld(kWorld, WorldKind::kIdeal);
+  SimulatedArm exact(ideal);
+  exact.reseedNoise(sessionNoiseSeed(kWorld, 4));
+  EXPECT_EQ(exact.world().psd_seated_mm, Eigen::Vector3d::Zero());
+}
+
+TEST(SessionNoise, TheBeamMeetsThePsdWhereItsSeatingPutIt) {
+  World w = randomWorld(2);
+  // A pose whose beam meets the PSD's plane ahead of the laser.
+  std::optional<BeamHit> before;
+  Joints q{};
+  for (double q2 = -30; q2 <= 30 && !before; q2 += 5)
+    for (double q5 = -90; q5 <= 90 && !before; q5 += 15) {
+      q = Joints{0, q2, 10, 0, q5, 0};
+      before = beamHit(w, q, Joints{}, 0);
+    }
+  ASSERT_TRUE(before.has_value());
+  w.psd_seated_mm = 0.01 * w.psd_rotation.col(0);  // 0.01 mm along the detector's u axis
+  const std::optional<BeamHit> after = beamHit(w, q, Joints{}, 0);
+  ASSERT_TRUE(after.has_value());
+  EXPECT_NEAR(after->spot.u_mm - before->spot.u_mm, -0.01, 1e-9);
+  EXPECT_NEAR(after->spot.v_mm - before->spot.v_mm, 0, 1e-9);
+}
+
+TEST(SessionNoise, AWorldFileSaysHowThePsdIsSeated) {
+  World w = randomWorld(3, WorldKind::kIdeal);
+  EXPECT_EQ(worldYaml(w).find("psd_seat_mm"), std::string::npos);
+  w.noise.psd_seat_mm = 0.02;
+  EXPECT_EQ(parseWorld(worldYaml(w), "truth").noise.psd_seat_mm, 0.02);
+  EXPECT_EQ(parseWorld(worldYaml(randomWorld(3)), "truth").noise.psd_seat_mm, kPsdSeatSigmaMm);
+  std::string text = worldYaml(w);
+  text.replace(text.find("psd_seat_mm: 0.02"), 17, "psd_seat_mm: 3");
+  try {
+    parseWorld(text, "w.yaml");
+    ADD_FAILURE() << "a 3 mm seating was taken";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("noise.psd_seat_mm: must lie within 0..1"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(ZeroChange, MovesOneJointsTrueZeroOnTopOfTheWorlds) {
   World w = randomWorld(4, WorldKind::kIdeal);
   const Joints before = w.true_offsets_deg;

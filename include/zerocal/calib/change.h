@@ -22,6 +22,9 @@ struct ReferenceFit {
   CalibrationParameters estimate;
 };
 
+// Beyond a millimetre a PSD is not seated again on its base but moved: take a new reference.
+constexpr double kMostBaseRepeatabilityMm = 1.0;
+
 struct ChangeOptions {
   // The noise (given, per measurement: each pair of poses has twice its variance), the link and
   // sag tolerances counted, the required accuracy and the gates: as the solve's.
@@ -35,6 +38,12 @@ struct ChangeOptions {
   // cancel.
   bool psd_remounted = false;
   double max_psd_shift_mm = 5.0;
+  // How closely the PSD's base puts it back where it stood (one sigma per axis, mm, of each
+  // seating). The reference and this session are two seatings, so the centre may differ by
+  // sqrt(2) of it on each axis, which no pose tells from a turn of joint 2 or 3 (they move every
+  // beam alike); it is counted as a consider covariance of the change, in the pose choice, and in
+  // the "PSD has moved" test. Not with psd_remounted (the centre is then an unknown).
+  double psd_base_repeatability_mm = 0;
   // The arm's thermal state may differ from the reference's: its uniform growth (every link
   // length times 1 + g, 23 ppm per kelvin of an aluminium arm) is an unknown of the change, so
   // that a reference taken warm and a restore taken cold do not bias the zeros (delta3 moves by

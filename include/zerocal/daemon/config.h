@@ -122,6 +122,10 @@ struct SessionConfig {
   // The accuracy the calibration is for: an offset known only worse than this (one sigma) is
   // not identified, and the result not usable (SolveOptions::required_accuracy_deg).
   double required_accuracy_deg = 0.01;
+  // How closely the PSD's base puts it back where it stood (one sigma per axis, mm, per seating):
+  // a check or a restore counts it (ChangeOptions::psd_base_repeatability_mm). The default is a
+  // kinematic base's, as the simulated cell's (docs/configuration.md).
+  double psd_base_repeatability_mm = 0.005;
   std::string data_dir = "/var/lib/zerocal/sessions";  // one folder per session (journal.h)
 };
 

@@ -38,6 +38,9 @@ struct PlannerSettings {
   // The one-sigma accuracy a result must reach (the solve's): a plan predicted short of it
   // starts only when asked for explicitly (StartRequest::even_if_not_usable).
   double required_accuracy_deg = 0.01;
+  // How closely the PSD's base puts it back (mm, one sigma per axis per seating): a check's and a
+  // restore's change counts it.
+  double psd_base_repeatability_mm = 0;
   // The controller's time for a move between two poses (s): a plan is then ordered for travel.
   std::function<double(const Robot& robot, const Joints& from, const Joints& to)> travel_s;
 };

@@ -210,10 +210,10 @@ class SimulatedArm {
   MotionTotals motionTotals() const;
   const RobotInfo& identity() const;
   std::uint64_t seed() const;
-  // Starts the per-session random draws (the repeatability noise, the gross errors and the latch
-  // latency) afresh from `seed`, as if the arm had been built with it; what the seed fixed of the
-  // cell (the drawn cal_offsets, the PSD's further placements) stays. A session's own noise
-  // (docs/simulated-cell.md).
+  // Starts the per-session random draws (the repeatability noise, the gross errors, the latch
+  // latency and where the PSD sits on its base, World::psd_seated_mm) afresh from `seed`, as if the
+  // arm had been built with it; what the seed fixed of the cell (the drawn cal_offsets, the PSD's
+  // further placements) stays. A session's own noise (docs/simulated-cell.md).
   void reseedNoise(std::uint64_t seed);
   // The seed the per-session draws last started from: options.seed until reseedNoise.
   std::uint64_t noiseSeed() const;

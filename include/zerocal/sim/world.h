@@ -31,6 +31,12 @@ struct WorldNoise {
   double repeatability_deg = 1.5e-3;
   // Standard deviation of a PSD reading (mm); applied by the PSD simulator, not here.
   double psd_mm = 0.001;
+  // How closely the PSD's base puts it back where it stood, one sigma per axis per seating (mm):
+  // each session of the in-process simulated cell draws where the PSD sits from its own seed
+  // (World::psd_seated_mm), as a technician's PSD taken off and put back on its base between
+  // sessions sits. 0: it sits exactly at psd_position_mm every session. Not part of worldHash,
+  // as the seed is not (zerocal-sim seats it once, from its --seed).
+  double psd_seat_mm = 0;
   // Where a session's random draws start (the repeatability noise, the gross errors, the latch
   // latency, the PSD's reading noise), when the world says: a truth file names the seed its
   // session drew from, so that the file replays that session. Absent, the daemon derives it
@@ -116,6 +122,7 @@ constexpr double kLinkTwistSigmaDeg = 0.01;  // every alpha
 constexpr double kDefaultGrossRate = 0.01;   // per pose, each kind
 constexpr double kMassShareSpread = 0.25;    // each share of the arm's mass, relative
 constexpr double kMassPositionSpread = 0.1;  // a mass's place along its link, of its length
+constexpr double kPsdSeatSigmaMm = 0.005;    // the PSD on a kinematic base, per seating
 
 // A place a session at several PSD placements had the detector moved to (placement 2, 3, ...):
 // where the session planned it (its taught centre there; the orientation the session knows is
@@ -153,6 +160,9 @@ struct World {
   // worldHash: the same cell, its PSD moved.
   std::vector<PsdPlacement> placements;
   int active_placement = 1;
+  // Where this session's seating put the PSD on its base, from psd_position_mm (placement 1
+  // only; noise.psd_seat_mm). Not part of worldHash, not in a world file: a session's draw.
+  Eigen::Vector3d psd_seated_mm = Eigen::Vector3d::Zero();
 };
 
 // The world with `change` (zerocal/sim/zero_change.h) applied to its true offsets. Throws

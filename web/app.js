@@ -22,6 +22,7 @@ const connection = new Connection({
     try {
       // An operator's login checks and aborts only (docs/protocol.md, "Roles"): say whose it is.
       const hello = await connection.call("hello");
+      document.body.dataset.role = hello.role === "operator" ? "operator" : "engineer";
       if (hello.role === "operator") setLink("connected", "connected (operator: checks and abort)");
       const subscribed = await connection.call("subscribe");
       if (subscribed.ok) update(subscribed.status);
@@ -294,6 +295,9 @@ $("to-start").addEventListener("click", () => {
   const suggested = status?.suggested_kind;
   const radio = document.querySelector(`input[name=kind][value="${suggested || "reference"}"]`);
   if (radio) radio.checked = true;
+  // A kind this login may not start is not offered: the first it may is chosen instead.
+  const offered = [...document.querySelectorAll("input[name=kind]")].filter((r) => r.offsetParent);
+  if (offered.length && !offered.some((r) => r.checked)) offered[0].checked = true;
   render();
   loadPlan();
 });
@@ -336,6 +340,7 @@ $("wait-continue").addEventListener("click", () => call("continue", {}, "wait-er
 $("logout").addEventListener("click", async () => {
   connection.close();
   await logOut();
+  delete document.body.dataset.role;  // the next login says its own
   show("login");
 });
 

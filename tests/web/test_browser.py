@@ -12,7 +12,8 @@ first) advances pose by pose; Abort (one touch) stops it and the state is `abort
 runs to its verdict; a restore against it (joint 3's zero moved by 0.4 deg between the two, the
 daemon restarted) runs to its verdict; apply is refused until confirmed,
 then runs; after the daemon's restart (its logins gone) the page asks for the token again; a
-dropped connection reconnects and shows the current state. At 1280x800 and 390 px
+dropped connection reconnects and shows the current state; an operator's login is offered a check
+and not the other kinds nor the apply, and the engineer's again everything. At 1280x800 and 390 px
 wide, nothing overflows the width and every button is at least 48 px high.
 
 Fails (never skips) when chromium, chromedriver or selenium is missing: scripts/install-deps.sh
@@ -107,17 +108,25 @@ def check(condition, what):
     print(f"ok: {what}")
 
 
+OPERATOR_TOKEN = "browser-test-operator-0123456789"
+
+
 def start_daemon(zerocald, workdir, extra=()):
     token = os.path.join(workdir, "token")
     with open(token, "w") as f:
         f.write("browser-test-token-0123456789\n")
     os.chmod(token, 0o600)
+    operator_token = os.path.join(workdir, "operator-token")
+    with open(operator_token, "w") as f:
+        f.write(OPERATOR_TOKEN + "\n")
+    os.chmod(operator_token, 0o600)
     log_path = os.path.join(workdir, "zerocald.log")
     log = open(log_path, "a")
     start = log.tell()
     command = [zerocald, "--sim", "--seed", "1", "--config", "/dev/null",
                "--data-dir", os.path.join(workdir, "sessions"),
                "--set", f"control.token_file={token}", "--set", "control.port=0",
+               "--set", f"control.operator_token_file={operator_token}",
                "--set", "web.port=0",
                # ten times faster than a real cell: a session one can watch, in seconds
                "--set", "backend.sim_pace=0.1", *extra]
@@ -384,6 +393,39 @@ def run(driver, base, token, relay, restart, screenshots):
     until(lambda: text("link") == "connected", "and reconnects by itself", timeout=20)
     until(lambda: text("cell-state") == state and text("status-line") != "",
           f"showing the current state after the reconnect ({state})")
+
+    # -- an operator: checks and abort, and nothing else offered ---------------------------------
+    element("logout").click()
+    until(lambda: visible_page() == "login", "logged out")
+    element("token").send_keys(OPERATOR_TOKEN)
+    element("login").click()
+    until(lambda: text("link") == "connected (operator: checks and abort)",
+          "the operator's login says whose it is")
+    element("to-start").click()
+    until(lambda: visible_page() == "start", "the operator's start page")
+    kinds = element("kinds")
+    for kind in ("reference", "restore", "calibration"):
+        check(not kinds.find_element(By.CSS_SELECTOR, f"input[value={kind}]").is_displayed(),
+              f"an operator is not offered a {kind}")
+    check(kinds.find_element(By.CSS_SELECTOR, "input[value=check]").is_selected(),
+          "an operator's start page chooses the check")
+    until(lambda: element("start-confirm").is_enabled(), "the operator's check can start",
+          timeout=60)
+    element("start-cancel").click()
+    element("to-result").click()
+    until(lambda: visible_page() == "result" and text("verdict") != "–", "the operator's result")
+    check(not element("to-apply").is_displayed(), "an operator is not offered the apply")
+    element("result-back").click()
+    element("logout").click()
+    until(lambda: visible_page() == "login", "the operator logged out")
+    element("token").send_keys(token)
+    element("login").click()
+    until(lambda: text("link") == "connected", "the engineer logged in again")
+    element("to-start").click()
+    until(lambda: visible_page() == "start", "the engineer's start page")
+    check(element("kinds").find_element(By.CSS_SELECTOR, "input[value=restore]").is_displayed(),
+          "the engineer is offered every kind again")
+    element("start-cancel").click()
 
     # -- the phone's width ----------------------------------------------------------------------
     driver.set_window_size(390, 844)

@@ -259,7 +259,8 @@ const sessionsPage = new SessionsPage({
 
 const historyPage = new HistoryPage({
   call: ask, robotSelect: $("history-robot"), robotLine: $("history-robot-line"),
-  table: $("history-table"), plots: $("history-plots"), error: $("history-error"),
+  table: $("history-table"), plots: $("history-plots"), caption: $("history-trend"),
+  error: $("history-error"),
 });
 
 async function call(cmd, members, errorId) {

@@ -19,13 +19,28 @@ function verdictText(s) {
   return s.usable ? "USABLE" : "NOT USABLE";
 }
 
+// What the trend plots show: a change since a reference and a zero's offset are not on one scale
+// (hundredths of a degree against a degree), so the plots show one of them, as the session
+// report's do. With a check, a restore or a verification recorded: the changes since the
+// reference the latest of them compared with; otherwise the references' and calibrations' offsets.
+export function trendOf(history) {
+  const compared = history.filter((s) => s.reference);
+  if (compared.length) {
+    const reference = compared[compared.length - 1].reference;
+    return { sessions: history.filter((s) => s.reference === reference),
+      caption: `Each zero's change since reference ${reference}, as each check, restore and verification against it found it (deg).` };
+  }
+  return { sessions: history.filter((s) => s.kind === "reference" || s.kind === "calibration"),
+    caption: "Each zero's offset as each reference and calibration found it (deg)." };
+}
+
 export function eventText(e) {
   return `${e.kind} ${e.outcome}` + (e.verification ? ` (verified by ${e.verification})` : "");
 }
 
 export class HistoryPage {
-  constructor({ call, robotSelect, robotLine, table, plots, error }) {
-    Object.assign(this, { call, robotSelect, robotLine, table, plots, error });
+  constructor({ call, robotSelect, robotLine, table, plots, caption, error }) {
+    Object.assign(this, { call, robotSelect, robotLine, table, plots, caption, error });
     this.robots = [];
     robotSelect.addEventListener("change", () => this.load());
   }
@@ -70,9 +85,11 @@ export class HistoryPage {
     body.replaceChildren(...[...history].reverse().map((s) => this.row(s)));
     const events = history.flatMap((s) => s.events || []).filter((e) => e.kind === "apply" || e.kind === "rollback")
         .map((e) => ({ t: e.time_unix_s, kind: e.kind, outcome: e.outcome }));
+    const trend = trendOf(history);
+    this.caption.textContent = history.length ? trend.caption : "";
     for (const name of OFFSETS) {
       const svg = this.plots.querySelector(`svg[data-offset="${name}"]`);
-      const points = history.map((s) => ({
+      const points = trend.sessions.map((s) => ({
         t: when(s), value: s.offsets?.[name]?.value ?? null, sigma: s.offsets?.[name]?.sigma ?? null,
         kind: s.kind, session: s.session,
       }));

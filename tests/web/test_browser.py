@@ -490,14 +490,21 @@ def sessions_and_history(driver, element, text, visible_page, until, shot, layou
           "the restore is in it with its offsets and sigma")
     check(any(re.search(r"apply (verified|rolled_back)", cell(r, "events"))
               for r in recorded.values()), "the apply is among the controller events")
+    # The plots show the changes since the reference the restore compared with: the restore's and
+    # its verification's, not the reference's own offsets (another scale).
+    check(f"change since reference {reference_id}" in text("history-trend"),
+          "the trend plots say they show the changes since the reference")
+    compared = {sid: r for sid, r in recorded.items()
+                if cell(r, "kind") in ("check", "restore", "verification")}
     for k, name in enumerate(("delta2_deg", "delta3_deg", "delta4_deg", "delta5_deg")):
         svg = element("history-plots").find_element(By.CSS_SELECTOR, f"svg[data-offset={name}]")
         drawn = sorted(p.get_attribute("data-session")
                        for p in svg.find_elements(By.CSS_SELECTOR, "circle.point"))
-        valued = sorted(sid for sid, r in recorded.items()
+        valued = sorted(sid for sid, r in compared.items()
                         if r.find_elements(By.CSS_SELECTOR, "td.offset")[k].text != "withheld")
         withheld = len(svg.find_elements(By.CSS_SELECTOR, "circle.withheld"))
-        check(drawn == valued and len(drawn) >= 2 and withheld == len(recorded) - len(valued),
+        check(drawn == valued and len(drawn) >= 1 and withheld == len(compared) - len(valued)
+              and reference_id not in drawn,
               f"the {name} plot has a point per session with a value ({len(drawn)}),"
               f" {withheld} withheld")
         bars = svg.find_elements(By.CSS_SELECTOR, "line.bar")

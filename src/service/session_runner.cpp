@@ -242,8 +242,17 @@ void SessionRunner::runMeasurement(const RunRequest& request) {
                                 const std::vector<int>& plan_indices, const SolveOptions& options) {
         ChangeOptions change = planner_.changeOptions(request.kind);
         change.solve = options;
-        return solveChange(knowledge_.cell, reference->fit, poses,
-                           pairsOf(*reference, reference_poses, plan_indices), change);
+        SolveReport report =
+            solveChange(knowledge_.cell, reference->fit, poses,
+                        pairsOf(*reference, reference_poses, plan_indices), change);
+        // A check whose verdict stands without the poses it left out (a pass or a named joint,
+        // judged on the others with their sigmas) has no use for measuring them again: a check
+        // is meant to take half a minute. A marginal one measures them again.
+        if (request.kind == SessionKind::kCheck && !report.remeasure.empty() &&
+            judgeCheck(report, options.required_accuracy_deg).outcome !=
+                CheckJudgement::Outcome::kMarginal)
+          report.remeasure.clear();
+        return report;
       };
     // A dropped controller connection or an unplugged board is recovered by reopening it; the
     // pose in progress (not journalled) is then measured again from its planned move.

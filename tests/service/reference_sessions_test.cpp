@@ -198,6 +198,40 @@ TEST(ReferenceSessions, AReferenceACheckAMotorReplacedARestoreAppliedAndVerified
   EXPECT_EQ(reference_text.str().find("zeros over time"), std::string::npos);
 }
 
+// A check is meant to take half a minute: a pose it leaves out (stray light at it) is measured
+// again only when the check cannot decide without it.
+TEST(ReferenceSessions, ACheckThatDecidesWithoutADisturbedPoseDoesNotMeasureItAgain) {
+  const TempDir dir;
+  Joints disturbed{};
+  {
+    sim::SimBackend backend(sim::seededCellOptions(5, WorldKind::kIdeal));
+    SessionManager manager(backend, settingsIn(dir.path));
+    manager.start(kindOf(manager, SessionKind::kReference));
+    ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
+    const Plan check = manager.preview(kindOf(manager, SessionKind::kCheck));
+    ASSERT_GE(check.poses.size(), 4u);
+    disturbed = check.poses[1].q_deg;
+  }
+  // The same cell, the same data folder: stray light strikes the check's second pose.
+  sim::SimulatedCellOptions cell = sim::seededCellOptions(5, WorldKind::kIdeal);
+  cell.world.gross.forced_at_deg = disturbed;
+  cell.world.gross.forced_kind = GrossErrors::Kind::kStrayLight;
+  sim::SimBackend backend(cell);
+  SessionManager manager(backend, settingsIn(dir.path));
+  const std::string id = manager.start(kindOf(manager, SessionKind::kCheck));
+  ASSERT_EQ(manager.waitIdle().state, SessionState::kDone);
+  const ResultFile checked = manager.result(id);
+  ASSERT_TRUE(checked.check);
+  EXPECT_EQ(checked.check->outcome, CheckJudgement::Outcome::kPass) << checked.check->summary;
+  // The pose was left out and named, and not measured again.
+  ASSERT_EQ(checked.report.suspect_poses.size(), 1u);
+  EXPECT_EQ(checked.report.suspect_poses[0].pose, 2);
+  EXPECT_FALSE(checked.report.poses[1].used);
+  ASSERT_TRUE(checked.remeasured);
+  EXPECT_TRUE(checked.remeasured->empty());
+  EXPECT_EQ(checked.report.poses_used, static_cast<int>(checked.report.poses.size()) - 1);
+}
+
 TEST(ReferenceSessions, ACheckAgainstWhatIsNoReferenceIsRefusedSayingWhy) {
   const TempDir dir;
   sim::SimBackend backend(sim::seededCellOptions(5, WorldKind::kIdeal));

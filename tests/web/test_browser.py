@@ -239,8 +239,9 @@ def run(driver, base, token, relay, restart, screenshots):
             raise Failure(f"{what}: not within {timeout} s ({type(e).__name__})")
         print(f"ok: {what}")
 
-    def shot(name):
-        """The page as it is now, at the tablet's size and the phone's (docs/web/*.png)."""
+    def shot(name, ready=None):
+        """The page as it is now, at the tablet's size and the phone's (docs/web/*.png); with
+        `ready`, at each size once it holds (a live page changes while it is pictured)."""
         if not screenshots:
             return
         os.makedirs(screenshots, exist_ok=True)
@@ -250,6 +251,8 @@ def run(driver, base, token, relay, restart, screenshots):
                 "width": width, "height": height, "deviceScaleFactor": 1,
                 "mobile": size == "phone"})
             time.sleep(0.2)  # the layout settles
+            if ready:
+                until(ready, f"the {name} page as it is to be pictured ({size})")
             driver.save_screenshot(os.path.join(screenshots, f"{name}-{size}.png"))
         driver.execute_cdp_cmd("Emulation.clearDeviceMetricsOverride", {})
 
@@ -318,10 +321,13 @@ def run(driver, base, token, relay, restart, screenshots):
     until(lambda: recorded() > first, "progress advances pose by pose", timeout=60)
     check(element("spot").get_attribute("visibility") in ("visible", "hidden"),
           "the detector is drawn")
-    until(lambda: text("detector-caption").startswith("spot at")
-          and element("spot").get_attribute("visibility") == "visible",
-          "the spot is drawn live on the detector while the robot measures", timeout=60)
-    shot("progress")
+    def spot_drawn():
+        return (text("detector-caption").startswith("spot at")
+                and element("spot").get_attribute("visibility") == "visible")
+
+    until(spot_drawn, "the spot is drawn live on the detector while the robot measures",
+          timeout=60)
+    shot("progress", spot_drawn)
     element("abort").click()
     until(lambda: visible_page() == "cell" and text("cell-state") == "aborted",
           "after one touch on Abort the state is aborted")

@@ -24,6 +24,7 @@
 #include "zerocal/error.h"
 #include "zerocal/record/sqlite_record.h"
 #include "zerocal/service/daemon_setup.h"
+#include "zerocal/store/data_folder_lock.h"
 #include "zerocal/store/session_store.h"
 #include "zerocal/web/web_server.h"
 
@@ -257,6 +258,9 @@ int main(int argc, char** argv) {
     // The io_context outlives the manager: the manager's worker posts events into it until the
     // manager's destructor has joined the worker.
     asio::io_context io;
+    // One daemon per data folder, held until this one ends: before the cell is opened or anything
+    // in the folder touched.
+    const DataFolderLock data_folder_lock(cfg.session.data_dir);
     std::unique_ptr<CellBackend> backend = service::makeBackend(cfg);
     service::ManagerSettings settings = service::managerSettingsOf(cfg);
     if (once && cfg.session.placements > 1) {

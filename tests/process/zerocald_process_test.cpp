@@ -440,8 +440,12 @@ TEST_F(ZerocaldProcess, TheTemporariesOfWritesCutShortAreRemovedAtStartAndLogged
 TEST_F(ZerocaldProcess, AControlPortInUseIsAConfigurationError) {
   Daemon first(dir_.path, "first");
   const std::string port = std::to_string(first.port());
+  // The second with a data folder of its own: on the first's it would stop at the folder's lock.
+  const std::string other = dir_.path + "/other";
+  std::filesystem::create_directories(other);
+  std::filesystem::copy_file(dir_.path + "/token", other + "/token");
   try {
-    Daemon second(dir_.path, "second", {"--set", "control.port=" + port});
+    Daemon second(other, "second", {"--set", "control.port=" + port});
     ADD_FAILURE() << "a second daemon listens on port " << port;
   } catch (const std::runtime_error& e) {
     const std::string what = e.what();

@@ -87,6 +87,15 @@ double reseatVariance(const ChangeOptions& options) {
   return 2 * options.psd_base_repeatability_mm * options.psd_base_repeatability_mm;
 }
 
+// What the PSD's re-seating leaves in the free unknowns: their response to its centre moved
+// (unit_cov J^T J_c, a turn of joint 2 moving every beam as a move of the centre does), times
+// the spread of that move, `variance` per axis.
+Eigen::MatrixXd reseatCovariance(const Eigen::MatrixXd& unit_cov, const Eigen::MatrixXd& j,
+                                 const Eigen::MatrixXd& jc, double variance) {
+  const Eigen::MatrixXd s = unit_cov * j.transpose() * jc;
+  return variance * s * s.transpose();
+}
+
 void addStep(CalibrationParameters& p, double& growth, const std::vector<int>& columns,
              const Eigen::VectorXd& dx) {
   for (std::size_t c = 0; c < columns.size(); ++c) {
@@ -357,14 +366,10 @@ SolveReport solveChange(const CellModel& cell, const ReferenceFit& reference,
     model_cov = s * s.transpose();
     cov += model_cov;
   }
-  // What the PSD's re-seating leaves: the offsets' response to its centre moved, times the
-  // spread of that move (a turn of joint 2 moves every beam as a move of the centre does).
   const double reseat_variance = reseatVariance(options);
-  if (reseat_variance > 0 && unit.rank == unknowns) {
-    const Eigen::MatrixXd s =
-        unit.cov * j.transpose() * centreJacobian(cell, now_used, p, fit.growth, readings);
-    cov += reseat_variance * s * s.transpose();
-  }
+  if (reseat_variance > 0 && unit.rank == unknowns)
+    cov += reseatCovariance(unit.cov, j, centreJacobian(cell, now_used, p, fit.growth, readings),
+                            reseat_variance);
   report.model_length_mm = t.length_mm;
   report.model_angle_deg = t.angle_deg;
   report.model_calibrated = t.calibrated();
@@ -497,11 +502,9 @@ Eigen::Vector4d predictChangeSigma(const CellModel& cell, const ReferenceFit& re
   if (unit.rank < j.cols()) return out;
   const double sigma = *options.solve.noise_mm;
   Eigen::MatrixXd cov = 2 * sigma * sigma * unit.cov;
-  if (const double v = reseatVariance(options); v > 0) {
-    const Eigen::MatrixXd s =
-        unit.cov * j.transpose() * centreJacobian(cell, poses, reference.estimate, 0, readings);
-    cov += v * s * s.transpose();
-  }
+  if (const double v = reseatVariance(options); v > 0)
+    cov += reseatCovariance(unit.cov, j,
+                            centreJacobian(cell, poses, reference.estimate, 0, readings), v);
   for (int k = 0; k < kOffsetCount; ++k) out[k] = std::sqrt(cov(k, k)) * kRadToDeg;
   return out;
 }

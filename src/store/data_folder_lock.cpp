@@ -8,7 +8,6 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
 
 #include "zerocal/error.h"
 
@@ -29,10 +28,8 @@ DataFolderLock::DataFolderLock(const std::string& data_dir) {
     if (why != EWOULDBLOCK)
       throw FileError("cannot lock the data folder " + data_dir + ": " + std::strerror(why));
     std::ifstream in(path);
-    std::stringstream holder;
-    holder << in.rdbuf();
-    std::string pid = holder.str();
-    while (!pid.empty() && (pid.back() == '\n' || pid.back() == ' ')) pid.pop_back();
+    std::string pid;
+    in >> pid;
     throw FileError("another zerocald (" + (pid.empty() ? "its process unknown" : "pid " + pid) +
                     ") uses the data folder " + data_dir +
                     ": one daemon per data folder (stop it, or give this one another "

@@ -4,25 +4,15 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include <filesystem>
 #include <fstream>
 #include <optional>
 #include <string>
 
+#include "temp_dir.h"
 #include "zerocal/error.h"
 
 namespace zerocal {
 namespace {
-
-struct TempDir {
-  TempDir() {
-    char pattern[] = "/tmp/zerocal-lock-XXXXXX";
-    if (!::mkdtemp(pattern)) throw std::runtime_error("mkdtemp failed");
-    path = pattern;
-  }
-  ~TempDir() { std::filesystem::remove_all(path); }
-  std::string path;
-};
 
 std::string refusal(const std::string& data_dir) {
   try {
@@ -34,7 +24,7 @@ std::string refusal(const std::string& data_dir) {
 }
 
 TEST(DataFolderLock, OneDaemonPerDataFolderAndTheSecondIsToldWhoHasIt) {
-  const TempDir dir;
+  const testing::TempDir dir("zerocal-lock");
   const std::string data = dir.path + "/sessions";  // not there yet: made
   std::optional<DataFolderLock> first(std::in_place, data);
   std::ifstream holder(data + "/" + kDataFolderLockName);
@@ -53,7 +43,7 @@ TEST(DataFolderLock, OneDaemonPerDataFolderAndTheSecondIsToldWhoHasIt) {
 }
 
 TEST(DataFolderLock, AHolderKilledLeavesNoStaleLock) {
-  const TempDir dir;
+  const testing::TempDir dir("zerocal-lock");
   int ready[2];
   ASSERT_EQ(::pipe(ready), 0);
   const pid_t child = ::fork();

@@ -373,7 +373,7 @@ SolveReport solveChange(const CellModel& cell, const ReferenceFit& reference,
   report.model_length_mm = t.length_mm;
   report.model_angle_deg = t.angle_deg;
   report.model_calibrated = t.calibrated();
-  report.model_sag_deg = cell.robot.hasGravityModel() ? t.sag_deg : 0;
+  if (cell.robot.hasGravityModel()) report.model_sag_deg = t.sag_deg;
 
   report.estimate = p;
   report.estimate.delta_rad = p.delta_rad - reference.estimate.delta_rad;

@@ -130,8 +130,8 @@ Eigen::MatrixXd placementModelCovariance(const CellModel& cell, const std::vecto
                                          const Eigen::MatrixXd& unit_cov,
                                          const ModelTolerances& model) {
   const int unknowns = layout.unknownCount();
-  const double sag_deg = model.sag_deg;
-  const bool count_sag = layout.compliance == 0 && sag_deg > 0 && cell.robot.hasGravityModel();
+  const bool count_sag =
+      layout.compliance == 0 && model.sagCounted() && cell.robot.hasGravityModel();
   std::vector<Eigen::VectorXd> columns;
   std::vector<double> tolerances;
   // Each link error the poses do not identify, to its one sigma (a calibrated model's: its
@@ -151,7 +151,7 @@ Eigen::MatrixXd placementModelCovariance(const CellModel& cell, const std::vecto
         column.segment<2>(2 * static_cast<Eigen::Index>(i)) *=
             gravityTorqueKnm(cell.robot, cell.robot.masses, used[i].q_deg)[c];
       columns.push_back(column);
-      tolerances.push_back(sag_deg * kDegToRad / bound[c]);
+      tolerances.push_back(model.sag_deg[c] * kDegToRad / bound[c]);
     }
   }
   if (columns.empty()) return Eigen::MatrixXd::Zero(unknowns, unknowns);
@@ -297,8 +297,8 @@ SolveReport solveMultiPlacement(const CellModel& cell, const std::vector<Pose>& 
   // by c_j tau_j(q), so its column is delta_j's times the pose's torque, and c_j is known to the
   // sag tolerance at the largest torque.
   const bool count_sag =
-      layout.compliance == 0 && options.model.sag_deg > 0 && cell.robot.hasGravityModel();
-  report.model_sag_deg = count_sag ? options.model.sag_deg : 0;
+      layout.compliance == 0 && options.model.sagCounted() && cell.robot.hasGravityModel();
+  if (count_sag) report.model_sag_deg = options.model.sag_deg;
   const Eigen::MatrixXd unit_cov =
       (cov / (sigma * sigma)).unaryExpr([](double x) { return std::isfinite(x) ? x : 0.0; });
   const Eigen::MatrixXd model_cov =

@@ -117,7 +117,8 @@ std::string SolveOptions::validate() const {
   if (!(model.length_mm >= 0 && model.length_mm <= 10 && model.angle_deg >= 0 &&
         model.angle_deg <= 1))
     return "the link tolerances must be 0..10 mm and 0..1 deg";
-  if (!(model.sag_deg >= 0 && model.sag_deg <= 1)) return "the sag tolerance must be 0..1 deg";
+  for (const double sag : model.sag_deg)
+    if (!(sag >= 0 && sag <= 1)) return "the sag tolerances must be 0..1 deg";
   if (model.calibrated() &&
       (model.link_covariance.rows() != kLinkParameterCount ||
        model.link_covariance.cols() != kLinkParameterCount || !model.link_covariance.allFinite()))
@@ -329,7 +330,7 @@ Eigen::MatrixXd linkSpread(const CellModel& cell, const std::vector<Pose>& poses
                            const CalibrationParameters& est, bool readings,
                            const ModelTolerances& tolerances) {
   const Eigen::VectorXd r0 = misses(cell, poses, est, readings);
-  const bool with_sag = tolerances.sag_deg > 0 && cell.robot.hasGravityModel();
+  const bool with_sag = tolerances.sagCounted() && cell.robot.hasGravityModel();
   // The misses' derivatives by each link parameter (mm per mm, mm per rad).
   Eigen::MatrixXd unit(r0.size(), kLinkParameterCount);
   for (int j = 0; j < kJointCount; ++j)
@@ -364,7 +365,7 @@ Eigen::MatrixXd linkSpread(const CellModel& cell, const std::vector<Pose>& poses
       for (std::size_t i = 0; i < poses.size(); ++i)
         column.segment<2>(2 * static_cast<Eigen::Index>(i)) *=
             gravityTorqueKnm(cell.robot, cell.robot.masses, poses[i].q_deg)[c] / bound[c];
-      g.col(kLinkParameterCount + c) = column * tolerances.sag_deg * kDegToRad;
+      g.col(kLinkParameterCount + c) = column * tolerances.sag_deg[c] * kDegToRad;
     }
   }
   return g;
@@ -784,8 +785,8 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
   report.model_length_mm = options.model.length_mm;
   report.model_angle_deg = options.model.angle_deg;
   report.model_calibrated = options.model.calibrated();
-  report.model_sag_deg =
-      spread.cols() > kLinkParameterCount ? options.model.sag_deg : 0;  // counted: a gravity model
+  if (spread.cols() > kLinkParameterCount)  // counted: a gravity model
+    report.model_sag_deg = options.model.sag_deg;
   if (spread.cols() > 0) {
     // A parameter the poses do not determine has no covariance (NaN) and no model part either.
     const Eigen::MatrixXd u =

@@ -77,9 +77,10 @@ void addSolve(CLI::App& app, EngineCommands& commands) {
                 "several placements: identify the compliance of joints 2 and 3 against the "
                 "robot file's gravity model");
   cmd->add_option("--sag-tolerance", a.sag_tolerance,
-                  "several placements: the gravity sag's one-sigma tolerance at the largest "
-                  "torque, deg, counted in every sigma when the compliance is not identified "
-                  "(default: the robot file's model_tolerance.sag_deg)")
+                  "the gravity sag's one-sigma tolerance at the largest torque, deg, of joints 2 "
+                  "and 3 (or one for both), counted in every sigma when the compliance is not "
+                  "identified (default: the robot file's model_tolerance.sag_deg)")
+      ->expected(1, 2)
       ->check(CLI::Range(0.0, 1.0));
   cmd->add_option("--save-model", a.save_model,
                   "several placements: write the robot file with the identified link "
@@ -176,7 +177,7 @@ int runSolve(const SolveArgs& a) {
   // What the robot file admits about its model (a nominal one's tolerances, a calibrated one's
   // covariance), the sag's tolerance as given here when it is.
   options.model = cell.robot.tolerance;
-  if (a.sag_tolerance) options.model.sag_deg = *a.sag_tolerance;
+  if (!a.sag_tolerance.empty()) options.model.sag_deg = sagTolerancesOf(a.sag_tolerance);
   bool has_readings = !poses.empty() && poses.front().spot.has_value();
   options.use_readings = has_readings && !a.ignore_readings;
   if (options.use_readings) {

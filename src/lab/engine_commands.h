@@ -36,7 +36,7 @@ struct SolveArgs {
   double required_accuracy = SolveOptions{}.required_accuracy_deg;
   double max_offset = SolveOptions{}.max_offset_deg;
   bool identify_compliance = false;
-  std::optional<double> sag_tolerance;  // unset: the robot file's
+  std::vector<double> sag_tolerance;  // joints 2 and 3, or one for both; empty: the robot file's
   std::string save_model;
   std::optional<int> holdout_count;
   std::vector<int> holdout_poses;

@@ -259,9 +259,10 @@ void addPlacementExperiment(CLI::App& experiment, PlacementExperimentArgs& args)
       ->default_val(args.link_scale)
       ->check(CLI::Range(0.0, 10.0));
   cmd->add_option("--sag-tolerance", args.model_sag_deg,
-                  "the gravity sag's one-sigma tolerance at the largest torque, deg, counted "
-                  "when the compliance is not identified (realistic worlds with their sag)")
-      ->default_val(args.model_sag_deg)
+                  "the gravity sag's one-sigma tolerance at the largest torque, deg, of joints 2 "
+                  "and 3 (or one for both), counted when the compliance is not identified "
+                  "(realistic worlds with their sag; default: the robot file's)")
+      ->expected(1, 2)
       ->check(CLI::Range(0.0, 1.0));
   cmd->add_flag("--identify-compliance", args.identify_compliance,
                 "identify the compliance of joints 2 and 3 (robot file's gravity model) instead "
@@ -283,7 +284,8 @@ int runPlacementExperiment(const PlacementExperimentArgs& args) {
   if (!args.ideal_world) {
     // What the robot file admits (the shipped IRB 1600's tolerances), the sag's as given.
     options.model = builtinIrb1600().tolerance;
-    options.model.sag_deg = args.without_sag ? 0 : args.model_sag_deg;
+    if (!args.model_sag_deg.empty()) options.model.sag_deg = sagTolerancesOf(args.model_sag_deg);
+    if (args.without_sag) options.model.sag_deg = {};
   }
   Tally several, one;
   GrossTally gross_several, gross_one;
@@ -388,9 +390,9 @@ int runPlacementExperiment(const PlacementExperimentArgs& args) {
         args.ideal_world ? "" : ", the robot file's link tolerances counted");
     if (args.link_scale != 1.0)
       std::printf("the worlds' link errors %.2f times their realistic size\n", args.link_scale);
-    if (options.model.sag_deg > 0)
-      std::printf("gravity sag of joints 2 and 3 counted as a tolerance of %.4f deg\n",
-                  options.model.sag_deg);
+    if (options.model.sagCounted())
+      std::printf("gravity sag of joints 2 and 3 counted as tolerances of %.4f and %.4f deg\n",
+                  options.model.sag_deg[0], options.model.sag_deg[1]);
     if (args.identify_compliance) std::printf("compliance of joints 2 and 3 identified\n");
     std::printf("%-22s %8s %8s %10s %14s %12s %14s %12s %12s\n", "session", "usable", "offered",
                 "within 3s", "worst (sigma)", "RMS (deg)", "links ident.", "noise scale",

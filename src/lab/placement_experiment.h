@@ -5,6 +5,7 @@
 #include <CLI/CLI.hpp>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace zerocal::lab {
 
@@ -14,9 +15,9 @@ struct PlacementExperimentArgs {
   int placements = 3;       // PSD placements of the several-placement session
   int poses = 12;           // per placement; the one-placement session has them all at one
   double noise_mm = 0.020;  // the measurement sigma given to the solve (the daemon's)
-  // The gravity sag's tolerance at the largest torque, counted when the compliance is not
-  // identified (the realistic world's sag is 0.003..0.010 deg on joint 2: RMS 0.007).
-  double model_sag_deg = 0.007;
+  // The gravity sag's tolerances of joints 2 and 3 (or one for both) at the largest torque,
+  // counted when the compliance is not identified; empty: the robot file's.
+  std::vector<double> model_sag_deg;
   bool identify_compliance = false;
   // One gross error per session at a random pose: "none", "spot" (the reading gross_spot_mm off
   // in a random direction) or "joint" (one of joints 2..5 recorded gross_joint_deg off).

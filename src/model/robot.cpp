@@ -227,13 +227,33 @@ void parseTolerance(const YAML::Node& root, Robot& robot, Problems& problems) {
   ModelTolerances& m = robot.tolerance;
   m.length_mm = number(t, "length_mm", where, problems);
   m.angle_deg = number(t, "angle_deg", where, problems);
-  if (t["sag_deg"]) m.sag_deg = number(t, "sag_deg", where, problems);
   for (const auto& [key, value, bound] :
        {std::tuple<const char*, double, double>{"length_mm", m.length_mm, kMaxLengthToleranceMm},
-        {"angle_deg", m.angle_deg, kMaxAngleToleranceDeg},
-        {"sag_deg", m.sag_deg, kMaxAngleToleranceDeg}})
+        {"angle_deg", m.angle_deg, kMaxAngleToleranceDeg}})
     if (t[key] && !(value >= 0 && value <= bound))
       problems.add(t[key], where + ": '" + key + "' must lie within 0.." + fmt(bound));
+  if (const YAML::Node sag = t["sag_deg"]) {
+    // Joints 2 and 3 in turn; one number is both joints' (a model that states no split).
+    const std::string shape = where +
+                              ": 'sag_deg' must be a number or a list of 2 numbers (joints 2 and "
+                              "3), each within 0.." +
+                              fmt(kMaxAngleToleranceDeg);
+    if (sag.IsSequence() ? sag.size() != kComplianceCount : !sag.IsScalar()) {
+      problems.add(sag, shape);
+    } else {
+      for (int k = 0; k < kComplianceCount; ++k) {
+        const YAML::Node v = sag.IsSequence() ? sag[k] : sag;
+        try {
+          m.sag_deg[k] = v.as<double>();
+          if (!(m.sag_deg[k] >= 0 && m.sag_deg[k] <= kMaxAngleToleranceDeg))
+            throw YAML::Exception({}, "");
+        } catch (const YAML::Exception&) {
+          problems.add(v, shape);
+          break;
+        }
+      }
+    }
+  }
   if (const YAML::Node c = t["link_covariance"]) {
     // A calibrated model's: rows and columns a1, d1, alpha1, a2, ... in mm and deg.
     const std::string shape = where + ": 'link_covariance' must be " +
@@ -488,7 +508,9 @@ std::string robotYaml(const Robot& robot, const std::string& comment) {
   y << YAML::Key << "model_tolerance" << YAML::Value << YAML::BeginMap;
   y << YAML::Key << "length_mm" << YAML::Value << exact(t.length_mm);
   y << YAML::Key << "angle_deg" << YAML::Value << exact(t.angle_deg);
-  if (t.sag_deg > 0) y << YAML::Key << "sag_deg" << YAML::Value << exact(t.sag_deg);
+  if (t.sagCounted())
+    y << YAML::Key << "sag_deg" << YAML::Value << YAML::Flow << YAML::BeginSeq
+      << exact(t.sag_deg[0]) << exact(t.sag_deg[1]) << YAML::EndSeq;
   if (t.calibrated()) {
     y << YAML::Key << "link_covariance" << YAML::Value << YAML::BeginSeq;
     for (int r = 0; r < kLinkParameterCount; ++r) {
@@ -503,6 +525,12 @@ std::string robotYaml(const Robot& robot, const std::string& comment) {
   if (!y.good()) throw Error(std::string("cannot write the robot file: ") + y.GetLastError());
   o << y.c_str() << "\n";
   return o.str();
+}
+
+std::array<double, kComplianceCount> sagTolerancesOf(const std::vector<double>& given) {
+  if (given.size() == 1) return {given[0], given[0]};
+  if (given.size() == 2) return {given[0], given[1]};
+  return {};
 }
 
 Eigen::VectorXd ModelTolerances::linkSigmas() const {

@@ -47,8 +47,7 @@ std::vector<std::string> placementCentres(const SessionReport& r) {
 bool linksWeighMisses(const SessionReport& r) {
   const SolveReport& s = r.solve();
   return s.placements.size() < 2 && !s.noise_estimated &&
-         (s.model_calibrated || s.model_length_mm > 0 || s.model_angle_deg > 0 ||
-          s.model_sag_deg > 0);
+         (s.model_calibrated || s.model_length_mm > 0 || s.model_angle_deg > 0 || s.sagCounted());
 }
 
 std::string toleranceNote(const SessionReport& r) {
@@ -68,9 +67,10 @@ std::string toleranceNote(const SessionReport& r) {
                          : "the tolerances (%.3g mm, %.3g deg) of the link errors these poses do "
                            "not identify",
                      s.model_length_mm, s.model_angle_deg);
-  if (s.model_sag_deg > 0)
+  if (s.sagCounted())
     counted += (counted.empty() ? "" : " and ") +
-               format("the gravity sag of joints 2 and 3 (%.3g deg)", s.model_sag_deg);
+               format("the gravity sag of joints 2 and 3 (%.3g and %.3g deg)", s.model_sag_deg[0],
+                      s.model_sag_deg[1]);
   // A calibration that identified the links leaves them for later ones at one placement.
   const std::string written =
       r.result.model_file.empty()

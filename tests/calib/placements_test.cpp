@@ -240,10 +240,11 @@ TEST(SeveralPlacements, IdentifyTheComplianceOfJoints2And3OrCountItsSag) {
   // Not identified: the sag biases delta2 and delta3, and its tolerance widens their sigmas.
   options.identify_compliance = false;
   const SolveReport plain = solve(sc.cell, recorded, options);
-  options.model.sag_deg = 0.01;
+  options.model.sag_deg = {0.01, 0.006};
   const SolveReport counted = solve(sc.cell, recorded, options);
   EXPECT_EQ(find(plain, "compliance2_deg_per_knm"), nullptr);
-  EXPECT_EQ(counted.model_sag_deg, 0.01);
+  EXPECT_EQ(counted.model_sag_deg[0], 0.01);
+  EXPECT_EQ(counted.model_sag_deg[1], 0.006);
   for (int k = 0; k < 2; ++k) {
     const double error = std::abs(plain.parameters[k].value - sc.truth.delta_rad[k] * kRadToDeg);
     EXPECT_GT(error, 3 * plain.parameters[k].sigma) << k;  // the bias a tolerance must cover
@@ -391,9 +392,9 @@ TEST(SeveralPlacements, ThePlanPredictsWhatTheSolveCountsBesideTheNoise) {
   options.noise_mm = 0.02;
   options.model.length_mm = 0.1;
   options.model.angle_deg = 0.01;
-  options.model.sag_deg = 0.007;
+  options.model.sag_deg = {0.007, 0.0042};
   options.required_accuracy_deg = 0.5;
-  const ModelTolerances tolerances{0.1, 0.01, 0.007};
+  const ModelTolerances tolerances{0.1, 0.01, {0.007, 0.0042}};
   const std::vector<Pose> first(planned.begin(), planned.begin() + 10);
   CalibrationParameters nominal;  // as zerocald predicts: the nominal cell at the first centre
   nominal.target_mm = sc.truth.target_mm;

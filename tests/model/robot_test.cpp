@@ -247,5 +247,36 @@ TEST(RobotFile, IdentifiedKinematicsAndMassesAreValidatedAllAtOnce) {
   }
 }
 
+// Joint 3 carries the forearm only and sags less: each joint's sag tolerance is its own. One
+// number states both (a model that knows no split); a calibrated model writes both back.
+TEST(RobotFile, EachOfJoints2And3HasItsOwnSagTolerance) {
+  const Robot shipped = builtinIrb1600();
+  EXPECT_EQ(shipped.tolerance.sag_deg[0], 0.007);
+  EXPECT_EQ(shipped.tolerance.sag_deg[1], 0.0042);
+  const Robot back = parseRobot(robotYaml(shipped, "written"), "written.yaml");
+  EXPECT_EQ(back.tolerance.sag_deg, shipped.tolerance.sag_deg);
+
+  const std::string yaml = builtinIrb1600Yaml();
+  const auto with = [&](const std::string& sag) {
+    std::string y = yaml;
+    y.replace(y.find("sag_deg: [0.007, 0.0042]"), 24, "sag_deg: " + sag);
+    return y;
+  };
+  const Robot both = parseRobot(with("0.005"), "both.yaml");
+  EXPECT_EQ(both.tolerance.sag_deg[0], 0.005);
+  EXPECT_EQ(both.tolerance.sag_deg[1], 0.005);
+  for (const char* bad :
+       {"[0.007]", "[0.007, 0.004, 0.001]", "[0.007, -0.001]", "[0.007, x]", "{j2: 0.007}", "2"}) {
+    try {
+      parseRobot(with(bad), "bad.yaml");
+      ADD_FAILURE() << bad << " was accepted";
+    } catch (const ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find("'sag_deg' must be a number or a list of 2 numbers"),
+                std::string::npos)
+          << bad << ": " << e.what();
+    }
+  }
+}
+
 }  // namespace
 }  // namespace zerocal

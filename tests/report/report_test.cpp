@@ -233,7 +233,7 @@ TEST(Summary, SeveralPlacementsShowEachCentreAndTheLinkErrorsApart) {
   link.sigma = 0.1;
   link.identifiable = true;
   r.parameters.push_back(link);
-  s.model_sag_deg = 0.007;
+  s.model_sag_deg = {0.007, 0.0042};
   const std::string text = summaryText(r);
   EXPECT_TRUE(contains(text, "PSD centre at placement 2 (5 poses): 600.000 600.000 500.000 mm"))
       << text;
@@ -245,7 +245,7 @@ TEST(Summary, SeveralPlacementsShowEachCentreAndTheLinkErrorsApart) {
   EXPECT_LT(links, text.find("  da2_mm"));
   EXPECT_TRUE(contains(text, "unknowns identified")) << text;
   EXPECT_FALSE(contains(text, "of 11,"));
-  EXPECT_TRUE(contains(text, "gravity sag of joints 2 and 3 (0.007 deg)"));
+  EXPECT_TRUE(contains(text, "gravity sag of joints 2 and 3 (0.007 and 0.0042 deg)"));
   const std::string html = reportHtml(r);
   EXPECT_TRUE(contains(html, "PSD centre at placement 2 (5 poses)"));
   EXPECT_TRUE(contains(html, "unknowns identified"));

@@ -54,6 +54,21 @@ TEST(ResultsCodec, AResultComesBackMemberForMember) {
   EXPECT_TRUE(back.verdict_recorded);
 }
 
+// The sag tolerances counted come back per joint; a result written when one tolerance stood for
+// both joints reads as that for each.
+TEST(ResultsCodec, TheSagTolerancesCountedComeBackPerJoint) {
+  ResultFile r = aResult();
+  r.report.model_sag_deg = {0.007, 0.0042};
+  json j = toJson(r);
+  EXPECT_EQ(j["model_tolerance"]["sag_deg"], json::array({0.007, 0.0042}));
+  EXPECT_EQ(resultFileFromJson(j).report.model_sag_deg, r.report.model_sag_deg);
+  j["model_tolerance"]["sag_deg"] = 0.007;
+  const auto old = resultFileFromJson(j).report.model_sag_deg;
+  EXPECT_EQ(old[0], 0.007);
+  EXPECT_EQ(old[1], 0.007);
+  EXPECT_FALSE(toJson(aResult())["model_tolerance"].contains("sag_deg"));  // none counted
+}
+
 TEST(ResultsCodec, AResultFromBeforeVerdictsSaysSo) {
   json j = toJson(aResult());
   j.erase("verdict");

@@ -48,7 +48,8 @@ TEST(DaemonSetup, TheRobotModelsTolerancesCountExceptInTheIdealWorld) {
   const auto counted = [&] { return makeBackend(config)->knowledge().cell.robot.tolerance; };
   EXPECT_EQ(counted().length_mm, 0.1);
   EXPECT_EQ(counted().angle_deg, 0.01);
-  EXPECT_EQ(counted().sag_deg, 0.007);
+  EXPECT_EQ(counted().sag_deg[0], 0.007);
+  EXPECT_EQ(counted().sag_deg[1], 0.0042);
   config.backend.sim_ideal_world = true;
   EXPECT_FALSE(counted().counted());
   EXPECT_EQ(robotOf(config.controller).tolerance.length_mm, 0.1);

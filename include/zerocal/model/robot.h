@@ -50,24 +50,30 @@ constexpr int kLinkParameterCount = 3 * kJointCount;
 
 // What a robot model admits about itself (its file's `model_tolerance` section): the one-sigma
 // tolerances of a nominal model's link lengths (a, d) and twists (alpha), and of the gravity sag
-// of joints 2 and 3 at the largest torque; a calibrated model adds the covariance of its link
+// of joints 2 and 3 each at its largest torque (joint 3 carries less of the arm, so it sags
+// less); a calibrated model adds the covariance of its link
 // parameters' remaining errors, which replaces the two link tolerances. The method does not
 // identify these at one PSD placement: every solve and prediction counts their effect on the
 // estimates as a consider covariance (docs/maths.md section 5).
 struct ModelTolerances {
   double length_mm = 0;
   double angle_deg = 0;
-  double sag_deg = 0;
+  std::array<double, kComplianceCount> sag_deg{};  // joints 2 and 3
   // kLinkParameterCount square (mm^2, mm rad, rad^2), or empty: a nominal model.
   Eigen::MatrixXd link_covariance;
 
   bool calibrated() const { return link_covariance.size() > 0; }
   bool linksCounted() const { return calibrated() || length_mm > 0 || angle_deg > 0; }
-  bool counted() const { return linksCounted() || sag_deg > 0; }
+  bool sagCounted() const { return sag_deg[0] > 0 || sag_deg[1] > 0; }
+  bool counted() const { return linksCounted() || sagCounted(); }
   // Each link parameter's one-sigma error (mm, rad): the covariance's diagonal, or the
   // tolerances.
   Eigen::VectorXd linkSigmas() const;
 };
+
+// A sag tolerance as a user gives it (a command's option): one number for both joints, or those
+// of joints 2 and 3. Empty or more than two: none.
+std::array<double, kComplianceCount> sagTolerancesOf(const std::vector<double>& given);
 
 struct Robot {
   std::string name;

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
@@ -75,7 +76,9 @@ struct SolveReport {
   // Several placements: the covariance of the calibrated model's link errors (kLinkParameterCount
   // square, mm and rad; Robot::tolerance.link_covariance of calibratedRobot), empty otherwise.
   Eigen::MatrixXd link_covariance;
-  double model_sag_deg = 0;  // the sag tolerance counted (several placements, SolveOptions)
+  // The sag tolerances of joints 2 and 3 counted (SolveOptions; 0: not counted).
+  std::array<double, kComplianceCount> model_sag_deg{};
+  bool sagCounted() const { return model_sag_deg[0] > 0 || model_sag_deg[1] > 0; }
 
   // The 8 of unknownName order; with several placements then the 18 link errors
   // (linkParamName order), each identified or named in not_identifiable with the reason.

@@ -106,8 +106,8 @@ SessionReport parseSession(const SessionFolder& files) {
   // measurement).
   const std::vector<const PoseRecord*> latest = latestRecords(records);
   int measured_poses = 0;
-  for (const PoseRecord* r : latest)
-    if (r && r->measured()) ++measured_poses;
+  for (const PoseRecord* record : latest)
+    if (record && record->measured()) ++measured_poses;
   const int solved_poses = solve.pose_count;
   if (solved_poses + static_cast<int>(held_out.size()) != measured_poses)
     throw ReportError("result.json solved " + std::to_string(solved_poses) + " poses" +
@@ -126,8 +126,8 @@ SessionReport parseSession(const SessionFolder& files) {
                                        [](const PoseResidual& p) { return p.source_line != 0; });
   if (lines_named) {
     std::map<int, const PoseRecord*> at_line;
-    for (const PoseRecord* r : latest)
-      if (r && r->measured()) at_line[r->line] = r;
+    for (const PoseRecord* record : latest)
+      if (record && record->measured()) at_line[record->line] = record;
     for (std::size_t k = 0; k < solve.poses.size(); ++k) {
       const auto found = at_line.find(solve.poses[k].source_line);
       if (found == at_line.end())
@@ -139,11 +139,11 @@ SessionReport parseSession(const SessionFolder& files) {
     }
   } else {
     for (std::size_t plan_index = 0; plan_index < latest.size(); ++plan_index) {
-      const PoseRecord* r = latest[plan_index];
-      if (!r || !r->measured()) continue;
+      const PoseRecord* record = latest[plan_index];
+      if (!record || !record->measured()) continue;
       if (std::find(held_out.begin(), held_out.end(), static_cast<int>(plan_index) + 1) ==
           held_out.end())
-        residual_of[r] = static_cast<int>(residual_of.size());
+        residual_of[record] = static_cast<int>(residual_of.size());
     }
   }
   const std::vector<Pose>& planned = r.session.plan.poses;

@@ -394,7 +394,7 @@ TEST(SeveralPlacements, ThePlanPredictsWhatTheSolveCountsBesideTheNoise) {
   options.model.angle_deg = 0.01;
   options.model.sag_deg = {0.007, 0.0042};
   options.required_accuracy_deg = 0.5;
-  const ModelTolerances tolerances{0.1, 0.01, {0.007, 0.0042}};
+  const ModelTolerances tolerances{0.1, 0.01, {0.007, 0.0042}, {}};
   const std::vector<Pose> first(planned.begin(), planned.begin() + 10);
   CalibrationParameters nominal;  // as zerocald predicts: the nominal cell at the first centre
   nominal.target_mm = sc.truth.target_mm;

@@ -46,7 +46,7 @@ bool identifiesEveryOffset(const Prediction& p) {
 // Link and sag tolerances this large (4 mm, 0.4 deg) leave the two-placement plan of seed 5
 // identifying every offset, but not without its pose 4: a skip the solve, counting them, would
 // refuse, though a prediction without them would let it through.
-const ModelTolerances kLargeTolerances{3.8, 0.38, {0.38, 0.38}};
+const ModelTolerances kLargeTolerances{3.8, 0.38, {0.38, 0.38}, {}};
 constexpr const char* kTwoPlacements = "ideal-5-2-placements";
 
 // A plan predicted short of the required accuracy moves nothing unless asked for: the robot's
@@ -57,7 +57,7 @@ TEST(RequestPlanner, APlanPredictedShortOfTheRequiredAccuracyStartsOnlyWhenAsked
   request.plan_file = testing::storedPlanPath("ideal-5");
   const PlannerFixture exact({}, "ideal-5");
   EXPECT_NO_THROW(exact.planner->plan(request));  // the model taken as exact: 0.003 deg
-  const PlannerFixture tolerant({0.1, 0.01, 0.0}, "ideal-5");
+  const PlannerFixture tolerant({0.1, 0.01, {}, {}}, "ideal-5");
   const Plan preview = tolerant.planner->preview(request);  // a preview is never refused
   ASSERT_GT(preview.prediction.sigma[0], 0.01);
   try {

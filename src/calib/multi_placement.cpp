@@ -131,7 +131,7 @@ Eigen::MatrixXd placementModelCovariance(const CellModel& cell, const std::vecto
                                          const ModelTolerances& model) {
   const int unknowns = layout.unknownCount();
   const bool count_sag =
-      layout.compliance == 0 && model.sagCounted() && cell.robot.hasGravityModel();
+      layout.compliance == 0 && anyCounted(model.sag_deg) && cell.robot.hasGravityModel();
   std::vector<Eigen::VectorXd> columns;
   std::vector<double> tolerances;
   // Each link error the poses do not identify, to its one sigma (a calibrated model's: its
@@ -297,7 +297,7 @@ SolveReport solveMultiPlacement(const CellModel& cell, const std::vector<Pose>& 
   // by c_j tau_j(q), so its column is delta_j's times the pose's torque, and c_j is known to the
   // sag tolerance at the largest torque.
   const bool count_sag =
-      layout.compliance == 0 && options.model.sagCounted() && cell.robot.hasGravityModel();
+      layout.compliance == 0 && anyCounted(options.model.sag_deg) && cell.robot.hasGravityModel();
   if (count_sag) report.model_sag_deg = options.model.sag_deg;
   const Eigen::MatrixXd unit_cov =
       (cov / (sigma * sigma)).unaryExpr([](double x) { return std::isfinite(x) ? x : 0.0; });

@@ -330,7 +330,7 @@ Eigen::MatrixXd linkSpread(const CellModel& cell, const std::vector<Pose>& poses
                            const CalibrationParameters& est, bool readings,
                            const ModelTolerances& tolerances) {
   const Eigen::VectorXd r0 = misses(cell, poses, est, readings);
-  const bool with_sag = tolerances.sagCounted() && cell.robot.hasGravityModel();
+  const bool with_sag = anyCounted(tolerances.sag_deg) && cell.robot.hasGravityModel();
   // The misses' derivatives by each link parameter (mm per mm, mm per rad).
   Eigen::MatrixXd unit(r0.size(), kLinkParameterCount);
   for (int j = 0; j < kJointCount; ++j)

@@ -390,7 +390,7 @@ int runPlacementExperiment(const PlacementExperimentArgs& args) {
         args.ideal_world ? "" : ", the robot file's link tolerances counted");
     if (args.link_scale != 1.0)
       std::printf("the worlds' link errors %.2f times their realistic size\n", args.link_scale);
-    if (options.model.sagCounted())
+    if (anyCounted(options.model.sag_deg))
       std::printf("gravity sag of joints 2 and 3 counted as tolerances of %.4f and %.4f deg\n",
                   options.model.sag_deg[0], options.model.sag_deg[1]);
     if (args.identify_compliance) std::printf("compliance of joints 2 and 3 identified\n");

@@ -4,6 +4,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -238,20 +239,17 @@ void parseTolerance(const YAML::Node& root, Robot& robot, Problems& problems) {
                               ": 'sag_deg' must be a number or a list of 2 numbers (joints 2 and "
                               "3), each within 0.." +
                               fmt(kMaxAngleToleranceDeg);
-    if (sag.IsSequence() ? sag.size() != kComplianceCount : !sag.IsScalar()) {
+    try {
+      const std::vector<double> given =
+          sag.IsSequence() ? sag.as<std::vector<double>>() : std::vector<double>{sag.as<double>()};
+      const bool within = std::all_of(given.begin(), given.end(), [](double v) {
+        return v >= 0 && v <= kMaxAngleToleranceDeg;  // NaN too is refused
+      });
+      if (!within || (sag.IsSequence() && given.size() != kComplianceCount))
+        throw YAML::Exception({}, "");
+      m.sag_deg = sagTolerancesOf(given);
+    } catch (const YAML::Exception&) {
       problems.add(sag, shape);
-    } else {
-      for (int k = 0; k < kComplianceCount; ++k) {
-        const YAML::Node v = sag.IsSequence() ? sag[k] : sag;
-        try {
-          m.sag_deg[k] = v.as<double>();
-          if (!(m.sag_deg[k] >= 0 && m.sag_deg[k] <= kMaxAngleToleranceDeg))
-            throw YAML::Exception({}, "");
-        } catch (const YAML::Exception&) {
-          problems.add(v, shape);
-          break;
-        }
-      }
     }
   }
   if (const YAML::Node c = t["link_covariance"]) {
@@ -508,7 +506,7 @@ std::string robotYaml(const Robot& robot, const std::string& comment) {
   y << YAML::Key << "model_tolerance" << YAML::Value << YAML::BeginMap;
   y << YAML::Key << "length_mm" << YAML::Value << exact(t.length_mm);
   y << YAML::Key << "angle_deg" << YAML::Value << exact(t.angle_deg);
-  if (t.sagCounted())
+  if (anyCounted(t.sag_deg))
     y << YAML::Key << "sag_deg" << YAML::Value << YAML::Flow << YAML::BeginSeq
       << exact(t.sag_deg[0]) << exact(t.sag_deg[1]) << YAML::EndSeq;
   if (t.calibrated()) {
@@ -525,12 +523,6 @@ std::string robotYaml(const Robot& robot, const std::string& comment) {
   if (!y.good()) throw Error(std::string("cannot write the robot file: ") + y.GetLastError());
   o << y.c_str() << "\n";
   return o.str();
-}
-
-std::array<double, kComplianceCount> sagTolerancesOf(const std::vector<double>& given) {
-  if (given.size() == 1) return {given[0], given[0]};
-  if (given.size() == 2) return {given[0], given[1]};
-  return {};
 }
 
 Eigen::VectorXd ModelTolerances::linkSigmas() const {

@@ -47,7 +47,8 @@ std::vector<std::string> placementCentres(const SessionReport& r) {
 bool linksWeighMisses(const SessionReport& r) {
   const SolveReport& s = r.solve();
   return s.placements.size() < 2 && !s.noise_estimated &&
-         (s.model_calibrated || s.model_length_mm > 0 || s.model_angle_deg > 0 || s.sagCounted());
+         (s.model_calibrated || s.model_length_mm > 0 || s.model_angle_deg > 0 ||
+          anyCounted(s.model_sag_deg));
 }
 
 std::string toleranceNote(const SessionReport& r) {
@@ -67,7 +68,7 @@ std::string toleranceNote(const SessionReport& r) {
                          : "the tolerances (%.3g mm, %.3g deg) of the link errors these poses do "
                            "not identify",
                      s.model_length_mm, s.model_angle_deg);
-  if (s.sagCounted())
+  if (anyCounted(s.model_sag_deg))
     counted += (counted.empty() ? "" : " and ") +
                format("the gravity sag of joints 2 and 3 (%.3g and %.3g deg)", s.model_sag_deg[0],
                       s.model_sag_deg[1]);

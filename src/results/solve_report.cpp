@@ -67,7 +67,8 @@ nlohmann::json toJson(const SolveReport& r) {
   j["poses_used"] = r.poses_used;
   j["required_accuracy_deg"] = r.required_accuracy_deg;
   j["model_tolerance"] = {{"length_mm", r.model_length_mm}, {"angle_deg", r.model_angle_deg}};
-  if (r.sagCounted()) j["model_tolerance"]["sag_deg"] = r.model_sag_deg;  // joints 2 and 3
+  if (anyCounted(r.model_sag_deg))
+    j["model_tolerance"]["sag_deg"] = r.model_sag_deg;  // joints 2 and 3
   if (r.model_calibrated) j["model_tolerance"]["calibrated"] = true;
   nlohmann::json params = nlohmann::json::object();
   for (const auto& p : r.parameters) {
@@ -137,17 +138,6 @@ nlohmann::json toJson(const SolveReport& r) {
   return j;
 }
 
-namespace {
-
-// Joints 2 and 3; a result written before the sag was told per joint holds one for both.
-std::array<double, kComplianceCount> sagTolerances(const JsonReader& m) {
-  if (m.at("sag_deg").is_number()) return {m.number("sag_deg"), m.number("sag_deg")};
-  const std::vector<double> v = m.numbers("sag_deg", kComplianceCount);
-  return {v[0], v[1]};
-}
-
-}  // namespace
-
 SolveReport solveReportFromJson(const nlohmann::json& json, const std::string& where) {
   const JsonReader j(json, where);
   SolveReport r;
@@ -177,7 +167,11 @@ SolveReport solveReportFromJson(const nlohmann::json& json, const std::string& w
     const JsonReader m = j.object("model_tolerance");
     r.model_length_mm = m.number("length_mm");
     r.model_angle_deg = m.number("angle_deg");
-    if (m.has("sag_deg")) r.model_sag_deg = sagTolerances(m);
+    // Joints 2 and 3; a result written before they were told apart holds one for both.
+    if (m.has("sag_deg"))
+      r.model_sag_deg =
+          sagTolerancesOf(m.at("sag_deg").is_number() ? std::vector<double>{m.number("sag_deg")}
+                                                      : m.numbers("sag_deg", kComplianceCount));
     r.model_calibrated = m.has("calibrated") && m.boolean("calibrated");
   }
   const nlohmann::json& params = j.at("parameters");

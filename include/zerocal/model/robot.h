@@ -48,6 +48,18 @@ constexpr int kComplianceCount = 2;
 // The link parameters of a robot model: a, d (mm) and alpha (rad) of each joint in turn.
 constexpr int kLinkParameterCount = 3 * kJointCount;
 
+// The one-sigma gravity sag of joints 2 and 3 (deg at each one's largest torque); 0: not counted.
+using SagTolerances = std::array<double, kComplianceCount>;
+inline bool anyCounted(const SagTolerances& sag_deg) { return sag_deg[0] > 0 || sag_deg[1] > 0; }
+// As a file or a command gives them: one number for both joints, or those of joints 2 and 3.
+// Empty or more than two: none.
+// (Inline: the results codec reads it, and the thin client links no model code.)
+inline SagTolerances sagTolerancesOf(const std::vector<double>& given) {
+  if (given.size() == 1) return {given[0], given[0]};
+  if (given.size() == 2) return {given[0], given[1]};
+  return {};
+}
+
 // What a robot model admits about itself (its file's `model_tolerance` section): the one-sigma
 // tolerances of a nominal model's link lengths (a, d) and twists (alpha), and of the gravity sag
 // of joints 2 and 3 each at its largest torque (joint 3 carries less of the arm, so it sags
@@ -58,22 +70,17 @@ constexpr int kLinkParameterCount = 3 * kJointCount;
 struct ModelTolerances {
   double length_mm = 0;
   double angle_deg = 0;
-  std::array<double, kComplianceCount> sag_deg{};  // joints 2 and 3
+  SagTolerances sag_deg{};
   // kLinkParameterCount square (mm^2, mm rad, rad^2), or empty: a nominal model.
   Eigen::MatrixXd link_covariance;
 
   bool calibrated() const { return link_covariance.size() > 0; }
   bool linksCounted() const { return calibrated() || length_mm > 0 || angle_deg > 0; }
-  bool sagCounted() const { return sag_deg[0] > 0 || sag_deg[1] > 0; }
-  bool counted() const { return linksCounted() || sagCounted(); }
+  bool counted() const { return linksCounted() || anyCounted(sag_deg); }
   // Each link parameter's one-sigma error (mm, rad): the covariance's diagonal, or the
   // tolerances.
   Eigen::VectorXd linkSigmas() const;
 };
-
-// A sag tolerance as a user gives it (a command's option): one number for both joints, or those
-// of joints 2 and 3. Empty or more than two: none.
-std::array<double, kComplianceCount> sagTolerancesOf(const std::vector<double>& given);
 
 struct Robot {
   std::string name;

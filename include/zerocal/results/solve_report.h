@@ -5,7 +5,6 @@
 #pragma once
 
 #include <Eigen/Core>
-#include <array>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
@@ -77,8 +76,7 @@ struct SolveReport {
   // square, mm and rad; Robot::tolerance.link_covariance of calibratedRobot), empty otherwise.
   Eigen::MatrixXd link_covariance;
   // The sag tolerances of joints 2 and 3 counted (SolveOptions; 0: not counted).
-  std::array<double, kComplianceCount> model_sag_deg{};
-  bool sagCounted() const { return model_sag_deg[0] > 0 || model_sag_deg[1] > 0; }
+  SagTolerances model_sag_deg{};
 
   // The 8 of unknownName order; with several placements then the 18 link errors
   // (linkParamName order), each identified or named in not_identifiable with the reason.

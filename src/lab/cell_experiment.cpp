@@ -406,6 +406,7 @@ int runCellExperiment(const CellExperimentArgs& args) {
                            {"truth_deg", truth},
                            {"error_deg", error},
                            {"sigma_deg", sigma},
+                           {"model_sigma_deg", e.model_sigma},
                            {"error_sigmas", sigmas}});
         line += fmt::format(FMT_STRING(" {:+.5f} ({:.2f})"), error, sigmas);
       }

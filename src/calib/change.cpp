@@ -373,7 +373,10 @@ SolveReport solveChange(const CellModel& cell, const ReferenceFit& reference,
   report.model_length_mm = t.length_mm;
   report.model_angle_deg = t.angle_deg;
   report.model_calibrated = t.calibrated();
-  if (cell.robot.hasGravityModel()) report.model_sag_deg = t.sag_deg;
+  if (cell.robot.hasGravityModel()) {
+    report.model_sag_deg = t.sag_deg;
+    report.model_sag_mean_deg = t.sag_mean_deg;
+  }
 
   report.estimate = p;
   report.estimate.delta_rad = p.delta_rad - reference.estimate.delta_rad;

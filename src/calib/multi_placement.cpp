@@ -144,14 +144,18 @@ Eigen::MatrixXd placementModelCovariance(const CellModel& cell, const std::vecto
         tolerances.push_back(link_sigma[k - PlacementLayout::firstLink()]);
       }
   if (count_sag) {
+    // Per rad of sag at the largest torque: delta2's and delta3's columns times each pose's
+    // torque over the largest, drawn together with the sags' second moment.
     const auto bound = gravityTorqueBoundKnm(cell.robot, cell.robot.masses);
-    for (int c = 0; c < kComplianceCount; ++c) {
-      Eigen::VectorXd column = jac.col(c);  // delta2, delta3
+    Eigen::MatrixXd per_sag = jac.leftCols(kComplianceCount);  // delta2, delta3
+    for (int c = 0; c < kComplianceCount; ++c)
       for (std::size_t i = 0; i < used.size(); ++i)
-        column.segment<2>(2 * static_cast<Eigen::Index>(i)) *=
-            gravityTorqueKnm(cell.robot, cell.robot.masses, used[i].q_deg)[c];
-      columns.push_back(column);
-      tolerances.push_back(model.sag_deg[c] * kDegToRad / bound[c]);
+        per_sag.col(c).segment<2>(2 * static_cast<Eigen::Index>(i)) *=
+            gravityTorqueKnm(cell.robot, cell.robot.masses, used[i].q_deg)[c] / bound[c];
+    const Eigen::MatrixXd drawn = per_sag * (model.sagRootDeg() * kDegToRad);
+    for (int c = 0; c < kComplianceCount; ++c) {
+      columns.push_back(drawn.col(c));
+      tolerances.push_back(1.0);
     }
   }
   if (columns.empty()) return Eigen::MatrixXd::Zero(unknowns, unknowns);
@@ -298,7 +302,10 @@ SolveReport solveMultiPlacement(const CellModel& cell, const std::vector<Pose>& 
   // sag tolerance at the largest torque.
   const bool count_sag =
       layout.compliance == 0 && anyCounted(options.model.sag_deg) && cell.robot.hasGravityModel();
-  if (count_sag) report.model_sag_deg = options.model.sag_deg;
+  if (count_sag) {
+    report.model_sag_deg = options.model.sag_deg;
+    report.model_sag_mean_deg = options.model.sag_mean_deg;
+  }
   const Eigen::MatrixXd unit_cov =
       (cov / (sigma * sigma)).unaryExpr([](double x) { return std::isfinite(x) ? x : 0.0; });
   const Eigen::MatrixXd model_cov =

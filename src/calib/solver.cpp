@@ -119,6 +119,9 @@ std::string SolveOptions::validate() const {
     return "the link tolerances must be 0..10 mm and 0..1 deg";
   for (const double sag : model.sag_deg)
     if (!(sag >= 0 && sag <= 1)) return "the sag tolerances must be 0..1 deg";
+  for (int c = 0; c < kComplianceCount; ++c)
+    if (!(model.sag_mean_deg[c] >= 0 && model.sag_mean_deg[c] <= model.sag_deg[c]))
+      return "each sag's mean must lie within 0..its tolerance (a mean cannot exceed its RMS)";
   if (model.calibrated() &&
       (model.link_covariance.rows() != kLinkParameterCount ||
        model.link_covariance.cols() != kLinkParameterCount || !model.link_covariance.allFinite()))
@@ -354,19 +357,21 @@ Eigen::MatrixXd linkSpread(const CellModel& cell, const std::vector<Pose>& poses
   }
   if (with_sag) {
     // The sag of joints 2 and 3 turns the joint by c_j tau_j(q): at each pose what a change of
-    // that joint's offset does, times the pose's torque, with c_j known to the sag tolerance at
-    // the largest torque (as the several-placement solve counts it, docs/maths.md section 8).
+    // that joint's offset does, times the pose's torque over the largest (the misses per rad of
+    // sag at the largest torque, as the several-placement solve counts it, docs/maths.md section
+    // 8), drawn with the two sags' second moment.
     const auto bound = gravityTorqueBoundKnm(cell.robot, cell.robot.masses);
+    Eigen::MatrixXd per_sag(r0.size(), kComplianceCount);
     for (int c = 0; c < kComplianceCount; ++c) {
       CalibrationParameters turned = est;
       constexpr double h = 1e-6;  // rad
       turned.delta_rad[c] += h;
-      Eigen::VectorXd column = (misses(cell, poses, turned, readings) - r0) / h;
+      per_sag.col(c) = (misses(cell, poses, turned, readings) - r0) / h;
       for (std::size_t i = 0; i < poses.size(); ++i)
-        column.segment<2>(2 * static_cast<Eigen::Index>(i)) *=
+        per_sag.col(c).segment<2>(2 * static_cast<Eigen::Index>(i)) *=
             gravityTorqueKnm(cell.robot, cell.robot.masses, poses[i].q_deg)[c] / bound[c];
-      g.col(kLinkParameterCount + c) = column * tolerances.sag_deg[c] * kDegToRad;
     }
+    g.rightCols(kComplianceCount) = per_sag * (tolerances.sagRootDeg() * kDegToRad);
   }
   return g;
 }
@@ -785,8 +790,10 @@ SolveReport solve(const CellModel& cell, const std::vector<Pose>& poses,
   report.model_length_mm = options.model.length_mm;
   report.model_angle_deg = options.model.angle_deg;
   report.model_calibrated = options.model.calibrated();
-  if (spread.cols() > kLinkParameterCount)  // counted: a gravity model
+  if (spread.cols() > kLinkParameterCount) {  // counted: a gravity model
     report.model_sag_deg = options.model.sag_deg;
+    report.model_sag_mean_deg = options.model.sag_mean_deg;
+  }
   if (spread.cols() > 0) {
     // A parameter the poses do not determine has no covariance (NaN) and no model part either.
     const Eigen::MatrixXd u =

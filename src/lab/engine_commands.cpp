@@ -79,7 +79,8 @@ void addSolve(CLI::App& app, EngineCommands& commands) {
   cmd->add_option("--sag-tolerance", a.sag_tolerance,
                   "the gravity sag's one-sigma tolerance at the largest torque, deg, of joints 2 "
                   "and 3 (or one for both), counted in every sigma when the compliance is not "
-                  "identified (default: the robot file's model_tolerance.sag_deg)")
+                  "identified, their signs not stated (default: the robot file's "
+                  "model_tolerance.sag_deg with its sag_mean_deg)")
       ->expected(1, 2)
       ->check(CLI::Range(0.0, 1.0));
   cmd->add_option("--save-model", a.save_model,
@@ -175,9 +176,12 @@ int runSolve(const SolveArgs& a) {
   options.max_offset_deg = a.max_offset;
   options.identify_compliance = a.identify_compliance;
   // What the robot file admits about its model (a nominal one's tolerances, a calibrated one's
-  // covariance), the sag's tolerance as given here when it is.
+  // covariance), the sag's tolerance as given here when it is (its sign then not stated).
   options.model = cell.robot.tolerance;
-  if (!a.sag_tolerance.empty()) options.model.sag_deg = sagTolerancesOf(a.sag_tolerance);
+  if (!a.sag_tolerance.empty()) {
+    options.model.sag_deg = sagTolerancesOf(a.sag_tolerance);
+    options.model.sag_mean_deg = {};
+  }
   bool has_readings = !poses.empty() && poses.front().spot.has_value();
   options.use_readings = has_readings && !a.ignore_readings;
   if (options.use_readings) {

@@ -260,8 +260,8 @@ void addPlacementExperiment(CLI::App& experiment, PlacementExperimentArgs& args)
       ->check(CLI::Range(0.0, 10.0));
   cmd->add_option("--sag-tolerance", args.model_sag_deg,
                   "the gravity sag's one-sigma tolerance at the largest torque, deg, of joints 2 "
-                  "and 3 (or one for both), counted when the compliance is not identified "
-                  "(realistic worlds with their sag; default: the robot file's)")
+                  "and 3 (or one for both), counted when the compliance is not identified, their "
+                  "signs not stated (realistic worlds with their sag; default: the robot file's)")
       ->expected(1, 2)
       ->check(CLI::Range(0.0, 1.0));
   cmd->add_flag("--identify-compliance", args.identify_compliance,
@@ -284,6 +284,7 @@ int runPlacementExperiment(const PlacementExperimentArgs& args) {
   if (!args.ideal_world) {
     // What the robot file admits (the shipped IRB 1600's tolerances), the sag's as given.
     options.model = builtinIrb1600().tolerance;
+    if (!args.model_sag_deg.empty() || args.without_sag) options.model.sag_mean_deg = {};
     if (!args.model_sag_deg.empty()) options.model.sag_deg = sagTolerancesOf(args.model_sag_deg);
     if (args.without_sag) options.model.sag_deg = {};
   }
@@ -367,6 +368,7 @@ int runPlacementExperiment(const PlacementExperimentArgs& args) {
                      {"link_scale", args.link_scale},
                      {"identify_compliance", args.identify_compliance},
                      {"sag_tolerance_deg", options.model.sag_deg},
+                     {"sag_mean_deg", options.model.sag_mean_deg},
                      {"placements", args.placements},
                      {"poses_per_placement", args.poses},
                      {"noise_mm", args.noise_mm},
@@ -391,8 +393,11 @@ int runPlacementExperiment(const PlacementExperimentArgs& args) {
     if (args.link_scale != 1.0)
       std::printf("the worlds' link errors %.2f times their realistic size\n", args.link_scale);
     if (anyCounted(options.model.sag_deg))
-      std::printf("gravity sag of joints 2 and 3 counted as tolerances of %.4f and %.4f deg\n",
-                  options.model.sag_deg[0], options.model.sag_deg[1]);
+      std::printf(
+          "gravity sag of joints 2 and 3 counted as tolerances of %.4f and %.4f deg "
+          "(means %.4f and %.4f deg)\n",
+          options.model.sag_deg[0], options.model.sag_deg[1], options.model.sag_mean_deg[0],
+          options.model.sag_mean_deg[1]);
     if (args.identify_compliance) std::printf("compliance of joints 2 and 3 identified\n");
     std::printf("%-22s %8s %8s %10s %14s %12s %14s %12s %12s\n", "session", "usable", "offered",
                 "within 3s", "worst (sigma)", "RMS (deg)", "links ident.", "noise scale",

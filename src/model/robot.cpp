@@ -233,12 +233,10 @@ void parseTolerance(const YAML::Node& root, Robot& robot, Problems& problems) {
         {"angle_deg", m.angle_deg, kMaxAngleToleranceDeg}})
     if (t[key] && !(value >= 0 && value <= bound))
       problems.add(t[key], where + ": '" + key + "' must lie within 0.." + fmt(bound));
-  if (const YAML::Node sag = t["sag_deg"]) {
-    // Joints 2 and 3 in turn; one number is both joints' (a model that states no split).
-    const std::string shape = where +
-                              ": 'sag_deg' must be a number or a list of 2 numbers (joints 2 and "
-                              "3), each within 0.." +
-                              fmt(kMaxAngleToleranceDeg);
+  // Joints 2 and 3 in turn; one number is both joints' (a model that states no split).
+  const auto readSag = [&](const char* key, SagTolerances& out) {
+    const YAML::Node sag = t[key];
+    if (!sag) return;
     try {
       const std::vector<double> given =
           sag.IsSequence() ? sag.as<std::vector<double>>() : std::vector<double>{sag.as<double>()};
@@ -247,11 +245,23 @@ void parseTolerance(const YAML::Node& root, Robot& robot, Problems& problems) {
       });
       if (!within || (sag.IsSequence() && given.size() != kComplianceCount))
         throw YAML::Exception({}, "");
-      m.sag_deg = sagTolerancesOf(given);
+      out = sagTolerancesOf(given);
     } catch (const YAML::Exception&) {
-      problems.add(sag, shape);
+      problems.add(sag, where + ": '" + key +
+                            "' must be a number or a list of 2 numbers (joints 2 and 3), each "
+                            "within 0.." +
+                            fmt(kMaxAngleToleranceDeg));
     }
-  }
+  };
+  readSag("sag_deg", m.sag_deg);
+  readSag("sag_mean_deg", m.sag_mean_deg);
+  // A mean beyond its RMS would be a negative variance; a mean without an RMS counts nothing.
+  if (const YAML::Node mean = t["sag_mean_deg"])
+    if (anyCounted(m.sag_mean_deg) &&
+        !(m.sag_mean_deg[0] <= m.sag_deg[0] && m.sag_mean_deg[1] <= m.sag_deg[1]))
+      problems.add(mean, where +
+                             ": each 'sag_mean_deg' must lie within 0..its 'sag_deg' (a "
+                             "sag's mean cannot exceed its RMS)");
   if (const YAML::Node c = t["link_covariance"]) {
     // A calibrated model's: rows and columns a1, d1, alpha1, a2, ... in mm and deg.
     const std::string shape = where + ": 'link_covariance' must be " +
@@ -300,7 +310,8 @@ void parseTolerance(const YAML::Node& root, Robot& robot, Problems& problems) {
   }
   for (const auto& kv : t) {
     const auto key = keyOf(kv.first);
-    if (key != "length_mm" && key != "angle_deg" && key != "sag_deg" && key != "link_covariance")
+    if (key != "length_mm" && key != "angle_deg" && key != "sag_deg" && key != "sag_mean_deg" &&
+        key != "link_covariance")
       problems.add(kv.first, where + ": unknown key '" + key + "'");
   }
 }
@@ -509,6 +520,9 @@ std::string robotYaml(const Robot& robot, const std::string& comment) {
   if (anyCounted(t.sag_deg))
     y << YAML::Key << "sag_deg" << YAML::Value << YAML::Flow << YAML::BeginSeq
       << exact(t.sag_deg[0]) << exact(t.sag_deg[1]) << YAML::EndSeq;
+  if (anyCounted(t.sag_mean_deg))
+    y << YAML::Key << "sag_mean_deg" << YAML::Value << YAML::Flow << YAML::BeginSeq
+      << exact(t.sag_mean_deg[0]) << exact(t.sag_mean_deg[1]) << YAML::EndSeq;
   if (t.calibrated()) {
     y << YAML::Key << "link_covariance" << YAML::Value << YAML::BeginSeq;
     for (int r = 0; r < kLinkParameterCount; ++r) {
@@ -531,6 +545,14 @@ Eigen::VectorXd ModelTolerances::linkSigmas() const {
   for (int k = 0; k < kLinkParameterCount; ++k)
     sigma[k] = k % 3 == 2 ? angle_deg * kDegToRad : length_mm;  // a, d in mm; alpha in rad
   return sigma;
+}
+
+Eigen::Matrix2d ModelTolerances::sagRootDeg() const {
+  Eigen::Matrix2d moment;
+  moment << sag_deg[0] * sag_deg[0], sag_mean_deg[0] * sag_mean_deg[1],
+      sag_mean_deg[0] * sag_mean_deg[1], sag_deg[1] * sag_deg[1];
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen(moment);
+  return eigen.eigenvectors() * eigen.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();
 }
 
 Robot loadRobot(const std::string& path) {

@@ -70,8 +70,13 @@ std::string toleranceNote(const SessionReport& r) {
                      s.model_length_mm, s.model_angle_deg);
   if (anyCounted(s.model_sag_deg))
     counted += (counted.empty() ? "" : " and ") +
-               format("the gravity sag of joints 2 and 3 (%.3g and %.3g deg)", s.model_sag_deg[0],
-                      s.model_sag_deg[1]);
+               format("the gravity sag of joints 2 and 3 (%.3g and %.3g deg%s)", s.model_sag_deg[0],
+                      s.model_sag_deg[1],
+                      anyCounted(s.model_sag_mean_deg)
+                          ? format(", means %.3g and %.3g deg: both have gravity's sign",
+                                   s.model_sag_mean_deg[0], s.model_sag_mean_deg[1])
+                                .c_str()
+                          : "");
   // A calibration that identified the links leaves them for later ones at one placement.
   const std::string written =
       r.result.model_file.empty()

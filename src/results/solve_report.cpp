@@ -69,6 +69,7 @@ nlohmann::json toJson(const SolveReport& r) {
   j["model_tolerance"] = {{"length_mm", r.model_length_mm}, {"angle_deg", r.model_angle_deg}};
   if (anyCounted(r.model_sag_deg))
     j["model_tolerance"]["sag_deg"] = r.model_sag_deg;  // joints 2 and 3
+  if (anyCounted(r.model_sag_mean_deg)) j["model_tolerance"]["sag_mean_deg"] = r.model_sag_mean_deg;
   if (r.model_calibrated) j["model_tolerance"]["calibrated"] = true;
   nlohmann::json params = nlohmann::json::object();
   for (const auto& p : r.parameters) {
@@ -172,6 +173,8 @@ SolveReport solveReportFromJson(const nlohmann::json& json, const std::string& w
       r.model_sag_deg =
           sagTolerancesOf(m.at("sag_deg").is_number() ? std::vector<double>{m.number("sag_deg")}
                                                       : m.numbers("sag_deg", kComplianceCount));
+    if (m.has("sag_mean_deg"))
+      r.model_sag_mean_deg = sagTolerancesOf(m.numbers("sag_mean_deg", kComplianceCount));
     r.model_calibrated = m.has("calibrated") && m.boolean("calibrated");
   }
   const nlohmann::json& params = j.at("parameters");

@@ -2,7 +2,11 @@
 // errors beside the offsets, and the plan that predicts it.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
+#include <cmath>
 #include <random>
+#include <string>
 
 #include "stored_plan.h"
 #include "zerocal/calib/experiment.h"
@@ -253,6 +257,52 @@ TEST(SeveralPlacements, IdentifyTheComplianceOfJoints2And3OrCountItsSag) {
   }
 }
 
+// The sags of joints 2 and 3 both have gravity's sign: given their means, they are counted as
+// drawn together (second moment sag_deg^2 on the diagonal, the means' product off it). With each
+// mean at its RMS the two are one draw, and each offset's sag variance is the square of the sum
+// or the difference of the two sags' separate sigmas; without means it is the sum of their
+// variances. At one placement and at three.
+TEST(SeveralPlacements, TheSagsOfJoints2And3AreCountedTogetherWhenTheirMeansAreGiven) {
+  const Table2Scenario sc = table2Scenario();
+  const std::vector<Pose>& planned = threePlacementPlan();
+  const std::vector<Pose> first(planned.begin(), planned.begin() + 10);
+  for (const std::vector<Pose>* plan : {&first, &planned}) {
+    const auto recorded = record(sc.cell, sc.truth, centresOf(sc), *plan);
+    const auto modelVariance = [&](SagTolerances sag, SagTolerances mean) {
+      SolveOptions options;
+      options.noise_mm = 0.02;
+      options.model.sag_deg = sag;
+      options.model.sag_mean_deg = mean;
+      const SolveReport r = solve(sc.cell, recorded, options);
+      EXPECT_TRUE(r.converged) << r.message;
+      EXPECT_EQ(r.model_sag_mean_deg, mean);
+      std::array<double, 2> v{};
+      for (int k = 0; k < 2; ++k) v[k] = std::pow(r.parameters[k].model_sigma, 2);
+      return v;
+    };
+    const auto joint2 = modelVariance({0.007, 0}, {});
+    const auto joint3 = modelVariance({0, 0.0042}, {});
+    const auto apart = modelVariance({0.007, 0.0042}, {});
+    const auto together = modelVariance({0.007, 0.0042}, {0.007, 0.0042});
+    const auto shipped = modelVariance({0.007, 0.0042}, {0.0065, 0.004});
+    for (int k = 0; k < 2; ++k) {
+      const std::string what =
+          std::to_string(plan->size()) + " poses, delta" + std::to_string(k + 2);
+      ASSERT_GT(joint2[k], 0) << what;
+      ASSERT_GT(joint3[k], 0) << what;
+      EXPECT_NEAR(apart[k], joint2[k] + joint3[k], 1e-6 * apart[k]) << what;
+      const double sum = std::pow(std::sqrt(joint2[k]) + std::sqrt(joint3[k]), 2);
+      const double difference = std::pow(std::sqrt(joint2[k]) - std::sqrt(joint3[k]), 2);
+      EXPECT_LT(std::min(std::abs(together[k] - sum), std::abs(together[k] - difference)),
+                1e-6 * apart[k])
+          << what;
+      // The shipped means lie between: 0.88 of the way from apart to together.
+      const double share = (shipped[k] - apart[k]) / (together[k] - apart[k]);
+      EXPECT_NEAR(share, 0.0065 * 0.004 / (0.007 * 0.0042), 1e-6) << what;
+    }
+  }
+}
+
 // One pose recorded with a joint 0.05 deg off (read before the arm settled): named, left out,
 // and the result rests on the others.
 TEST(SeveralPlacements, NameAndLeaveOutAPoseThatDoesNotFit) {
@@ -393,8 +443,9 @@ TEST(SeveralPlacements, ThePlanPredictsWhatTheSolveCountsBesideTheNoise) {
   options.model.length_mm = 0.1;
   options.model.angle_deg = 0.01;
   options.model.sag_deg = {0.007, 0.0042};
+  options.model.sag_mean_deg = {0.0065, 0.004};
   options.required_accuracy_deg = 0.5;
-  const ModelTolerances tolerances{0.1, 0.01, {0.007, 0.0042}, {}};
+  const ModelTolerances tolerances = options.model;
   const std::vector<Pose> first(planned.begin(), planned.begin() + 10);
   CalibrationParameters nominal;  // as zerocald predicts: the nominal cell at the first centre
   nominal.target_mm = sc.truth.target_mm;

@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
+#include <vector>
 
 #include "zerocal/error.h"
 #include "zerocal/model/builtin.h"
@@ -248,32 +250,50 @@ TEST(RobotFile, IdentifiedKinematicsAndMassesAreValidatedAllAtOnce) {
 }
 
 // Joint 3 carries the forearm only and sags less: each joint's sag tolerance is its own. One
-// number states both (a model that knows no split); a calibrated model writes both back.
-TEST(RobotFile, EachOfJoints2And3HasItsOwnSagTolerance) {
+// number states both (a model that knows no split); a calibrated model writes both back. A sag has
+// gravity's sign: the shipped model states each one's mean beside its RMS, written back as read;
+// a mean beyond its RMS (a negative variance) or of the wrong shape is refused.
+TEST(RobotFile, EachOfJoints2And3HasItsOwnSagToleranceAndMean) {
   const Robot shipped = builtinIrb1600();
   EXPECT_EQ(shipped.tolerance.sag_deg[0], 0.007);
   EXPECT_EQ(shipped.tolerance.sag_deg[1], 0.0042);
+  EXPECT_EQ(shipped.tolerance.sag_mean_deg[0], 0.0065);
+  EXPECT_EQ(shipped.tolerance.sag_mean_deg[1], 0.004);
   const Robot back = parseRobot(robotYaml(shipped, "written"), "written.yaml");
   EXPECT_EQ(back.tolerance.sag_deg, shipped.tolerance.sag_deg);
+  EXPECT_EQ(back.tolerance.sag_mean_deg, shipped.tolerance.sag_mean_deg);
 
   const std::string yaml = builtinIrb1600Yaml();
-  const auto with = [&](const std::string& sag) {
+  const std::string rms = "sag_deg: [0.007, 0.0042]", mean = "sag_mean_deg: [0.0065, 0.004]";
+  const auto replaced = [&](const std::string& from, const std::string& to) {
     std::string y = yaml;
-    y.replace(y.find("sag_deg: [0.007, 0.0042]"), 24, "sag_deg: " + sag);
+    y.replace(y.find(from), from.size(), to);
     return y;
+  };
+  // The sag's RMS alone, no mean.
+  const auto with = [&](const std::string& sag) {
+    return replaced(rms + "\n  " + mean, "sag_deg: " + sag);
   };
   const Robot both = parseRobot(with("0.005"), "both.yaml");
   EXPECT_EQ(both.tolerance.sag_deg[0], 0.005);
   EXPECT_EQ(both.tolerance.sag_deg[1], 0.005);
+  EXPECT_FALSE(anyCounted(both.tolerance.sag_mean_deg));
+  std::vector<std::pair<std::string, std::string>> refused;  // the file, the message
   for (const char* bad :
-       {"[0.007]", "[0.007, 0.004, 0.001]", "[0.007, -0.001]", "[0.007, x]", "{j2: 0.007}", "2"}) {
+       {"[0.007]", "[0.007, 0.004, 0.001]", "[0.007, -0.001]", "[0.007, x]", "{j2: 0.007}", "2"})
+    refused.push_back({with(bad), "'sag_deg' must be a number or a list of 2 numbers"});
+  for (const char* bad : {"[0.0075, 0.004]", "0.005"})  // joint 2's RMS 0.007, joint 3's 0.0042
+    refused.push_back(
+        {replaced(mean, std::string("sag_mean_deg: ") + bad), "must lie within 0..its 'sag_deg'"});
+  for (const char* bad : {"[0.0065]", "[0.0065, -0.001]"})
+    refused.push_back({replaced(mean, std::string("sag_mean_deg: ") + bad),
+                       "'sag_mean_deg' must be a number or a list of 2 numbers"});
+  for (const auto& [file, message] : refused) {
     try {
-      parseRobot(with(bad), "bad.yaml");
-      ADD_FAILURE() << bad << " was accepted";
+      parseRobot(file, "bad.yaml");
+      ADD_FAILURE() << message << ": accepted";
     } catch (const ConfigError& e) {
-      EXPECT_NE(std::string(e.what()).find("'sag_deg' must be a number or a list of 2 numbers"),
-                std::string::npos)
-          << bad << ": " << e.what();
+      EXPECT_NE(std::string(e.what()).find(message), std::string::npos) << e.what();
     }
   }
 }

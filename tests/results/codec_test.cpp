@@ -67,6 +67,11 @@ TEST(ResultsCodec, TheSagTolerancesCountedComeBackPerJoint) {
   EXPECT_EQ(old[0], 0.007);
   EXPECT_EQ(old[1], 0.007);
   EXPECT_FALSE(toJson(aResult())["model_tolerance"].contains("sag_deg"));  // none counted
+  EXPECT_FALSE(j["model_tolerance"].contains("sag_mean_deg"));             // counted as independent
+  r.report.model_sag_mean_deg = {0.0065, 0.004};
+  j = toJson(r);
+  EXPECT_EQ(j["model_tolerance"]["sag_mean_deg"], json::array({0.0065, 0.004}));
+  EXPECT_EQ(resultFileFromJson(j).report.model_sag_mean_deg, r.report.model_sag_mean_deg);
 }
 
 TEST(ResultsCodec, AResultFromBeforeVerdictsSaysSo) {

@@ -71,6 +71,10 @@ struct ModelTolerances {
   double length_mm = 0;
   double angle_deg = 0;
   SagTolerances sag_deg{};
+  // The mean of each sag (deg at the largest torque; 0..sag_deg): a compliance is positive, so
+  // a sag has gravity's sign, and two sags with means far from 0 are drawn together. 0 and 0:
+  // the sags' signs are not stated, and they are counted as independent.
+  SagTolerances sag_mean_deg{};
   // kLinkParameterCount square (mm^2, mm rad, rad^2), or empty: a nominal model.
   Eigen::MatrixXd link_covariance;
 
@@ -80,6 +84,10 @@ struct ModelTolerances {
   // Each link parameter's one-sigma error (mm, rad): the covariance's diagonal, or the
   // tolerances.
   Eigen::VectorXd linkSigmas() const;
+  // A square root R of the two sags' second moment (deg): R R^T = E[s s^T], whose diagonal is
+  // sag_deg squared and whose off-diagonal is the product of the means (their spreads about the
+  // means are independent). Its columns are independent unit draws of both sags at once.
+  Eigen::Matrix2d sagRootDeg() const;
 };
 
 struct Robot {

@@ -77,6 +77,8 @@ struct SolveReport {
   Eigen::MatrixXd link_covariance;
   // The sag tolerances of joints 2 and 3 counted (SolveOptions; 0: not counted).
   SagTolerances model_sag_deg{};
+  // Their means (ModelTolerances::sag_mean_deg; 0 and 0: counted as independent).
+  SagTolerances model_sag_mean_deg{};
 
   // The 8 of unknownName order; with several placements then the 18 link errors
   // (linkParamName order), each identified or named in not_identifiable with the reason.

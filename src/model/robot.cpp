@@ -255,7 +255,7 @@ void parseTolerance(const YAML::Node& root, Robot& robot, Problems& problems) {
   };
   readSag("sag_deg", m.sag_deg);
   readSag("sag_mean_deg", m.sag_mean_deg);
-  // A mean beyond its RMS would be a negative variance; a mean without an RMS counts nothing.
+  // A mean beyond its RMS would be a negative variance (a mean without an RMS is one).
   if (const YAML::Node mean = t["sag_mean_deg"])
     if (anyCounted(m.sag_mean_deg) &&
         !(m.sag_mean_deg[0] <= m.sag_deg[0] && m.sag_mean_deg[1] <= m.sag_deg[1]))

@@ -378,6 +378,7 @@ int runCellExperiment(const CellExperimentArgs& args) {
       if (!usable) ++refused_results;
       if (result.report.noise_scale > SolveOptions{}.max_noise_scale) ++noise_gated;
       world["usable"] = usable;
+      if (!usable) world["not_usable_because"] = result.report.verdict.reasons;
       world["noise_scale"] = result.report.noise_scale;
       for (int k = 0; k < kOffsetCount; ++k) {
         const std::string name = unknownName(k);

@@ -246,7 +246,7 @@ TEST(Summary, SeveralPlacementsShowEachCentreAndTheLinkErrorsApart) {
   EXPECT_TRUE(contains(text, "unknowns identified")) << text;
   EXPECT_FALSE(contains(text, "of 11,"));
   EXPECT_TRUE(contains(text, "gravity sag of joints 2 and 3 (0.007 and 0.0042 deg)"));
-  s.model_sag_mean_deg = {0.0065, 0.004};  // drawn together: the text says why
+  s.model_sag_mean_deg = {0.0065, 0.004};    // drawn together: the text says why
   const std::string drawn = summaryText(r);  // wrapped at 100 columns
   EXPECT_TRUE(contains(drawn, "(0.007 and 0.0042 deg, means 0.0065")) << drawn;
   EXPECT_TRUE(contains(drawn, "deg: both have gravity's sign)")) << drawn;
